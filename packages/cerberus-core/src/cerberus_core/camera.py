@@ -1,0 +1,272 @@
+"""Perspective pinhole camera: look-at placement, projection and unprojection.
+
+Conventions (used everywhere in the toolkit):
+
+* World frame: right-handed, +Y up. At azimuth 0 and elevation 0 the camera sits on the +Z axis
+  and looks at the origin; azimuth turns the camera towards +X, elevation lifts it towards +Y.
+* Camera frame (OpenGL style): +X right, +Y up, the camera looks along -Z. A point in front of the
+  camera has ``z_cam < 0``; its *depth* is ``d = -z_cam > 0`` (world units).
+* Clip space: ``x_clip = f / aspect * x_cam``, ``y_clip = f * y_cam``, ``w_clip = d``, with
+  ``f = 1 / tan(fov_y / 2)``; ``z_clip`` follows OpenGL with the camera's near and far planes. NDC is
+  ``clip[..., :2] / w`` in ``[-1, 1]`` with +y up.
+* Pixels: ``u`` (column) grows right, ``v`` (row) grows down, pixel ``(row i, col j)`` has its centre
+  at ``(u, v) = (j + 0.5, i + 0.5)``. The image spans ``u in [0, W]``, ``v in [0, H]``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+Tensor = torch.Tensor
+
+
+def _as_batch(x: float | Tensor, batch: int | None = None, *, dtype=torch.float32, device=None) -> Tensor:
+    t = torch.as_tensor(x, dtype=dtype, device=device)
+    if t.ndim == 0:
+        t = t.reshape(1)
+    if batch is not None and t.shape[0] == 1 and batch > 1:
+        t = t.expand(batch)
+    return t
+
+
+def look_at_rotation(eye: Tensor, target: Tensor, up: Tensor | None = None) -> Tensor:
+    """World→camera rotation for a camera at ``eye`` looking at ``target``.
+
+    Args:
+        eye: ``(B, 3)`` camera centres (world units).
+        target: ``(B, 3)`` points looked at.
+        up: ``(B, 3)`` or ``(3,)`` world up direction (default +Y).
+
+    Returns:
+        ``(B, 3, 3)`` rotation ``R`` with rows the camera's x, y, z axes in world coordinates, so
+        ``x_cam = R @ (x_world - eye)``.
+    """
+    if up is None:
+        up = torch.tensor([0.0, 1.0, 0.0], dtype=eye.dtype, device=eye.device)
+    up = up.expand_as(eye)
+    z_axis = torch.nn.functional.normalize(eye - target, dim=-1)  # camera looks along -z
+    x_axis = torch.linalg.cross(up, z_axis, dim=-1)
+    # Looking straight up or down: fall back to +Z as the up hint.
+    degenerate = x_axis.norm(dim=-1, keepdim=True) < 1e-6
+    alt = torch.tensor([0.0, 0.0, 1.0], dtype=eye.dtype, device=eye.device).expand_as(eye)
+    x_axis = torch.where(degenerate, torch.linalg.cross(alt, z_axis, dim=-1), x_axis)
+    x_axis = torch.nn.functional.normalize(x_axis, dim=-1)
+    y_axis = torch.linalg.cross(z_axis, x_axis, dim=-1)
+    return torch.stack([x_axis, y_axis, z_axis], dim=-2)
+
+
+def spherical_to_eye(azimuth_deg: Tensor, elevation_deg: Tensor, distance: Tensor) -> Tensor:
+    """Camera centre on a sphere around the origin.
+
+    Args:
+        azimuth_deg, elevation_deg, distance: ``(B,)`` degrees, degrees, world units.
+
+    Returns:
+        ``(B, 3)`` eye positions ``d * (cos(el) sin(az), sin(el), cos(el) cos(az))``.
+    """
+    az = torch.deg2rad(azimuth_deg)
+    el = torch.deg2rad(elevation_deg)
+    return torch.stack(
+        [distance * torch.cos(el) * torch.sin(az), distance * torch.sin(el), distance * torch.cos(el) * torch.cos(az)],
+        dim=-1,
+    )
+
+
+@dataclass
+class Camera:
+    """A batch of perspective pinhole cameras sharing one image size.
+
+    Attributes:
+        rotation: ``(B, 3, 3)`` world→camera rotation ``R``.
+        translation: ``(B, 3)`` world→camera translation ``t``: ``x_cam = R x_world + t``.
+        fov_y_deg: ``(B,)`` vertical field of view in degrees.
+        height, width: image size in pixels.
+        near, far: clipping distances (world units, measured as depth ``d``). Triangles with a vertex
+            nearer than ``near`` are not drawn.
+    """
+
+    rotation: Tensor
+    translation: Tensor
+    fov_y_deg: Tensor
+    height: int
+    width: int
+    near: float = 0.05
+    far: float = 100.0
+
+    def __post_init__(self) -> None:
+        if self.rotation.ndim != 3 or self.rotation.shape[-2:] != (3, 3):
+            raise ValueError(f"Camera.rotation must be (B, 3, 3), got {tuple(self.rotation.shape)}")
+        b = self.rotation.shape[0]
+        if self.translation.shape != (b, 3):
+            raise ValueError(f"Camera.translation must be ({b}, 3), got {tuple(self.translation.shape)}")
+        self.fov_y_deg = _as_batch(self.fov_y_deg, b, dtype=self.rotation.dtype, device=self.rotation.device)
+        if self.fov_y_deg.shape != (b,):
+            raise ValueError(f"Camera.fov_y_deg must be a scalar or ({b},), got {tuple(self.fov_y_deg.shape)}")
+        if not bool(((self.fov_y_deg > 0) & (self.fov_y_deg < 180)).all()):
+            raise ValueError("Camera.fov_y_deg must lie strictly between 0 and 180 degrees")
+        if self.height <= 0 or self.width <= 0:
+            raise ValueError(f"Camera image size must be positive, got {self.height}x{self.width}")
+        if not 0 < self.near < self.far:
+            raise ValueError(f"Camera needs 0 < near < far, got near={self.near}, far={self.far}")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def look_at(
+        cls,
+        azimuth_deg: float | Tensor,
+        elevation_deg: float | Tensor,
+        distance: float | Tensor,
+        *,
+        fov_y_deg: float | Tensor = 30.0,
+        image_size: int | tuple[int, int] = 64,
+        target: Tensor | None = None,
+        near: float = 0.05,
+        far: float = 100.0,
+        device: torch.device | str | None = None,
+    ) -> "Camera":
+        """Cameras on a sphere around ``target`` (default the origin), looking at it, +Y up.
+
+        Scalars broadcast against tensors; the batch size is the largest of the inputs.
+        """
+        tensors = [torch.as_tensor(x, dtype=torch.float32, device=device).reshape(-1)
+                   for x in (azimuth_deg, elevation_deg, distance)]
+        b = max(t.shape[0] for t in tensors)
+        az, el, dist = (t.expand(b) if t.shape[0] == 1 else t for t in tensors)
+        if not all(t.shape[0] == b for t in (az, el, dist)):
+            raise ValueError("look_at: azimuth, elevation and distance must be scalars or share one batch size")
+        if bool((dist <= 0).any()):
+            raise ValueError("look_at: distance must be positive")
+        tgt = torch.zeros(b, 3, device=az.device) if target is None else target.to(az).reshape(-1, 3).expand(b, 3)
+        eye = spherical_to_eye(az, el, dist) + tgt
+        rot = look_at_rotation(eye, tgt)
+        trans = -(rot @ eye.unsqueeze(-1)).squeeze(-1)
+        h, w = (image_size, image_size) if isinstance(image_size, int) else image_size
+        return cls(rot, trans, fov_y_deg, int(h), int(w), near, far)
+
+    @property
+    def batch_size(self) -> int:
+        return self.rotation.shape[0]
+
+    @property
+    def device(self) -> torch.device:
+        return self.rotation.device
+
+    @property
+    def center(self) -> Tensor:
+        """``(B, 3)`` camera centres in world coordinates."""
+        return -(self.rotation.transpose(-1, -2) @ self.translation.unsqueeze(-1)).squeeze(-1)
+
+    @property
+    def focal(self) -> Tensor:
+        """``(B,)`` normalised focal length ``f = 1 / tan(fov_y / 2)``."""
+        return 1.0 / torch.tan(torch.deg2rad(self.fov_y_deg) / 2)
+
+    def to(self, device: torch.device | str) -> "Camera":
+        return Camera(self.rotation.to(device), self.translation.to(device), self.fov_y_deg.to(device),
+                      self.height, self.width, self.near, self.far)
+
+    def index(self, idx: Tensor | slice | list[int]) -> "Camera":
+        """A sub-batch of cameras."""
+        return Camera(self.rotation[idx], self.translation[idx], self.fov_y_deg[idx],
+                      self.height, self.width, self.near, self.far)
+
+    @staticmethod
+    def cat(cameras: list["Camera"]) -> "Camera":
+        """Concatenate camera batches that share image size and clipping planes."""
+        first = cameras[0]
+        for c in cameras[1:]:
+            if (c.height, c.width, c.near, c.far) != (first.height, first.width, first.near, first.far):
+                raise ValueError("Camera.cat: cameras must share image size and near/far planes")
+        return Camera(torch.cat([c.rotation for c in cameras]), torch.cat([c.translation for c in cameras]),
+                      torch.cat([c.fov_y_deg for c in cameras]), first.height, first.width, first.near, first.far)
+
+    # ------------------------------------------------------------------ transforms
+    def world_to_camera(self, points: Tensor) -> Tensor:
+        """``(B, N, 3)`` world points → ``(B, N, 3)`` camera-frame points."""
+        return points @ self.rotation.transpose(-1, -2) + self.translation.unsqueeze(-2)
+
+    def camera_to_world(self, points: Tensor) -> Tensor:
+        """``(B, N, 3)`` camera-frame points → ``(B, N, 3)`` world points."""
+        return (points - self.translation.unsqueeze(-2)) @ self.rotation
+
+    def rotation_to_world(self, rot_cam: Tensor) -> Tensor:
+        """Express rotations given in the camera frame in the world frame.
+
+        Args:
+            rot_cam: ``(B, ..., 3, 3)`` rotations acting on camera-frame vectors.
+        Returns:
+            ``(B, ..., 3, 3)`` ``R^T rot_cam`` (maps object-local vectors to world vectors).
+        """
+        r = self.rotation.reshape(self.batch_size, *([1] * (rot_cam.ndim - 3)), 3, 3)
+        return r.transpose(-1, -2) @ rot_cam
+
+    def camera_to_clip(self, points: Tensor) -> Tensor:
+        """``(B, N, 3)`` camera-frame points → ``(B, N, 4)`` homogeneous clip coordinates."""
+        f = self.focal.reshape(-1, 1)
+        aspect = self.width / self.height
+        x, y, z = points.unbind(-1)
+        n, fa = self.near, self.far
+        z_clip = (fa + n) / (n - fa) * z + 2 * fa * n / (n - fa)
+        return torch.stack([x * f / aspect, y * f, z_clip, -z], dim=-1)
+
+    def world_to_clip(self, points: Tensor) -> Tensor:
+        """``(B, N, 3)`` world points → ``(B, N, 4)`` clip coordinates."""
+        return self.camera_to_clip(self.world_to_camera(points))
+
+    def ndc_to_pixel(self, ndc: Tensor) -> Tensor:
+        """``(..., 2)`` NDC (x right, y up, in [-1, 1]) → ``(..., 2)`` pixel ``(u, v)``."""
+        u = (ndc[..., 0] + 1) * 0.5 * self.width
+        v = (1 - ndc[..., 1]) * 0.5 * self.height
+        return torch.stack([u, v], dim=-1)
+
+    def pixel_to_ndc(self, uv: Tensor) -> Tensor:
+        """``(..., 2)`` pixel ``(u, v)`` → ``(..., 2)`` NDC."""
+        x = uv[..., 0] / self.width * 2 - 1
+        y = 1 - uv[..., 1] / self.height * 2
+        return torch.stack([x, y], dim=-1)
+
+    def project(self, points: Tensor) -> tuple[Tensor, Tensor]:
+        """World points to pixels.
+
+        Args:
+            points: ``(B, N, 3)`` world coordinates.
+        Returns:
+            ``uv`` ``(B, N, 2)`` pixel coordinates and ``depth`` ``(B, N)`` (world units, > 0 in front).
+        """
+        clip = self.world_to_clip(points)
+        w = clip[..., 3]
+        ndc = clip[..., :2] / w.unsqueeze(-1)
+        return self.ndc_to_pixel(ndc), w
+
+    def unproject(self, uv: Tensor, depth: Tensor, *, to_world: bool = True) -> Tensor:
+        """Pixels plus depth back to 3D points: the inverse of :meth:`project`.
+
+        Args:
+            uv: ``(B, N, 2)`` pixel coordinates (continuous; centres at ``j + 0.5``).
+            depth: ``(B, N)`` depth ``d = -z_cam`` (world units).
+            to_world: return world coordinates (default) or camera-frame coordinates.
+        Returns:
+            ``(B, N, 3)`` points.
+        """
+        ndc = self.pixel_to_ndc(uv)
+        f = self.focal.reshape(-1, 1)
+        aspect = self.width / self.height
+        x_cam = ndc[..., 0] * depth * aspect / f
+        y_cam = ndc[..., 1] * depth / f
+        cam = torch.stack([x_cam, y_cam, -depth], dim=-1)
+        return self.camera_to_world(cam) if to_world else cam
+
+    def view_direction(self) -> Tensor:
+        """``(B, 3)`` unit vectors from the origin of the world towards each camera centre, i.e. the
+        direction *towards* a light that follows the camera (world coordinates)."""
+        # The camera's +z axis (pointing back towards the viewer) in world coordinates.
+        return self.rotation[:, 2, :]
+
+
+def default_fov_for(distance: float, extent: float = 1.0, margin: float = 1.05) -> float:
+    """Vertical field of view (degrees) at which a cube of side ``extent`` centred at the origin,
+    seen from ``distance``, just fits the frame (with ``margin``). Useful for scene set-ups."""
+    half = 0.5 * extent * math.sqrt(3) * margin
+    return math.degrees(2 * math.asin(min(half / distance, 0.999)))

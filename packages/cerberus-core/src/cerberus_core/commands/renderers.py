@@ -1,0 +1,37 @@
+"""``cerberus renderers``: list discovered renderer backends and metrics with package versions."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, PluginError, plugin_table
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("renderers", help="list installed renderer backends (and metrics) with their versions",
+                       description="List the renderer backends found through the 'cerberus.renderers' entry-point "
+                       "group, and the metrics found through 'cerberus.metrics', with package, version and status. "
+                       "A backend that fails to import is listed with its error; the others keep working.")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    result = {}
+    status = 0
+    for title, group in (("renderers", RENDERER_GROUP), ("metrics", METRIC_GROUP)):
+        try:
+            result[title] = plugin_table(group)
+        except PluginError as exc:
+            result[title] = [{"name": "?", "package": "?", "version": "?", "target": "?", "status": f"error: {exc}"}]
+            status = 1
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return status
+    for title, rows in result.items():
+        print(f"{title}:")
+        if not rows:
+            print("  (none installed)")
+        for r in rows:
+            print(f"  {r['name']:<12} {r['package']:<24} {r['version']:<10} {r['status']}")
+    return status

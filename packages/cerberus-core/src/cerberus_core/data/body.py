@@ -1,0 +1,88 @@
+"""The posed-body record that every body source (human, animal, mesh folder) produces.
+
+A body source turns (subject, pose) into a :class:`PosedBody`: a watertight-ish triangle mesh in the
+dataset's world frame plus per-vertex ground-truth part labels. World frame conventions (shared with
+:mod:`cerberus_core.camera`): right-handed, +Y up, the body faces +Z at azimuth 0, units are
+"normalised units" in which every ground truth lies inside ``[-0.5, 0.5]^3`` (the voxel-IoU
+convention of Kato et al.).
+
+Normalisation rule (one rule for all sources, see :func:`normalise_subject`): all poses of one
+subject share one scale factor, chosen so that the largest bounding-box extent over the subject's
+poses is ``FILL`` (0.9); each pose is then centred on its own bounding-box centre. A shared scale
+keeps part shapes identical across poses, which pose consistency relies on.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+FILL: float = 0.9
+"""Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""
+
+
+@dataclass
+class PosedBody:
+    """One body in one pose.
+
+    Attributes:
+        vertices: ``(V, 3)`` float32, world coordinates in normalised units.
+        faces: ``(F, 3)`` int64 vertex indices, counter-clockwise seen from outside.
+        vertex_parts: ``(V,)`` int16 ground-truth semantic part index per vertex (evaluation only,
+            never given to training).
+        part_names: names of the semantic parts, ``part_names[vertex_parts[i]]``.
+        subject: subject (or species) identifier.
+        pose_id: integer pose identifier, unique within the subject.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    vertex_parts: np.ndarray
+    part_names: list[str]
+    subject: str
+    pose_id: int
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        v = np.asarray(self.vertices)
+        f = np.asarray(self.faces)
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise ValueError(f"PosedBody.vertices must be (V, 3), got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise ValueError(f"PosedBody.faces must be (F, 3), got {f.shape}")
+        if not np.isfinite(v).all():
+            raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: vertices contain NaN or inf")
+        if f.size and (f.min() < 0 or f.max() >= len(v)):
+            raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: faces index outside 0..{len(v) - 1}")
+        if np.asarray(self.vertex_parts).shape != (len(v),):
+            raise ValueError("PosedBody.vertex_parts must have one label per vertex")
+        self.vertices = v.astype(np.float32, copy=False)
+        self.faces = f.astype(np.int64, copy=False)
+        self.vertex_parts = np.asarray(self.vertex_parts).astype(np.int16, copy=False)
+
+
+def normalise_subject(poses: Sequence[np.ndarray], fill: float = FILL) -> tuple[float, list[np.ndarray]]:
+    """Scale all poses of one subject by one factor and centre each pose.
+
+    Args:
+        poses: vertex arrays ``(V_i, 3)`` of one subject in any consistent unit (e.g. metres).
+        fill: the largest bounding-box extent over all poses after scaling.
+
+    Returns:
+        ``(scale, normalised)`` where ``normalised[i] = (poses[i] - centre_i) * scale`` and
+        ``centre_i`` is the bounding-box centre of pose ``i``. Every output lies in
+        ``[-fill/2, fill/2]^3``.
+    """
+    if len(poses) == 0:
+        raise ValueError("normalise_subject needs at least one pose")
+    extents = [float((p.max(0) - p.min(0)).max()) for p in poses]
+    largest = max(extents)
+    if not np.isfinite(largest) or largest <= 0:
+        raise ValueError(f"normalise_subject: degenerate subject (largest extent {largest})")
+    scale = fill / largest
+    out = []
+    for p in poses:
+        centre = 0.5 * (p.max(0) + p.min(0))
+        out.append(((p - centre) * scale).astype(np.float32))
+    return scale, out

@@ -1,0 +1,172 @@
+"""Entry-point discovery of renderer backends and metrics.
+
+Backends register under the ``cerberus.renderers`` group, metrics under ``cerberus.metrics``, in the
+``[project.entry-points]`` table of their package. Discovery uses the ``entrypoints`` package; core
+never imports a backend or a metric package by name.
+
+Failure modes are explicit:
+
+* an unknown name → :class:`UnknownPluginError` naming the known ones and the package to install;
+* a backend whose import fails → reported with its distribution and the error
+  (:func:`plugin_table`), while the others keep working;
+* one name registered by two distributions → :class:`DuplicatePluginError` naming both.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import entrypoints
+
+RENDERER_GROUP = "cerberus.renderers"
+METRIC_GROUP = "cerberus.metrics"
+
+#: Where the toolkit's own plugins live, for the "pip install ..." hint.
+KNOWN_PACKAGES: dict[str, dict[str, str]] = {
+    RENDERER_GROUP: {"torch": "cerberus-render-torch", "warp": "cerberus-render-warp"},
+    METRIC_GROUP: {"voxel_iou": "cerberus-metrics", "chamfer_l2": "cerberus-metrics", "fscore": "cerberus-metrics"},
+}
+
+
+class PluginError(RuntimeError):
+    """Base class of plugin discovery errors."""
+
+
+class UnknownPluginError(PluginError, KeyError):
+    """No plugin of that name is installed."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0])
+
+
+class DuplicatePluginError(PluginError):
+    """Two installed distributions register the same plugin name."""
+
+
+class PluginLoadError(PluginError):
+    """A plugin is registered but importing it failed."""
+
+
+@dataclass
+class PluginInfo:
+    """One discovered entry point.
+
+    Attributes:
+        name: the plugin name (``torch``, ``warp``, ``voxel_iou`` ...).
+        group: the entry-point group.
+        target: ``module:object`` the entry point refers to.
+        distribution: the installed distribution that registers it.
+        version: that distribution's version.
+    """
+
+    name: str
+    group: str
+    target: str
+    distribution: str
+    version: str
+    _entry_point: Any = None
+
+    def load(self) -> Any:
+        """Import and return the registered object; :class:`PluginLoadError` if the import fails."""
+        try:
+            return self._entry_point.load()
+        except Exception as exc:  # noqa: BLE001 - any import-time failure is reported the same way
+            raise PluginLoadError(
+                f"{self.group} plugin '{self.name}' from {self.distribution} {self.version} ({self.target}) failed to load: "
+                f"{type(exc).__name__}: {exc}. Reinstall it (pip install --force-reinstall {self.distribution}) "
+                "or uninstall it to silence this."
+            ) from exc
+
+
+def discover(group: str, path: list[str] | None = None) -> dict[str, PluginInfo]:
+    """All plugins of ``group`` on ``path`` (default ``sys.path``), by name.
+
+    Raises:
+        DuplicatePluginError: if two different distributions register one name.
+    """
+    found: dict[str, PluginInfo] = {}
+    for ep in entrypoints.get_group_all(group, path=path):
+        dist = (getattr(ep.distro, "name", None) or "<unknown distribution>").replace("_", "-")
+        version = getattr(ep.distro, "version", None) or "?"
+        target = f"{ep.module_name}:{ep.object_name}" if ep.object_name else ep.module_name
+        info = PluginInfo(ep.name, group, target, dist, version, ep)
+        prev = found.get(ep.name)
+        if prev is not None:
+            if _same_dist(prev.distribution, dist):
+                continue  # the same distribution seen twice on sys.path
+            raise DuplicatePluginError(
+                f"{group} plugin name '{ep.name}' is registered by two packages: "
+                f"{prev.distribution} {prev.version} ({prev.target}) and {dist} {version} ({target}). "
+                f"Uninstall one of them (pip uninstall {dist})."
+            )
+        found[ep.name] = info
+    return found
+
+
+def _same_dist(a: str, b: str) -> bool:
+    norm = lambda s: s.lower().replace("_", "-")  # noqa: E731
+    return norm(a) == norm(b)
+
+
+def _install_hint(group: str, name: str) -> str:
+    pkg = KNOWN_PACKAGES.get(group, {}).get(name)
+    if pkg:
+        return f"install it with `pip install {pkg}`"
+    return "install the package that provides it"
+
+
+def get_plugin(group: str, name: str, path: list[str] | None = None) -> Any:
+    """Load the plugin ``name`` of ``group``.
+
+    Raises:
+        UnknownPluginError: naming the installed plugins and the package to install.
+        PluginLoadError: if it is installed but fails to import.
+    """
+    plugins = discover(group, path)
+    if name not in plugins:
+        known = ", ".join(sorted(plugins)) or "none"
+        kind = "renderer" if group == RENDERER_GROUP else "plugin"
+        raise UnknownPluginError(
+            f"unknown {kind} '{name}' (group {group}); installed: {known}. To use '{name}', {_install_hint(group, name)}."
+        )
+    return plugins[name].load()
+
+
+def plugin_table(group: str, path: list[str] | None = None) -> list[dict[str, str]]:
+    """One row per discovered plugin with its status: ``ok`` or the load error."""
+    rows = []
+    for name, info in sorted(discover(group, path).items()):
+        try:
+            info.load()
+            status = "ok"
+        except PluginLoadError as exc:
+            status = f"error: {exc.__cause__!r}"
+        rows.append({"name": name, "package": info.distribution, "version": info.version,
+                     "target": info.target, "status": status})
+    return rows
+
+
+def available_renderers(path: list[str] | None = None) -> list[str]:
+    """Names of renderer backends that are installed and import cleanly."""
+    return [r["name"] for r in plugin_table(RENDERER_GROUP, path) if r["status"] == "ok"]
+
+
+def make_renderer(name: str = "torch", **options: Any):
+    """Build a renderer backend by name (as a config file or ``--renderer`` flag names it).
+
+    Args:
+        name: entry-point name, e.g. ``"torch"`` or ``"warp"``.
+        **options: passed to the backend's constructor.
+    """
+    from cerberus_core.render.interface import Renderer
+
+    cls = get_plugin(RENDERER_GROUP, name)
+    renderer = cls(**options)
+    if not isinstance(renderer, Renderer):
+        raise PluginLoadError(f"renderer plugin '{name}' built {type(renderer).__name__}, which is not a cerberus_core Renderer")
+    return renderer
+
+
+def get_metric(name: str) -> Callable[..., Any]:
+    """Load a metric callable registered under ``cerberus.metrics`` (e.g. ``voxel_iou``)."""
+    return get_plugin(METRIC_GROUP, name)

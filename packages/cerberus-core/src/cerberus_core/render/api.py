@@ -1,0 +1,141 @@
+"""User-facing rendering: validate a scene, rasterize with a backend, shade, composite.
+
+>>> from cerberus_core import Camera, Light, make_renderer, render_parts, icosphere
+>>> r = make_renderer("torch")
+>>> cam = Camera.look_at(30.0, 10.0, 2.5, image_size=64)
+>>> sphere = icosphere(2)
+>>> parts = 0.2 * sphere.vertices.expand(1, 3, -1, -1) + torch.tensor([[-.3, 0, 0], [0, 0, 0], [.3, 0, 0]]).view(1, 3, 1, 3)
+>>> out = render_parts(r, parts, sphere.faces, cam, Light.following(cam))
+>>> out.image.shape
+torch.Size([1, 3, 64, 64])
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+
+from cerberus_core.camera import Camera
+from cerberus_core.render.interface import Light, RenderOutput, Renderer
+from cerberus_core.templates import vertex_normals
+
+Tensor = torch.Tensor
+
+
+def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
+    if vertices.ndim != 3 or vertices.shape[-1] != 3:
+        raise ValueError(f"render: vertices must be (B, V, 3), got {tuple(vertices.shape)}")
+    if faces.ndim != 2 or faces.shape[-1] != 3:
+        raise ValueError(f"render: faces must be (F, 3), got {tuple(faces.shape)}")
+    if faces.dtype not in (torch.int32, torch.int64):
+        raise ValueError(f"render: faces must be an integer tensor, got {faces.dtype}")
+    if vertices.shape[0] != camera.batch_size:
+        raise ValueError(f"render: {vertices.shape[0]} scenes but {camera.batch_size} cameras; pass one camera per scene")
+    if faces.numel() and (int(faces.min()) < 0 or int(faces.max()) >= vertices.shape[1]):
+        raise ValueError(f"render: faces index vertices outside 0..{vertices.shape[1] - 1}; "
+                         "check the face template matches the vertex count")
+    bad = ~torch.isfinite(vertices.detach()).all(-1)
+    if bool(bad.any()):
+        scene, vert = (int(i) for i in torch.nonzero(bad)[0])
+        raise ValueError(f"render: vertex {vert} of scene {scene} is NaN or inf ({int(bad.sum())} bad vertices in all); "
+                         "the model or data produced non-finite geometry — check the loss/learning rate or the input mesh")
+
+
+def _per_vertex(value: Tensor | Sequence[float], bsz: int, nverts: int, like: Tensor, what: str) -> Tensor:
+    t = torch.as_tensor(value, dtype=like.dtype, device=like.device)
+    if t.shape == (3,):
+        return t.expand(bsz, nverts, 3)
+    if t.ndim == 2 and t.shape == (bsz, 3):
+        return t.unsqueeze(1).expand(bsz, nverts, 3)
+    if t.shape == (bsz, nverts, 3):
+        return t
+    raise ValueError(f"render: {what} must be (3,), (B, 3) or (B, V, 3); got {tuple(t.shape)}")
+
+
+def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, light: Light | None = None, *,
+           albedo: Tensor | Sequence[float] = (0.8, 0.8, 0.8), face_part: Tensor | None = None,
+           background: Sequence[float] | Tensor = (0.0, 0.0, 0.0)) -> RenderOutput:
+    """Render a batch of triangle meshes.
+
+    Args:
+        renderer: a backend from :func:`cerberus_core.make_renderer`.
+        vertices: ``(B, V, 3)`` world coordinates.
+        faces: ``(F, 3)`` int vertex indices shared by the batch.
+        camera: ``B`` cameras (one per scene).
+        light: the light (default: white light following the camera, ambient 0.4, diffuse 0.6).
+        albedo: ``(3,)``, ``(B, 3)`` or ``(B, V, 3)`` RGB albedo in [0, 1].
+        face_part: ``(F,)`` part index of each face (default all 0).
+        background: ``(3,)`` RGB background colour.
+    Returns:
+        :class:`RenderOutput`.
+    """
+    _check_scene(vertices, faces, camera)
+    faces = faces.to(device=vertices.device, dtype=torch.int64)
+    bsz, nverts, _ = vertices.shape
+    light = Light.following(camera) if light is None else light
+    if light.direction.shape[0] != bsz:
+        raise ValueError(f"render: light has batch {light.direction.shape[0]}, scene has {bsz}")
+    alb = _per_vertex(albedo, bsz, nverts, vertices, "albedo")
+    clip = camera.world_to_clip(vertices)
+    with torch.no_grad():
+        face_id = renderer.rasterize(clip.detach(), faces, camera.height, camera.width, camera.near)
+    normals = vertex_normals(vertices, faces)
+    rgb, depth = renderer.shade(clip, faces, face_id, normals, alb, light)
+    alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
+    bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
+    image = rgb + (1 - alpha) * bg
+    if face_part is None:
+        part_id = torch.where(face_id >= 0, torch.zeros_like(face_id), face_id)
+    else:
+        fp = face_part.to(device=face_id.device, dtype=torch.int64)
+        part_id = torch.where(face_id >= 0, fp[face_id.clamp_min(0)], face_id)
+    return RenderOutput(
+        image=image.permute(0, 3, 1, 2),
+        alpha=alpha.permute(0, 3, 1, 2),
+        depth=depth.unsqueeze(1),
+        face_id=face_id,
+        part_id=part_id,
+    )
+
+
+def pack_parts(part_vertices: Tensor, faces: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """Pack ``P`` parts sharing one face template into one mesh per scene.
+
+    Args:
+        part_vertices: ``(B, P, V, 3)``.
+        faces: ``(F, 3)`` template faces.
+    Returns:
+        ``vertices`` ``(B, P*V, 3)``, ``faces`` ``(P*F, 3)`` and ``face_part`` ``(P*F,)``.
+    """
+    bsz, nparts, nverts, _ = part_vertices.shape
+    faces = faces.to(device=part_vertices.device, dtype=torch.int64)
+    offsets = torch.arange(nparts, device=faces.device).view(-1, 1, 1) * nverts
+    packed_faces = (faces.unsqueeze(0) + offsets).reshape(-1, 3)
+    face_part = torch.arange(nparts, device=faces.device).repeat_interleave(faces.shape[0])
+    return part_vertices.reshape(bsz, nparts * nverts, 3), packed_faces, face_part
+
+
+def render_parts(renderer: Renderer, part_vertices: Tensor, faces: Tensor, camera: Camera,
+                 light: Light | None = None, *, albedo: Tensor | Sequence[float] = (0.8, 0.8, 0.8),
+                 background: Sequence[float] | Tensor = (0.0, 0.0, 0.0)) -> RenderOutput:
+    """Render scenes made of ``P`` parts that share one face template (the Cerberus case).
+
+    Args:
+        part_vertices: ``(B, P, V, 3)`` world coordinates of every part.
+        faces: ``(F, 3)`` the template's faces.
+        albedo: ``(3,)``, ``(P, 3)`` / ``(B, P, 3)`` per part, or ``(B, P, V, 3)`` per vertex.
+        Others as in :func:`render`.
+    """
+    if part_vertices.ndim != 4 or part_vertices.shape[-1] != 3:
+        raise ValueError(f"render_parts: part_vertices must be (B, P, V, 3), got {tuple(part_vertices.shape)}")
+    bsz, nparts, nverts, _ = part_vertices.shape
+    vertices, packed_faces, face_part = pack_parts(part_vertices, faces)
+    alb = torch.as_tensor(albedo, dtype=vertices.dtype, device=vertices.device)
+    if alb.shape == (nparts, 3):
+        alb = alb.expand(bsz, nparts, 3)
+    if alb.ndim == 3 and alb.shape == (bsz, nparts, 3):
+        alb = alb.unsqueeze(2).expand(bsz, nparts, nverts, 3)
+    if alb.ndim == 4:
+        alb = alb.reshape(bsz, nparts * nverts, 3)
+    return render(renderer, vertices, packed_faces, camera, light, albedo=alb, face_part=face_part,
+                  background=background)
