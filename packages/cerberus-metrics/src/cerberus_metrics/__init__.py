@@ -1,0 +1,40 @@
+"""cerberus-metrics: voxel IoU (Kato et al. 32^3 protocol), Chamfer-L2 and F-score for meshes.
+
+Quick start::
+
+    from cerberus_metrics import voxel_iou
+    iou = voxel_iou([part0, part1], "gt.obj")          # kato protocol, 32^3
+    iou = voxel_iou("pred.ply", "gt.ply", protocol="gt_bbox", resolution=64)
+"""
+
+from .api import METRICS, chamfer_l2, evaluate_pair, fscore, inspect_mesh, voxel_iou, voxelize
+from .cache import GridCache
+from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
+from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
+from .voxelize import VoxelGrid, grid_iou
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "METRICS",
+    "PROTOCOLS",
+    "Frame",
+    "GridCache",
+    "Mesh",
+    "MeshInputError",
+    "MeshQualityWarning",
+    "MeshReport",
+    "Protocol",
+    "VoxelGrid",
+    "chamfer_l2",
+    "evaluate_pair",
+    "fscore",
+    "get_protocol",
+    "grid_iou",
+    "inspect_mesh",
+    "load_mesh",
+    "load_parts",
+    "make_frame",
+    "voxel_iou",
+    "voxelize",
+]

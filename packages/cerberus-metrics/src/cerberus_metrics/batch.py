@@ -1,0 +1,262 @@
+"""Batch evaluation of many (prediction, ground truth) pairs on all cores.
+
+Pairs come from a CSV or JSON file, or from two folders matched by file stem. Each
+pair runs in a worker process; a failing pair (unreadable file, empty mesh, ...) is
+recorded with its error and counted, never aborts the batch and is never dropped.
+
+Pair file formats (relative paths are resolved against the pair file's folder):
+
+* CSV with a header holding ``pred`` and ``gt`` columns, optional ``id``; a prediction
+  made of parts lists its files separated by ``;``.
+* JSON: a list (or ``{"pairs": [...]}``) of objects ``{"id"?, "pred": path | [paths], "gt": path}``.
+
+Folders: every mesh file of ``gt_dir`` is a ground truth; its prediction is the file of
+``pred_dir`` with the same stem, or a sub-folder of ``pred_dir`` with that name whose mesh
+files are the parts. A ground truth without prediction, or a prediction without ground
+truth, is a failed pair.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import multiprocessing as mp
+import os
+import time
+import warnings
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .api import METRICS, evaluate_pair
+from .cache import GridCache
+from .io import MeshInputError, iter_mesh_files
+
+__all__ = ["PairSpec", "pairs_from_file", "pairs_from_folders", "run_batch", "summarize", "write_results"]
+
+
+@dataclass(frozen=True)
+class PairSpec:
+    """One pair to evaluate. pred: part file paths (one for a single mesh). error: set when the
+    pair could not even be formed (e.g. missing prediction); it is then reported as failed."""
+
+    id: str
+    pred: tuple[str, ...]
+    gt: str
+    error: str | None = None
+
+
+@dataclass
+class BatchResult:
+    """Per-pair rows (``id``, ``status``, metric values or ``error``, ``warnings``) and the summary."""
+
+    rows: list[dict[str, Any]]
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------- pair sources
+
+
+def _resolve(base: Path, p: str) -> str:
+    q = Path(p.strip())
+    return str(q if q.is_absolute() else base / q)
+
+
+def pairs_from_file(path: str | os.PathLike) -> list[PairSpec]:
+    """Read pairs from a ``.csv`` or ``.json`` file (see module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise MeshInputError(f"pairs file '{path}' does not exist; pass a CSV or JSON file of pairs")
+    base = path.parent
+    if path.suffix.lower() == ".json":
+        try:
+            data = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise MeshInputError(f"pairs file '{path}' is not valid JSON ({exc})") from exc
+        items = data.get("pairs") if isinstance(data, dict) else data
+        if not isinstance(items, list):
+            raise MeshInputError(f"pairs file '{path}': expected a list of {{'pred', 'gt'}} objects")
+        rows = items
+    elif path.suffix.lower() == ".csv":
+        with open(path, newline="") as fh:
+            reader = csv.DictReader(fh)
+            missing = {"pred", "gt"} - set(reader.fieldnames or [])
+            if missing:
+                raise MeshInputError(
+                    f"pairs file '{path}': missing column(s) {sorted(missing)}; the header needs pred,gt (and id)"
+                )
+            rows = [dict(r, pred=r["pred"].split(";")) for r in reader]
+    else:
+        raise MeshInputError(f"pairs file '{path}': unknown type '{path.suffix}'; use .csv or .json")
+    out = []
+    for i, r in enumerate(rows):
+        if not isinstance(r, dict) or "pred" not in r or "gt" not in r:
+            raise MeshInputError(f"pairs file '{path}': entry {i} lacks 'pred' or 'gt': {r!r}")
+        preds = r["pred"] if isinstance(r["pred"], list) else [r["pred"]]
+        preds = [_resolve(base, str(p)) for p in preds if str(p).strip()]
+        pair_id = str(r.get("id") or Path(str(r["gt"])).stem or i)
+        out.append(PairSpec(pair_id, tuple(preds), _resolve(base, str(r["gt"]))))
+    return out
+
+
+def pairs_from_folders(pred_dir: str | os.PathLike, gt_dir: str | os.PathLike) -> list[PairSpec]:
+    """Match ground-truth files to predictions by stem (see module docstring)."""
+    pred_dir, gt_dir = Path(pred_dir), Path(gt_dir)
+    for d, what in ((pred_dir, "prediction"), (gt_dir, "ground-truth")):
+        if not d.is_dir():
+            raise MeshInputError(f"{what} folder '{d}' does not exist or is not a folder")
+    gts = {p.stem: p for p in iter_mesh_files(gt_dir)}
+    preds: dict[str, tuple[str, ...]] = {p.stem: (str(p),) for p in iter_mesh_files(pred_dir)}
+    for sub in sorted(q for q in pred_dir.iterdir() if q.is_dir()):
+        preds.setdefault(sub.name, tuple(str(p) for p in iter_mesh_files(sub)))
+    out = []
+    for stem in sorted(set(gts) | set(preds)):
+        if stem not in preds or not preds[stem]:
+            out.append(PairSpec(stem, (), str(gts[stem]), f"no prediction named '{stem}' in '{pred_dir}'"))
+        elif stem not in gts:
+            out.append(PairSpec(stem, preds[stem], "", f"no ground truth named '{stem}' in '{gt_dir}'"))
+        else:
+            out.append(PairSpec(stem, preds[stem], str(gts[stem])))
+    return out
+
+
+# --------------------------------------------------------------------------- workers
+
+_CACHE: GridCache | None = None
+_OPTIONS: dict[str, Any] = {}
+
+
+def _init_worker(options: dict[str, Any], cache_dir: str | None, use_cache: bool = True) -> None:
+    global _CACHE, _OPTIONS
+    _CACHE = GridCache(cache_dir) if use_cache else None
+    _OPTIONS = options
+
+
+def _evaluate(spec: PairSpec) -> dict[str, Any]:
+    row: dict[str, Any] = {"id": spec.id, "pred": ";".join(spec.pred), "gt": spec.gt}
+    if spec.error or not spec.pred or not spec.gt:
+        error = spec.error or f"pair '{spec.id}' lists no {'prediction' if not spec.pred else 'ground truth'} file"
+        return dict(row, status="error", error=error, warnings=[])
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            pred = list(spec.pred) if len(spec.pred) > 1 else spec.pred[0]
+            row.update(evaluate_pair(pred, spec.gt, cache=_CACHE, **_OPTIONS))
+            row["status"] = "ok"
+        except Exception as exc:  # noqa: BLE001 - a failing pair is recorded, never fatal
+            row.update(status="error", error=f"{type(exc).__name__}: {exc}")
+    row["warnings"] = sorted({str(w.message) for w in caught})
+    row["seconds"] = round(time.perf_counter() - t0, 4)
+    return row
+
+
+def run_batch(
+    pairs: Sequence[PairSpec],
+    metrics: Iterable[str] = ("voxel_iou",),
+    *,
+    jobs: int | None = None,
+    cache_dir: str | os.PathLike | None = None,
+    use_cache: bool = True,
+    progress: bool = True,
+    **options: Any,
+) -> BatchResult:
+    """Evaluate all pairs with ``jobs`` worker processes (default: all cores).
+
+    metrics: names from :data:`cerberus_metrics.api.METRICS`. options: keyword options of
+    :func:`cerberus_metrics.api.evaluate_pair` (protocol, resolution, n_samples, seed,
+    threshold, normalize, open_mesh, check_self_intersections). Ground-truth grids are cached
+    per worker in memory (``use_cache``) and, with ``cache_dir``, in a folder shared by the
+    workers and by later runs. Returns rows in input order and the summary.
+    """
+    metrics = list(metrics)
+    unknown = sorted(set(metrics) - set(METRICS))
+    if unknown:
+        raise MeshInputError(f"unknown metric(s) {unknown}; choose from {list(METRICS)}")
+    options = dict(options, metrics=metrics)
+    jobs = max(1, min(int(jobs or os.cpu_count() or 1), max(1, len(pairs))))
+    cache = None if cache_dir is None else str(cache_dir)
+    # Same-GT pairs next to each other so a worker's in-memory cache serves them.
+    order = sorted(range(len(pairs)), key=lambda i: pairs[i].gt)
+    ordered = [pairs[i] for i in order]
+    bar = _progress(len(pairs), progress)
+    rows: list[dict[str, Any]] = []
+    if jobs == 1:
+        _init_worker(options, cache, use_cache)
+        for r in map(_evaluate, ordered):
+            rows.append(r)
+            bar.update(1)
+    else:
+        chunk = max(1, min(16, len(pairs) // (jobs * 4)))
+        with mp.get_context().Pool(jobs, initializer=_init_worker, initargs=(options, cache, use_cache)) as pool:
+            for r in pool.imap(_evaluate, ordered, chunksize=chunk):
+                rows.append(r)
+                bar.update(1)
+            pool.close()
+            pool.join()
+    bar.close()
+    by_id = dict(zip(order, rows, strict=True))
+    rows = [by_id[i] for i in range(len(pairs))]
+    return BatchResult(rows, summarize(rows, metrics))
+
+
+def _progress(total: int, enabled: bool):
+    try:
+        from tqdm import tqdm
+    except ImportError:  # tqdm is a declared dependency, but keep the batch usable without it
+        enabled = False
+    if not enabled:
+
+        class _Null:
+            def update(self, n: int) -> None: ...
+
+            def close(self) -> None: ...
+
+        return _Null()
+    return tqdm(total=total, unit="pair", desc="cerberus-metrics", dynamic_ncols=True)
+
+
+def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[str, Any]:
+    """Summary: pair counts, failures (id and error) and per-metric mean/median/min/max/count."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    failed = [r for r in rows if r.get("status") != "ok"]
+    out: dict[str, Any] = {
+        "pairs": len(rows),
+        "succeeded": len(ok),
+        "failed": len(failed),
+        "failures": [{"id": r["id"], "error": r.get("error", "")} for r in failed],
+        "pairs_with_warnings": sum(1 for r in rows if r.get("warnings")),
+        "metrics": {},
+    }
+    names = list(metrics)
+    if "fscore" in names:
+        names += ["precision", "recall"]
+    for m in names:
+        vals = np.array([r[m] for r in ok if m in r and r[m] is not None and math.isfinite(r[m])], float)
+        out["metrics"][m] = {
+            "mean": float(vals.mean()) if vals.size else None,
+            "median": float(np.median(vals)) if vals.size else None,
+            "min": float(vals.min()) if vals.size else None,
+            "max": float(vals.max()) if vals.size else None,
+            "count": int(vals.size),
+        }
+    return out
+
+
+def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_path: str | os.PathLike | None) -> None:
+    """Write ``{"summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ')."""
+    if json_path:
+        Path(json_path).write_text(json.dumps({"summary": result.summary, "pairs": result.rows}, indent=2))
+    if csv_path:
+        keys: list[str] = []
+        for r in result.rows:
+            keys += [k for k in r if k not in keys]
+        with open(csv_path, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=keys)
+            w.writeheader()
+            for r in result.rows:
+                w.writerow({k: " | ".join(v) if isinstance(v, list) else v for k, v in r.items()})

@@ -1,0 +1,128 @@
+"""Batch evaluation (multiprocessing), the CLI and the entry points."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from importlib.metadata import entry_points
+
+import numpy as np
+import pytest
+import trimesh
+
+from cerberus_metrics import voxel_iou
+from cerberus_metrics.batch import pairs_from_file, pairs_from_folders, run_batch, write_results
+from cerberus_metrics.cli import main
+
+
+@pytest.fixture
+def folders(tmp_path, helpers):
+    pred, gt = tmp_path / "pred", tmp_path / "gt"
+    pred.mkdir()
+    gt.mkdir()
+    for i in range(3):
+        helpers.blob(10 + i).export(gt / f"s{i}.ply")
+        helpers.blob(20 + i).export(pred / f"s{i}.ply")
+    (pred / "parts").mkdir()  # a prediction made of parts, matched by folder name
+    helpers.box((-0.3, -0.3, -0.3), (0.0, 0.2, 0.2)).export(pred / "parts" / "a.obj")
+    helpers.box((-0.1, -0.3, -0.3), (0.2, 0.2, 0.2)).export(pred / "parts" / "b.obj")
+    helpers.box((-0.3, -0.3, -0.3), (0.2, 0.2, 0.2)).export(gt / "parts.obj")
+    (pred / "broken.obj").write_text("this is not a mesh\nv 1\n")  # unreadable prediction
+    helpers.blob(1).export(gt / "broken.obj")
+    (pred / "empty.obj").write_text("# no faces\nv 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    helpers.blob(2).export(gt / "empty.obj")
+    helpers.blob(3).export(gt / "lonely.ply")  # no prediction
+    return pred, gt
+
+
+def test_folder_batch_reports_every_failure(folders, tmp_path):
+    pairs = pairs_from_folders(*folders)
+    assert [p.id for p in pairs] == ["broken", "empty", "lonely", "parts", "s0", "s1", "s2"]
+    res = run_batch(pairs, ["voxel_iou"], jobs=2, progress=False)
+    s = res.summary
+    assert (s["pairs"], s["succeeded"], s["failed"]) == (7, 4, 3)
+    errors = {f["id"]: f["error"] for f in s["failures"]}
+    assert "broken.obj" in errors["broken"] and "cannot read" in errors["broken"]
+    assert "empty" in errors["empty"] and "no prediction named 'lonely'" in errors["lonely"]
+    rows = {r["id"]: r for r in res.rows}
+    pred, gt = folders
+    assert rows["s1"]["voxel_iou"] == voxel_iou(str(pred / "s1.ply"), str(gt / "s1.ply"))
+    assert rows["parts"]["voxel_iou"] == 1.0
+    vals = [rows[k]["voxel_iou"] for k in ("parts", "s0", "s1", "s2")]
+    assert s["metrics"]["voxel_iou"]["count"] == 4
+    assert s["metrics"]["voxel_iou"]["mean"] == pytest.approx(np.mean(vals))
+    assert s["metrics"]["voxel_iou"]["median"] == pytest.approx(np.median(vals))
+    write_results(res, tmp_path / "r.json", tmp_path / "r.csv")
+    assert json.loads((tmp_path / "r.json").read_text())["summary"]["failed"] == 3
+    with open(tmp_path / "r.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == 7
+
+
+def test_pairs_files_csv_and_json(folders, tmp_path):
+    pred, gt = folders
+    (tmp_path / "pairs.csv").write_text(
+        "id,pred,gt\n"
+        "a,pred/s0.ply,gt/s0.ply\n"
+        "b,pred/parts/a.obj;pred/parts/b.obj,gt/parts.obj\n"
+    )
+    (tmp_path / "pairs.json").write_text(json.dumps(
+        {"pairs": [{"pred": ["pred/parts/a.obj", "pred/parts/b.obj"], "gt": "gt/parts.obj"},
+                   {"id": "m", "pred": "pred/missing.obj", "gt": "gt/s0.ply"}]}))
+    csv_pairs = pairs_from_file(tmp_path / "pairs.csv")
+    assert csv_pairs[1].pred == (str(pred / "parts" / "a.obj"), str(pred / "parts" / "b.obj"))
+    res = run_batch(csv_pairs + pairs_from_file(tmp_path / "pairs.json"), ["voxel_iou", "fscore"], jobs=1,
+                    progress=False, n_samples=2000, threshold=0.05)
+    assert [r["status"] for r in res.rows] == ["ok", "ok", "ok", "error"]
+    assert res.rows[1]["voxel_iou"] == 1.0 and "fscore" in res.rows[0]
+    assert "missing.obj" in res.rows[3]["error"]
+
+
+def test_cli_iou_json_and_errors(folders, capsys):
+    pred, gt = folders
+    assert main(["iou", str(pred / "s0.ply"), str(gt / "s0.ply")]) == 0
+    out = capsys.readouterr().out
+    assert float(out) == pytest.approx(voxel_iou(str(pred / "s0.ply"), str(gt / "s0.ply")), abs=1e-6)
+    assert main(["iou", str(pred / "parts" / "a.obj"), str(pred / "parts" / "b.obj"), str(gt / "parts.obj"),
+                 "--json", "--protocol", "gt_bbox", "--resolution", "64"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["voxel_iou"] == 1.0 and data["settings"]["resolution"] == 64 and len(data["pred"]) == 2
+    assert main(["iou", str(pred / "broken.obj"), str(gt / "s0.ply")]) == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "broken.obj" in err
+    assert main(["chamfer", str(pred / "s0.ply"), str(gt / "s0.ply"), "--samples", "2000", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["chamfer_l2"] > 0
+    assert main(["check", str(gt / "s0.ply"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)[0]["watertight"] is True
+
+
+def test_cli_batch_exit_code_and_outputs(folders, tmp_path, capsys):
+    pred, gt = folders
+    rc = main(["batch", "--pred-dir", str(pred), "--gt-dir", str(gt), "--jobs", "2", "--no-progress",
+               "--out", str(tmp_path / "o.json"), "--csv", str(tmp_path / "o.csv"),
+               "--cache-dir", str(tmp_path / "cache")])
+    assert rc == 1  # some pairs failed: reported, counted, outputs written
+    captured = capsys.readouterr()
+    assert "failed: 3" in captured.out and "FAILED lonely" in captured.err
+    assert json.loads((tmp_path / "o.json").read_text())["summary"]["succeeded"] == 4
+    assert any((tmp_path / "cache").iterdir())
+
+
+def test_console_script_help():
+    exe = [sys.executable, "-m", "cerberus_metrics.cli"]
+    out = subprocess.run(exe + ["--help"], capture_output=True, text=True, check=True).stdout
+    assert "kato" in out and "gt_bbox" in out and "batch" in out
+    out = subprocess.run(exe + ["iou", "--help"], capture_output=True, text=True, check=True).stdout
+    assert "PRED [PRED ...] GT" in out
+
+
+def test_entry_points_discover_metrics(helpers):
+    eps = {ep.name: ep for ep in entry_points(group="cerberus.metrics")}
+    assert {"voxel_iou", "chamfer_l2", "fscore"} <= set(eps)
+    voxel = eps["voxel_iou"].load()
+    a = helpers.box((-0.3, -0.3, -0.3), (0.1, 0.1, 0.1))
+    parts = [(np.asarray(a.vertices), np.asarray(a.faces)), trimesh.creation.icosphere(radius=0.1)]
+    iou = voxel(parts, a, protocol="kato", resolution=32)
+    assert isinstance(iou, float) and 0 < iou <= 1
+    assert isinstance(eps["fscore"].load()(a, a, n_samples=1000), float)
