@@ -1,0 +1,297 @@
+"""Pictures of reconstructions: Figure 1 (b)-(f) and Table 2 of the paper, and per-image outputs.
+
+Every function renders with a backend from :func:`cerberus_core.make_renderer` through
+:func:`cerberus_core.render_parts`, and takes the :class:`PartReconstruction` and the input camera.
+Cameras are look-at cameras aimed at the world origin (as the datasets render); new viewpoints keep
+the input camera's elevation, distance and field of view and change the azimuth.
+
+Figure 1 panels: (a) input, (b) 3D output, (c) parts in colours, (d) new lighting, (e) new viewpoint,
+(f) new pose (the parts of this image with the rotations and translations predicted from another).
+Table 2 columns: input, any number of baselines, ours, parts, turn (ours from another azimuth).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import torch
+from PIL import Image, ImageDraw, ImageFont
+
+from cerberus_core.camera import Camera
+from cerberus_core.eval.reconstruction import PartReconstruction, transfer_pose
+from cerberus_core.render.api import render_parts
+from cerberus_core.render.interface import Light, Renderer
+from cerberus_core.viz import atomic_save_png, part_colors, to_uint8
+
+Tensor = torch.Tensor
+RGB = tuple[float, float, float]
+
+#: Uniform grey albedo of the datasets' bodies.
+DEFAULT_ALBEDO: RGB = (0.8, 0.8, 0.8)
+#: Figure background (the datasets render on white).
+DEFAULT_BACKGROUND: RGB = (1.0, 1.0, 1.0)
+#: "New lighting" direction in the input camera's frame (+x right, +y up, +z towards the viewer):
+#: from the upper left, slightly in front.
+NEW_LIGHT_CAMERA_DIRECTION = (-1.0, 1.0, 0.35)
+
+PAD = 4
+TITLE_HEIGHT = 18
+ROW_LABEL_WIDTH = 90
+
+
+# ------------------------------------------------------------------ cameras and lights
+def camera_spherical(camera: Camera) -> tuple[Tensor, Tensor, Tensor]:
+    """``(azimuth_deg, elevation_deg, distance)``, each ``(B,)``, of look-at cameras aimed at the origin
+    (the inverse of :meth:`Camera.look_at`)."""
+    c = camera.center
+    dist = c.norm(dim=-1)
+    el = torch.rad2deg(torch.asin((c[:, 1] / dist).clamp(-1, 1)))
+    az = torch.rad2deg(torch.atan2(c[:, 0], c[:, 2]))
+    return az, el, dist
+
+
+def orbit_cameras(camera: Camera, azimuth_offsets_deg: Sequence[float] | Tensor) -> Camera:
+    """Cameras at the input camera's elevation, distance and fov, turned by each azimuth offset.
+
+    Args:
+        camera: one camera (batch 1).
+        azimuth_offsets_deg: ``(n,)`` offsets added to its azimuth.
+    Returns:
+        ``n`` cameras.
+    """
+    if camera.batch_size != 1:
+        raise ValueError(f"orbit_cameras: expected one camera, got {camera.batch_size}")
+    az, el, dist = camera_spherical(camera)
+    offsets = torch.as_tensor(azimuth_offsets_deg, dtype=az.dtype, device=az.device).reshape(-1)
+    return Camera.look_at(az + offsets, el.expand_as(offsets), dist.expand_as(offsets),
+                          fov_y_deg=camera.fov_y_deg.expand_as(offsets), image_size=(camera.height, camera.width),
+                          near=camera.near, far=camera.far, device=camera.device)
+
+
+def camera_relative_light(camera: Camera, direction_cam: Sequence[float] = NEW_LIGHT_CAMERA_DIRECTION,
+                          ambient: float = 0.25, diffuse: float = 0.75) -> Light:
+    """A white directional light given in each camera's frame (so it reads the same in every view)."""
+    d = torch.as_tensor(direction_cam, dtype=camera.rotation.dtype, device=camera.device)
+    world = (camera.rotation.transpose(-1, -2) @ d).reshape(camera.batch_size, 3)
+    return Light.white(world, ambient, diffuse)
+
+
+# ------------------------------------------------------------------ renders
+def render_reconstruction(renderer: Renderer, recon: PartReconstruction, camera: Camera, *,
+                          light: Light | None = None, parts: bool = False, albedo: RGB = DEFAULT_ALBEDO,
+                          background: RGB = DEFAULT_BACKGROUND) -> Tensor:
+    """``(B, 3, H, W)`` images of the posed parts: shaded grey, or each part in its colour (``parts``).
+
+    The light defaults to the datasets' (white, following the camera, ambient 0.4, diffuse 0.6).
+    """
+    if recon.batch_size != camera.batch_size:
+        raise ValueError(f"render_reconstruction: {recon.batch_size} reconstructions but {camera.batch_size} cameras")
+    recon = recon.to(camera.device)
+    alb = part_colors(recon.num_parts).to(camera.device) if parts else albedo
+    with torch.no_grad():
+        out = render_parts(renderer, recon.posed(), recon.faces, camera, light, albedo=alb, background=background)
+    return out.image
+
+
+def turntable(renderer: Renderer, recon: PartReconstruction, camera: Camera, n_views: int = 8, *,
+              parts: bool = False, background: RGB = DEFAULT_BACKGROUND) -> Tensor:
+    """``(n_views, 3, H, W)``: one reconstruction seen from ``n_views`` azimuths evenly spaced from the
+    input camera's, each lit by a light following that view."""
+    if recon.batch_size != 1:
+        raise ValueError(f"turntable: expected one reconstruction, got {recon.batch_size}")
+    if n_views < 1:
+        raise ValueError(f"turntable: n_views must be >= 1, got {n_views}")
+    cams = orbit_cameras(camera, [k * 360.0 / n_views for k in range(n_views)])
+    many = recon.index([0] * n_views)
+    return render_reconstruction(renderer, many, cams, parts=parts, background=background)
+
+
+def relit(renderer: Renderer, recon: PartReconstruction, camera: Camera, light: Light | None = None, *,
+          background: RGB = DEFAULT_BACKGROUND) -> Tensor:
+    """The reconstruction under a new light (default :func:`camera_relative_light`)."""
+    light = camera_relative_light(camera) if light is None else light
+    return render_reconstruction(renderer, recon, camera, light=light, background=background)
+
+
+def reposed(renderer: Renderer, shapes: PartReconstruction, poses: PartReconstruction, camera: Camera, *,
+            parts: bool = False, background: RGB = DEFAULT_BACKGROUND) -> Tensor:
+    """The parts of ``shapes`` with the rotations and translations of ``poses`` (Figure 1 (f))."""
+    return render_reconstruction(renderer, transfer_pose(shapes, poses), camera, parts=parts, background=background)
+
+
+# ------------------------------------------------------------------ layout
+def _font(size: int = 12) -> ImageFont.ImageFont:
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:  # Pillow < 10.1 without FreeType sizes
+        return ImageFont.load_default()
+
+
+def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequence[str] | None = None,
+                  row_titles: Sequence[str] | None = None, scale: int = 1) -> Image.Image:
+    """A table of images with optional column and row titles.
+
+    Args:
+        rows: ``rows[r][c]`` a ``(3, H, W)`` image in [0, 1] or ``None`` (left blank); all share ``H, W``.
+        column_titles, row_titles: text above the columns / left of the rows.
+        scale: nearest-neighbour upscaling of every cell.
+    Returns:
+        An RGB image of width ``L + C * (W * scale + PAD) + PAD`` and height
+        ``T + R * (H * scale + PAD) + PAD``, with ``T = TITLE_HEIGHT`` if column titles are given
+        (else 0) and ``L = ROW_LABEL_WIDTH`` if row titles are given (else 0).
+    """
+    cells = [c for row in rows for c in row if c is not None]
+    if not cells:
+        raise ValueError("labelled_grid: no images")
+    h, w = cells[0].shape[-2:]
+    if any(c.shape[-2:] != (h, w) for c in cells):
+        raise ValueError("labelled_grid: all images must share one size")
+    ncols = max(len(r) for r in rows)
+    if column_titles is not None and len(column_titles) != ncols:
+        raise ValueError(f"labelled_grid: {len(column_titles)} column titles for {ncols} columns")
+    if row_titles is not None and len(row_titles) != len(rows):
+        raise ValueError(f"labelled_grid: {len(row_titles)} row titles for {len(rows)} rows")
+    top = TITLE_HEIGHT if column_titles else 0
+    left = ROW_LABEL_WIDTH if row_titles else 0
+    cw, ch = w * scale, h * scale
+    canvas = Image.new("RGB", (left + ncols * (cw + PAD) + PAD, top + len(rows) * (ch + PAD) + PAD), "white")
+    draw = ImageDraw.Draw(canvas)
+    font = _font()
+    for c, title in enumerate(column_titles or []):
+        x = left + PAD + c * (cw + PAD)
+        draw.text((x + cw / 2, top / 2 + 1), title, fill=(0, 0, 0), font=font, anchor="mm")
+    for r, row in enumerate(rows):
+        y = top + PAD + r * (ch + PAD)
+        if row_titles:
+            draw.text((4, y + ch / 2), row_titles[r], fill=(0, 0, 0), font=font, anchor="lm")
+        for c, cell in enumerate(row):
+            if cell is None:
+                continue
+            tile = Image.fromarray(to_uint8(cell.unsqueeze(0))[0])
+            if scale != 1:
+                tile = tile.resize((cw, ch), Image.NEAREST)
+            canvas.paste(tile, (left + PAD + c * (cw + PAD), y))
+    return canvas
+
+
+def save_png(image: Image.Image | Tensor, path: str | Path) -> Path:
+    """Write a PIL image or a ``(3, H, W)`` / ``(N, 3, H, W)`` tensor (a row of N) as PNG, atomically."""
+    if isinstance(image, Tensor):
+        batch = image.unsqueeze(0) if image.ndim == 3 else image
+        image = labelled_grid([list(batch)]) if batch.shape[0] > 1 else Image.fromarray(to_uint8(batch)[0])
+    atomic_save_png(image, path)
+    return Path(path)
+
+
+# ------------------------------------------------------------------ Figure 1
+FIGURE_ONE_TITLES = {"input": "(a) Input", "output": "(b) 3D Output", "parts": "(c) Parts",
+                     "new_lighting": "(d) New Lighting", "new_viewpoint": "(e) New Viewpoint",
+                     "new_pose": "(f) New Pose"}
+
+
+def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartReconstruction, camera: Camera, *,
+                      pose_donor: PartReconstruction | None = None, view_offset_deg: float = 90.0,
+                      light: Light | None = None, background: RGB = DEFAULT_BACKGROUND) -> dict[str, Tensor]:
+    """The panels of Figure 1 for one image, each ``(3, H, W)``.
+
+    Args:
+        image: ``(3, H, W)`` the input.
+        recon, camera: its reconstruction and camera (batch 1).
+        pose_donor: a reconstruction (batch 1) of another image whose rotations and translations give
+            the new pose; without it the ``new_pose`` panel is left out.
+        view_offset_deg: azimuth change of the new viewpoint.
+        light: the new light (default :func:`camera_relative_light`).
+    """
+    if recon.batch_size != 1 or camera.batch_size != 1:
+        raise ValueError("figure_one_panels: expected one reconstruction and one camera")
+    panels = {
+        "input": image.detach().float().cpu().clamp(0, 1),
+        "output": render_reconstruction(renderer, recon, camera, background=background)[0],
+        "parts": render_reconstruction(renderer, recon, camera, parts=True, background=background)[0],
+        "new_lighting": relit(renderer, recon, camera, light, background=background)[0],
+        "new_viewpoint": render_reconstruction(renderer, recon, orbit_cameras(camera, [view_offset_deg]),
+                                               background=background)[0],
+    }
+    if pose_donor is not None:
+        panels["new_pose"] = reposed(renderer, recon, pose_donor, camera, parts=True, background=background)[0]
+    return {k: v.cpu() for k, v in panels.items()}
+
+
+def figure_one(panels: Mapping[str, Tensor], scale: int = 2, columns: int = 3) -> Image.Image:
+    """Lay the panels of :func:`figure_one_panels` out in rows of ``columns`` with captions above."""
+    keys = [k for k in FIGURE_ONE_TITLES if k in panels]
+    rows = [keys[i:i + columns] for i in range(0, len(keys), columns)]
+    images = [labelled_grid([[panels[k] for k in row]], [FIGURE_ONE_TITLES[k] for k in row], scale=scale)
+              for row in rows]
+    width = max(im.width for im in images)
+    out = Image.new("RGB", (width, sum(im.height for im in images)), "white")
+    y = 0
+    for im in images:
+        out.paste(im, (0, y))
+        y += im.height
+    return out
+
+
+# ------------------------------------------------------------------ Table 2
+def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartReconstruction,
+                    baselines: Mapping[str, PartReconstruction] | None = None, *, turn_deg: float = 90.0,
+                    background: RGB = DEFAULT_BACKGROUND) -> tuple[list[str], list[list[Tensor]]]:
+    """The cells of a Table-2 figure: for each image, input | baselines... | ours | parts | turn.
+
+    Args:
+        images: ``(N, 3, H, W)`` inputs; camera: their ``N`` cameras.
+        ours: our reconstructions (batch ``N``).
+        baselines: ``{name: reconstruction (batch N)}`` of other models; a single-mesh model is a
+            one-part reconstruction (:meth:`PartReconstruction.from_posed`). Rendered shaded grey.
+        turn_deg: azimuth change of the "Turn" column.
+    Returns:
+        ``(column titles, rows of (3, H, W) cells)``.
+    """
+    baselines = dict(baselines or {})
+    n = images.shape[0]
+    for name, rec in [("ours", ours), *baselines.items()]:
+        if rec.batch_size != n:
+            raise ValueError(f"comparison_rows: {name} has {rec.batch_size} reconstructions for {n} images")
+    columns = {"Input": images.detach().float().cpu().clamp(0, 1)}
+    for name, rec in baselines.items():
+        columns[name] = render_reconstruction(renderer, rec, camera, background=background).cpu()
+    columns["Ours"] = render_reconstruction(renderer, ours, camera, background=background).cpu()
+    columns["Parts"] = render_reconstruction(renderer, ours, camera, parts=True, background=background).cpu()
+    turned = Camera.cat([orbit_cameras(camera.index([i]), [turn_deg]) for i in range(n)])
+    columns["Turn"] = render_reconstruction(renderer, ours, turned, background=background).cpu()
+    titles = list(columns)
+    return titles, [[columns[t][i] for t in titles] for i in range(n)]
+
+
+def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: PartReconstruction,
+                      baselines: Mapping[str, PartReconstruction] | None = None, *, turn_deg: float = 90.0,
+                      scale: int = 2, background: RGB = DEFAULT_BACKGROUND) -> Image.Image:
+    """A Table-2-like figure (see :func:`comparison_rows`) as one picture."""
+    titles, rows = comparison_rows(renderer, images, camera, ours, baselines, turn_deg=turn_deg, background=background)
+    return labelled_grid(rows, titles, scale=scale)
+
+
+# ------------------------------------------------------------------ one image, every picture
+def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartReconstruction, camera: Camera,
+                        out_dir: str | Path, stem: str, *, n_views: int = 8,
+                        pose_donor: PartReconstruction | None = None, scale: int = 2,
+                        background: RGB = DEFAULT_BACKGROUND) -> list[Path]:
+    """Every picture of one reconstruction, as PNGs named ``<stem>_<what>.png`` in ``out_dir``.
+
+    Writes ``input``, ``reconstruction``, ``parts``, ``new_lighting``, ``turntable`` (two rows of
+    ``n_views`` azimuths: shaded and parts), ``new_pose`` (if ``pose_donor`` is given) and ``figure1``
+    (all panels together). Single panels are ``H x W`` pixels; the others are upscaled by ``scale``.
+    """
+    panels = figure_one_panels(renderer, image, recon, camera, pose_donor=pose_donor, background=background)
+    out_dir = Path(out_dir)
+    names = {"input": "input", "output": "reconstruction", "parts": "parts", "new_lighting": "new_lighting",
+             "new_pose": "new_pose"}
+    written = [save_png(panels[k], out_dir / f"{stem}_{v}.png") for k, v in names.items() if k in panels]
+    shaded = turntable(renderer, recon, camera, n_views, background=background).cpu()
+    coloured = turntable(renderer, recon, camera, n_views, parts=True, background=background).cpu()
+    titles = [f"{round(k * 360 / n_views)}°" for k in range(n_views)]
+    grid = labelled_grid([list(shaded), list(coloured)], titles, ["shaded", "parts"], scale=scale)
+    written.append(save_png(grid, out_dir / f"{stem}_turntable.png"))
+    written.append(save_png(figure_one(panels, scale=scale), out_dir / f"{stem}_figure1.png"))
+    return written
+

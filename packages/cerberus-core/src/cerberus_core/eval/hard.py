@@ -1,0 +1,77 @@
+"""The identity-conditional ("Hard Human") evaluation of §5.3.
+
+For each test subject, the part shapes (``local_vertices``) are extracted once, from one image of
+the subject's canonical pose. Every other test image of that subject is then reconstructed by
+posing those shapes with the rotations and translations predicted from that image, and scored by
+voxel IoU against its own ground truth. Good scores mean the parts transfer between poses.
+
+Choice of the canonical image: the canonical-pose image of the subject with the lowest view index
+(or the view asked for). "Every other image" excludes only that one image; the other views of the
+canonical pose are scored like any pose.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+from cerberus_core.eval.reconstruction import PartReconstruction, transfer_pose
+
+
+@dataclass(frozen=True)
+class ItemMeta:
+    """What the evaluation needs to know about a test image besides its pixels."""
+
+    index: int
+    subject: str
+    pose: int
+    view: int
+    is_canonical: bool
+
+
+def select_canonical(items: Sequence[ItemMeta], view: int | None = None) -> dict[str, int]:
+    """Dataset index of the canonical image of each subject that has one.
+
+    Args:
+        items: metadata of the test images.
+        view: use this view of the canonical pose (default: the lowest view present).
+    Returns:
+        ``{subject: index}``; subjects without a canonical image (or without that view) are absent.
+    """
+    best: dict[str, ItemMeta] = {}
+    for it in items:
+        if not it.is_canonical or (view is not None and it.view != view):
+            continue
+        cur = best.get(it.subject)
+        if cur is None or (it.view, it.index) < (cur.view, cur.index):
+            best[it.subject] = it
+    return {s: it.index for s, it in sorted(best.items())}
+
+
+class CanonicalParts:
+    """The part shapes extracted from each subject's canonical image.
+
+    Args:
+        shapes: ``{subject: reconstruction of batch 1}`` of the canonical images.
+        indices: ``{subject: dataset index}`` of those images.
+    """
+
+    def __init__(self, shapes: dict[str, PartReconstruction], indices: dict[str, int]) -> None:
+        missing = set(indices) - set(shapes)
+        if missing:
+            raise ValueError(f"CanonicalParts: no shapes for subjects {sorted(missing)}")
+        for s, r in shapes.items():
+            if r.batch_size != 1:
+                raise ValueError(f"CanonicalParts: subject {s!r} needs a batch-1 reconstruction, got {r.batch_size}")
+        self.shapes = shapes
+        self.indices = indices
+
+    def applies_to(self, item: ItemMeta) -> bool:
+        """Whether ``item`` is scored in the hard test (its subject has a canonical image, and it is
+        not that image)."""
+        return item.subject in self.shapes and self.indices.get(item.subject) != item.index
+
+    def pose(self, subject: str, poses: PartReconstruction) -> PartReconstruction:
+        """The canonical parts of ``subject`` with the transforms of ``poses`` (any batch size)."""
+        if subject not in self.shapes:
+            raise KeyError(f"no canonical image for subject {subject!r}; known: {sorted(self.shapes)}")
+        return transfer_pose(self.shapes[subject], poses)

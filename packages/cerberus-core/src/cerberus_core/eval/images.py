@@ -1,0 +1,176 @@
+"""Reading user images for ``cerberus reconstruct``.
+
+A model is trained on square RGB renders of one size over a uniform background. Images from
+elsewhere are brought into that form, each change reported (as an :class:`ImageInputWarning` and
+in :attr:`LoadedImage.notes`), or refused with an :class:`ImageInputError` that names the file:
+
+=================================  ==================================================================
+input                              handling
+=================================  ==================================================================
+unreadable / not an image / empty  refused
+RGBA, LA, palette with alpha       composited over the dataset's background colour
+grayscale (L, 1-bit)               repeated into RGB
+16-bit grayscale (I;16, I)         scaled by 1/65535 (values beyond 16 bits are refused)
+32-bit float (F)                   refused: no defined range (save it as 8-bit PNG)
+CMYK, YCbCr, LAB, HSV              converted to RGB
+EXIF orientation                   applied
+animated / multi-frame             first frame used
+not square                         centre-cropped to a square
+other size                         resized (Lanczos) to the model's image size
+=================================  ==================================================================
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import torch
+from PIL import Image, ImageOps, UnidentifiedImageError
+
+Tensor = torch.Tensor
+
+
+class ImageInputError(ValueError):
+    """An input image cannot be used; the message names the file and what to do."""
+
+
+class ImageInputWarning(UserWarning):
+    """An input image was changed to fit the model (alpha composited, resized, ...)."""
+
+
+@dataclass
+class LoadedImage:
+    """One prepared image.
+
+    Attributes:
+        path: where it came from.
+        image: ``(3, S, S)`` float32 RGB in [0, 1].
+        original_size: ``(width, height)`` in the file.
+        notes: what was done to it (empty when it already matched).
+    """
+
+    path: Path
+    image: Tensor
+    original_size: tuple[int, int]
+    notes: list[str] = field(default_factory=list)
+
+
+def _open(path: Path) -> Image.Image:
+    if not path.exists():
+        raise ImageInputError(f"{path}: no such file; check the path")
+    if path.is_dir():
+        raise ImageInputError(f"{path}: is a folder, not an image file")
+    try:
+        img = Image.open(path)
+        img.load()
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        raise ImageInputError(f"{path}: cannot be read as an image ({type(exc).__name__}: {exc}); "
+                              "pass a PNG or JPEG file") from exc
+    if img.width == 0 or img.height == 0:
+        raise ImageInputError(f"{path}: the image is empty ({img.width}x{img.height})")
+    return img
+
+
+def _to_rgb_float(img: Image.Image, background: np.ndarray, path: Path, notes: list[str]) -> np.ndarray:
+    """``(H, W, 3)`` float64 in [0, 1]."""
+    mode = img.mode
+    if mode == "P":
+        img = img.convert("RGBA" if "transparency" in img.info else "RGB")
+        notes.append("palette image converted to RGB")
+        mode = img.mode
+    if mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
+        arr = np.asarray(img, dtype=np.float64)
+        if arr.min() < 0 or arr.max() > 65535:
+            raise ImageInputError(f"{path}: {mode} image with values outside 0..65535 is not supported; "
+                                  "save it as an 8-bit PNG")
+        notes.append(f"16-bit grayscale ({mode}) scaled to [0, 1] and repeated into RGB")
+        return np.repeat((arr / 65535.0)[..., None], 3, axis=2)
+    if mode == "F":
+        raise ImageInputError(f"{path}: 32-bit float image (mode F) has no defined value range; "
+                              "save it as an 8-bit RGB PNG")
+    if mode in ("1", "L"):
+        notes.append("grayscale image repeated into RGB")
+        img = img.convert("RGB")
+    elif mode == "LA" or mode == "PA":
+        img = img.convert("RGBA")
+    elif mode not in ("RGB", "RGBA", "RGBa"):
+        notes.append(f"{mode} image converted to RGB")
+        img = img.convert("RGB")
+    if img.mode == "RGBa":
+        img = img.convert("RGBA")
+    arr = np.asarray(img, dtype=np.float64) / 255.0
+    if img.mode == "RGBA":
+        alpha = arr[..., 3:4]
+        if (alpha < 1).any():
+            notes.append(f"alpha composited over the background colour {tuple(round(float(b), 3) for b in background)}")
+        return arr[..., :3] * alpha + background * (1 - alpha)
+    return arr[..., :3]
+
+
+def _square_resize(arr: np.ndarray, size: int, notes: list[str]) -> np.ndarray:
+    h, w = arr.shape[:2]
+    if h != w:
+        s = min(h, w)
+        top, left = (h - s) // 2, (w - s) // 2
+        arr = arr[top:top + s, left:left + s]
+        notes.append(f"centre-cropped from {w}x{h} to {s}x{s}")
+    if arr.shape[0] != size:
+        src = arr.shape[0]
+        chans = [Image.fromarray(arr[..., c].astype(np.float32), mode="F").resize((size, size), Image.LANCZOS)
+                 for c in range(3)]
+        arr = np.clip(np.stack([np.asarray(c, dtype=np.float64) for c in chans], axis=-1), 0.0, 1.0)
+        notes.append(f"resized from {src}x{src} to {size}x{size}")
+    return arr
+
+
+def load_image(path: str | Path, image_size: int, background: Sequence[float] = (1.0, 1.0, 1.0), *,
+               warn: bool = True) -> LoadedImage:
+    """Read one image and prepare it for a model trained on ``image_size`` square images.
+
+    Args:
+        path: image file (anything Pillow reads).
+        image_size: the model's input size in pixels.
+        background: the training data's background colour (RGB in [0, 1]); transparent pixels get it.
+        warn: emit an :class:`ImageInputWarning` for every change made.
+    Raises:
+        ImageInputError: see the table in the module docstring.
+    """
+    path = Path(path)
+    if int(image_size) <= 0:
+        raise ValueError(f"image_size must be positive, got {image_size}")
+    bg = np.asarray(background, dtype=np.float64).reshape(-1)
+    if bg.shape != (3,) or (bg < 0).any() or (bg > 1).any():
+        raise ValueError(f"background must be 3 values in [0, 1], got {background!r}")
+    img = _open(path)
+    notes: list[str] = []
+    if getattr(img, "n_frames", 1) > 1:
+        img.seek(0)
+        notes.append(f"{img.n_frames} frames: the first one is used")
+    orientation = img.getexif().get(0x0112, 1)
+    oriented = ImageOps.exif_transpose(img) if orientation not in (0, 1) else img
+    if orientation not in (0, 1):
+        notes.append(f"EXIF orientation {orientation} applied")
+    original = oriented.size
+    arr = _to_rgb_float(oriented, bg, path, notes)
+    arr = _square_resize(arr, int(image_size), notes)
+    if warn:
+        for note in notes:
+            warnings.warn(f"{path}: {note}", ImageInputWarning, stacklevel=2)
+    tensor = torch.from_numpy(np.ascontiguousarray(arr.transpose(2, 0, 1))).float()
+    return LoadedImage(path, tensor, original, notes)
+
+
+def load_images(paths: Sequence[str | Path], image_size: int, background: Sequence[float] = (1.0, 1.0, 1.0), *,
+                warn: bool = True) -> tuple[Tensor, list[LoadedImage]]:
+    """:func:`load_image` for several files; all are checked before any is returned.
+
+    Returns:
+        ``(N, 3, S, S)`` float images and the per-file :class:`LoadedImage` records.
+    """
+    if not paths:
+        raise ImageInputError("no input images given")
+    loaded = [load_image(p, image_size, background, warn=warn) for p in paths]
+    return torch.stack([li.image for li in loaded]), loaded

@@ -1,0 +1,159 @@
+"""The output of a part-based reconstruction, as plain tensors.
+
+A reconstruction of ``B`` images with ``P`` parts is, for every part, a deformed template in the
+part's own local frame plus a rigid transform into the world frame of :mod:`cerberus_core.camera`
+(+Y up, normalised units). A part's posed (world) vertices are ``local @ R^T + T``.
+
+Keeping the shapes and the transforms apart is what lets the evaluation re-pose one image's parts
+with another image's transforms (the paper's "Hard Human" test and Figure 1 (f), "New Pose"):
+:func:`transfer_pose`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+Tensor = torch.Tensor
+
+
+@dataclass
+class PartReconstruction:
+    """``P`` part meshes for each of ``B`` images.
+
+    Attributes:
+        local_vertices: ``(B, P, V, 3)`` each part's deformed template in its local frame (before
+            rotation and translation), normalised units.
+        faces: ``(F, 3)`` int64 template faces shared by every part and image.
+        rotation: ``(B, P, 3, 3)`` local→world rotations.
+        translation: ``(B, P, 3)`` world-frame translations (normalised units).
+    """
+
+    local_vertices: Tensor
+    faces: Tensor
+    rotation: Tensor
+    translation: Tensor
+
+    def __post_init__(self) -> None:
+        lv, f, r, t = self.local_vertices, self.faces, self.rotation, self.translation
+        if lv.ndim != 4 or lv.shape[-1] != 3:
+            raise ValueError(f"PartReconstruction.local_vertices must be (B, P, V, 3), got {tuple(lv.shape)}")
+        b, p, v, _ = lv.shape
+        if f.ndim != 2 or f.shape[-1] != 3:
+            raise ValueError(f"PartReconstruction.faces must be (F, 3), got {tuple(f.shape)}")
+        if f.dtype not in (torch.int32, torch.int64):
+            raise ValueError(f"PartReconstruction.faces must be an integer tensor, got {f.dtype}")
+        if f.numel() and (int(f.min()) < 0 or int(f.max()) >= v):
+            raise ValueError(f"PartReconstruction.faces index vertices outside 0..{v - 1}")
+        if r.shape != (b, p, 3, 3):
+            raise ValueError(f"PartReconstruction.rotation must be ({b}, {p}, 3, 3), got {tuple(r.shape)}")
+        if t.shape != (b, p, 3):
+            raise ValueError(f"PartReconstruction.translation must be ({b}, {p}, 3), got {tuple(t.shape)}")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_posed(cls, vertices: Tensor, faces: Tensor) -> "PartReconstruction":
+        """Wrap meshes already in world coordinates (identity rotations, zero translations).
+
+        Useful for baselines that predict one mesh per image (``P = 1``, e.g. NMR) or for ground
+        truths made of parts.
+
+        Args:
+            vertices: ``(B, P, V, 3)`` or ``(B, V, 3)`` (one part) world coordinates.
+            faces: ``(F, 3)`` shared faces.
+        """
+        if vertices.ndim == 3:
+            vertices = vertices.unsqueeze(1)
+        b, p = vertices.shape[:2]
+        eye = torch.eye(3, dtype=vertices.dtype, device=vertices.device).expand(b, p, 3, 3).clone()
+        zero = torch.zeros(b, p, 3, dtype=vertices.dtype, device=vertices.device)
+        return cls(vertices, faces.to(device=vertices.device, dtype=torch.int64), eye, zero)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def batch_size(self) -> int:
+        return self.local_vertices.shape[0]
+
+    @property
+    def num_parts(self) -> int:
+        return self.local_vertices.shape[1]
+
+    @property
+    def num_vertices(self) -> int:
+        """Vertices per part."""
+        return self.local_vertices.shape[2]
+
+    def posed(self) -> Tensor:
+        """``(B, P, V, 3)`` world vertices ``local @ R^T + T`` (differentiable)."""
+        return self.local_vertices @ self.rotation.transpose(-1, -2) + self.translation.unsqueeze(-2)
+
+    # ------------------------------------------------------------------ batch handling
+    def index(self, idx: int | slice | list[int] | Tensor) -> "PartReconstruction":
+        """A sub-batch (an ``int`` keeps a batch dimension of 1)."""
+        if isinstance(idx, int):
+            idx = slice(idx, idx + 1) if idx != -1 else slice(-1, None)
+        return PartReconstruction(self.local_vertices[idx], self.faces, self.rotation[idx], self.translation[idx])
+
+    def to(self, device: torch.device | str) -> "PartReconstruction":
+        return PartReconstruction(self.local_vertices.to(device), self.faces.to(device), self.rotation.to(device),
+                                  self.translation.to(device))
+
+    def detach(self) -> "PartReconstruction":
+        return PartReconstruction(self.local_vertices.detach(), self.faces.detach(), self.rotation.detach(),
+                                  self.translation.detach())
+
+    @staticmethod
+    def cat(items: list["PartReconstruction"]) -> "PartReconstruction":
+        """Concatenate batches that share the face template."""
+        first = items[0]
+        for it in items[1:]:
+            if it.faces.shape != first.faces.shape or not torch.equal(it.faces.cpu(), first.faces.cpu()):
+                raise ValueError("PartReconstruction.cat: reconstructions must share one face template")
+        return PartReconstruction(torch.cat([i.local_vertices for i in items]), first.faces,
+                                  torch.cat([i.rotation for i in items]), torch.cat([i.translation for i in items]))
+
+    def part_meshes(self, i: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The posed parts of image ``i`` as ``(vertices (V, 3) float64, faces (F, 3) int64)`` numpy
+        pairs (the form the ``voxel_iou`` metric and the exporters take)."""
+        posed = self.index(i).posed()[0].detach().cpu().double().numpy()
+        faces = self.faces.detach().cpu().numpy().astype(np.int64)
+        return [(posed[k], faces) for k in range(self.num_parts)]
+
+
+def transfer_pose(shapes: PartReconstruction, poses: PartReconstruction) -> PartReconstruction:
+    """Give the part shapes of ``shapes`` the rotations and translations of ``poses``.
+
+    Used by the identity-conditional ("Hard Human") evaluation, where the parts extracted once from
+    a subject's canonical-pose image are posed with the transforms predicted from every other image
+    of that subject, and by the "new pose" picture of Figure 1 (f).
+
+    Args:
+        shapes: batch ``1`` (broadcast) or ``B`` — provides ``local_vertices``.
+        poses: batch ``B`` — provides ``rotation`` and ``translation``; must have the same number
+            of parts as ``shapes``.
+    Returns:
+        A batch-``B`` reconstruction whose ``posed()`` is ``shapes.local @ poses.R^T + poses.T``.
+    """
+    if shapes.num_parts != poses.num_parts:
+        raise ValueError(f"transfer_pose: shapes have {shapes.num_parts} parts but poses have {poses.num_parts}")
+    b = poses.batch_size
+    if shapes.batch_size not in (1, b):
+        raise ValueError(f"transfer_pose: shapes batch must be 1 or {b}, got {shapes.batch_size}")
+    local = shapes.local_vertices.to(poses.rotation.device)
+    if local.shape[0] != b:
+        local = local.expand(b, -1, -1, -1)
+    return PartReconstruction(local, shapes.faces.to(local.device), poses.rotation, poses.translation)
+
+
+def as_part_reconstruction(output: object) -> PartReconstruction:
+    """Accept a :class:`PartReconstruction`, or any object with the attributes ``local_vertices``,
+    ``faces``, ``rotations`` and ``translations`` in the same conventions (e.g. the model's
+    ``PartMeshes``), and return a :class:`PartReconstruction`."""
+    if isinstance(output, PartReconstruction):
+        return output
+    names = ("local_vertices", "faces", "rotations", "translations")
+    if all(hasattr(output, n) for n in names):
+        return PartReconstruction(*(getattr(output, n) for n in names))
+    raise TypeError(f"expected a PartReconstruction (or an object with {', '.join(names)}), "
+                    f"got {type(output).__name__}")

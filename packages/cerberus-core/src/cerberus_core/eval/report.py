@@ -1,0 +1,109 @@
+"""Evaluation results as JSON and Markdown.
+
+JSON is strict (NaN and infinity are written as ``null``) and written atomically. Markdown reports
+work from the JSON form (:meth:`EvaluationResult.to_dict`), so a report can be remade from a saved
+``results.json``; :func:`comparison_table` builds the paper's Table 1 (models x test sets).
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from cerberus_core.data.format import atomic_write
+from cerberus_core.eval.runner import EvaluationResult
+
+
+def _finite(obj: Any) -> Any:
+    """Replace NaN / inf by ``None`` everywhere (strict JSON)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {str(k): _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if hasattr(obj, "item") and callable(obj.item) and getattr(obj, "ndim", None) == 0:
+        return _finite(obj.item())  # numpy / torch scalars
+    return obj
+
+
+def to_jsonable(result: EvaluationResult | Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON-ready dict of a result (or of a dict already in that form)."""
+    return _finite(result.to_dict() if isinstance(result, EvaluationResult) else dict(result))
+
+
+def write_json(result: EvaluationResult | Mapping[str, Any], path: str | Path) -> Path:
+    """Write ``result`` as indented, strict JSON, atomically."""
+    text = json.dumps(to_jsonable(result), indent=2, allow_nan=False) + "\n"
+    atomic_write(Path(path), lambda fh: fh.write(text.encode()))
+    return Path(path)
+
+
+def write_text(text: str, path: str | Path) -> Path:
+    """Write a text file (e.g. a Markdown report) atomically."""
+    atomic_write(Path(path), lambda fh: fh.write(text.encode()))
+    return Path(path)
+
+
+def _fmt(v: Any, digits: int = 4) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]], digits: int = 4) -> str:
+    """A GitHub-flavoured Markdown table; floats get ``digits`` decimals, ``None``/NaN show as ``-``."""
+    lines = ["| " + " | ".join(str(h) for h in header) + " |",
+             "|" + "|".join(":---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+    lines += ["| " + " | ".join(_fmt(v, digits) for v in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def comparison_table(results: Mapping[str, Mapping[str, float | None]], columns: Sequence[str] | None = None) -> str:
+    """Table 1 of the paper: one row per model, one column per test (missing entries show ``-``).
+
+    Args:
+        results: ``{model: {column: value}}``, e.g. ``{"Cerberus": {"Human": 0.497, "Hard Human": 0.473}}``.
+        columns: column order (default: first-seen order over the models).
+    """
+    if columns is None:
+        columns = list(dict.fromkeys(c for row in results.values() for c in row))
+    return markdown_table(["Model", *columns], [[m, *(row.get(c) for c in columns)] for m, row in results.items()])
+
+
+def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "Evaluation") -> str:
+    """A readable summary: voxel IoU overall and per subject (standard and Hard Human), then part
+    quality (consistency per learned part and segmentation IoU per ground-truth part)."""
+    r = to_jsonable(result)
+    std, hard = r["standard"], r.get("hard")
+    out = [f"# {title}", "",
+           f"Voxel IoU, protocol `{r['protocol']}` at {r['resolution']}^3, union of parts; "
+           f"{std['count']} images ({r.get('seconds', 0):.0f} s).", ""]
+    groups = sorted(set(std["per_group"]) | set((hard or {}).get("per_group", {})))
+    rows = [["all", std["mean"], hard["mean"] if hard else None]]
+    rows += [[g, std["per_group"].get(g), (hard or {}).get("per_group", {}).get(g)] for g in groups]
+    out += ["## Voxel IoU", "", markdown_table(["Subject", "Standard", "Hard Human"], rows), ""]
+    notes = []
+    for name, s in (("standard", std), ("Hard Human", hard)):
+        if s and (s.get("clipped") or s.get("failed")):
+            notes.append(f"{name}: {s['clipped']} predictions clamped into the grid, {s['failed']} rejected "
+                         "by the metric (scored 0).")
+    if hard:
+        notes.append("Hard Human shapes from images " + ", ".join(f"{s}: #{i}" for s, i in r["canonical"].items())
+                     + f"; {hard['count']} images scored.")
+    out += [*(f"- {n}" for n in notes), ""] if notes else []
+    pq = r.get("part_quality")
+    if pq:
+        out += ["## Part quality (ground-truth semantic parts, never seen in training)", "",
+                f"Consistency (mean agreement) {_fmt(pq['consistency'])}, mean entropy "
+                f"{_fmt(pq['mean_entropy_bits'], 3)} bits, mean segmentation IoU {_fmt(pq['mean_segmentation_iou'])} "
+                f"over {pq['images']} images.", ""]
+        prow = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity"),
+                 p["images"]] for p in pq["parts"]]
+        out += [markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity", "Images"],
+                               prow, 3), ""]
+        out += [markdown_table(["GT part", "Segmentation IoU"], list(pq["segmentation_iou"].items()), 3), ""]
+    return "\n".join(out)

@@ -1,0 +1,254 @@
+"""One pass over a test set: standard voxel IoU, Hard Human and part quality together.
+
+The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartReconstruction``
+(world-frame output; the camera is the one the image was rendered with, which the model needs to
+unproject its translations). It may also return any object with ``local_vertices``, ``faces``,
+``rotations`` and ``translations`` (the model's ``PartMeshes``): see :func:`as_part_reconstruction`.
+``cerberus eval`` wraps a trained checkpoint into that and calls :func:`evaluate_dataset`.
+
+Dataset contract (:class:`cerberus_core.data.dataset.ViewDataset` follows it): ``len(ds)``; ``ds[i]``
+a dict with ``images`` ``(3, H, W)`` float in [0, 1] (uint8 is accepted), ``azimuth``, ``elevation``
+(degrees), ``distance``, ``fov_y`` (degrees), ``subject`` (a name, or an index into
+``ds.subject_names``), ``pose``, ``view``, ``is_canonical``; ``ds.cameras(batch) -> Camera`` (the
+cameras of a collated batch); and ``ds.gt_mesh(i) -> PosedBody``. Optional: ``ds.records`` or
+``ds.metadata(i)``, to find the canonical images without reading every image.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from cerberus_core.camera import Camera
+from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
+from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
+from cerberus_core.eval.reconstruction import PartReconstruction, as_part_reconstruction
+from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, Score, VoxelScorer, summarize
+
+Tensor = torch.Tensor
+Reconstructor = Callable[[Tensor, Camera], PartReconstruction]
+
+
+# ------------------------------------------------------------------ batches and cameras
+def subject_label(dataset: Any, value: Any) -> str:
+    """A subject's name: integer subject ids are looked up in ``dataset.subject_names`` if it has them."""
+    if isinstance(value, Tensor):
+        value = value.item()
+    names = getattr(dataset, "subject_names", None)
+    if isinstance(value, (int, np.integer)) and names is not None:
+        return str(names[int(value)])
+    return str(value)
+
+
+def dataset_metadata(dataset: Any) -> list[ItemMeta]:
+    """Subject, pose, view and canonical flag of every item, read as cheaply as the dataset allows:
+    ``dataset.records`` (a structured array with ``subject``, ``pose``, ``view``, ``canonical``, as
+    :class:`~cerberus_core.data.dataset.ViewDataset` has), else ``dataset.metadata(i)``, else
+    ``dataset[i]``."""
+    rec = getattr(dataset, "records", None)
+    fields = {"subject", "pose", "view", "canonical"}
+    if isinstance(rec, np.ndarray) and rec.dtype.names and fields <= set(rec.dtype.names):
+        return [ItemMeta(i, subject_label(dataset, rec["subject"][i]), int(rec["pose"][i]), int(rec["view"][i]),
+                         bool(rec["canonical"][i])) for i in range(len(rec))]
+    getter = getattr(dataset, "metadata", None)
+    out = []
+    for i in range(len(dataset)):
+        item = getter(i) if callable(getter) else dataset[i]
+        try:
+            out.append(ItemMeta(i, subject_label(dataset, item["subject"]), int(item["pose"]), int(item["view"]),
+                                bool(item.get("is_canonical", False))))
+        except KeyError as exc:
+            raise KeyError(f"dataset item {i} lacks the field {exc}; the evaluation needs subject, pose, view "
+                           "(and is_canonical for the Hard Human test)") from None
+    return out
+
+
+def collate(items: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """``default_collate``, with ``images`` as float32 in [0, 1] (uint8 images are divided by 255)."""
+    batch = torch.utils.data.default_collate(list(items))
+    images = batch["images"]
+    batch["images"] = images.float() / 255.0 if images.dtype == torch.uint8 else images.float()
+    return batch
+
+
+def iterate_batches(dataset: Any, indices: Sequence[int], batch_size: int, num_workers: int = 0):
+    """Yield ``(indices, collated batch, cameras)`` in order."""
+    subset = torch.utils.data.Subset(dataset, list(indices))
+    loader = torch.utils.data.DataLoader(subset, batch_size=batch_size, shuffle=False, num_workers=num_workers,
+                                         collate_fn=collate)
+    if not callable(getattr(dataset, "cameras", None)):
+        raise TypeError(f"{type(dataset).__name__} has no cameras(batch) method; the evaluation needs the cameras "
+                        "the test images were rendered with (see cerberus_core.data.dataset.ViewDataset.cameras)")
+    start = 0
+    for batch in loader:
+        n = batch["images"].shape[0]
+        yield list(indices[start:start + n]), batch, dataset.cameras(batch)
+        start += n
+
+
+def reconstruct_batch(reconstruct: Reconstructor, images: Tensor, camera: Camera,
+                      device: torch.device | str) -> PartReconstruction:
+    """Run the model without gradients; the result is a :class:`PartReconstruction` on the CPU."""
+    with torch.no_grad():
+        recon = as_part_reconstruction(reconstruct(images.to(device), camera.to(device)))
+    if recon.batch_size != images.shape[0]:
+        raise ValueError(f"the model returned {recon.batch_size} reconstructions for {images.shape[0]} images")
+    return recon.detach().to("cpu")
+
+
+# ------------------------------------------------------------------ results
+@dataclass
+class EvaluationResult:
+    """Everything one evaluation measured.
+
+    Attributes:
+        protocol, resolution: the voxel-IoU protocol and grid size.
+        standard: per-image voxel IoU, averaged overall and per subject/species.
+        hard: the Hard Human IoU (``None`` if not run or no subject has a canonical image).
+        canonical: ``{subject: dataset index}`` of the images the Hard Human shapes came from.
+        part_quality: :meth:`PartQualityAccumulator.summary` (``None`` if not run).
+        records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error.
+        seconds: wall time.
+    """
+
+    protocol: str
+    resolution: int
+    standard: IoUSummary
+    hard: IoUSummary | None
+    canonical: dict[str, int]
+    part_quality: dict[str, Any] | None
+    records: list[dict[str, Any]] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "protocol": self.protocol,
+            "resolution": self.resolution,
+            "standard": self.standard.to_dict(),
+            "hard": None if self.hard is None else self.hard.to_dict(),
+            "canonical": self.canonical,
+            "part_quality": self.part_quality,
+            "seconds": round(self.seconds, 3),
+            "records": self.records,
+        }
+
+
+# ------------------------------------------------------------------ the pass
+def extract_canonical(dataset: Any, reconstruct: Reconstructor, indices: dict[str, int], device: torch.device | str,
+                      batch_size: int = 16) -> CanonicalParts:
+    """Reconstruct each subject's canonical image once and keep its part shapes."""
+    subject_of = {idx: s for s, idx in indices.items()}
+    shapes: dict[str, PartReconstruction] = {}
+    for batch_idx, batch, camera in iterate_batches(dataset, list(subject_of), batch_size):
+        recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
+        for b, idx in enumerate(batch_idx):
+            shapes[subject_of[idx]] = recon.index(b)
+    return CanonicalParts(shapes, indices)
+
+
+def evaluate_dataset(
+    dataset: Any,
+    reconstruct: Reconstructor,
+    *,
+    protocol: str = "kato",
+    resolution: int = 32,
+    hard: bool = True,
+    part_quality: bool = True,
+    canonical_view: int | None = None,
+    indices: Sequence[int] | None = None,
+    batch_size: int = 16,
+    device: torch.device | str = "cpu",
+    num_workers: int = 0,
+    scorer: VoxelScorer | None = None,
+    weighting: str = "area",
+    density: int = 4,
+    progress: bool = True,
+) -> EvaluationResult:
+    """Evaluate a model on a test set in one pass (one forward per image).
+
+    Args:
+        dataset: see the module docstring.
+        reconstruct: ``(images, camera) -> PartReconstruction`` in world coordinates.
+        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's).
+        hard: also run the Hard Human test (needs ``is_canonical`` images).
+        part_quality: also score the parts against the ground-truth semantic parts.
+        canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
+        indices: evaluate these dataset indices only (default all). Canonical images are looked
+            up in the whole dataset.
+        batch_size, device, num_workers: model batching, its device, data-loading workers.
+        scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
+        weighting: part-quality vertex weights, ``"area"`` or ``"count"``.
+        density: part-quality surface lattice steps per predicted triangle edge (see
+            :mod:`cerberus_core.eval.part_quality`).
+        progress: show a progress bar.
+    """
+    t0 = time.perf_counter()
+    scorer = scorer or VoxelScorer(protocol, resolution)
+    indices = list(range(len(dataset))) if indices is None else [int(i) for i in indices]
+    if not indices:
+        raise ValueError("evaluate_dataset: no images to evaluate (empty dataset or index list)")
+    if weighting not in ("area", "count"):
+        raise ValueError(f"evaluate_dataset: weighting must be 'area' or 'count', got {weighting!r}")
+    if not callable(getattr(dataset, "gt_mesh", None)):
+        raise TypeError(f"{type(dataset).__name__} has no gt_mesh(i) method; evaluation needs the ground-truth meshes")
+
+    canonical: CanonicalParts | None = None
+    if hard:
+        chosen = select_canonical(dataset_metadata(dataset), canonical_view)
+        if chosen:
+            canonical = extract_canonical(dataset, reconstruct, chosen, device, batch_size)
+
+    gt_memo = GroundTruthMemo(dataset.gt_mesh)
+    pq: PartQualityAccumulator | None = None
+    scores: list[Score] = []
+    hard_scores: list[Score] = []
+    groups: list[str] = []
+    hard_groups: list[str] = []
+    records: list[dict[str, Any]] = []
+    bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not progress)
+    for batch_idx, batch, camera in iterate_batches(dataset, indices, batch_size, num_workers):
+        recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
+        canonical_flags = batch.get("is_canonical", [False] * len(batch_idx))
+        for b, idx in enumerate(batch_idx):
+            meta = ItemMeta(idx, subject_label(dataset, batch["subject"][b]), int(batch["pose"][b]),
+                            int(batch["view"][b]), bool(canonical_flags[b]))
+            body = gt_memo.get((meta.subject, meta.pose), idx)
+            gt = (body.vertices, body.faces)
+            one = recon.index(b)
+            score = scorer(one.part_meshes(0), gt)
+            scores.append(score)
+            groups.append(meta.subject)
+            rec: dict[str, Any] = {"index": idx, "subject": meta.subject, "pose": meta.pose, "view": meta.view,
+                                   "iou": score.iou, "clipped": score.clipped, "error": score.error}
+            if canonical is not None and canonical.applies_to(meta):
+                hs = scorer(canonical.pose(meta.subject, one).part_meshes(0), gt)
+                hard_scores.append(hs)
+                hard_groups.append(meta.subject)
+                rec.update(hard_iou=hs.iou, hard_clipped=hs.clipped, hard_error=hs.error)
+            if part_quality:
+                if pq is None:
+                    pq = PartQualityAccumulator(recon.num_parts, list(body.part_names))
+                elif list(body.part_names) != pq.gt_part_names:
+                    raise ValueError(f"item {idx}: ground-truth part names {body.part_names} differ from the "
+                                     f"first item's {pq.gt_part_names}; part quality needs one part vocabulary")
+                pq.add(image_overlap(one.posed()[0].numpy(), recon.faces.numpy(), body.vertices, body.faces,
+                                     body.vertex_parts, len(body.part_names), weighting=weighting,
+                                     density=density), meta.subject)
+            records.append(rec)
+        bar.update(len(batch_idx))
+        bar.set_postfix(iou=f"{np.mean([s.iou for s in scores]):.4f}")
+    bar.close()
+    return EvaluationResult(
+        protocol=scorer.protocol,
+        resolution=scorer.resolution,
+        standard=summarize(scores, groups),
+        hard=summarize(hard_scores, hard_groups) if hard_scores else None,
+        canonical={} if canonical is None else dict(canonical.indices),
+        part_quality=None if pq is None else pq.summary(),
+        records=records,
+        seconds=time.perf_counter() - t0,
+    )

@@ -1,0 +1,94 @@
+"""Pictures with real rendering: sizes, contents, viewpoints."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from conftest import body_parts
+from PIL import Image
+
+from cerberus_core.camera import Camera
+from cerberus_core.eval import figures
+from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
+from cerberus_core.eval.reconstruction import PartReconstruction
+
+H = 40
+
+
+def _camera(az=30.0, n=1):
+    return Camera.look_at(torch.full((n,), az), 15.0, 2.6, fov_y_deg=30.0, image_size=H)
+
+
+def test_camera_spherical_inverts_look_at():
+    cam = Camera.look_at(torch.tensor([-120.0, 0.0, 75.0]), torch.tensor([10.0, -20.0, 45.0]), 2.5)
+    az, el, dist = figures.camera_spherical(cam)
+    torch.testing.assert_close(az, torch.tensor([-120.0, 0.0, 75.0]), atol=1e-4, rtol=0)
+    torch.testing.assert_close(el, torch.tensor([10.0, -20.0, 45.0]), atol=1e-4, rtol=0)
+    torch.testing.assert_close(dist, torch.full((3,), 2.5))
+    turned = figures.orbit_cameras(cam.index([1]), [90.0])
+    torch.testing.assert_close(figures.camera_spherical(turned)[0], torch.tensor([90.0]), atol=1e-4, rtol=0)
+
+
+def test_renders_show_the_body_and_part_colours(renderer, primitive_bodies):
+    recon = body_parts(primitive_bodies[1])
+    cam = _camera()
+    shaded = figures.render_reconstruction(renderer, recon, cam)
+    parts = figures.render_reconstruction(renderer, recon, cam, parts=True)
+    assert shaded.shape == parts.shape == (1, 3, H, H)
+    fg = (shaded[0] < 0.99).any(0)
+    assert 0.02 < fg.float().mean() < 0.6  # the figure is in frame, not filling it
+    grey = (shaded[0, 0] - shaded[0, 2]).abs()[fg].max()
+    assert grey < 1e-5 and (parts[0, 0] - parts[0, 2]).abs()[fg].max() > 0.2
+    relit = figures.relit(renderer, recon, cam)
+    assert (relit - shaded).abs()[:, :, fg].mean() > 0.02  # another light, other shading, same silhouette
+    assert torch.equal((relit[0] < 0.99).any(0), fg)
+
+
+def test_turntable_views_differ(renderer, primitive_bodies):
+    recon = body_parts(primitive_bodies[2])
+    views = figures.turntable(renderer, recon, _camera(), n_views=4)
+    assert views.shape == (4, 3, H, H)
+    first = figures.render_reconstruction(renderer, recon, _camera())[0]
+    torch.testing.assert_close(views[0], first, atol=1e-4, rtol=0)
+    masks = [(v < 0.99).any(0) for v in views]
+    assert all((masks[0] ^ m).float().mean() > 0.01 for m in masks[1:])
+
+
+def test_new_pose_equals_render_of_donor_when_shapes_agree(renderer, primitive_bodies):
+    a = body_parts(primitive_bodies[0], seed=3)
+    donor = PartReconstruction(a.local_vertices, a.faces, a.rotation.flip(1), a.translation.flip(1))
+    got = figures.reposed(renderer, a, donor, _camera())
+    torch.testing.assert_close(got, figures.render_reconstruction(renderer, donor, _camera()))
+
+
+def test_save_image_pictures_writes_pngs_of_expected_size(tmp_path, renderer, primitive_bodies):
+    recon, donor = body_parts(primitive_bodies[0]), body_parts(primitive_bodies[1])
+    cam = _camera()
+    image = figures.render_reconstruction(renderer, recon, cam)[0]
+    paths = figures.save_image_pictures(renderer, image, recon, cam, tmp_path, "x", n_views=8, pose_donor=donor,
+                                        scale=2)
+    sizes = {p.name: Image.open(p).size for p in paths}
+    for name in ("input", "reconstruction", "parts", "new_lighting", "new_pose"):
+        assert sizes[f"x_{name}.png"] == (H, H)
+    cell = 2 * H + PAD
+    assert sizes["x_turntable.png"] == (ROW_LABEL_WIDTH + 8 * cell + PAD, TITLE_HEIGHT + 2 * cell + PAD)
+    assert sizes["x_figure1.png"] == (3 * cell + PAD, 2 * (TITLE_HEIGHT + cell + PAD))
+    png = np.asarray(Image.open(tmp_path / "x_parts.png"))
+    assert len({tuple(p) for p in png.reshape(-1, 3)}) > 10  # coloured parts, not a blank tile
+
+
+def test_comparison_figure_columns(renderer, primitive_bodies):
+    bodies = primitive_bodies[:3]
+    ours = PartReconstruction.cat([body_parts(b) for b in bodies])
+    cams = Camera.cat([_camera(az) for az in (0.0, 45.0, 90.0)])
+    images = figures.render_reconstruction(renderer, ours, cams)
+    blob = PartReconstruction.from_posed(torch.as_tensor(bodies[0].vertices)[None].expand(3, -1, -1),
+                                         torch.as_tensor(bodies[0].faces))
+    titles, rows = figures.comparison_rows(renderer, images, cams, ours, {"NMR": blob, "NMRs": blob})
+    assert titles == ["Input", "NMR", "NMRs", "Ours", "Parts", "Turn"]
+    assert len(rows) == 3 and all(len(r) == 6 for r in rows)
+    torch.testing.assert_close(rows[1][3], images[1])
+    img = figures.comparison_figure(renderer, images, cams, ours, {"NMR": blob}, scale=1)
+    assert img.size == (5 * (H + PAD) + PAD, TITLE_HEIGHT + 3 * (H + PAD) + PAD)
+    with pytest.raises(ValueError, match="reconstructions for 3 images"):
+        figures.comparison_rows(renderer, images, cams, ours.index([0, 1]))
