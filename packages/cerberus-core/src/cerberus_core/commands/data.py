@@ -1,0 +1,142 @@
+"""``cerberus data``: generate, check and look at datasets (docs/data_format.md)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from cerberus_core.data.format import DatasetError
+
+_DATASETS = ("human", "animal", "folder", "primitives")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("data", help="generate, check and show training/test datasets",
+                       description="Render the paper's datasets on this machine (nothing is downloaded): "
+                       "quadruplets of one body in 2 poses from 2 viewpoints for training, single views with "
+                       "ground-truth meshes and part labels for testing.")
+    dsub = p.add_subparsers(dest="data_command", metavar="ACTION")
+    dsub.required = True
+
+    g = dsub.add_parser("generate", help="generate (or resume) a dataset",
+                        formatter_class=argparse.RawDescriptionHelpFormatter,
+                        description="Generate a dataset into --out. Rerunning the same command resumes an interrupted "
+                        "run without redoing finished shards; a folder holding anything else is refused unless "
+                        "--overwrite.\n\npresets:\n"
+                        "  human:      paper (19,500 train pairs / 5 subjects;\n"
+                        "              810 test poses x 4 views / 2 subjects),\n"
+                        "              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds)\n"
+                        "  animal:     paper (41 species x 47 poses x 4 views, 38,540 quadruplets; 984 test views),\n"
+                        "              small (12 species), tiny\n"
+                        "  primitives: capsule figures with the human presets' structure (paper, small, tiny)\n"
+                        "  folder:     pairs (the Human protocol on your meshes), grid (the Animal protocol)")
+    g.add_argument("--dataset", choices=_DATASETS, required=True, help="body source")
+    g.add_argument("--preset", default=None, help="preset (default: small; folder: pairs)")
+    g.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
+    g.add_argument("--source", type=Path, help="folder of meshes: SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl> "
+                   "(--dataset folder only)")
+    g.add_argument("--test-subjects", help="folder: comma-separated test subject names (default: --test-fraction)")
+    g.add_argument("--test-fraction", type=float, default=0.3,
+                   help="folder: fraction of subjects (last in sorted order) held out for testing (default 0.3)")
+    g.add_argument("--renderer", default="torch", help="renderer backend: torch or warp (default: torch)")
+    g.add_argument("--image-size", type=int, default=64, help="image size in pixels (default 64; 128 available)")
+    g.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
+    g.add_argument("--shard-images", type=int, default=1024, help="images per shard (default 1024)")
+    g.add_argument("--batch-size", type=int, default=64, help="views per render call (default 64; no effect on output)")
+    g.add_argument("--device", default="cpu", help="torch device for posing and rendering (default cpu)")
+    g.add_argument("--overwrite", action="store_true", help="replace a different dataset in --out")
+    g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
+    g.set_defaults(func=run_generate)
+
+    c = dsub.add_parser("check", help="verify a dataset's checksums and report its contents",
+                        description="Verify the manifest (format version, paths), every shard file (size, sha256, "
+                        "array shapes) and completeness. Exit status 1 on any problem.")
+    c.add_argument("root", type=Path, help="dataset folder")
+    c.add_argument("--quick", action="store_true", help="sizes and headers only, no sha256")
+    c.set_defaults(func=run_check)
+
+    s = dsub.add_parser("show", help="write a contact sheet PNG of a split",
+                        description="Rows of quadruplets (a0 a1 b0 b1) for training splits, or the views of each "
+                        "pose for test splits; --parts adds the ground-truth parts in colour.")
+    s.add_argument("root", type=Path, help="dataset folder")
+    s.add_argument("--split", default="train", help="split to show (default train)")
+    s.add_argument("--out", type=Path, help="PNG path (default: ROOT/contact_<split>.png)")
+    s.add_argument("--count", type=int, default=8, help="rows (default 8)")
+    s.add_argument("--parts", action="store_true", help="add ground-truth part renderings")
+    s.add_argument("--scale", type=int, default=2, help="tile upscaling (default 2)")
+    s.add_argument("--renderer", default="torch", help="backend for --parts (default torch)")
+    s.set_defaults(func=run_show)
+
+
+def _fail(exc: Exception) -> int:
+    print(f"error: {exc}", file=sys.stderr)
+    return 1
+
+
+def run_generate(args: argparse.Namespace) -> int:
+    from cerberus_core.data.generate import generate
+    from cerberus_core.data.plan import default_preset, make_plan, preset_config
+    from cerberus_core.data.scene import SceneSetup
+    from cerberus_core.data.sources import make_source
+
+    if (args.dataset == "folder") != (args.source is not None):
+        return _fail(ValueError("--source DIR is required with --dataset folder (and only then)"))
+    preset = args.preset or default_preset(args.dataset)
+    options = {}
+    if args.dataset == "folder":
+        options = {"root": str(args.source.resolve()), "test_fraction": args.test_fraction}
+        if args.test_subjects:
+            options["test_subjects"] = [s.strip() for s in args.test_subjects.split(",") if s.strip()]
+    try:
+        config = preset_config(args.dataset, preset, seed=args.seed, image_size=args.image_size,
+                               renderer=args.renderer, shard_images=args.shard_images, scene=SceneSetup())
+        runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
+        source = make_source(args.dataset, **options, **runtime)
+        if args.dry_run:
+            plan = make_plan(config, source)
+            print(f"{args.dataset}/{preset}: {len(plan.subjects)} subjects, scene {config.scene.to_dict()}")
+            for split in config.splits:
+                t = plan.totals(split)
+                print(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} quadruplets "
+                      f"{t['meshes']:>7} meshes")
+            return 0
+        manifest = generate(config, args.out, source=source, source_options=options, overwrite=args.overwrite,
+                            device=args.device, batch_size=args.batch_size, progress=not args.quiet)
+    except (DatasetError, ValueError, ImportError) as exc:
+        return _fail(exc)
+    for split, info in manifest["splits"].items():
+        print(f"{split:<6} {info['planned_images']:>8} images {info['planned_quadruplets']:>8} quadruplets")
+    print(f"dataset written to {args.out}")
+    return 0
+
+
+def run_check(args: argparse.Namespace) -> int:
+    from cerberus_core.data.format import verify_dataset
+
+    manifest, problems = verify_dataset(args.root, checksums=not args.quick, progress=sys.stderr.isatty())
+    if manifest is not None:
+        print(f"{args.root}: {manifest['dataset']}/{manifest['preset']}, format v{manifest['format_version']}, "
+              f"{manifest['image_size']}px, {len(manifest['subjects'])} subjects, {len(manifest['part_names'])} parts")
+        for split, info in manifest["splits"].items():
+            shards = info.get("shards", [])
+            count = {k: sum(s[k] for s in shards) for k in ("images", "quadruplets", "meshes")}
+            print(f"  {split:<6} {len(shards)}/{info['planned_shards']} shards, {count['images']} images, "
+                  f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
+    for p in problems:
+        print(f"problem: {p}", file=sys.stderr)
+    print("ok" if not problems else f"{len(problems)} problem(s)")
+    return 1 if problems else 0
+
+
+def run_show(args: argparse.Namespace) -> int:
+    from cerberus_core.data.show import save_contact_sheet
+
+    out = args.out or args.root / f"contact_{args.split}.png"
+    try:
+        save_contact_sheet(args.root, out, split=args.split, count=args.count, parts=args.parts,
+                           renderer=args.renderer, scale=args.scale)
+    except (DatasetError, ValueError) as exc:
+        return _fail(exc)
+    print(f"contact sheet written to {out}")
+    return 0

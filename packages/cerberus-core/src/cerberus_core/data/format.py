@@ -1,0 +1,366 @@
+"""The on-disk dataset format: manifest, shards, checksums, atomic writes (see docs/data_format.md).
+
+A dataset is a folder::
+
+    DIR/manifest.json                   format name + version, config, scene, subjects, splits, shards
+    DIR/<split>/shard-NNNNN.images.npy  (N, 3, H, W) uint8 rendered images
+    DIR/<split>/shard-NNNNN.views.npy   (N,) structured VIEW_DTYPE: subject, pose, view, camera ...
+    DIR/<split>/shard-NNNNN.quads.npy   (Q, 4) int32 image indices (a0, a1, b0, b1) within the shard
+    DIR/<split>/shard-NNNNN.vertices.npy (sum V, 3) float32 ground-truth vertices   [if meshes stored]
+    DIR/<split>/shard-NNNNN.meshes.npz  offsets, topologies (faces, part labels)      [if meshes stored]
+
+Every ``.npy`` opens with ``np.load(mmap_mode="r")``. A shard counts only once the manifest lists
+it, with the size and sha256 of each of its files; files are written to a temporary name, fsynced
+and renamed (:func:`atomic_write`), and the manifest is rewritten the same way after each shard, so
+a killed run never leaves a shard that a reader accepts half-written.
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+FORMAT_NAME = "cerberus-dataset"
+FORMAT_VERSION = 1
+MANIFEST = "manifest.json"
+
+VIEW_DTYPE = np.dtype([
+    ("subject", "<i4"),     # index into manifest["subjects"]
+    ("pose", "<i4"),        # pose id, unique within the subject
+    ("view", "<i2"),        # view index within the pose (0/1 in a pair, 0..V-1 on a grid)
+    ("canonical", "?"),     # the subject's canonical pose (Hard Human test)
+    ("mesh", "<i4"),        # index of the ground-truth mesh in the shard, -1 if meshes are not stored
+    ("azimuth", "<f4"),     # degrees
+    ("elevation", "<f4"),   # degrees
+    ("distance", "<f4"),    # normalised units
+    ("fov_y", "<f4"),       # degrees
+])
+"""One record per image (packed, 31 bytes)."""
+
+SHARD_ROLES = ("images", "views", "quads", "vertices", "meshes")
+"""The files of a shard, by role; ``vertices`` and ``meshes`` exist only when meshes are stored."""
+
+
+class DatasetError(ValueError):
+    """A dataset folder is missing, corrupt, incomplete or of another format; the message names the
+    file and the fix."""
+
+
+# ------------------------------------------------------------------------------------ atomic I/O
+def _fsync_dir(path: Path) -> None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:  # pragma: no cover - platforms without directory fds
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(fd)
+
+
+def _current_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+_FILE_MODE = 0o666 & ~_current_umask()
+
+
+def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None:
+    """Write ``path`` through a temporary file in the same folder: write, flush, fsync, rename.
+
+    A reader sees either the old file, no file, or the complete new one.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _FILE_MODE)  # mkstemp creates 0600; give the file the usual permissions
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    _fsync_dir(path.parent)
+
+
+def atomic_save_npy(path: Path, array: np.ndarray) -> None:
+    """``np.save`` atomically (no pickles)."""
+    atomic_write(path, lambda fh: np.save(fh, np.ascontiguousarray(array), allow_pickle=False))
+
+
+def atomic_save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """``np.savez`` (uncompressed) atomically."""
+    atomic_write(path, lambda fh: np.savez(fh, **arrays))
+
+
+def canonical_json(obj: Any) -> str:
+    """Deterministic JSON (sorted keys, 1-space indent) used for the manifest and config hashes."""
+    return json.dumps(obj, sort_keys=True, indent=1, ensure_ascii=True)
+
+
+def atomic_write_json(path: Path, obj: Any) -> None:
+    atomic_write(path, lambda fh: fh.write((canonical_json(obj) + "\n").encode()))
+
+
+def sha256_file(path: Path, chunk: int = 1 << 22) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def config_hash(config: dict) -> str:
+    return hashlib.sha256(canonical_json(config).encode()).hexdigest()
+
+
+def clean_temporaries(folder: Path) -> int:
+    """Remove leftover ``.*.tmp`` files of an interrupted run under ``folder``; returns the count."""
+    n = 0
+    for tmp in Path(folder).rglob(".*.tmp"):
+        tmp.unlink(missing_ok=True)
+        n += 1
+    return n
+
+
+# ------------------------------------------------------------------------------------ paths
+def resolve_inside(root: Path, rel: str) -> Path:
+    """The path ``root / rel``, refusing any path that leaves ``root``.
+
+    Raises:
+        DatasetError: for absolute paths, ``..`` components or symlinks escaping the folder.
+    """
+    root = Path(root)
+    p = Path(rel)
+    if p.is_absolute() or ".." in p.parts or rel.strip() == "":
+        raise DatasetError(f"{root / MANIFEST}: file path {rel!r} escapes the dataset folder; a manifest may only "
+                           "name files inside its own folder (regenerate the dataset or fix the manifest)")
+    full = root / p
+    real_root = root.resolve()
+    if not full.resolve().is_relative_to(real_root):
+        raise DatasetError(f"{root / MANIFEST}: file path {rel!r} resolves to {full.resolve()}, outside the dataset "
+                           f"folder {real_root} (a symlink?); copy the file into the dataset folder")
+    return full
+
+
+# ------------------------------------------------------------------------------------ manifest
+def read_manifest(root: Path) -> dict:
+    """Load and validate ``root/manifest.json`` (format name and version, required keys).
+
+    Raises:
+        DatasetError: a missing or unreadable manifest, another format or another format version.
+    """
+    root = Path(root)
+    path = root / MANIFEST
+    if not root.is_dir():
+        raise DatasetError(f"dataset folder {root} does not exist; generate one with "
+                           f"`cerberus data generate --out {root}`")
+    if not path.is_file():
+        raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset "
+                           f"(generate one with `cerberus data generate --out {root}`)")
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+        found = manifest.get("format") if isinstance(manifest, dict) else None
+        raise DatasetError(f"{path} is not a {FORMAT_NAME} manifest (format={found!r})")
+    version = manifest.get("format_version")
+    if version != FORMAT_VERSION:
+        raise DatasetError(f"{path} has format version {version!r}, this cerberus-core reads version {FORMAT_VERSION}; "
+                           "regenerate the dataset with this version (`cerberus data generate ... --overwrite`) or "
+                           "install the cerberus-core release that wrote it")
+    for key in ("dataset", "config", "scene", "image_size", "part_names", "subjects", "splits"):
+        if key not in manifest:
+            raise DatasetError(f"{path} lacks the required key {key!r}; the dataset is corrupt — regenerate it")
+    return manifest
+
+
+def split_info(manifest: dict, split: str, root: Path) -> dict:
+    """The manifest entry of ``split`` or a :class:`DatasetError` naming the available splits."""
+    splits = manifest["splits"]
+    if split not in splits:
+        raise DatasetError(f"{Path(root) / MANIFEST}: no split {split!r}; this dataset has {sorted(splits)}")
+    return splits[split]
+
+
+def split_complete(info: dict) -> bool:
+    return len(info.get("shards", [])) == info.get("planned_shards", -1)
+
+
+def file_record(root: Path, path: Path, array_shape: tuple[int, ...] | None, dtype: str | None) -> dict:
+    """Manifest entry of one written shard file: relative path, bytes, sha256 (and array shape)."""
+    rec = {"path": path.relative_to(root).as_posix(), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
+    if array_shape is not None:
+        rec["shape"], rec["dtype"] = list(array_shape), dtype
+    return rec
+
+
+# ------------------------------------------------------------------------------------ verification
+def check_shard_files(root: Path, shard: dict, *, checksums: bool) -> list[str]:
+    """Problems with one shard's files (empty list if fine): missing, wrong size, wrong checksum,
+    array header not matching the manifest, path escaping the folder."""
+    problems = []
+    for role, rec in shard.get("files", {}).items():
+        try:
+            path = resolve_inside(root, rec["path"])
+        except DatasetError as exc:
+            problems.append(str(exc))
+            continue
+        if not path.is_file():
+            problems.append(f"{path}: missing ({role} of {shard.get('name')}); resume the generation to rebuild it")
+            continue
+        size = path.stat().st_size
+        if size != rec["bytes"]:
+            problems.append(f"{path}: {size} bytes, the manifest records {rec['bytes']} (truncated or replaced); "
+                            "delete it and resume the generation")
+            continue
+        if checksums and sha256_file(path) != rec["sha256"]:
+            problems.append(f"{path}: sha256 mismatch (corrupt); delete it and resume the generation")
+            continue
+        if "shape" in rec and path.suffix == ".npy":
+            try:
+                arr = np.load(path, mmap_mode="r", allow_pickle=False)
+            except Exception as exc:  # noqa: BLE001 - any header problem is corruption
+                problems.append(f"{path}: unreadable .npy ({exc})")
+                continue
+            if list(arr.shape) != rec["shape"] or arr.dtype.str != rec["dtype"]:
+                problems.append(f"{path}: array {arr.dtype.str}{list(arr.shape)} but the manifest records "
+                                f"{rec['dtype']}{rec['shape']}")
+    return problems
+
+
+def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False) -> tuple[dict | None, list[str]]:
+    """Check a whole dataset: manifest, completeness, every shard file (and its sha256).
+
+    Returns:
+        ``(manifest or None, problems)``; an empty problem list means the dataset is sound.
+    """
+    root = Path(root)
+    try:
+        manifest = read_manifest(root)
+    except DatasetError as exc:
+        return None, [str(exc)]
+    problems: list[str] = []
+    shards = [(name, s) for name, info in manifest["splits"].items() for s in info.get("shards", [])]
+    it = shards
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(shards, desc="checking shards", unit="shard")
+    for _, shard in it:
+        problems.extend(check_shard_files(root, shard, checksums=checksums))
+    for name, info in manifest["splits"].items():
+        if not split_complete(info):
+            problems.append(f"split {name!r} is incomplete: {len(info.get('shards', []))} of "
+                            f"{info.get('planned_shards')} shards; resume with `cerberus data generate` and the same "
+                            "options")
+    return manifest, problems
+
+
+# ------------------------------------------------------------------------------------ meshes
+def pack_meshes(bodies: list, subject_index: list[int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Pack ground-truth meshes of one shard; topologies (faces + part labels) are stored once.
+
+    Args:
+        bodies: ``M`` :class:`~cerberus_core.data.body.PosedBody`.
+        subject_index: ``M`` manifest subject indices.
+
+    Returns:
+        ``vertices`` ``(sum V, 3)`` float32 and the ``meshes.npz`` arrays: ``subject``, ``pose``
+        ``(M,)`` int32; ``vertex_offsets`` ``(M+1,)`` int64; ``topology`` ``(M,)`` int32;
+        ``face_offsets`` ``(T+1,)`` int64 into ``faces`` ``(sum F, 3)`` int32; ``part_offsets``
+        ``(T+1,)`` int64 into ``vertex_parts`` ``(sum V_t,)`` int16; and, when every body carries
+        ``meta["pose_params"]`` of one length, ``pose_params`` ``(M, D)`` float32.
+    """
+    topo_key: dict[bytes, int] = {}
+    faces, parts, topology = [], [], []
+    for b in bodies:
+        key = hashlib.sha1(b.faces.astype(np.int32).tobytes() + b"|" + b.vertex_parts.tobytes()).digest()
+        if key not in topo_key:
+            topo_key[key] = len(faces)
+            faces.append(b.faces.astype(np.int32))
+            parts.append(b.vertex_parts.astype(np.int16))
+        topology.append(topo_key[key])
+    counts = [len(b.vertices) for b in bodies]
+    out = {
+        "subject": np.asarray(subject_index, dtype=np.int32),
+        "pose": np.asarray([b.pose_id for b in bodies], dtype=np.int32),
+        "vertex_offsets": np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+        "topology": np.asarray(topology, dtype=np.int32),
+        "face_offsets": np.concatenate([[0], np.cumsum([len(f) for f in faces])]).astype(np.int64),
+        "faces": np.concatenate(faces) if faces else np.zeros((0, 3), np.int32),
+        "part_offsets": np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64),
+        "vertex_parts": np.concatenate(parts) if parts else np.zeros((0,), np.int16),
+    }
+    params = [b.meta.get("pose_params") for b in bodies]
+    if bodies and all(p is not None for p in params) and len({np.asarray(p).shape for p in params}) == 1:
+        out["pose_params"] = np.stack([np.asarray(p, dtype=np.float32).reshape(-1) for p in params])
+    vertices = (np.concatenate([b.vertices for b in bodies]).astype(np.float32) if bodies
+                else np.zeros((0, 3), np.float32))
+    return vertices, out
+
+
+def unpack_mesh(vertices: np.ndarray, meshes: dict[str, np.ndarray],
+                i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mesh ``i`` of a shard packed by :func:`pack_meshes`: ``(vertices (V,3) float32, faces (F,3)
+    int64, vertex_parts (V,) int16)`` (copies, safe to keep after the shard is closed)."""
+    v0, v1 = meshes["vertex_offsets"][i], meshes["vertex_offsets"][i + 1]
+    t = int(meshes["topology"][i])
+    f0, f1 = meshes["face_offsets"][t], meshes["face_offsets"][t + 1]
+    p0, p1 = meshes["part_offsets"][t], meshes["part_offsets"][t + 1]
+    verts = np.array(vertices[v0:v1], dtype=np.float32)
+    parts = np.array(meshes["vertex_parts"][p0:p1], dtype=np.int16)
+    if len(parts) != len(verts):
+        raise DatasetError(f"mesh {i}: {len(verts)} vertices but {len(parts)} part labels; the shard is corrupt")
+    return verts, np.array(meshes["faces"][f0:f1], dtype=np.int64), parts
+
+
+def write_shard(root: Path, split: str, index: int, images: np.ndarray, views: np.ndarray, quads: np.ndarray,
+                meshes: tuple[np.ndarray, dict[str, np.ndarray]] | None, *, extra: dict | None = None) -> dict:
+    """Write one shard's files atomically and return its manifest record (not yet in the manifest).
+
+    Args:
+        images: ``(N, 3, H, W)`` uint8.
+        views: ``(N,)`` :data:`VIEW_DTYPE`.
+        quads: ``(Q, 4)`` int32 indices into the shard's images.
+        meshes: the output of :func:`pack_meshes`, or ``None`` when meshes are not stored.
+        extra: more fields for the record (e.g. the subjects in the shard).
+    """
+    root = Path(root)
+    if images.dtype != np.uint8 or images.ndim != 4 or images.shape[1] != 3:
+        raise ValueError(f"write_shard: images must be (N, 3, H, W) uint8, got {images.dtype} {images.shape}")
+    if views.dtype != VIEW_DTYPE or views.shape != (len(images),):
+        raise ValueError("write_shard: views must be one VIEW_DTYPE record per image")
+    quads = np.asarray(quads, dtype=np.int32).reshape(-1, 4)
+    if quads.size and (quads.min() < 0 or quads.max() >= len(images)):
+        raise ValueError("write_shard: quadruplet indices outside the shard's images")
+    name = f"shard-{index:05d}"
+    folder = root / split
+    arrays: dict[str, np.ndarray] = {"images": images, "views": views, "quads": quads}
+    if meshes is not None:
+        arrays["vertices"] = meshes[0]
+    files = {}
+    for role, arr in arrays.items():
+        path = folder / f"{name}.{role}.npy"
+        atomic_save_npy(path, arr)
+        files[role] = file_record(root, path, arr.shape, arr.dtype.str)
+    if meshes is not None:
+        path = folder / f"{name}.meshes.npz"
+        atomic_save_npz(path, meshes[1])
+        files["meshes"] = file_record(root, path, None, None)
+    return {"index": index, "name": name, "images": int(len(images)), "quadruplets": int(len(quads)),
+            "meshes": 0 if meshes is None else int(len(meshes[1]["pose"])), "files": files, **(extra or {})}

@@ -1,0 +1,293 @@
+"""The generation driver: plan → pose → render in batches → write shards atomically → manifest.
+
+Resumable and deterministic: the plan (:mod:`cerberus_core.data.plan`) is a pure function of the
+config, every shard is rebuilt from it alone, and the manifest lists a shard (with the sha256 of its
+files) only after its files are complete on disk. Rerunning the same config in the same folder skips
+the finished shards; a config that differs from the folder's refuses unless ``overwrite=True``.
+"""
+from __future__ import annotations
+
+import hashlib
+import shutil
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import torch
+
+from cerberus_core.data.body import PosedBody
+from cerberus_core.data.format import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    MANIFEST,
+    DatasetError,
+    atomic_write_json,
+    check_shard_files,
+    clean_temporaries,
+    config_hash,
+    pack_meshes,
+    write_shard,
+)
+from cerberus_core.data.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
+from cerberus_core.data.scene import SceneSetup
+from cerberus_core.data.sources import BodySource, make_source
+from cerberus_core.plugins import make_renderer
+from cerberus_core.render.api import render
+from cerberus_core.render.interface import Renderer
+
+ShardCallback = Callable[[str, dict], None]
+
+
+# ------------------------------------------------------------------------------------ rendering
+def render_views(renderer: Renderer, bodies: list[PosedBody], mesh_index: np.ndarray, azimuth: np.ndarray,
+                 scene: SceneSetup, image_size: int, *, batch_size: int = 64, device: str | torch.device = "cpu",
+                 on_batch: Callable[[int], None] | None = None) -> np.ndarray:
+    """Render views of posed bodies with the scene set-up, in batches.
+
+    Views of bodies that share a topology (faces) are batched together; each batch is one
+    :func:`~cerberus_core.render.api.render` call.
+
+    Args:
+        bodies: ``M`` posed bodies.
+        mesh_index: ``(N,)`` the body of each view.
+        azimuth: ``(N,)`` degrees.
+        batch_size: views per render call.
+        on_batch: called with the number of views rendered after each batch.
+
+    Returns:
+        ``(N, 3, H, W)`` uint8 images (``round(255 * rgb)``).
+    """
+    n = len(mesh_index)
+    out = np.empty((n, 3, image_size, image_size), dtype=np.uint8)
+    topo: dict[bytes, int] = {}
+    seen: dict[int, int] = {}  # id(faces) -> topology: sources usually share one faces array
+    keys = []
+    for b in bodies:  # group meshes by identical faces
+        if id(b.faces) not in seen:
+            seen[id(b.faces)] = topo.setdefault(hashlib.sha1(b.faces.tobytes()).digest(), len(topo))
+        keys.append(seen[id(b.faces)])
+    order = sorted(range(n), key=lambda i: (keys[mesh_index[i]], i))
+    groups: list[list[int]] = []
+    for i in order:
+        if groups and keys[mesh_index[groups[-1][0]]] == keys[mesh_index[i]] and len(groups[-1]) < batch_size:
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    with torch.no_grad():
+        for idx in groups:
+            faces = torch.as_tensor(bodies[mesh_index[idx[0]]].faces, device=device)
+            verts = torch.as_tensor(np.stack([bodies[mesh_index[i]].vertices for i in idx]), device=device)
+            camera = scene.cameras(azimuth[idx], image_size, device=device)
+            res = render(renderer, verts, faces, camera, scene.light(camera), albedo=scene.albedo,
+                         background=scene.background)
+            out[idx] = (res.image.clamp(0, 1) * 255 + 0.5).to(torch.uint8).cpu().numpy()
+            if on_batch is not None:
+                on_batch(len(idx))
+    return out
+
+
+def build_bodies(source: BodySource, subjects: list[dict], meshes: list[tuple[int, int]],
+                 n_parts: int) -> list[PosedBody]:
+    """Pose every (subject index, pose id) of a shard, one batched call per subject, and check them.
+
+    Raises:
+        ValueError: a body outside ``[-0.5, 0.5]^3`` or with part labels outside ``0..n_parts-1``.
+    """
+    by_subject: dict[int, list[int]] = {}
+    for s, p in meshes:
+        by_subject.setdefault(s, [])
+        if p not in by_subject[s]:
+            by_subject[s].append(p)
+    built: dict[tuple[int, int], PosedBody] = {}
+    for s, poses in by_subject.items():
+        name = subjects[s]["name"]
+        bodies = source.bodies(name, poses)
+        if len(bodies) != len(poses):
+            raise RuntimeError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}")
+        for p, b in zip(poses, bodies):
+            reach = float(np.abs(b.vertices).max()) if len(b.vertices) else 0.0
+            if reach > 0.5 + 1e-6:
+                raise ValueError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "
+                                 "[-0.5, 0.5]^3 every body must lie in (see cerberus_core.data.body)")
+            if len(b.vertex_parts) and (b.vertex_parts.min() < 0 or b.vertex_parts.max() >= n_parts):
+                raise ValueError(f"{source.name} body {name} pose {p}: part labels outside 0..{n_parts - 1}")
+            built[(s, p)] = b
+    return [built[m] for m in meshes]
+
+
+# ------------------------------------------------------------------------------------ folder state
+def _differences(a: Any, b: Any, prefix: str = "") -> list[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b)):
+            out += _differences(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else str(k))
+        return out
+    return [] if a == b else [f"{prefix}: {a!r} (folder) vs {b!r} (requested)"]
+
+
+def _remove_dataset(out: Path, splits: list[str]) -> None:
+    """Delete what a dataset wrote in ``out`` (manifest, split folders, temporaries); nothing else."""
+    (out / MANIFEST).unlink(missing_ok=True)
+    for split in splits:
+        if (out / split).is_dir():
+            shutil.rmtree(out / split)
+    clean_temporaries(out)
+
+
+def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None]) -> dict | None:
+    """Decide between a fresh run and a resume; return the manifest to resume from (or ``None``)."""
+    from cerberus_core.data.format import read_manifest
+
+    if not out.exists():
+        out.mkdir(parents=True)
+        return None
+    if not out.is_dir():
+        raise DatasetError(f"{out} exists and is not a folder; choose another --out")
+    old_splits = list(config["splits"])
+    if (out / MANIFEST).exists():
+        try:
+            old = read_manifest(out)
+        except DatasetError as exc:
+            if not overwrite:
+                raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass --overwrite to "
+                                   "replace it, or choose another --out") from exc
+            log(f"overwriting the dataset in {out}")
+            _remove_dataset(out, old_splits)
+            return None
+        if old["config"] == config:
+            return old
+        if not overwrite:
+            diff = "; ".join(_differences(old["config"], config)[:6])
+            raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
+                               "--overwrite to replace it, or choose another --out")
+        log(f"overwriting the dataset in {out} (different config)")
+        _remove_dataset(out, old_splits + list(old.get("splits", {})))
+        return None
+    entries = [p for p in out.iterdir() if not (p.name.startswith(".") and p.name.endswith(".tmp"))]
+    if entries:
+        if not overwrite:
+            raise DatasetError(f"{out} is not empty and holds no Cerberus dataset ({len(entries)} entries, e.g. "
+                               f"{entries[0].name}); choose an empty or new --out, or pass --overwrite to write "
+                               "there anyway")
+        log(f"writing into the non-empty folder {out} (--overwrite)")
+        _remove_dataset(out, old_splits)
+    return None
+
+
+def _manifest(config: GenerationConfig, cfg: dict, source: BodySource, source_options: dict, plan: DatasetPlan) -> dict:
+    from cerberus_core import __version__
+
+    splits = {}
+    for name, split_cfg in config.splits.items():
+        t = plan.totals(name)
+        splits[name] = {"layout": split_cfg.layout, "meshes": split_cfg.meshes, "planned_shards": t["shards"],
+                        "planned_images": t["images"], "planned_quadruplets": t["quadruplets"],
+                        "planned_meshes": t["meshes"], "shards": []}
+    return {
+        "format": FORMAT_NAME, "format_version": FORMAT_VERSION, "dataset": config.dataset, "preset": config.preset,
+        "config": cfg, "config_sha256": config_hash(cfg), "scene": config.scene.to_dict(),
+        "image_size": config.image_size, "part_names": list(source.part_names), "subjects": plan.subjects,
+        "source": {"name": source.name, "options": source_options}, "splits": splits, "complete": False,
+        "generator": {"cerberus_core": __version__},
+    }
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return obj
+
+
+# ------------------------------------------------------------------------------------ driver
+def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | None = None,
+             source_options: dict[str, Any] | None = None, overwrite: bool = False, device: str = "cpu",
+             batch_size: int = 64, progress: bool = True, log: Callable[[str], None] = print,
+             on_shard: ShardCallback | None = None) -> dict:
+    """Generate (or resume) a dataset in ``out``.
+
+    Args:
+        config: what to generate (:func:`cerberus_core.data.plan.preset_config`).
+        out: the dataset folder (created if needed).
+        source: the body source (default: built from ``config.dataset`` and ``source_options``).
+        source_options: JSON-ready options of the source (e.g. the folder's ``root``), stored in
+            the manifest so that a reader can rebuild the source.
+        overwrite: replace a different dataset (or other files' dataset folders) in ``out``.
+        device: torch device for posing and rendering (not part of the dataset's identity).
+        batch_size: views per render call (results do not depend on it).
+        progress: show a tqdm bar.
+        on_shard: called as ``on_shard(split, record)`` after each shard is listed in the manifest.
+
+    Returns:
+        The final manifest.
+
+    Raises:
+        DatasetError: ``out`` holds something else (see :func:`_prepare`).
+    """
+    out = Path(out)
+    source_options = dict(source_options or {})
+    if source is None:
+        source = make_source(config.dataset, **source_options)
+    config = replace(config, source=_jsonable(source.describe()))
+    cfg = _jsonable(config.to_dict())
+    resume = _prepare(out, cfg, overwrite, log)
+    clean_temporaries(out)
+    plan = make_plan(config, source)
+    manifest = _jsonable(_manifest(config, cfg, source, source_options, plan))
+    done: dict[str, dict[int, dict]] = {s: {} for s in config.splits}
+    if resume is not None:
+        for split, info in resume["splits"].items():
+            for rec in info.get("shards", []):
+                problems = check_shard_files(out, rec, checksums=True)
+                if problems:
+                    log(f"shard {split}/{rec.get('name')} is damaged and will be rebuilt: {problems[0]}")
+                elif split in done and rec["index"] < len(plan.shards[split]):
+                    done[split][rec["index"]] = rec
+        n_done = sum(len(d) for d in done.values())
+        log(f"resuming {out}: {n_done} of {sum(len(s) for s in plan.shards.values())} shards already done")
+    for split in config.splits:
+        manifest["splits"][split]["shards"] = [done[split][i] for i in sorted(done[split])]
+    atomic_write_json(out / MANIFEST, manifest)
+
+    todo: list[ShardPlan] = [s for split in config.splits for s in plan.shards[split] if s.index not in done[split]]
+    if todo:
+        renderer = make_renderer(config.renderer)
+        from tqdm import tqdm
+
+        bar = tqdm(total=sum(len(s.views) for s in todo), unit="img", disable=not progress,
+                   desc=f"{config.dataset}/{config.preset}")
+        try:
+            for shard in todo:
+                bar.set_postfix_str(f"{shard.split} shard {shard.index + 1}/{len(plan.shards[shard.split])}")
+                rec = _build_shard(out, config, source, plan, shard, renderer, device, batch_size, bar.update)
+                info = manifest["splits"][shard.split]
+                info["shards"] = sorted(info["shards"] + [rec], key=lambda r: r["index"])
+                atomic_write_json(out / MANIFEST, manifest)
+                if on_shard is not None:
+                    on_shard(shard.split, rec)
+        finally:
+            bar.close()
+    manifest["complete"] = True
+    atomic_write_json(out / MANIFEST, manifest)
+    return manifest
+
+
+def _build_shard(out: Path, config: GenerationConfig, source: BodySource, plan: DatasetPlan, shard: ShardPlan,
+                 renderer: Renderer, device: str, batch_size: int, on_batch: Callable[[int], None]) -> dict:
+    bodies = build_bodies(source, plan.subjects, shard.meshes, len(source.part_names))
+    images = render_views(renderer, bodies, shard.views["mesh"], shard.views["azimuth"], config.scene,
+                          config.image_size, batch_size=batch_size, device=device, on_batch=on_batch)
+    views = shard.views.copy()
+    meshes = None
+    if config.splits[shard.split].meshes:
+        meshes = pack_meshes(bodies, [s for s, _ in shard.meshes])
+    else:
+        views["mesh"] = -1
+    return write_shard(out, shard.split, shard.index, images, views, shard.quads, meshes,
+                       extra={"subjects": shard.subjects})

@@ -1,0 +1,398 @@
+"""What a dataset contains: generation configs, presets, and the deterministic shard plan.
+
+Two layouts, following the paper's two protocols (section 5):
+
+* ``pairs`` (Human): each training example is a *pair of poses* of one subject, both seen from the
+  same two viewpoints whose azimuths are drawn uniformly in [0, 360) for that pair. A pair is stored
+  as 4 images in the order ``(a0, a1, b0, b1)`` and one quadruplet.
+* ``grid`` (Animal, and every test split): each pose of a subject is seen from ``views`` azimuths
+  ``offset + k * 360 / views``. With ``azimuths="shared"`` one random offset per subject serves all
+  its poses (so two poses share their viewpoints, as quadruplets need); with ``"per_pose"`` each pose
+  draws its own offset. Training grids form quadruplets ``(a,i), (a,j), (b,i), (b,j)`` from pose
+  pairs ``a < b`` and view pairs ``i < j``, ``quadruplets_per_pose * poses`` of them per subject
+  (sampled without replacement; the paper's 38,540 animal quadruplets are 20 per pose).
+
+With ``canonical=True`` a grid also renders each subject's canonical pose from azimuths
+``0, 360/views, ...`` (flagged ``canonical``; the Hard Human test takes its parts from these).
+
+The plan is a pure function of the config and the body source, so any shard can be (re)built alone:
+that is what makes generation resumable and deterministic.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from cerberus_core.data.format import VIEW_DTYPE
+from cerberus_core.data.scene import SceneSetup, evenly_spaced
+from cerberus_core.data.sources import BodySource, SubjectInfo
+
+LAYOUTS = ("pairs", "grid")
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """How one split is built.
+
+    Attributes:
+        layout: ``"pairs"`` or ``"grid"`` (module docstring).
+        subjects: number of subjects (``None``: all the source has for the split).
+        pairs: ``pairs`` layout: pose pairs over all subjects (spread evenly); ``None``: as many
+            pairs per subject as it has poses (fixed-pose sources such as folders).
+        poses: ``grid`` layout: poses per subject (``None``: all the source offers).
+        views: ``grid`` layout: views per pose.
+        azimuths: ``grid`` layout: ``"shared"`` by all poses of a subject or ``"per_pose"``.
+        quadruplets_per_pose: ``grid`` layout: quadruplets per subject = this x poses (0: none).
+        canonical: add every subject's canonical pose (``grid`` layout).
+        meshes: store ground-truth meshes and part labels (test splits always should; a training
+            split may skip them to save space: the manifest then keeps (subject, pose) references
+            that the source regenerates).
+    """
+
+    layout: str
+    subjects: int | None = None
+    pairs: int | None = 0
+    poses: int | None = None
+    views: int = 4
+    azimuths: str = "per_pose"
+    quadruplets_per_pose: int = 0
+    canonical: bool = False
+    meshes: bool = True
+
+    def __post_init__(self) -> None:
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"SplitConfig.layout must be one of {LAYOUTS}, got {self.layout!r}")
+        if self.azimuths not in ("shared", "per_pose"):
+            raise ValueError(f"SplitConfig.azimuths must be 'shared' or 'per_pose', got {self.azimuths!r}")
+        if self.layout == "grid" and self.views < 1:
+            raise ValueError("SplitConfig.views must be >= 1")
+        if self.layout == "grid" and self.quadruplets_per_pose and self.views < 2:
+            raise ValueError("quadruplets need at least 2 views per pose")
+        for name in ("subjects", "pairs", "poses"):
+            v = getattr(self, name)
+            if v is not None and v < 0:
+                raise ValueError(f"SplitConfig.{name} must be >= 0, got {v}")
+
+
+@dataclass(frozen=True)
+class GenerationConfig:
+    """Everything that determines a dataset's content (its hash identifies the dataset).
+
+    Attributes:
+        dataset: source name (``human``, ``animal``, ``primitives``, ``folder``).
+        preset: preset name (informational).
+        splits: split name → :class:`SplitConfig`, in generation order.
+        seed: the seed every random choice derives from.
+        image_size: square image size in pixels.
+        renderer: renderer backend name (``make_renderer``).
+        scene: the scene set-up.
+        shard_images: target images per shard (a grid training subject is never split).
+        source: the body source's :meth:`BodySource.describe` (versions, content fingerprints).
+    """
+
+    dataset: str
+    preset: str
+    splits: dict[str, SplitConfig]
+    seed: int = 0
+    image_size: int = 64
+    renderer: str = "torch"
+    scene: SceneSetup = field(default_factory=SceneSetup)
+    shard_images: int = 1024
+    source: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.image_size < 8:
+            raise ValueError(f"image_size must be >= 8 pixels, got {self.image_size}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
+        if self.shard_images < 4:
+            raise ValueError(f"shard_images must be >= 4, got {self.shard_images}")
+        if not self.splits:
+            raise ValueError("a dataset needs at least one split")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (stored as the manifest's ``config``)."""
+        return {
+            "dataset": self.dataset, "preset": self.preset, "seed": self.seed, "image_size": self.image_size,
+            "renderer": self.renderer, "scene": self.scene.to_dict(), "shard_images": self.shard_images,
+            "splits": {k: asdict(v) for k, v in self.splits.items()}, "source": self.source,
+        }
+
+
+# ------------------------------------------------------------------------------------ presets
+_HUMAN = {
+    "paper": {  # 19,500 training pose pairs over 5 subjects; 810 test poses x 4 views over 2 subjects
+        "train": SplitConfig("pairs", subjects=5, pairs=19_500, meshes=False),
+        "test": SplitConfig("grid", subjects=2, poses=405, views=4, canonical=True),
+    },
+    "small": {
+        "train": SplitConfig("pairs", subjects=5, pairs=1_000, meshes=False),
+        "test": SplitConfig("grid", subjects=2, poses=25, views=4, canonical=True),
+    },
+    "tiny": {
+        "train": SplitConfig("pairs", subjects=2, pairs=8, meshes=False),
+        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
+    },
+}
+_ANIMAL = {
+    "paper": {  # 41 species x 47 poses x 4 views, 940 quadruplets each (38,540); 41 x 3 x 8 = 984 tests
+        "train": SplitConfig("grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20),
+        "test": SplitConfig("grid", subjects=41, poses=3, views=8),
+    },
+    "small": {
+        "train": SplitConfig("grid", subjects=12, poses=12, views=4, azimuths="shared", quadruplets_per_pose=10),
+        "test": SplitConfig("grid", subjects=12, poses=2, views=8),
+    },
+    "tiny": {
+        "train": SplitConfig("grid", subjects=2, poses=3, views=2, azimuths="shared", quadruplets_per_pose=1),
+        "test": SplitConfig("grid", subjects=2, poses=1, views=4),
+    },
+}
+_PRIMITIVES = {
+    "paper": _HUMAN["paper"],
+    "small": _HUMAN["small"],
+    "tiny": {
+        "train": SplitConfig("pairs", subjects=2, pairs=6, meshes=True),
+        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
+    },
+}
+_FOLDER = {
+    "pairs": {  # the Human protocol on your meshes
+        "train": SplitConfig("pairs", subjects=None, pairs=None),
+        "test": SplitConfig("grid", subjects=None, poses=None, views=4, canonical=True),
+    },
+    "grid": {  # the Animal protocol on your meshes (split by subject)
+        "train": SplitConfig("grid", subjects=None, poses=None, views=4, azimuths="shared", quadruplets_per_pose=20),
+        "test": SplitConfig("grid", subjects=None, poses=None, views=8),
+    },
+}
+PRESETS: dict[str, dict[str, dict[str, SplitConfig]]] = {
+    "human": _HUMAN, "animal": _ANIMAL, "primitives": _PRIMITIVES, "folder": _FOLDER,
+}
+"""dataset → preset → split configs. ``paper`` follows the paper's counts, ``small`` generates on a
+CPU in minutes, ``tiny`` in seconds (tests)."""
+
+
+def preset_config(dataset: str, preset: str, **overrides: Any) -> GenerationConfig:
+    """The :class:`GenerationConfig` of a preset, with ``overrides`` (seed, image_size, renderer,
+    scene, shard_images, source) applied."""
+    if dataset not in PRESETS:
+        raise ValueError(f"unknown dataset {dataset!r}; choose one of {sorted(PRESETS)}")
+    if preset not in PRESETS[dataset]:
+        raise ValueError(f"unknown preset {preset!r} for dataset {dataset!r}; choose one of {sorted(PRESETS[dataset])}")
+    return GenerationConfig(dataset=dataset, preset=preset, splits=dict(PRESETS[dataset][preset]), **overrides)
+
+
+def default_preset(dataset: str) -> str:
+    return "pairs" if dataset == "folder" else "small"
+
+
+# ------------------------------------------------------------------------------------ plan
+@dataclass
+class ShardPlan:
+    """One shard to build.
+
+    Attributes:
+        split, index: where it goes.
+        meshes: ``M`` (subject index, pose id) bodies to build, in order.
+        views: ``(N,)`` :data:`VIEW_DTYPE` records; ``views["mesh"]`` indexes :attr:`meshes`.
+        quads: ``(Q, 4)`` int32 image indices ``(a0, a1, b0, b1)``.
+    """
+
+    split: str
+    index: int
+    meshes: list[tuple[int, int]]
+    views: np.ndarray
+    quads: np.ndarray
+
+    @property
+    def subjects(self) -> list[int]:
+        return sorted({s for s, _ in self.meshes})
+
+
+@dataclass
+class _Unit:
+    """A piece of work that is never split across shards (its quadruplets stay inside it)."""
+
+    meshes: list[tuple[int, int]]
+    images: list[tuple[int, float, int, bool]]  # (mesh index in unit, azimuth, view, canonical)
+    quads: list[tuple[int, int, int, int]]
+
+
+@dataclass
+class DatasetPlan:
+    """The whole dataset: the subject table, and the shards of every split."""
+
+    subjects: list[dict[str, Any]]
+    shards: dict[str, list[ShardPlan]]
+
+    def totals(self, split: str) -> dict[str, int]:
+        sh = self.shards[split]
+        return {"shards": len(sh), "images": sum(len(s.views) for s in sh),
+                "quadruplets": sum(len(s.quads) for s in sh), "meshes": sum(len(s.meshes) for s in sh)}
+
+
+def _code(text: str) -> int:
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "little")
+
+
+def _spread(total: int, n: int) -> list[int]:
+    """``total`` split into ``n`` near-equal integers (the first ones get the remainder)."""
+    return [total // n + (1 if i < total % n else 0) for i in range(n)]
+
+
+def _pairs_units(subject: int, name: str, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
+                 split: str, seed: int, rng: np.random.Generator, chunk: int) -> list[_Unit]:
+    if n_pairs is None:
+        pool = source.pose_pool(name, split, None, seed)
+        n_pairs = len(pool)
+    else:
+        pool = source.pose_pool(name, split, 2 * n_pairs, seed)
+    if n_pairs == 0:
+        return []
+    if len(pool) < 2:
+        raise ValueError(f"subject {name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
+    if len(pool) >= 2 * n_pairs:
+        pairs = [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
+    else:  # a fixed pose set smaller than needed: draw distinct pairs at random
+        a = rng.integers(0, len(pool), n_pairs)
+        b = (a + rng.integers(1, len(pool), n_pairs)) % len(pool)
+        pairs = [(pool[i], pool[j]) for i, j in zip(a, b)]
+    azimuths = rng.uniform(0.0, 360.0, (n_pairs, 2))
+    units = []
+    for start in range(0, n_pairs, chunk):
+        meshes: list[tuple[int, int]] = []
+        index: dict[int, int] = {}
+        images, quads = [], []
+        for (pa, pb), (az0, az1) in zip(pairs[start:start + chunk], azimuths[start:start + chunk]):
+            for p in (pa, pb):
+                if p not in index:
+                    index[p] = len(meshes)
+                    meshes.append((subject, p))
+            base = len(images)
+            images += [(index[pa], az0, 0, False), (index[pa], az1, 1, False),
+                       (index[pb], az0, 0, False), (index[pb], az1, 1, False)]
+            quads.append((base, base + 1, base + 2, base + 3))
+        units.append(_Unit(meshes, images, quads))
+    return units
+
+
+def _grid_units(subject: int, name: str, cfg: SplitConfig, source: BodySource, split: str, seed: int,
+                rng: np.random.Generator, shard_images: int) -> list[_Unit]:
+    pool = list(source.pose_pool(name, split, cfg.poses, seed))
+    canonical = source.canonical_pose(name) if cfg.canonical else None
+    if canonical is not None and canonical in pool:
+        pool.remove(canonical)
+    v = cfg.views
+    shared = evenly_spaced(rng.uniform(0.0, 360.0), v)
+    offsets = rng.uniform(0.0, 360.0, len(pool))
+    poses = [(p, shared if cfg.azimuths == "shared" else evenly_spaced(o, v), False) for p, o in zip(pool, offsets)]
+    quads: list[tuple[int, int, int, int]] = []
+    if cfg.quadruplets_per_pose and len(pool) >= 2:
+        pose_pairs = [(a, b) for a in range(len(pool)) for b in range(a + 1, len(pool))]
+        view_pairs = [(i, j) for i in range(v) for j in range(i + 1, v)]
+        total = len(pose_pairs) * len(view_pairs)
+        want = min(total, cfg.quadruplets_per_pose * len(pool))
+        for c in np.sort(rng.choice(total, want, replace=False)):
+            (a, b), (i, j) = pose_pairs[c // len(view_pairs)], view_pairs[c % len(view_pairs)]
+            quads.append((a * v + i, a * v + j, b * v + i, b * v + j))
+    if canonical is not None:
+        poses.append((canonical, evenly_spaced(0.0, v), True))
+
+    def unit(chunk: list) -> _Unit:
+        meshes = [(subject, p) for p, _, _ in chunk]
+        images = [(m, float(az[k]), k, can) for m, (_, az, can) in enumerate(chunk) for k in range(v)]
+        return _Unit(meshes, images, [])
+
+    if quads:  # quadruplets span all poses: the subject stays in one unit
+        u = unit(poses)
+        u.quads = quads
+        return [u]
+    per = max(1, shard_images // v)
+    return [unit(poses[i:i + per]) for i in range(0, len(poses), per)]
+
+
+def _pack(units: list[_Unit], split: str, cfg: SplitConfig, scene: SceneSetup, shard_images: int) -> list[ShardPlan]:
+    shards: list[ShardPlan] = []
+    current: list[_Unit] = []
+
+    def flush() -> None:
+        if not current:
+            return
+        meshes, views, quads = [], [], []
+        for u in current:
+            m0, i0 = len(meshes), len(views)
+            meshes += u.meshes
+            views += [(m0 + m, az, view, can) for m, az, view, can in u.images]
+            quads += [tuple(i0 + q for q in quad) for quad in u.quads]
+        rec = np.zeros(len(views), dtype=VIEW_DTYPE)
+        rec["mesh"] = [m for m, _, _, _ in views]
+        rec["subject"] = [meshes[m][0] for m, _, _, _ in views]
+        rec["pose"] = [meshes[m][1] for m, _, _, _ in views]
+        rec["view"] = [v for _, _, v, _ in views]
+        rec["canonical"] = [c for _, _, _, c in views]
+        rec["azimuth"] = [a for _, a, _, _ in views]
+        rec["elevation"], rec["distance"], rec["fov_y"] = scene.elevation, scene.distance, scene.fov_y
+        q = np.asarray(quads, dtype=np.int32).reshape(-1, 4)
+        shards.append(ShardPlan(split, len(shards), meshes, rec, q))
+        current.clear()
+
+    count = 0
+    for u in units:
+        if current and count + len(u.images) > shard_images:
+            flush()
+            count = 0
+        current.append(u)
+        count += len(u.images)
+    flush()
+    return shards
+
+
+def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
+    """The deterministic plan of a dataset: subject table and shards of every split.
+
+    Raises:
+        ValueError: if splits share a subject while the source promises disjoint subjects, or a
+            split has no subject.
+    """
+    table: list[dict[str, Any]] = []
+    index: dict[str, int] = {}
+    shards: dict[str, list[ShardPlan]] = {}
+    for split, cfg in config.splits.items():
+        infos: list[SubjectInfo] = source.subjects(split, cfg.subjects, config.seed)
+        if not infos:
+            raise ValueError(f"split {split!r} has no subject; adjust the preset or the folder's split options")
+        for s in infos:
+            if s.name in index:
+                entry = table[index[s.name]]
+                if not source.shared_subjects:
+                    raise ValueError(f"subject {s.name!r} is in splits {entry['splits']} and {split!r}; "
+                                     "splits must hold disjoint subjects")
+                entry["splits"].append(split)
+            else:
+                index[s.name] = len(table)
+                table.append({"name": s.name, "splits": [split], "canonical_pose": source.canonical_pose(s.name),
+                              "info": s.info})
+        units: list[_Unit] = []
+        pair_counts = _spread(cfg.pairs, len(infos)) if (cfg.layout == "pairs" and cfg.pairs is not None) else None
+        chunk = max(1, config.shard_images // 4)
+        for pos, s in enumerate(infos):
+            rng = np.random.default_rng([config.seed, _code(split), pos, _code(s.name)])
+            if cfg.layout == "pairs":
+                units += _pairs_units(index[s.name], s.name, cfg, None if pair_counts is None else pair_counts[pos],
+                                      source, split, config.seed, rng, chunk)
+            else:
+                units += _grid_units(index[s.name], s.name, cfg, source, split, config.seed, rng, config.shard_images)
+        shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
+        if not shards[split]:
+            raise ValueError(f"split {split!r} would be empty; check the preset's counts")
+    return DatasetPlan(table, shards)
+
+
+def with_overrides(config: GenerationConfig, **changes: Any) -> GenerationConfig:
+    """A copy of ``config`` with fields replaced (``None`` values are ignored)."""
+    return replace(config, **{k: v for k, v in changes.items() if v is not None})
+

@@ -1,0 +1,92 @@
+"""Contact sheets of a dataset split: quadruplets (training) or the views of each pose (test), with
+optionally the ground-truth parts rendered in colour beside them."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+
+from cerberus_core.data.dataset import QuadrupletDataset, ViewDataset, _SplitReader
+from cerberus_core.data.scene import SceneSetup
+from cerberus_core.plugins import make_renderer
+from cerberus_core.render.api import render
+from cerberus_core.viz import atomic_save_png, image_grid, part_colors
+
+Tensor = torch.Tensor
+
+
+def _parts_image(views: ViewDataset, index: int, scene: SceneSetup, renderer) -> Tensor:
+    """``(1, 3, H, W)``: the ground-truth body of image ``index`` coloured by part, same camera."""
+    body = views.gt_mesh(index)
+    rec = views.records[index]
+    camera = scene.cameras([float(rec["azimuth"])], views.image_size)
+    colours = part_colors(max(len(views.part_names), 1))[torch.as_tensor(body.vertex_parts.astype(np.int64))]
+    out = render(renderer, torch.as_tensor(body.vertices)[None], torch.as_tensor(body.faces), camera,
+                 scene.light(camera), albedo=colours[None], background=scene.background)
+    return out.image
+
+
+def _evenly(n_items: int, count: int) -> list[int]:
+    if n_items <= count:
+        return list(range(n_items))
+    return [int(round(x)) for x in np.linspace(0, n_items - 1, count)]
+
+
+def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, parts: bool = False,
+                  renderer: str = "torch", scale: int = 2) -> Image.Image:
+    """A picture of ``count`` rows of a split.
+
+    Rows are quadruplets ``a0 a1 b0 b1`` when the split has quadruplets, else the views of one pose
+    (canonical poses first). With ``parts``, each row ends with the ground-truth parts of its first
+    pose (and, for quadruplets, of its second pose) rendered in colour from the same camera.
+
+    Args:
+        root, split: the dataset split.
+        count: number of rows (spread evenly over the split).
+        parts: add ground-truth part renderings (needs the split's meshes, or its body source).
+        renderer: backend for the part renderings.
+        scale: nearest-neighbour upscaling of every tile.
+    """
+    reader = _SplitReader(root, split, allow_partial=True)
+    views = ViewDataset(root, split, allow_partial=True)
+    scene = views.scene_setup
+    rend = make_renderer(renderer) if parts else None
+    rows, titles = [], []
+    if reader.quad_offsets[-1] > 0:
+        quads = QuadrupletDataset(root, split, allow_partial=True)
+        for i in _evenly(len(quads), count):
+            item = quads[i]
+            row = [item["images"]]
+            if parts:
+                shard, local = reader.locate(reader.quad_offsets, i)
+                quad = reader.array(shard, "quads")[local]
+                first = int(reader.image_offsets[shard])
+                row += [_parts_image(views, first + int(quad[0]), scene, rend),
+                        _parts_image(views, first + int(quad[2]), scene, rend)]
+            rows.append(torch.cat(row))
+            p = item["pose"]
+            titles.append(f"s{int(item['subject'])} {int(p[0])}/{int(p[2])}")
+    else:
+        rec = views.records
+        keys = np.stack([~rec["canonical"], rec["subject"], rec["pose"]], 1)
+        _, first = np.unique(keys, axis=0, return_index=True)
+        for g in _evenly(len(first), count):
+            start = int(first[g])
+            sel = np.flatnonzero((rec["subject"] == rec["subject"][start]) & (rec["pose"] == rec["pose"][start]))
+            row = [torch.stack([views[int(j)]["images"] for j in sel])]
+            if parts:
+                row.append(_parts_image(views, int(sel[0]), scene, rend))
+            rows.append(torch.cat(row))
+            prefix = "c " if rec["canonical"][start] else ""
+            titles.append(f"{prefix}s{int(rec['subject'][start])} p{int(rec['pose'][start])}")
+    if not rows:
+        raise ValueError(f"{root}: split {split!r} has no finished shard to show")
+    return image_grid(rows, titles, scale=scale)
+
+
+def save_contact_sheet(root: str | Path, out: str | Path, **options) -> Path:
+    """:func:`contact_sheet` written atomically as a PNG."""
+    atomic_save_png(contact_sheet(root, **options), out)
+    return Path(out)

@@ -1,0 +1,159 @@
+"""The on-disk format: shard round trip, manifest validation, checksums, path safety."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from cerberus_core.data.body import PosedBody
+from cerberus_core.data.format import (
+    FORMAT_VERSION,
+    MANIFEST,
+    VIEW_DTYPE,
+    DatasetError,
+    atomic_save_npy,
+    pack_meshes,
+    read_manifest,
+    resolve_inside,
+    unpack_mesh,
+    verify_dataset,
+    write_shard,
+)
+
+
+def _body(rng, n_verts, n_faces, pose, faces=None, parts=None):
+    faces = rng.integers(0, n_verts, (n_faces, 3)) if faces is None else faces
+    parts = rng.integers(0, 4, n_verts) if parts is None else parts
+    return PosedBody(rng.uniform(-0.4, 0.4, (n_verts, 3)), faces, parts, ["a", "b", "c", "d"], "s", pose,
+                     meta={"pose_params": rng.normal(size=5)})
+
+
+def test_pack_meshes_round_trip_and_topology_dedup():
+    rng = np.random.default_rng(0)
+    shared_faces, shared_parts = rng.integers(0, 20, (30, 3)), rng.integers(0, 4, 20)
+    bodies = [_body(rng, 20, 30, 1, shared_faces, shared_parts), _body(rng, 20, 30, 2, shared_faces, shared_parts),
+              _body(rng, 11, 7, 3)]
+    verts, arrays = pack_meshes(bodies, [4, 4, 5])
+    assert len(arrays["face_offsets"]) == 3  # two topologies: the shared one stored once
+    assert arrays["topology"].tolist() == [0, 0, 1]
+    assert arrays["subject"].tolist() == [4, 4, 5] and arrays["pose"].tolist() == [1, 2, 3]
+    for i, b in enumerate(bodies):
+        v, f, p = unpack_mesh(verts, arrays, i)
+        np.testing.assert_array_equal(v, b.vertices)
+        np.testing.assert_array_equal(f, b.faces)
+        np.testing.assert_array_equal(p, b.vertex_parts)
+        np.testing.assert_allclose(arrays["pose_params"][i], b.meta["pose_params"], rtol=1e-6)
+
+
+def _write_example(root):
+    rng = np.random.default_rng(1)
+    images = rng.integers(0, 256, (8, 3, 16, 16), dtype=np.uint8)
+    views = np.zeros(8, VIEW_DTYPE)
+    views["pose"] = np.arange(8) // 2
+    views["azimuth"] = rng.uniform(0, 360, 8)
+    views["mesh"] = np.arange(8) // 2
+    quads = np.array([[0, 1, 2, 3], [4, 5, 6, 7]])
+    meshes = pack_meshes([_body(rng, 10, 12, p) for p in range(4)], [0] * 4)
+    return images, views, quads, write_shard(root, "train", 0, images, views, quads, meshes)
+
+
+def test_write_shard_round_trip_and_records(tmp_path):
+    images, views, quads, rec = _write_example(tmp_path)
+    assert rec["images"] == 8 and rec["quadruplets"] == 2 and rec["meshes"] == 4
+    assert set(rec["files"]) == {"images", "views", "quads", "vertices", "meshes"}
+    for role, f in rec["files"].items():
+        assert not f["path"].startswith("/") and len(f["sha256"]) == 64
+        assert (tmp_path / f["path"]).stat().st_size == f["bytes"]
+    back = np.load(tmp_path / rec["files"]["images"]["path"], mmap_mode="r")
+    assert isinstance(back, np.memmap)
+    np.testing.assert_array_equal(back, images)
+    np.testing.assert_array_equal(np.load(tmp_path / rec["files"]["views"]["path"]), views)
+    np.testing.assert_array_equal(np.load(tmp_path / rec["files"]["quads"]["path"]), quads)
+    assert not list(tmp_path.rglob("*.tmp"))  # no temporaries left behind
+
+
+def test_write_shard_rejects_bad_quads(tmp_path):
+    images = np.zeros((4, 3, 8, 8), np.uint8)
+    with pytest.raises(ValueError, match="quadruplet indices"):
+        write_shard(tmp_path, "train", 0, images, np.zeros(4, VIEW_DTYPE), [[0, 1, 2, 4]], None)
+
+
+def test_atomic_write_failure_leaves_nothing(tmp_path):
+    target = tmp_path / "x.npy"
+    with pytest.raises(ValueError):
+        atomic_save_npy(target, np.array([object()], dtype=object))  # pickles are refused mid-write
+    assert not target.exists() and not list(tmp_path.iterdir())
+
+
+def test_read_manifest_errors(tmp_path):
+    with pytest.raises(DatasetError, match="does not exist"):
+        read_manifest(tmp_path / "nope")
+    with pytest.raises(DatasetError, match="not a Cerberus dataset"):
+        read_manifest(tmp_path)
+    (tmp_path / MANIFEST).write_text("{not json")
+    with pytest.raises(DatasetError, match="not valid JSON"):
+        read_manifest(tmp_path)
+
+
+def test_version_mismatch_is_refused(pairs_dataset, tmp_path):
+    ds = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, ds)
+    m = json.loads((ds / MANIFEST).read_text())
+    m["format_version"] = FORMAT_VERSION + 1
+    (ds / MANIFEST).write_text(json.dumps(m))
+    with pytest.raises(DatasetError, match=f"format version {FORMAT_VERSION + 1}"):
+        read_manifest(ds)
+    _, problems = verify_dataset(ds)
+    assert problems and "format version" in problems[0]
+
+
+def test_resolve_inside_refuses_escapes(tmp_path):
+    (tmp_path / "a").mkdir()
+    assert resolve_inside(tmp_path, "a/b.npy") == tmp_path / "a" / "b.npy"
+    for bad in ("../x.npy", "/etc/passwd", "a/../../x.npy", ""):
+        with pytest.raises(DatasetError, match="escapes"):
+            resolve_inside(tmp_path, bad)
+    outside = tmp_path.parent / f"{tmp_path.name}-outside"
+    outside.mkdir()
+    (tmp_path / "link").symlink_to(outside)
+    with pytest.raises(DatasetError, match="outside the dataset folder"):
+        resolve_inside(tmp_path, "link/x.npy")
+
+
+def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
+    ds = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, ds)
+    m = json.loads((ds / MANIFEST).read_text())
+    m["splits"]["train"]["shards"][0]["files"]["images"]["path"] = "../../etc/passwd"
+    (ds / MANIFEST).write_text(json.dumps(m))
+    _, problems = verify_dataset(ds)
+    assert any("escapes the dataset folder" in p for p in problems)
+    from cerberus_core.data.dataset import QuadrupletDataset
+
+    with pytest.raises(DatasetError, match="escapes the dataset folder"):
+        QuadrupletDataset(ds)
+
+
+def test_corruption_is_detected(pairs_dataset, tmp_path):
+    ds = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, ds)
+    manifest, problems = verify_dataset(ds)
+    assert problems == [] and manifest["complete"]
+    shard = manifest["splits"]["train"]["shards"][1]
+    images = ds / shard["files"]["images"]["path"]
+    data = bytearray(images.read_bytes())
+    data[-5] ^= 0xFF  # one flipped pixel byte: same size, wrong sha256
+    images.write_bytes(bytes(data))
+    _, problems = verify_dataset(ds)
+    assert len(problems) == 1 and str(images) in problems[0] and "sha256" in problems[0]
+    _, quick = verify_dataset(ds, checksums=False)
+    assert quick == []  # sizes alone cannot see a flipped byte
+    views = ds / shard["files"]["views"]["path"]
+    views.write_bytes(views.read_bytes()[:-3])  # truncated
+    _, problems = verify_dataset(ds, checksums=False)
+    assert any(str(views) in p and "bytes" in p for p in problems)
+    (ds / shard["files"]["quads"]["path"]).unlink()
+    _, problems = verify_dataset(ds, checksums=False)
+    assert any("missing" in p for p in problems)

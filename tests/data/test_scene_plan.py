@@ -1,0 +1,143 @@
+"""Scene set-up (camera fit, light) and the deterministic plan of every preset."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+import torch
+
+from cerberus_core.data.body import FILL
+from cerberus_core.data.plan import GenerationConfig, SplitConfig, make_plan, preset_config
+from cerberus_core.data.scene import SceneSetup, evenly_spaced, fit_distance
+from cerberus_core.data.sources import make_source
+
+
+@pytest.mark.parametrize("elevation", [10.0, 15.0, 20.0])
+def test_fitted_distance_keeps_the_body_cube_in_frame(elevation):
+    scene = SceneSetup(elevation=elevation)
+    corners = torch.tensor(list(itertools.product((-FILL / 2, FILL / 2), repeat=3)), dtype=torch.float32)
+    az = torch.arange(0.0, 360.0, 1.0)
+    uv, depth = scene.cameras(az, 64).project(corners.expand(len(az), -1, -1))
+    assert bool((depth > 0).all())
+    assert float(uv.min()) >= 0 and float(uv.max()) <= 64  # never clipped, from any azimuth
+    assert float(uv.min()) < 4 or float(uv.max()) > 60  # and tight: the cube nearly touches the border
+    closer = SceneSetup(elevation=elevation, distance=0.9 * scene.distance).cameras(az, 64)
+    uv2, _ = closer.project(corners.expand(len(az), -1, -1))
+    assert float(uv2.min()) < 0 or float(uv2.max()) > 64
+
+
+def test_scene_dict_round_trip_and_light_follows_camera():
+    scene = SceneSetup(elevation=12.0, fov_y=35.0)
+    assert scene.distance == fit_distance(35.0, 12.0)
+    back = SceneSetup.from_dict(scene.to_dict())
+    assert back == scene
+    cam = scene.cameras([0.0, 90.0], 64)
+    light = scene.light(cam)
+    torch.testing.assert_close(light.direction, torch.nn.functional.normalize(cam.center, dim=-1))
+    assert light.ambient[0, 0].item() == pytest.approx(scene.ambient)
+    assert light.diffuse[0, 0].item() == pytest.approx(scene.diffuse)
+    np.testing.assert_allclose(evenly_spaced(300.0, 4), [300, 30, 120, 210])
+
+
+def _plan(config):
+    return make_plan(config, make_source(config.dataset))
+
+
+def test_human_paper_preset_counts():
+    plan = _plan(preset_config("human", "paper"))
+    train, test = plan.totals("train"), plan.totals("test")
+    assert train["quadruplets"] == 19_500 and train["images"] == 78_000
+    assert test["images"] == 810 * 4 + 2 * 4  # 810 poses x 4 views + one canonical pose per test subject
+    train_subjects = {s["name"] for s in plan.subjects if "train" in s["splits"]}
+    test_subjects = {s["name"] for s in plan.subjects if "test" in s["splits"]}
+    assert len(train_subjects) == 5 and len(test_subjects) == 2 and not train_subjects & test_subjects
+
+
+def test_animal_paper_preset_counts():
+    plan = _plan(preset_config("animal", "paper"))
+    assert plan.totals("train")["quadruplets"] == 38_540
+    assert plan.totals("train")["images"] == 41 * 47 * 4
+    assert plan.totals("test")["images"] == 984
+    assert len(plan.subjects) == 41 and all(s["splits"] == ["train", "test"] for s in plan.subjects)
+    # the same species, disjoint poses
+    train_poses = {(m[0], m[1]) for sh in plan.shards["train"] for m in sh.meshes}
+    test_poses = {(m[0], m[1]) for sh in plan.shards["test"] for m in sh.meshes}
+    assert not train_poses & test_poses
+
+
+@pytest.mark.parametrize("dataset", ["human", "animal", "primitives"])
+@pytest.mark.parametrize("preset", ["small", "tiny"])
+def test_presets_plan_and_are_deterministic(dataset, preset):
+    a, b = _plan(preset_config(dataset, preset)), _plan(preset_config(dataset, preset))
+    for split in a.shards:
+        assert a.totals(split)["images"] > 0
+        for sa, sb in zip(a.shards[split], b.shards[split]):
+            np.testing.assert_array_equal(sa.views, sb.views)
+            np.testing.assert_array_equal(sa.quads, sb.quads)
+    c = _plan(preset_config(dataset, preset, seed=1))
+    assert any(not np.array_equal(x.views, y.views) for x, y in zip(a.shards["train"], c.shards["train"]))
+
+
+def test_pairs_share_viewpoints_across_poses_and_differ_across_pairs():
+    plan = _plan(preset_config("primitives", "small"))
+    azimuths = []
+    for shard in plan.shards["train"]:
+        v = shard.views
+        for q in shard.quads:
+            a0, a1, b0, b1 = v[q]
+            assert a0["pose"] == a1["pose"] != b0["pose"] == b1["pose"] and a0["subject"] == b1["subject"]
+            assert (a0["view"], a1["view"], b0["view"], b1["view"]) == (0, 1, 0, 1)
+            assert a0["azimuth"] == b0["azimuth"] and a1["azimuth"] == b1["azimuth"]
+            azimuths.append(a0["azimuth"])
+    azimuths = np.array(azimuths)
+    assert len(np.unique(azimuths)) == len(azimuths)  # a fresh random viewpoint per pair
+    hist, _ = np.histogram(azimuths, bins=4, range=(0, 360))
+    assert hist.min() > 0.15 * len(azimuths)  # roughly uniform
+
+
+def test_grid_quadruplets_and_canonical_views():
+    cfg = GenerationConfig("primitives", "t", {
+        "train": SplitConfig("grid", subjects=2, poses=5, views=4, azimuths="shared", quadruplets_per_pose=3),
+        "test": SplitConfig("grid", subjects=2, poses=3, views=8, canonical=True),
+    })
+    plan = _plan(cfg)
+    for shard in plan.shards["train"]:
+        v = shard.views
+        assert len(shard.quads) == 2 * 15 and len(np.unique(shard.quads, axis=0)) == 30
+        for q in shard.quads:
+            a0, a1, b0, b1 = v[q]
+            assert a0["pose"] == a1["pose"] != b0["pose"] == b1["pose"]
+            assert a0["view"] == b0["view"] != a1["view"] == b1["view"]
+            assert a0["azimuth"] == b0["azimuth"]  # shared azimuths: the same viewpoint for both poses
+        for s in np.unique(v["subject"]):
+            az = v["azimuth"][v["subject"] == s].reshape(-1, 4)
+            assert (az == az[0]).all()
+            np.testing.assert_allclose(np.diff(np.sort(az[0])), 90.0, atol=1e-3)
+    test = np.concatenate([s.views for s in plan.shards["test"]])
+    canon = test[test["canonical"]]
+    assert len(canon) == 2 * 8 and set(canon["pose"]) == {0}
+    np.testing.assert_allclose(canon["azimuth"][:8], np.arange(8) * 45.0)
+    regular = test[~test["canonical"]].reshape(-1, 8)
+    assert len(np.unique(regular["azimuth"][:, 0])) == len(regular)  # per-pose offsets
+
+
+def test_splits_must_not_share_subjects():
+    class Same(type(make_source("primitives"))):
+        def subjects(self, split, n, seed):
+            return super().subjects("train", n, seed)
+
+    cfg = preset_config("primitives", "tiny")
+    with pytest.raises(ValueError, match="disjoint subjects"):
+        make_plan(cfg, Same())
+
+
+def test_bad_configs_are_refused():
+    with pytest.raises(ValueError, match="layout"):
+        SplitConfig("triples")
+    with pytest.raises(ValueError, match="2 views"):
+        SplitConfig("grid", views=1, quadruplets_per_pose=2)
+    with pytest.raises(ValueError, match="unknown preset"):
+        preset_config("human", "huge")
+    with pytest.raises(ValueError, match="image_size"):
+        preset_config("human", "tiny", image_size=4)
