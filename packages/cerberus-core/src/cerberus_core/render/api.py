@@ -17,9 +17,11 @@ import torch
 
 from cerberus_core.camera import Camera
 from cerberus_core.render.interface import Light, RenderOutput, Renderer
-from cerberus_core.templates import vertex_normals
 
 Tensor = torch.Tensor
+
+MAX_COORDINATE = 1e8
+"""Largest supported absolute vertex coordinate (world units); larger ones are rejected with a clear error."""
 
 
 def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
@@ -39,6 +41,11 @@ def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
         scene, vert = (int(i) for i in torch.nonzero(bad)[0])
         raise ValueError(f"render: vertex {vert} of scene {scene} is NaN or inf ({int(bad.sum())} bad vertices in all); "
                          "the model or data produced non-finite geometry — check the loss/learning rate or the input mesh")
+    biggest = float(vertices.detach().abs().max()) if vertices.numel() else 0.0
+    if biggest > MAX_COORDINATE:
+        raise ValueError(f"render: vertex coordinates reach {biggest:.3g}, beyond the supported range |x| <= {MAX_COORDINATE:g} "
+                         "(float32 edge functions overflow there); the geometry has diverged — check the loss/learning rate "
+                         "or rescale the scene to normalised units")
 
 
 def _per_vertex(value: Tensor | Sequence[float], bsz: int, nverts: int, like: Tensor, what: str) -> Tensor:
@@ -79,7 +86,7 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     clip = camera.world_to_clip(vertices)
     with torch.no_grad():
         face_id = renderer.rasterize(clip.detach(), faces, camera.height, camera.width, camera.near)
-    normals = vertex_normals(vertices, faces)
+    normals = renderer.vertex_normals(vertices, faces)
     rgb, depth = renderer.shade(clip, faces, face_id, normals, alb, light)
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
     bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
@@ -88,7 +95,7 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
         part_id = torch.where(face_id >= 0, torch.zeros_like(face_id), face_id)
     else:
         fp = face_part.to(device=face_id.device, dtype=torch.int64)
-        part_id = torch.where(face_id >= 0, fp[face_id.clamp_min(0)], face_id)
+        part_id = torch.cat([fp, fp.new_full((1,), -1)])[face_id]  # face id -1 picks the trailing -1
     return RenderOutput(
         image=image.permute(0, 3, 1, 2),
         alpha=alpha.permute(0, 3, 1, 2),

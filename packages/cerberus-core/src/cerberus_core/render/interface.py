@@ -2,10 +2,11 @@
 
 The split follows nvdiffrast and TF Graphics: a backend's must-have is the hot, non-differentiable
 step, :meth:`Renderer.rasterize` (clip-space triangles → visible face id per pixel). Everything
-differentiable (perspective-correct barycentrics recomputed from the face ids, interpolation of
-normals and albedo, Lambertian shading, depth) is done by :func:`cerberus_core.render.shading.shade`
-in plain torch, shared by all backends. A backend may override :meth:`Renderer.shade` with fused
-kernels (forward and backward) when that is faster; the conformance suite in ``tests/conformance``
+differentiable (vertex normals, perspective-correct barycentrics recomputed from the face ids,
+interpolation of normals and albedo, Lambertian shading, depth) is done by
+:func:`cerberus_core.templates.vertex_normals` and :func:`cerberus_core.render.shading.shade` in plain
+torch, shared by all backends. A backend may override :meth:`Renderer.vertex_normals` and
+:meth:`Renderer.shade` with fused kernels (forward and backward) when that is faster; the conformance suite in ``tests/conformance``
 holds both paths to the same numbers.
 
 Rasterization rule (all backends, so that face ids agree):
@@ -114,6 +115,19 @@ class Renderer(ABC):
             ``(B, H, W)`` int64 face ids, -1 on background, following the rule in this module's
             docstring.
         """
+
+    def vertex_normals(self, vertices: Tensor, faces: Tensor) -> Tensor:
+        """Differentiable area-weighted unit vertex normals (default: the shared torch code).
+
+        Args:
+            vertices: ``(B, V, 3)`` world coordinates.
+            faces: ``(F, 3)`` int64.
+        Returns:
+            ``(B, V, 3)`` unit normals, the maths of :func:`cerberus_core.templates.vertex_normals`.
+        """
+        from cerberus_core.templates import vertex_normals
+
+        return vertex_normals(vertices, faces)
 
     def shade(self, clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo: Tensor,
               light: Light) -> tuple[Tensor, Tensor]:

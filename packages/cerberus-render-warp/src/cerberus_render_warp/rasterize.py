@@ -1,0 +1,248 @@
+"""Z-buffered rasterization as Warp kernels (the rule of :mod:`cerberus_core.render.interface`).
+
+A Warp thread sets a triangle up (homogeneous edge cross products, determinant, pixel bounding box)
+and walks the pixel centres in its box. On parallel devices (CUDA: one thread per (scene, triangle))
+two launches of the same kernel make the result deterministic: pass 0 keeps the nearest depth per
+pixel with ``atomic_min`` on a float z-buffer; pass 1 repeats the exact same arithmetic and, where a
+triangle's depth equals the z-buffer, keeps the smallest face id with an integer ``atomic_min``; a
+last per-pixel kernel turns "no face" into ``-1``. Warp's CPU device runs a launch's threads one
+after another, so there one thread per scene loops over its triangles and keeps the lexicographic
+minimum of (depth, face id) in a single pass, straight into the output.
+
+The arithmetic mirrors the torch backend operation by operation (see :mod:`.arith`), so face ids
+agree with it bit for bit.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+
+from cerberus_render_warp._runtime import as_warp, launch_scenes, launch_stream, vec_view, warp_device, wp
+from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
+
+wp.set_module_options({"fuse_fp": False, "enable_backward": False})
+
+Tensor = torch.Tensor
+
+BBOX_EPS = 1e-3
+"""Widening of each triangle's pixel bounding box, in pixels (as in the torch backend); coverage is
+decided by the edge functions, so this only guards against rounding in the box itself."""
+
+SUPPORTED_DTYPES = (torch.float32, torch.float64)
+
+
+@wp.func
+def _pixel_bound(lo: Any, hi: Any, size: int):
+    """Inclusive index range of pixel centres ``k + 0.5`` inside ``[lo, hi]`` (pixels), clipped to
+    ``0 .. size - 1``. Coordinates are clamped before the integer conversion (huge values are safe)."""
+    lo_c = wp.clamp(lo, type(lo)(-2.0), type(lo)(size) + type(lo)(2.0))
+    hi_c = wp.clamp(hi, type(lo)(-2.0), type(lo)(size) + type(lo)(2.0))
+    first = wp.max(int(wp.ceil(lo_c - type(lo)(0.5) - type(lo)(BBOX_EPS))), 0)
+    last = wp.min(int(wp.floor(hi_c - type(lo)(0.5) + type(lo)(BBOX_EPS))), size - 1)
+    return first, last
+
+
+NO_FACE = wp.constant(2147483647)
+"""Initial value of the parallel path's face-id buffer (no face drawn yet)."""
+
+MODE_DEPTH, MODE_FACE, MODE_SERIAL = 0, 1, 2
+"""Kernel modes: z-buffer pass and face-id pass of the parallel (CUDA) path, and the single pass
+used where threads run one after another (Warp's CPU device), which keeps the lexicographic minimum
+of (depth, face id) directly in the output."""
+
+
+@wp.kernel
+def _raster_kernel(
+    clip: wp.array2d(dtype=Any),
+    faces: wp.array(dtype=wp.vec3i),
+    px_of_col: wp.array(dtype=Any),
+    py_of_row: wp.array(dtype=Any),
+    near: Any,
+    fused: int,
+    mode: int,
+    faces_per_thread: int,
+    zbuf: wp.array3d(dtype=Any),
+    winner: wp.array3d(dtype=wp.int32),
+    out: wp.array3d(dtype=wp.int64),
+):
+    """Thread ``t``: faces ``k * faces_per_thread ..`` of scene ``b`` (``t = b * chunks + k``)."""
+    tid = wp.tid()
+    nfaces = faces.shape[0]
+    chunks = (nfaces + faces_per_thread - 1) / faces_per_thread
+    b = tid / chunks
+    f_first = (tid - b * chunks) * faces_per_thread
+    f_last = wp.min(f_first + faces_per_thread, nfaces)
+    height = py_of_row.shape[0]
+    width = px_of_col.shape[0]
+    zero = type(near)(0.0)
+    one = type(near)(1.0)
+    inf = type(near)(wp.inf)
+    half_w = type(near)(0.5) * type(near)(width)
+    half_h = type(near)(0.5) * type(near)(height)
+    for f in range(f_first, f_last):
+        tri = faces[f]
+        p0 = clip[b, tri[0]]
+        p1 = clip[b, tri[1]]
+        p2 = clip[b, tri[2]]
+        w0 = p0[3]
+        w1 = p1[3]
+        w2 = p2[3]
+        if w0 > near and w1 > near and w2 > near:
+            x0 = p0[0]
+            y0 = p0[1]
+            x1 = p1[0]
+            y1 = p1[1]
+            x2 = p2[0]
+            y2 = p2[1]
+            # Screen bounding box (pixels) of the projected vertices.
+            r0 = one / w0
+            r1 = one / w1
+            r2 = one / w2
+            u0 = (x0 * r0 + one) * half_w
+            u1 = (x1 * r1 + one) * half_w
+            u2 = (x2 * r2 + one) * half_w
+            v0 = (one - y0 * r0) * half_h
+            v1 = (one - y1 * r1) * half_h
+            v2 = (one - y2 * r2) * half_h
+            col0, col1 = _pixel_bound(wp.min(wp.min(u0, u1), u2), wp.max(wp.max(u0, u1), u2), width)
+            row0, row1 = _pixel_bound(wp.min(wp.min(v0, v1), v2), wp.max(wp.max(v0, v1), v2), height)
+            if col0 <= col1 and row0 <= row1:
+                # Edge cross products e_k = v_{k+1} x v_{k+2} with v = (x, y, w): c_k = p . e_k.
+                e0x = cross_term(y1, w2, w1, y2, fused)
+                e0y = cross_term(w1, x2, x1, w2, fused)
+                e0w = cross_term(x1, y2, y1, x2, fused)
+                e1x = cross_term(y2, w0, w2, y0, fused)
+                e1y = cross_term(w2, x0, x2, w0, fused)
+                e1w = cross_term(x2, y0, y2, x0, fused)
+                e2x = cross_term(y0, w1, w0, y1, fused)
+                e2y = cross_term(w0, x1, x0, w1, fused)
+                e2w = cross_term(x0, y1, y0, x1, fused)
+                det = x0 * e0x + y0 * e0y + w0 * e0w
+                if det != zero:
+                    sgn = one
+                    if det < zero:
+                        sgn = -one
+                    for row in range(row0, row1 + 1):
+                        py = py_of_row[row]
+                        # Rounded as torch rounds it: c = (e.x * px + e.y * py) + e.w, each op rounded.
+                        t0 = e0y * py
+                        t1 = e1y * py
+                        t2 = e2y * py
+                        for col in range(col0, col1 + 1):
+                            px = px_of_col[col]
+                            c0 = (e0x * px + t0) + e0w
+                            c1 = (e1x * px + t1) + e1w
+                            c2 = (e2x * px + t2) + e2w
+                            if c0 * sgn >= zero and c1 * sgn >= zero and c2 * sgn >= zero:
+                                s = c0 + c1 + c2
+                                depth = det / s
+                                if s != zero and depth > zero and depth < inf:  # finite and positive
+                                    if mode == MODE_SERIAL:
+                                        z = zbuf[b, row, col]
+                                        if depth < z or (depth == z and wp.int64(f) < out[b, row, col]):
+                                            zbuf[b, row, col] = depth
+                                            out[b, row, col] = wp.int64(f)
+                                    elif mode == MODE_DEPTH:
+                                        wp.atomic_min(zbuf, b, row, col, depth)
+                                    elif depth == zbuf[b, row, col]:
+                                        wp.atomic_min(winner, b, row, col, f)
+
+
+@wp.kernel
+def _finalize_kernel(winner: wp.array3d(dtype=wp.int32), out: wp.array3d(dtype=wp.int64)):
+    """Pixel (b, r, c): the winning face id, or -1 where none was drawn (``winner`` still NO_FACE)."""
+    b, r, c = wp.tid()
+    f = winner[b, r, c]
+    if f == NO_FACE:
+        out[b, r, c] = wp.int64(-1)
+    else:
+        out[b, r, c] = wp.int64(f)
+
+
+_RASTER = {
+    dtype: wp.overload(_raster_kernel, {"clip": wp.array2d(dtype=wp.types.vector(4, T)), "px_of_col": wp.array(dtype=T),
+                                        "py_of_row": wp.array(dtype=T), "near": T, "zbuf": wp.array3d(dtype=T)})
+    for dtype, T in ((torch.float32, wp.float32), (torch.float64, wp.float64))
+}
+
+
+def check_inputs(clip: Tensor, faces: Tensor) -> None:
+    """Shape/dtype checks shared by the rasterizer and the shader."""
+    if clip.ndim != 3 or clip.shape[-1] != 4:
+        raise ValueError(f"warp renderer: clip must be (B, V, 4), got {tuple(clip.shape)}")
+    if clip.dtype not in SUPPORTED_DTYPES:
+        raise ValueError(f"warp renderer: clip must be float32 or float64, got {clip.dtype}")
+    if faces.ndim != 2 or faces.shape[-1] != 3:
+        raise ValueError(f"warp renderer: faces must be (F, 3), got {tuple(faces.shape)}")
+    if faces.dtype not in (torch.int32, torch.int64):
+        raise ValueError(f"warp renderer: faces must be an integer tensor, got {faces.dtype}")
+    if faces.device != clip.device:
+        raise ValueError(f"warp renderer: faces are on {faces.device} but clip is on {clip.device}; "
+                         "move both to one device")
+
+
+def pixel_centres(height: int, width: int, dtype: torch.dtype, device: torch.device) -> tuple[Tensor, Tensor]:
+    """NDC of pixel centres per column and per row, computed with the torch expression of the torch
+    backend and of :func:`cerberus_core.render.shading.pixel_ndc` (so they agree bit for bit).
+
+    Returns:
+        ``px`` ``(W,)`` and ``py`` ``(H,)``.
+    """
+    cols = torch.arange(width, device=device).to(dtype)
+    rows = torch.arange(height, device=device).to(dtype)
+    return (2.0 * cols + 1.0) / width - 1.0, 1.0 - (2.0 * rows + 1.0) / height
+
+
+def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float = 0.05, *,
+              serial: bool | None = None) -> Tensor:
+    """Visible face id per pixel (not differentiable).
+
+    Args:
+        clip: ``(B, V, 4)`` float32 (or float64) clip-space vertices, on the CPU or a CUDA device.
+        faces: ``(F, 3)`` int vertex indices.
+        height, width: image size in pixels.
+        near: triangles with a vertex of ``w <= near`` are not drawn.
+        serial: ``True``: one thread per scene keeps the (depth, face id) minimum in a single pass,
+            exact only where Warp runs threads one after another (its CPU device). ``False``: the
+            parallel two-pass atomic path (z-buffer, then face ids; used on CUDA). Default: serial on
+            the CPU, parallel on CUDA. Both give identical results.
+    Returns:
+        ``(B, H, W)`` int64 face ids, -1 on background, on ``clip``'s device.
+    """
+    check_inputs(clip, faces)
+    if height <= 0 or width <= 0:
+        raise ValueError(f"warp renderer: image size must be positive, got {height}x{width}")
+    bsz, nfaces = clip.shape[0], faces.shape[0]
+    out = torch.full((bsz, height, width), -1, dtype=torch.int64, device=clip.device)
+    if bsz == 0 or nfaces == 0:
+        return out
+    if nfaces >= NO_FACE:
+        raise ValueError(f"warp renderer: at most {NO_FACE - 1} faces per scene, got {nfaces}")
+    device = warp_device(clip.device)
+    stream = launch_stream(clip.device)
+    clip = clip.detach()
+    px, py = pixel_centres(height, width, clip.dtype, clip.device)
+    zbuf = torch.full((bsz, height, width), float("inf"), dtype=clip.dtype, device=clip.device)
+    near_t = (wp.float32 if clip.dtype == torch.float32 else wp.float64)(near)
+    shared = [as_warp(faces.to(torch.int32).contiguous(), wp.vec3i), as_warp(px), as_warp(py), near_t,
+              torch_cross_is_fused(clip.device, clip.dtype)]
+    kernel = _RASTER[clip.dtype]
+    if serial is None:
+        serial = device.is_cpu
+    elif serial and not device.is_cpu:
+        raise ValueError("warp renderer: serial rasterization is only exact on the CPU; use serial=False on CUDA")
+    if serial:
+        # Warp runs the threads of a CPU launch one after another: one thread per scene, one pass.
+        launch_scenes(kernel, bsz, 1, lambda b0, b1: [
+            vec_view(clip[b0:b1]), *shared, MODE_SERIAL, nfaces, as_warp(zbuf[b0:b1]), None, as_warp(out[b0:b1])],
+            device)
+        return out
+    winner = torch.full((bsz, height, width), NO_FACE, dtype=torch.int32, device=clip.device)
+    for mode in (MODE_DEPTH, MODE_FACE):
+        launch_scenes(kernel, bsz, nfaces, lambda b0, b1, mode=mode: [
+            vec_view(clip[b0:b1]), *shared, mode, 1, as_warp(zbuf[b0:b1]), as_warp(winner[b0:b1]), None],
+            device, stream)
+    wp.launch(_finalize_kernel, dim=(bsz, height, width), inputs=[as_warp(winner), as_warp(out)],
+              device=device, stream=stream)
+    return out
