@@ -48,9 +48,11 @@ def look_at_rotation(eye: Tensor, target: Tensor, up: Tensor | None = None) -> T
     up = up.expand_as(eye)
     z_axis = torch.nn.functional.normalize(eye - target, dim=-1)  # camera looks along -z
     x_axis = torch.linalg.cross(up, z_axis, dim=-1)
-    # Looking straight up or down: fall back to +Z as the up hint.
+    # Looking straight down (up): use -Z (+Z) as the up hint, the limit of elevations approaching
+    # +-90 degrees at azimuth 0, so the image does not flip at the pole.
     degenerate = x_axis.norm(dim=-1, keepdim=True) < 1e-6
-    alt = torch.tensor([0.0, 0.0, 1.0], dtype=eye.dtype, device=eye.device).expand_as(eye)
+    alt = torch.zeros_like(eye)
+    alt[..., 2] = torch.where(z_axis[..., 1] > 0, -1.0, 1.0)
     x_axis = torch.where(degenerate, torch.linalg.cross(alt, z_axis, dim=-1), x_axis)
     x_axis = torch.nn.functional.normalize(x_axis, dim=-1)
     y_axis = torch.linalg.cross(z_axis, x_axis, dim=-1)

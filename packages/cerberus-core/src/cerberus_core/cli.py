@@ -6,10 +6,14 @@ import argparse
 import importlib
 import sys
 
+from cerberus_core.plugins import PluginError
+
 #: Modules that contribute sub-commands, in the order ``--help`` lists them.
 COMMAND_MODULES = [
     "cerberus_core.commands.renderers",
     "cerberus_core.commands.demo",
+    "cerberus_core.commands.data",
+    "cerberus_core.commands.train",
 ]
 
 
@@ -32,6 +36,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
+    except PluginError as exc:
+        print(f"cerberus {args.command}: {exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

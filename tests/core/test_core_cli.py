@@ -1,0 +1,60 @@
+"""The ``cerberus renderers`` and ``cerberus demo`` commands."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+
+import pytest
+from PIL import Image
+
+from cerberus_core.cli import main
+from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError
+
+
+def test_renderers_table(capsys) -> None:
+    assert main(["renderers"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("renderers:") and "metrics:" in out
+    line = next(line for line in out.splitlines() if line.strip().startswith("torch "))
+    assert "cerberus-render-torch" in line and "0.1.0" in line and line.rstrip().endswith("ok")
+
+
+def test_renderers_json(capsys) -> None:
+    assert main(["renderers", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    torch_row = next(r for r in data["renderers"] if r["name"] == "torch")
+    assert torch_row == {"name": "torch", "package": "cerberus-render-torch", "version": "0.1.0",
+                         "target": "cerberus_render_torch:TorchRenderer", "status": "ok"}
+
+
+def test_renderers_lists_a_broken_backend_with_its_error(fake_dist, monkeypatch, capsys) -> None:
+    root = fake_dist("fake-broken-render", {RENDERER_GROUP: {"broken": "fake_cli_broken:Renderer"}},
+                     {"fake_cli_broken": "raise RuntimeError('needs a GPU driver')\n"})
+    monkeypatch.syspath_prepend(str(root))
+    assert main(["renderers"]) == 0
+    out = capsys.readouterr().out
+    broken = next(line for line in out.splitlines() if line.strip().startswith("broken "))
+    assert "fake-broken-render" in broken and "needs a GPU driver" in broken
+    assert any(line.strip().startswith("torch ") and line.rstrip().endswith("ok") for line in out.splitlines())
+
+
+def test_demo_writes_pictures(tmp_path, capsys) -> None:
+    assert main(["demo", "--out", str(tmp_path / "demo"), "--image-size", "32", "--renderer", "torch"]) == 0
+    png = tmp_path / "demo" / "demo_torch.png"
+    with Image.open(png) as im:
+        assert im.format == "PNG" and im.width > 4 * 32 and im.height > 2 * 32
+    assert "demo_torch.png" in capsys.readouterr().out
+    assert not list((tmp_path / "demo").glob("*.tmp")), "no temporary files left behind"
+
+
+def test_demo_with_an_unknown_renderer_names_the_known_ones(tmp_path) -> None:
+    with pytest.raises(UnknownPluginError, match="torch"):
+        main(["demo", "--out", str(tmp_path), "--renderer", "nope"])
+
+
+@pytest.mark.slow  # a fresh interpreter importing torch: seconds
+@pytest.mark.skipif(shutil.which("cerberus") is None, reason="the cerberus console script is not installed")
+def test_console_script_help() -> None:
+    proc = subprocess.run(["cerberus", "--help"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "renderers" in proc.stdout and "demo" in proc.stdout
