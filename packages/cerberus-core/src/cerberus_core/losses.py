@@ -1,0 +1,215 @@
+"""Every loss term of the paper, each a small function (sections 3.2, 4 and 5).
+
+A training example is a *quadruplet* of images of one body: two poses ``a, b`` seen from two
+viewpoints ``0, 1``, stacked in the order :data:`QUADRUPLET` = ``(a0, a1, b0, b1)`` along a
+dimension of size 4. Per-image tensors are shaped ``(B, 4, ...)`` here.
+
+====================  ==================================================  =========================
+term                  definition                                          function
+====================  ==================================================  =========================
+reconstruction        ``1/|G| sum_xy ||I_xy - R_xy||^2`` (eq. 2)            :func:`reconstruction_loss`
+pose consistency      ``S~ = sum_x 1_Z(x) S^x`` (eq. 3)                    :func:`mix_shape_latents`
+viewpoint, render     ``L^a0 = (L^{a0->a0} + L^{a0->a1}) / 2`` (eq. 4)     :func:`viewpoint_scenes`,
+                                                                          :func:`viewpoint_reconstruction`
+viewpoint, transl.    ``1/N sum_i ||T_i^0 - T_i^1||^2``, mean of a, b      :func:`translation_loss`
+                      (eqs. 5, 6)
+total reconstruction  mean of the four ``L^x`` (eq. 7)                     :func:`viewpoint_reconstruction`
+background            ``1/N sum_k sum_xy p^k_xy b_xy``                     :func:`background_loss`
+smoothness            ``sum_edges (cos theta + 1)^2`` (Kato et al.)        :func:`smoothness_loss`
+====================  ==================================================  =========================
+
+:class:`LossConfig` holds the weights ``(lambda_r, lambda_t, lambda_b, lambda_s)`` and the switches
+that give the paper's variants (Free Cerberus: ``pose_consistency: false``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+Tensor = torch.Tensor
+
+QUADRUPLET: tuple[str, ...] = ("a0", "a1", "b0", "b1")
+"""Order of the four images of a training example."""
+
+VIEW_PARTNER: tuple[int, ...] = (1, 0, 3, 2)
+"""Index of the image of the same pose from the other viewpoint: a0 <-> a1, b0 <-> b1."""
+
+
+@dataclass
+class LossConfig:
+    """Loss weights and consistency switches (the ``losses:`` section of a training config).
+
+    Attributes:
+        recon, translation, background, smoothness: the weights ``lambda_r, lambda_t, lambda_b,
+            lambda_s`` (paper: 1, 1, 1, 0.0001). A weight of 0 switches the term off (it is still
+            computed and logged).
+        pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses
+            its own shape latent — "Free Cerberus").
+        viewpoint_consistency: also render each image's rotated mesh from the other viewpoint with
+            that viewpoint's translation (equation 4); off: only the image's own viewpoint.
+        render_background: ``black`` (default) or ``dataset``: the background colour of the
+            reconstruction loss. With ``black`` the input image's background pixels (mask ``b``) are
+            set to black in the target and the renderings are composited over black. The barycentric
+            renderer has no silhouette gradient, so a part drawn over the background is pushed only
+            to change its shading towards the background colour: towards white (brighter than any
+            lit surface) that means turning the surface to face the light, which flattens and
+            inflates the part without bound; towards black it turns the surface away, which does not
+            grow it. Since the mask is exact, this equals a dataset rendered on black.
+        background_tolerance: a pixel is background (``b_xy = 1``) when every channel is within this
+            of the dataset's background colour
+            (:func:`cerberus_core.data.dataset.background_mask`).
+    """
+
+    recon: float = 1.0
+    translation: float = 1.0
+    background: float = 1.0
+    smoothness: float = 0.0001
+    pose_consistency: bool = True
+    viewpoint_consistency: bool = True
+    render_background: str = "black"
+    background_tolerance: float = 0.02
+
+    def validate(self) -> None:
+        for name in ("recon", "translation", "background", "smoothness"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"losses.{name} is a loss weight and must be >= 0, got {getattr(self, name)}")
+        if self.render_background not in ("black", "dataset"):
+            raise ValueError(f"losses.render_background must be 'black' or 'dataset', got {self.render_background!r}")
+        if not 0 <= self.background_tolerance < 1:
+            raise ValueError(f"losses.background_tolerance must be in [0, 1), got {self.background_tolerance}")
+
+
+def reconstruction_loss(rendered: Tensor, target: Tensor) -> Tensor:
+    """Equation 2: squared RGB error per pixel, averaged over the pixel grid ``G``.
+
+    Args:
+        rendered, target: ``(..., 3, H, W)`` images.
+    Returns:
+        ``(...)`` one loss per image (sum over channels, mean over pixels).
+    """
+    if rendered.shape != target.shape:
+        raise ValueError(f"reconstruction_loss: rendered {tuple(rendered.shape)} vs target {tuple(target.shape)}")
+    return (rendered - target).square().sum(dim=-3).mean(dim=(-2, -1))
+
+
+def mix_shape_latents(latents: Tensor, generator: torch.Generator | None = None) -> tuple[Tensor, Tensor]:
+    """Equation 3: draw every element of the shape latent from one of the quadruplet's four latents.
+
+    Args:
+        latents: ``(B, 4, S)`` the shape latents ``S^a0, S^a1, S^b0, S^b1``.
+        generator: random source for ``Z`` (a CPU generator; uniform over the four images).
+    Returns:
+        ``mixed`` ``(B, S)`` with ``mixed[b, s] = latents[b, Z[b, s], s]``, and ``Z`` ``(B, S)`` int64.
+    """
+    if latents.ndim != 3 or latents.shape[1] != 4:
+        raise ValueError(f"mix_shape_latents expects (B, 4, S) latents, got {tuple(latents.shape)}")
+    bsz, _, size = latents.shape
+    choice = torch.randint(0, 4, (bsz, size), generator=generator).to(latents.device)
+    mixed = latents.gather(1, choice.unsqueeze(1)).squeeze(1)
+    return mixed, choice
+
+
+def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -> tuple[Tensor, Tensor]:
+    """The posed meshes rendered for equation 4 (all in world coordinates).
+
+    Image ``x`` of the quadruplet contributes its rotated mesh ``R^x V^x`` twice: translated by its
+    own translation (rendered from its own viewpoint, compared with image ``x``) and translated by
+    the translation predicted from its viewpoint partner ``x'`` (:data:`VIEW_PARTNER`; rendered from
+    ``x'``'s viewpoint, compared with image ``x'``): ``a0 -> a1`` is ``R^a0 V^a0 + T^a1``.
+
+    Args:
+        local_vertices: ``(B, 4, N, V, 3)`` deformed parts (local frames).
+        rotations: ``(B, 4, N, 3, 3)`` world rotations.
+        translations: ``(B, 4, N, 3)`` world translations.
+    Returns:
+        ``own`` and ``cross``, both ``(B, 4, N, V, 3)``; ``cross[:, x]`` is to be rendered with the
+        camera of image ``VIEW_PARTNER[x]`` and compared with that image.
+    """
+    rotated = local_vertices @ rotations.transpose(-1, -2)
+    own = rotated + translations.unsqueeze(-2)
+    cross = rotated + translations[:, list(VIEW_PARTNER)].unsqueeze(-2)
+    return own, cross
+
+
+def viewpoint_reconstruction(own: Tensor, cross: Tensor | None) -> Tensor:
+    """Equations 4 and 7: per-image reconstruction loss averaged over the quadruplet.
+
+    Args:
+        own: ``(B, 4)`` ``L^{x->x}`` for ``x`` in ``(a0, a1, b0, b1)``.
+        cross: ``(B, 4)`` ``L^{x->x'}`` (the image-``x`` mesh rendered from the partner viewpoint),
+            or ``None`` without viewpoint consistency (then ``L^x = L^{x->x}``).
+    Returns:
+        ``(B,)`` ``L_r' = 1/4 sum_x L^x`` with ``L^x = (L^{x->x} + L^{x->x'}) / 2``.
+    """
+    per_image = own if cross is None else 0.5 * (own + cross)
+    return per_image.mean(dim=1)
+
+
+def translation_loss(translations: Tensor) -> Tensor:
+    """Equations 5 and 6: disagreement of the world translations predicted from the two viewpoints.
+
+    Args:
+        translations: ``(B, 4, N, 3)`` world-space part translations of ``(a0, a1, b0, b1)``.
+    Returns:
+        ``(B,)`` ``(L_t^a + L_t^b) / 2`` with ``L_t^a = 1/N sum_i ||T_i^a0 - T_i^a1||^2``.
+    """
+    if translations.ndim != 4 or translations.shape[1] != 4:
+        raise ValueError(f"translation_loss expects (B, 4, N, 3), got {tuple(translations.shape)}")
+    pose_a = (translations[:, 0] - translations[:, 1]).square().sum(-1).mean(-1)
+    pose_b = (translations[:, 2] - translations[:, 3]).square().sum(-1).mean(-1)
+    return 0.5 * (pose_a + pose_b)
+
+
+def background_loss(prob: Tensor, mask: Tensor) -> Tensor:
+    """``L_b = 1/N sum_k sum_xy p^k_xy b_xy``: probability mass the parts put on the background.
+
+    Args:
+        prob: ``(..., N, H, W)`` probability maps (each sums to 1).
+        mask: ``(..., 1, H, W)`` background mask ``b`` of the input image
+            (:func:`cerberus_core.data.dataset.background_mask`).
+    Returns:
+        ``(...)`` in [0, 1].
+    """
+    return (prob * mask).sum(dim=(-2, -1)).mean(dim=-1)
+
+
+def dihedral_cosines(vertices: Tensor, dihedral: Tensor, eps: float = 1e-6) -> Tensor:
+    """Cosine of the angle between the two faces meeting at each interior edge.
+
+    Following Kato et al. (neural_renderer / mesh_reconstruction): for an edge ``a-b`` shared by the
+    faces ``(a, b, c)`` and ``(a, b, d)``, the angle ``theta`` is the one between the vectors from the
+    edge line to ``c`` and to ``d``, each perpendicular to the edge. A flat pair has ``theta = pi``
+    (``cos = -1``); a pair folded shut has ``theta = 0`` (``cos = 1``).
+
+    Args:
+        vertices: ``(..., V, 3)``.
+        dihedral: ``(E, 4)`` int64 ``(a, b, c, d)`` per edge (``MeshTemplate.dihedral``).
+        eps: keeps the normalisations finite on degenerate faces.
+    Returns:
+        ``(..., E)`` ``cos theta``.
+    """
+    a, b, c, d = (vertices[..., dihedral[:, i], :] for i in range(4))
+    edge = torch.nn.functional.normalize(b - a, dim=-1, eps=eps)
+
+    def perpendicular(p: Tensor) -> Tensor:
+        v = p - a
+        return v - (v * edge).sum(-1, keepdim=True) * edge
+
+    pc, pd = perpendicular(c), perpendicular(d)
+    num = (pc * pd).sum(-1)
+    den = pc.norm(dim=-1) * pd.norm(dim=-1) + eps
+    return num / den
+
+
+def smoothness_loss(vertices: Tensor, dihedral: Tensor, eps: float = 1e-6) -> Tensor:
+    """``L_s = sum_edges (cos theta + 1)^2`` (Kato et al.): 0 for a flat surface, 4 per folded edge.
+
+    Args:
+        vertices: ``(..., P, V, 3)`` ``P`` part meshes sharing one template (``P`` may be 1).
+        dihedral: ``(E, 4)`` the template's dihedral quadruples.
+    Returns:
+        ``(...)`` the sum over every part's edges.
+    """
+    cos = dihedral_cosines(vertices, dihedral, eps)
+    return (cos + 1).square().sum(dim=(-2, -1))

@@ -1,0 +1,266 @@
+"""The Cerberus network: image → ``N`` posed part meshes (section 3 of the paper).
+
+``Cerberus.forward(images)`` runs the down-sampling network, the up-sampling network and the three
+heads and returns camera-independent :class:`Predictions`; :meth:`Cerberus.pose` places the parts
+with the known camera (rotation and translation predicted relative to the camera, expressed in the
+world frame); :meth:`Cerberus.reconstruct` does both and returns :class:`PartMeshes`.
+
+Frames: a part's local vertices ``x`` (deformed sphere) map to the camera frame as
+``R_cam x + T_cam`` and to the world as ``R_world x + T_world`` with ``R_world = R^T R_cam`` and
+``T_world`` the world-space unprojection (``R``: the camera's world→camera rotation).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import torch
+from torch import nn
+
+from cerberus_core.camera import Camera
+from cerberus_core.model.encoder import ResNet10, UpDecoder
+from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
+from cerberus_core.templates import MeshTemplate, icosphere
+
+Tensor = torch.Tensor
+
+
+@dataclass
+class ModelConfig:
+    """Architecture hyper-parameters (the ``model:`` section of a training config).
+
+    Attributes:
+        num_parts: ``N``, the number of parts (9 in the paper; 1 for the NMRr baseline).
+        sphere_level: icosphere subdivision level of each part's template (2: 162 vertices,
+            320 faces, the paper's; 3: 642 vertices, used by the NMRr preset).
+        width: channels of the first ResNet stage (64 gives the paper's 64, 128, 256, 512).
+        shape_latent_dim: size of the shape latent ``S``.
+        init_scale: radius of each part's initial sphere (world units).
+        displacement_scale: output scale of the vertex-displacement map (a per-layer learning
+            rate under Adam, see :class:`~cerberus_core.model.heads.ShapeHead`).
+        anchor_spread: parts start at keypoints on a grid spanning ``[-spread, spread]`` of the
+            normalised image (0: all at the centre); see
+            :class:`~cerberus_core.model.heads.TranslationHead`.
+        depth_offset: initial depth of every part (world units); ``"auto"`` in a config means the
+            dataset's camera distance, resolved by the trainer before the model is built.
+        predict_rotation: predict a rotation per part (Cerberus). ``False`` fixes every part's
+            world rotation to the identity (the NMR baseline, which deforms one sphere in the
+            world frame).
+    """
+
+    num_parts: int = 9
+    sphere_level: int = 2
+    width: int = 64
+    shape_latent_dim: int = 256
+    init_scale: float = 0.12
+    displacement_scale: float = 0.05
+    anchor_spread: float = 0.4
+    depth_offset: float | str = "auto"
+    predict_rotation: bool = True
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the bad field and its allowed range."""
+        if not isinstance(self.num_parts, int) or self.num_parts < 1:
+            raise ValueError(f"model.num_parts must be a positive integer, got {self.num_parts!r}")
+        if not isinstance(self.sphere_level, int) or not 0 <= self.sphere_level <= 5:
+            raise ValueError(f"model.sphere_level must be an integer in 0..5, got {self.sphere_level!r}")
+        if not isinstance(self.width, int) or self.width < 1:
+            raise ValueError(f"model.width must be a positive integer, got {self.width!r}")
+        if not isinstance(self.shape_latent_dim, int) or self.shape_latent_dim < 1:
+            raise ValueError(f"model.shape_latent_dim must be a positive integer, got {self.shape_latent_dim!r}")
+        if not self.init_scale > 0:
+            raise ValueError(f"model.init_scale must be positive, got {self.init_scale!r}")
+        if not self.displacement_scale > 0:
+            raise ValueError(f"model.displacement_scale must be positive, got {self.displacement_scale!r}")
+        if not 0 <= self.anchor_spread < 1:
+            raise ValueError(f"model.anchor_spread must be in [0, 1), got {self.anchor_spread!r}")
+        if isinstance(self.depth_offset, str):
+            if self.depth_offset != "auto":
+                raise ValueError(f"model.depth_offset must be a number or 'auto', got {self.depth_offset!r}")
+        elif not self.depth_offset > 0:
+            raise ValueError(f"model.depth_offset must be positive, got {self.depth_offset!r}")
+
+
+@dataclass
+class Predictions:
+    """What the network predicts from ``B`` images, before the camera is used.
+
+    Attributes:
+        object_latent: ``(B, 8 * width)`` global average of the lowest-resolution features.
+        shape_latent: ``(B, S)`` each image's own shape latent.
+        render_latent: ``(B, S)`` the shape latent the meshes were built from (``shape_latent``
+            unless a pose-consistency mixer replaced it, equation 3).
+        local_vertices: ``(B, N, V, 3)`` deformed part templates in the parts' local frames.
+        quaternions: ``(B, N, 4)`` unit quaternions ``(w, x, y, z)`` relative to the camera.
+        rotations_cam: ``(B, N, 3, 3)`` the rotation matrices of ``quaternions``.
+        maps: per-part probability and depth maps and their expectations.
+    """
+
+    object_latent: Tensor
+    shape_latent: Tensor
+    render_latent: Tensor
+    local_vertices: Tensor
+    quaternions: Tensor
+    rotations_cam: Tensor
+    maps: KeypointMaps
+
+
+@dataclass
+class PartMeshes:
+    """``N`` posed part meshes per image (the model's output, :meth:`Cerberus.reconstruct`).
+
+    Attributes:
+        vertices: ``(B, N, V, 3)`` world coordinates.
+        vertices_cam: ``(B, N, V, 3)`` camera-frame coordinates.
+        faces: ``(F, 3)`` int64 template faces shared by every part.
+        local_vertices: ``(B, N, V, 3)`` the deformed parts before rotation and translation (the
+            part *shapes*; apply other rotations/translations with :func:`pose_parts`).
+        rotations, translations: ``(B, N, 3, 3)`` and ``(B, N, 3)`` in the world frame.
+        rotations_cam, translations_cam: the same relative to the camera.
+        shape_latent: ``(B, S)`` shape latents.
+        prob_maps, depth_maps: ``(B, N, H, W)`` the translation head's maps.
+    """
+
+    vertices: Tensor
+    vertices_cam: Tensor
+    faces: Tensor
+    local_vertices: Tensor
+    rotations: Tensor
+    translations: Tensor
+    rotations_cam: Tensor
+    translations_cam: Tensor
+    shape_latent: Tensor
+    prob_maps: Tensor
+    depth_maps: Tensor
+
+
+def pose_parts(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -> Tensor:
+    """Rotate and translate part meshes: ``x' = R x + T``.
+
+    Args:
+        local_vertices: ``(B, N, V, 3)``.
+        rotations: ``(B, N, 3, 3)``.
+        translations: ``(B, N, 3)``.
+    Returns:
+        ``(B, N, V, 3)``.
+    """
+    return local_vertices @ rotations.transpose(-1, -2) + translations.unsqueeze(-2)
+
+
+class Cerberus(nn.Module):
+    """The multi-headed derenderer.
+
+    Args:
+        config: a :class:`ModelConfig` with a numeric ``depth_offset``.
+    """
+
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        config.validate()
+        if isinstance(config.depth_offset, str):
+            raise ValueError("Cerberus: model.depth_offset is still 'auto'; set it to the camera distance "
+                             "(the trainer does this from the dataset's scene)")
+        self.config = config
+        self.template: MeshTemplate = icosphere(config.sphere_level)
+        self.register_buffer("faces", self.template.faces.clone(), persistent=False)
+        self.register_buffer("dihedral", self.template.dihedral.clone(), persistent=False)
+        self.encoder = ResNet10(3, config.width)
+        self.decoder = UpDecoder(self.encoder.channels)
+        latent = self.encoder.out_channels
+        self.shape = ShapeHead(latent, config.shape_latent_dim, config.num_parts, self.template.vertices,
+                               config.init_scale, config.displacement_scale)
+        self.rotation = RotationHead(latent, config.num_parts)
+        self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
+                                           config.anchor_spread)
+
+    @property
+    def num_parts(self) -> int:
+        return self.config.num_parts
+
+    def forward(self, images: Tensor, mix: Callable[[Tensor], Tensor] | None = None) -> Predictions:
+        """Predict parts from images.
+
+        Args:
+            images: ``(B, 3, H, W)`` in [0, 1], H and W at least 32.
+            mix: optional map ``(B, S) → (B, S)`` applied to the shape latents before they are
+                decoded into vertices (pose consistency, equation 3).
+        """
+        if images.ndim != 4 or images.shape[1] != 3:
+            raise ValueError(f"Cerberus expects (B, 3, H, W) images, got {tuple(images.shape)}")
+        pyramid = self.encoder(images)
+        object_latent = pyramid.c4.mean(dim=(-2, -1))
+        shape_latent = self.shape.latent(object_latent)
+        render_latent = shape_latent if mix is None else mix(shape_latent)
+        local = self.shape.deform(render_latent)
+        quats, rot_cam = self.rotation(object_latent)
+        maps = self.translation(self.decoder(pyramid), tuple(images.shape[-2:]))
+        return Predictions(object_latent, shape_latent, render_latent, local, quats, rot_cam, maps)
+
+    def world_pose(self, pred: Predictions, camera: Camera) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+        """Part rotations and translations in both frames.
+
+        Returns:
+            ``(rotations, translations, rotations_cam, translations_cam)``: world ``(B, N, 3, 3)``,
+            ``(B, N, 3)``, then the camera-frame ones.
+        """
+        t_cam = unproject_expectation(pred.maps, camera, to_world=False)
+        t_world = camera.camera_to_world(t_cam)
+        if self.config.predict_rotation:
+            r_cam = pred.rotations_cam
+            r_world = camera.rotation_to_world(r_cam)
+        else:
+            r_world = torch.eye(3, dtype=t_cam.dtype, device=t_cam.device).expand_as(pred.rotations_cam)
+            r_cam = camera.rotation.unsqueeze(1) @ r_world
+        return r_world, t_world, r_cam, t_cam
+
+    def pose(self, pred: Predictions, camera: Camera) -> PartMeshes:
+        """Place the predicted parts with the cameras that took the images."""
+        r_world, t_world, r_cam, t_cam = self.world_pose(pred, camera)
+        return PartMeshes(
+            vertices=pose_parts(pred.local_vertices, r_world, t_world),
+            vertices_cam=pose_parts(pred.local_vertices, r_cam, t_cam),
+            faces=self.faces,
+            local_vertices=pred.local_vertices,
+            rotations=r_world,
+            translations=t_world,
+            rotations_cam=r_cam,
+            translations_cam=t_cam,
+            shape_latent=pred.shape_latent,
+            prob_maps=pred.maps.prob,
+            depth_maps=pred.maps.depth_map,
+        )
+
+    def reconstruct(self, images: Tensor, camera: Camera) -> PartMeshes:
+        """Images and their known cameras → posed part meshes (differentiable; no mode change)."""
+        if camera.batch_size != images.shape[0]:
+            raise ValueError(f"reconstruct: {images.shape[0]} images but {camera.batch_size} cameras")
+        return self.pose(self(images), camera)
+
+
+@torch.no_grad()
+def world_part_meshes(model: Cerberus, images: Tensor, camera: Camera, batch_size: int = 64) -> tuple[Tensor, Tensor]:
+    """World-space part meshes for a batch of images, as evaluation needs them.
+
+    Runs the model in eval mode (batch-norm running statistics), in chunks of ``batch_size``, on
+    the model's device, and restores the previous mode.
+
+    Args:
+        model: a trained :class:`Cerberus`.
+        images: ``(B, 3, H, W)`` in [0, 1].
+        camera: the ``B`` cameras of the images (any device).
+    Returns:
+        ``vertices`` ``(B, N, V, 3)`` world coordinates (CPU, float32) and ``faces`` ``(F, 3)`` int64.
+        The union of the ``N`` parts is the reconstructed object.
+    """
+    was_training = model.training
+    model.eval()
+    device = next(model.parameters()).device
+    out = []
+    try:
+        for start in range(0, images.shape[0], batch_size):
+            idx = slice(start, start + batch_size)
+            parts = model.reconstruct(images[idx].to(device), camera.index(idx).to(device))
+            out.append(parts.vertices.float().cpu())
+    finally:
+        model.train(was_training)
+    return torch.cat(out), model.faces.cpu()

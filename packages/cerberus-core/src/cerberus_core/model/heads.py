@@ -1,0 +1,204 @@
+"""The three heads of Cerberus: deformation (shape), rotation and translation (section 3.2).
+
+* :class:`ShapeHead` — object latent → shape latent (linear) → vertex displacements of all ``N``
+  parts (linear), added to the template sphere scaled to ``init_scale``.
+* :class:`RotationHead` — object latent → ``N`` quaternions (linear) → rotation matrices.
+* :class:`TranslationHead` — up-sampled features → per part a probability map (1x1 convolution,
+  spatial softmax) and a depth map (1x1 convolution); equation 1 turns their expectations into a
+  3D translation by unprojecting with the known camera (:func:`unproject_expectation`).
+
+Initialisation (chosen so that training starts from visible, well-behaved parts):
+
+* displacements start near zero (weights ``N(0, 1e-4)``, bias 0), so every part starts as a sphere
+  of radius ``init_scale`` (0.12 world units by default, about an eighth of the body height);
+* quaternions start at the identity (bias ``(1, 0, 0, 0)``, weights ``N(0, 1e-3)``);
+* depth maps start at ``depth_offset`` (the dataset's camera distance, so parts start near the
+  world origin where the body is), the depth convolution's weights and bias being zero;
+* the probability maps start as Gaussian bumps at distinct anchors on a grid over the central
+  image region (:class:`TranslationHead`), with the feature convolution's default (small, random)
+  initialisation on top.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from kornia.geometry.conversions import quaternion_to_rotation_matrix
+from kornia.geometry.subpix import spatial_expectation2d, spatial_softmax2d
+from torch import nn
+
+from cerberus_core.camera import Camera
+
+Tensor = torch.Tensor
+
+
+class ShapeHead(nn.Module):
+    """Object latent → shape latent → per-part vertex positions in the part's local frame.
+
+    The displacements are ``displacement_scale * (W S + b)``: a fixed output scale that acts as a
+    per-layer learning rate under Adam (as the ``bias_scale`` of Kato et al.'s mesh decoder). Adam
+    moves every weight by about ``lr`` per step in a coherent direction, so without it a vertex
+    moves by ``lr * ||S||_1`` per step — for a 256-dimensional latent, a sizeable fraction of a
+    part's radius — and the meshes turn spiky within a few steps.
+
+    Args:
+        in_dim: object latent size.
+        latent_dim: shape latent size.
+        num_parts: ``N``.
+        template: ``(V, 3)`` unit-sphere template vertices (a buffer of this module).
+        init_scale: radius of the initial sphere (world units).
+        displacement_scale: the output scale of the displacement map.
+    """
+
+    def __init__(self, in_dim: int, latent_dim: int, num_parts: int, template: Tensor, init_scale: float,
+                 displacement_scale: float = 1.0) -> None:
+        super().__init__()
+        self.num_parts = num_parts
+        self.num_vertices = template.shape[0]
+        self.displacement_scale = float(displacement_scale)
+        self.to_latent = nn.Linear(in_dim, latent_dim)
+        self.to_displacement = nn.Linear(latent_dim, num_parts * self.num_vertices * 3)
+        nn.init.normal_(self.to_displacement.weight, std=1e-4)
+        nn.init.zeros_(self.to_displacement.bias)
+        self.register_buffer("template", template.float() * init_scale, persistent=False)
+
+    def latent(self, object_latent: Tensor) -> Tensor:
+        """``(B, in_dim)`` → ``(B, latent_dim)`` shape latent ``S``."""
+        return self.to_latent(object_latent)
+
+    def deform(self, shape_latent: Tensor) -> Tensor:
+        """``(B, latent_dim)`` shape latent → ``(B, N, V, 3)`` deformed part vertices (local frame)."""
+        disp = self.to_displacement(shape_latent).view(-1, self.num_parts, self.num_vertices, 3)
+        return self.template + self.displacement_scale * disp
+
+
+class RotationHead(nn.Module):
+    """Object latent → ``N`` unit quaternions ``(w, x, y, z)`` → ``N`` rotation matrices.
+
+    Args:
+        in_dim: object latent size.
+        num_parts: ``N``.
+    """
+
+    def __init__(self, in_dim: int, num_parts: int) -> None:
+        super().__init__()
+        self.num_parts = num_parts
+        self.linear = nn.Linear(in_dim, num_parts * 4)
+        nn.init.normal_(self.linear.weight, std=1e-3)
+        with torch.no_grad():
+            self.linear.bias.copy_(torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(num_parts))
+
+    def forward(self, object_latent: Tensor) -> tuple[Tensor, Tensor]:
+        """Returns ``quaternions`` ``(B, N, 4)`` (unit, real part first) and ``rotations`` ``(B, N, 3, 3)``."""
+        q = self.linear(object_latent).view(-1, self.num_parts, 4)
+        q = nn.functional.normalize(q, dim=-1, eps=1e-8)
+        return q, quaternion_to_rotation_matrix(q)
+
+
+@dataclass
+class KeypointMaps:
+    """Per-part maps on the input pixel grid and their expectations (equation 1, before unprojection).
+
+    Attributes:
+        prob: ``(B, N, H, W)`` probability maps ``p^k`` (each sums to 1).
+        depth_map: ``(B, N, H, W)`` depth maps ``d^k`` (world units).
+        uv: ``(B, N, 2)`` expected pixel coordinates ``(u, v) = (sum x p, sum y p)`` with pixel
+            centres at ``j + 0.5`` (the :mod:`cerberus_core.camera` convention).
+        depth: ``(B, N)`` expected depth ``sum d p`` (world units).
+    """
+
+    prob: Tensor
+    depth_map: Tensor
+    uv: Tensor
+    depth: Tensor
+
+
+def anchor_grid(num_parts: int, spread: float) -> Tensor:
+    """``(N, 2)`` initial keypoints in normalised image coordinates ``[-1, 1]`` (x right, y down):
+    the first ``N`` points of a ``ceil(sqrt(N))``-square grid spanning ``[-spread, spread]``, ordered
+    from the centre outwards (so small ``N`` stay central; ``N = 1`` is the centre)."""
+    side = math.ceil(math.sqrt(num_parts))
+    ticks = torch.linspace(-spread, spread, side) if side > 1 else torch.zeros(1)
+    grid = torch.stack(torch.meshgrid(ticks, ticks, indexing="xy"), -1).reshape(-1, 2)
+    order = torch.argsort(grid.norm(dim=-1) + 1e-3 * torch.arange(len(grid)), stable=True)
+    return grid[order[:num_parts]]
+
+
+class TranslationHead(nn.Module):
+    """Per-part probability and depth maps from the decoder features.
+
+    The probability-map logits are a linear map (1x1 convolution) of the features plus a linear map
+    of the pixel coordinates ``(x, y, x^2, y^2)`` (normalised to ``[-1, 1]``), whose weights start as
+    a Gaussian bump of width ``anchor_spread`` at a per-part anchor (:func:`anchor_grid`): parts
+    start at distinct image locations, so the background loss pulls each towards the nearest body
+    region instead of all towards the same one. Every weight stays learnable; ``anchor_spread: 0``
+    starts all parts at the image centre with no coordinate term.
+
+    Args:
+        in_channels: decoder feature channels.
+        num_parts: ``N``.
+        depth_offset: added to the depth maps (world units; the typical camera distance).
+        anchor_spread: half-extent of the anchor grid in normalised image coordinates.
+    """
+
+    def __init__(self, in_channels: int, num_parts: int, depth_offset: float, anchor_spread: float = 0.4) -> None:
+        super().__init__()
+        self.logits = nn.Conv2d(in_channels, num_parts, 1)
+        self.coords = nn.Linear(4, num_parts, bias=False)
+        self.depth = nn.Conv2d(in_channels, num_parts, 1)
+        nn.init.zeros_(self.depth.weight)
+        nn.init.zeros_(self.depth.bias)
+        self.depth_offset = float(depth_offset)
+        with torch.no_grad():
+            if anchor_spread > 0:
+                centre = anchor_grid(num_parts, anchor_spread)
+                inv = 1.0 / (2 * anchor_spread**2)  # -(p - c)^2 / (2 s^2), constant dropped
+                self.coords.weight.copy_(torch.cat([2 * inv * centre, -inv * torch.ones(num_parts, 2)], 1))
+            else:
+                self.coords.weight.zero_()
+
+    def forward(self, features: Tensor, size: tuple[int, int]) -> KeypointMaps:
+        """``features`` ``(B, C, h, w)`` → :class:`KeypointMaps` on an ``size = (H, W)`` pixel grid."""
+        h, w = features.shape[-2:]
+        ys = (torch.arange(h, device=features.device, dtype=features.dtype) + 0.5) / h * 2 - 1
+        xs = (torch.arange(w, device=features.device, dtype=features.dtype) + 0.5) / w * 2 - 1
+        gy, gx = torch.meshgrid(ys, xs, indexing="ij")
+        coords = torch.stack([gx, gy, gx.square(), gy.square()], -1)  # (h, w, 4)
+        logits = self.logits(features) + self.coords(coords).permute(2, 0, 1).unsqueeze(0)
+        depth = self.depth(features)
+        if logits.shape[-2:] != tuple(size):
+            logits = nn.functional.interpolate(logits, size=size, mode="bilinear", align_corners=False)
+            depth = nn.functional.interpolate(depth, size=size, mode="bilinear", align_corners=False)
+        depth_map = depth + self.depth_offset
+        prob = spatial_softmax2d(logits)
+        return expectation(prob, depth_map)
+
+
+def expectation(prob: Tensor, depth_map: Tensor) -> KeypointMaps:
+    """Expected pixel coordinates and depth under probability maps (the sum in equation 1).
+
+    Args:
+        prob: ``(B, N, H, W)`` maps summing to 1.
+        depth_map: ``(B, N, H, W)``.
+    """
+    uv = spatial_expectation2d(prob, normalized_coordinates=False) + 0.5  # pixel centres at j + 0.5
+    depth = (prob * depth_map).sum(dim=(-2, -1))
+    return KeypointMaps(prob, depth_map, uv, depth)
+
+
+def unproject_expectation(maps: KeypointMaps, camera: Camera, *, to_world: bool) -> Tensor:
+    """Equation 1: ``T_k = pi^{-1}(sum x p, sum y p, sum d p)``.
+
+    Args:
+        maps: keypoint maps of ``B`` images.
+        camera: the ``B`` cameras that took them (image size must match the maps).
+        to_world: world coordinates, or the camera frame.
+    Returns:
+        ``(B, N, 3)`` part translations.
+    """
+    h, w = maps.prob.shape[-2:]
+    if (camera.height, camera.width) != (h, w):
+        raise ValueError(f"camera image size {camera.height}x{camera.width} does not match the maps' {h}x{w}; "
+                         "build the camera with the size of the images given to the model")
+    return camera.unproject(maps.uv, maps.depth, to_world=to_world)

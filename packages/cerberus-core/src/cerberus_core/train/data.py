@@ -1,0 +1,144 @@
+"""What the trainer needs from a dataset, and the deterministic order it reads it in.
+
+The data contract (kept small on purpose): a map-style dataset of quadruplets whose items are dicts
+with
+
+* ``images``: ``(4, 3, H, W)`` float32 in [0, 1], ordered ``(a0, a1, b0, b1)``;
+* ``azimuth``, ``elevation``, ``distance``, ``fov_y``: ``(4,)`` float32, degrees / world units;
+
+and which has the attributes ``image_size`` (int) and ``scene`` (a dict read by
+:meth:`cerberus_core.data.scene.SceneSetup.from_dict`: ``distance``, ``albedo``, ``background``,
+``ambient``, ``diffuse``, ``near``, ``far``). Anything else in the items (subject, pose and view ids)
+is carried along and ignored. :class:`cerberus_core.data.dataset.QuadrupletDataset` is the reader
+of the toolkit's on-disk format.
+
+Data order is a pure function of ``(seed, step)``: the sample stream is the concatenation of one
+random permutation of the dataset per epoch (permutation ``e`` seeded by ``(seed, e)``), and step
+``s`` reads stream positions ``[s * B, (s + 1) * B)``; data-parallel rank ``r`` of ``W`` takes the
+``r``-th of ``W`` equal slices. A resumed run therefore reads exactly the batches an uninterrupted
+one would.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Iterator
+
+import numpy as np
+import torch
+from torch.utils.data import Sampler
+
+from cerberus_core.camera import Camera
+from cerberus_core.data.scene import SceneSetup
+
+Tensor = torch.Tensor
+
+
+def check_dataset(dataset: Any) -> None:
+    """Raise ``TypeError`` with the missing pieces if ``dataset`` does not follow the contract."""
+    missing = [a for a in ("image_size", "scene", "__len__", "__getitem__") if not hasattr(dataset, a)]
+    if missing:
+        raise TypeError(f"training dataset {type(dataset).__name__} lacks {missing}; it must be a map-style "
+                        "dataset of quadruplet dicts with .image_size and .scene (see cerberus_core.train.data)")
+    if len(dataset) == 0:
+        raise ValueError("the training dataset is empty")
+
+
+def build_dataset(root: str, split: str) -> Any:
+    """The quadruplet dataset of ``root`` (:class:`cerberus_core.data.dataset.QuadrupletDataset`)."""
+    from cerberus_core.data.dataset import QuadrupletDataset
+
+    return QuadrupletDataset(root, split=split)
+
+
+# ------------------------------------------------------------------ deterministic order
+def epoch_permutation(n: int, seed: int, epoch: int) -> Tensor:
+    """The ``epoch``-th random permutation of ``range(n)`` for ``seed`` (same on every platform)."""
+    state = np.random.SeedSequence([int(seed), int(epoch)]).generate_state(2, dtype=np.uint32)
+    g = torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
+    return torch.randperm(n, generator=g)
+
+
+def step_indices(n: int, seed: int, step: int, batch_size: int) -> list[int]:
+    """Dataset indices of the global batch of ``step`` (see the module docstring)."""
+    start = step * batch_size
+    out: list[int] = []
+    epoch, offset = divmod(start, n)
+    while len(out) < batch_size:
+        perm = epoch_permutation(n, seed, epoch)
+        take = perm[offset: offset + batch_size - len(out)]
+        out.extend(int(i) for i in take)
+        epoch, offset = epoch + 1, 0
+    return out
+
+
+class StepBatchSampler(Sampler[list[int]]):
+    """Yields, for steps ``start .. end - 1``, this rank's slice of each global batch.
+
+    Args:
+        n: dataset length.
+        seed: data-order seed.
+        batch_size: global batch size (quadruplets per step over all ranks).
+        start, end: step range.
+        rank, world_size: data-parallel position; ``batch_size`` must be divisible by ``world_size``.
+    """
+
+    def __init__(self, n: int, seed: int, batch_size: int, start: int, end: int, rank: int = 0,
+                 world_size: int = 1) -> None:
+        if batch_size % world_size:
+            raise ValueError(f"train.batch_size={batch_size} must be divisible by the number of processes "
+                             f"({world_size}) so each draws an equal slice")
+        self.n, self.seed, self.batch_size = n, seed, batch_size
+        self.start, self.end = start, end
+        self.per_rank = batch_size // world_size
+        self.rank = rank
+
+    def __len__(self) -> int:
+        return max(0, self.end - self.start)
+
+    def __iter__(self) -> Iterator[list[int]]:
+        lo = self.rank * self.per_rank
+        for step in range(self.start, self.end):
+            yield step_indices(self.n, self.seed, step, self.batch_size)[lo: lo + self.per_rank]
+
+
+# ------------------------------------------------------------------ batches
+@dataclass
+class QuadrupletBatch:
+    """A collated batch on the training device.
+
+    Attributes:
+        images: ``(B, 4, 3, H, W)`` at the training resolution.
+        camera: ``4 B`` cameras in the flattened order ``(b, k) → 4 b + k``.
+    """
+
+    images: Tensor
+    camera: Camera
+
+    @property
+    def num_quadruplets(self) -> int:
+        return self.images.shape[0]
+
+
+def quadruplet_batch(batch: dict[str, Any], device: torch.device, scene: SceneSetup,
+                     image_size: int | None = None) -> QuadrupletBatch:
+    """Collated dataset items → images at ``image_size`` and their cameras (clipping planes from
+    ``scene``), on ``device``."""
+    images = torch.as_tensor(batch["images"]).to(device=device, dtype=torch.float32)
+    if images.ndim != 5 or images.shape[1:3] != (4, 3):
+        raise ValueError(f"batch images must be (B, 4, 3, H, W), got {tuple(images.shape)}")
+    bsz, _, _, h, w = images.shape
+    if image_size is not None and (h, w) != (image_size, image_size):
+        flat = torch.nn.functional.interpolate(images.flatten(0, 1), size=(image_size, image_size),
+                                               mode="bilinear", antialias=True, align_corners=False)
+        images = flat.clamp(0, 1).view(bsz, 4, 3, image_size, image_size)
+        h = w = image_size
+
+    def flat(key: str) -> Tensor:
+        if key not in batch:
+            raise KeyError(f"dataset items lack {key!r}; every item needs images, azimuth, elevation, distance, fov_y")
+        return torch.as_tensor(batch[key]).to(device=device, dtype=torch.float32).reshape(-1)
+
+    camera = Camera.look_at(flat("azimuth"), flat("elevation"), flat("distance"), fov_y_deg=flat("fov_y"),
+                            image_size=(h, w), near=scene.near, far=scene.far, device=device)
+    return QuadrupletBatch(images, camera)
+

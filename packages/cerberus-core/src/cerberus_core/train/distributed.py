@@ -1,0 +1,88 @@
+"""Data-parallel training with ``torchrun`` and DistributedDataParallel.
+
+Launch ``torchrun --nproc_per_node K -m cerberus_core.cli train ...`` (or ``cerberus train`` under
+``torchrun``): every process reads ``RANK`` / ``WORLD_SIZE`` / ``LOCAL_RANK`` from the environment,
+joins a process group (``gloo`` on CPU, ``nccl`` on CUDA), draws its own ``1/K`` slice of each
+global batch and averages gradients with the others. Rank 0 writes logs, pictures and checkpoints.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import torch
+import torch.distributed as dist
+
+
+@dataclass(frozen=True)
+class DistInfo:
+    """This process's place in the data-parallel group (``world_size == 1``: not distributed)."""
+
+    rank: int = 0
+    world_size: int = 1
+    local_rank: int = 0
+    owns_group: bool = False  # this module created the process group (and so destroys it)
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+    @property
+    def enabled(self) -> bool:
+        return self.world_size > 1
+
+
+def resolve_device(name: str, local_rank: int = 0) -> torch.device:
+    """``auto`` → CUDA (this process's local GPU) if available, else CPU; ``cpu``; ``cuda[:N]``."""
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise RuntimeError(f"device {name!r} was asked for but CUDA is not available; use device: cpu or auto")
+        return torch.device(name if ":" in name else f"cuda:{local_rank}")
+    return torch.device(name)
+
+
+def init_distributed(device: torch.device) -> DistInfo:
+    """Join the process group described by the ``torchrun`` environment (no-op for one process)."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world <= 1:
+        return DistInfo()
+    rank = int(os.environ["RANK"])
+    local = int(os.environ.get("LOCAL_RANK", rank))
+    if dist.is_initialized():
+        return DistInfo(rank, world, local)
+    if device.type == "cuda":
+        torch.cuda.set_device(device)
+    dist.init_process_group(backend="nccl" if device.type == "cuda" else "gloo")
+    return DistInfo(rank, world, local, owns_group=True)
+
+
+def any_true(flag: bool, info: DistInfo, device: torch.device) -> bool:
+    """``flag`` OR-ed over all processes (so every rank takes the same branch)."""
+    if not info.enabled:
+        return flag
+    t = torch.tensor([1.0 if flag else 0.0], device=device)
+    dist.all_reduce(t, op=dist.ReduceOp.MAX)
+    return bool(t.item() > 0)
+
+
+def mean_over_ranks(values: dict[str, torch.Tensor], info: DistInfo) -> dict[str, float]:
+    """Average scalar tensors over all processes; returns Python floats."""
+    keys = sorted(values)
+    t = torch.stack([values[k].detach().float().reshape(()) for k in keys])
+    if info.enabled:
+        dist.all_reduce(t, op=dist.ReduceOp.SUM)
+        t = t / info.world_size
+    return {k: float(x) for k, x in zip(keys, t.cpu().tolist())}
+
+
+def barrier(info: DistInfo) -> None:
+    if info.enabled:
+        dist.barrier()
+
+
+def shutdown(info: DistInfo) -> None:
+    """Leave the process group if :func:`init_distributed` created it."""
+    if info.owns_group and dist.is_initialized():
+        dist.destroy_process_group()

@@ -1,0 +1,150 @@
+"""Training logs: scalar CSV (always), TensorBoard events (when installed), PNG grids, loss curves.
+
+Files in the run folder::
+
+    RUN/metrics.csv            one row per logged step (step, lr, steps/s, skipped, loss terms)
+    RUN/tensorboard/           TensorBoard event files (if the ``tensorboard`` package is importable)
+    RUN/images/step_XXXXXXX.png  inputs / reconstructions / parts in colour, at ``train.image_every``
+    RUN/loss_curves.png        every loss term against the step (log scale), written at the end
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+from typing import Sequence
+
+import torch
+from PIL import Image, ImageDraw
+
+from cerberus_core.camera import Camera
+from cerberus_core.render.api import render_parts
+from cerberus_core.render.interface import Renderer
+from cerberus_core.train.checkpoint import atomic_write_text
+from cerberus_core.data.scene import SceneSetup
+from cerberus_core.viz import atomic_save_png, part_colors, save_image_grid
+
+Tensor = torch.Tensor
+
+LOSS_FIELDS = ("total", "recon", "translation", "background", "smoothness")
+CSV_FIELDS = ("step", "elapsed_s", "lr", "steps_per_s", "grad_norm", "skipped", *LOSS_FIELDS)
+
+
+def _read_rows(path: Path) -> list[dict[str, str]]:
+    if not path.is_file():
+        return []
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+class MetricsLog:
+    """Scalar logs of rank 0.
+
+    Args:
+        run_dir: the run folder.
+        start_step: steps already done. Rows logged after ``start_step`` by an interrupted run are
+            dropped, so a resumed run's CSV has no duplicates.
+        tensorboard: also write TensorBoard events if the package is importable.
+    """
+
+    def __init__(self, run_dir: str | Path, start_step: int = 0, tensorboard: bool = True) -> None:
+        self.path = Path(run_dir) / "metrics.csv"
+        rows = [r for r in _read_rows(self.path) if start_step > 0 and int(r["step"]) <= start_step]
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS)
+        writer.writeheader()
+        writer.writerows({k: r.get(k, "") for k in CSV_FIELDS} for r in rows)
+        atomic_write_text(self.path, buf.getvalue())
+        self._file = self.path.open("a", newline="")
+        self._csv = csv.DictWriter(self._file, fieldnames=CSV_FIELDS)
+        self.tb = None
+        if tensorboard:
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+            except ImportError:  # tensorboard not installed: CSV only
+                SummaryWriter = None
+            if SummaryWriter is not None:
+                self.tb = SummaryWriter(str(Path(run_dir) / "tensorboard"), purge_step=start_step + 1)
+
+    def log(self, step: int, values: dict[str, float]) -> None:
+        """Append one row (missing fields stay empty) and the same scalars to TensorBoard."""
+        row = {k: "" for k in CSV_FIELDS} | {k: v for k, v in values.items() if k in CSV_FIELDS} | {"step": step}
+        self._csv.writerow(row)
+        self._file.flush()
+        if self.tb is not None:
+            for k, v in values.items():
+                if k != "step":
+                    self.tb.add_scalar(f"{'loss' if k in LOSS_FIELDS else 'train'}/{k}", v, step)
+
+    def close(self) -> None:
+        self._file.close()
+        if self.tb is not None:
+            self.tb.close()
+
+
+@torch.no_grad()
+def save_progress_grid(path: str | Path, renderer: Renderer, images: Tensor, renders: Tensor, parts: Tensor,
+                       faces: Tensor, camera: Camera, scene: SceneSetup, max_images: int = 8) -> Path:
+    """Write a PNG: input images, their reconstructions, and the parts in distinct colours.
+
+    Args:
+        images, renders: ``(K, 3, H, W)`` inputs and own-viewpoint renderings.
+        parts: ``(K, N, V, 3)`` world-space parts; ``camera``: their ``K`` cameras.
+    """
+    k = min(max_images, images.shape[0])
+    cam = camera.index(slice(0, k))
+    colours = part_colors(parts.shape[1]).to(parts.device)
+    coloured = render_parts(renderer, parts[:k], faces, cam, scene.light(cam), albedo=colours,
+                            background=scene.background).image
+    scale = max(1, 128 // images.shape[-1])
+    return save_image_grid([images[:k], renders[:k], coloured], path, titles=["input", "recon", "parts"], scale=scale)
+
+
+def plot_loss_curves(csv_path: str | Path, png_path: str | Path,
+                     terms: Sequence[str] = LOSS_FIELDS,
+                     size: tuple[int, int] = (720, 420)) -> Path:
+    """Draw every loss term of ``metrics.csv`` against the step, log-scaled, with PIL."""
+    rows = _read_rows(Path(csv_path))
+    series = {}
+    for t in terms:
+        pts = [(int(r["step"]), float(r[t])) for r in rows if r.get(t) not in (None, "")]
+        pts = [(s, v) for s, v in pts if math.isfinite(v) and v > 0]
+        if pts:
+            series[t] = pts
+    w, h = size
+    left, right, top, bottom = 70, 130, 20, 40
+    img = Image.new("RGB", size, "white")
+    draw = ImageDraw.Draw(img)
+    draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
+    if not series:
+        draw.text((left + 10, top + 10), "no finite losses logged", fill=(0, 0, 0))
+        atomic_save_png(img, png_path)
+        return Path(png_path)
+    steps = [s for pts in series.values() for s, _ in pts]
+    logs = [math.log10(v) for pts in series.values() for _, v in pts]
+    s0, s1 = min(steps), max(max(steps), min(steps) + 1)
+    y0, y1 = math.floor(min(logs)), math.ceil(max(logs))
+    y1 = max(y1, y0 + 1)
+    sx = lambda s: left + (s - s0) / (s1 - s0) * (w - left - right)  # noqa: E731
+    sy = lambda lv: h - bottom - (lv - y0) / (y1 - y0) * (h - top - bottom)  # noqa: E731
+    for e in range(y0, y1 + 1):  # decade grid lines
+        y = sy(e)
+        draw.line([left, y, w - right, y], fill=(225, 225, 225))
+        draw.text((8, y - 6), f"1e{e}", fill=(0, 0, 0))
+    for frac in (0.0, 0.5, 1.0):
+        s = s0 + frac * (s1 - s0)
+        draw.text((sx(s) - 15, h - bottom + 6), f"{int(s)}", fill=(0, 0, 0))
+    draw.text(((w - right + left) // 2 - 10, h - 16), "step", fill=(0, 0, 0))
+    colours = (part_colors(len(series)) * 200).to(torch.uint8).tolist()
+    for i, (name, pts) in enumerate(series.items()):
+        col = tuple(colours[i])
+        xy = [(sx(s), sy(math.log10(v))) for s, v in pts]
+        if len(xy) == 1:
+            draw.ellipse([xy[0][0] - 2, xy[0][1] - 2, xy[0][0] + 2, xy[0][1] + 2], fill=col)
+        else:
+            draw.line(xy, fill=col, width=2)
+        draw.line([w - right + 10, top + 12 + 18 * i, w - right + 30, top + 12 + 18 * i], fill=col, width=3)
+        draw.text((w - right + 36, top + 6 + 18 * i), name, fill=(0, 0, 0))
+    atomic_save_png(img, png_path)
+    return Path(png_path)

@@ -1,0 +1,356 @@
+"""The training loop: Adam on the Cerberus objective, with exact resumption and safe failure.
+
+:func:`train` is what ``cerberus train`` calls. Guarantees:
+
+* **Resumption is exact.** Data order and the pose-consistency draws are pure functions of
+  ``(seed, step[, rank])``; checkpoints hold the model, optimiser, scheduler and every RNG state.
+  A run killed and resumed with ``resume=True`` ends with the same weights as one never
+  interrupted.
+* **Non-finite steps never reach the weights.** The loss and the global gradient norm are checked
+  (on every rank, agreed with an all-reduce) before ``optimizer.step()``. With
+  ``train.on_nonfinite: stop`` the run raises :class:`NonFiniteError` and the last checkpoint stays
+  as it was; with ``skip`` the update is dropped (and the run stops after
+  ``train.max_consecutive_skips`` in a row).
+* **Interrupts are clean.** SIGINT/SIGTERM finish the current step, write a checkpoint and return.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import random
+import shutil
+import signal
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import torch
+import yaml
+from torch.nn.parallel import DistributedDataParallel
+from torch.utils.data import DataLoader
+from tqdm import tqdm
+
+from cerberus_core.data.scene import SceneSetup
+from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.plugins import make_renderer
+from cerberus_core.train.checkpoint import (
+    LAST,
+    atomic_write_text,
+    checkpoint_dir,
+    export_weights,
+    load_checkpoint,
+    restore_rng,
+    save_checkpoint,
+)
+from cerberus_core.train.config import OptimConfig, TrainConfig, config_diff
+from cerberus_core.train.data import (
+    StepBatchSampler,
+    build_dataset,
+    check_dataset,
+    quadruplet_batch,
+)
+from cerberus_core.train.distributed import (
+    DistInfo,
+    any_true,
+    barrier,
+    init_distributed,
+    mean_over_ranks,
+    resolve_device,
+    shutdown,
+)
+from cerberus_core.train.logs import MetricsLog, plot_loss_curves, save_progress_grid
+from cerberus_core.train.objective import quadruplet_objective
+
+RESUMABLE_CHANGES = frozenset({
+    "threads", "train.steps", "train.log_every", "train.image_every", "train.checkpoint_every", "train.keep_every",
+    "train.progress", "train.tensorboard", "data.num_workers", "data.root", "device", "renderer",
+    "debug.poison_steps",
+})
+"""Config keys a resumed run may change; any other difference is refused (it would not be the same run)."""
+
+
+class NonFiniteError(RuntimeError):
+    """The loss or gradient became NaN or infinite and the run was stopped."""
+
+
+@dataclass
+class TrainResult:
+    """Attributes:
+        run_dir: the run folder.
+        step: completed optimisation steps.
+        model: the trained (unwrapped) model, on the training device.
+        terms: the last logged loss terms (rank means).
+        skipped: steps whose update was dropped as non-finite.
+        interrupted: stopped early by SIGINT/SIGTERM (a checkpoint was written).
+        rank: this process's data-parallel rank (0 when not distributed).
+    """
+
+    run_dir: Path
+    step: int
+    model: Cerberus
+    terms: dict[str, float]
+    skipped: int
+    interrupted: bool = False
+    rank: int = 0
+
+
+def lr_factor(optim: OptimConfig, total_steps: int) -> Callable[[int], float]:
+    """Learning-rate multiplier per step: linear warm-up, then constant or cosine decay."""
+    def factor(step: int) -> float:
+        if optim.warmup_steps and step < optim.warmup_steps:
+            return (step + 1) / optim.warmup_steps
+        if optim.schedule == "constant":
+            return 1.0
+        span = max(1, total_steps - optim.warmup_steps)
+        progress = min(1.0, (step - optim.warmup_steps) / span)
+        return optim.min_lr_ratio + (1 - optim.min_lr_ratio) * 0.5 * (1 + math.cos(math.pi * progress))
+    return factor
+
+
+def step_generator(seed: int, step: int, rank: int) -> torch.Generator:
+    """The random source of one step's pose-consistency draws (a pure function of its arguments)."""
+    state = np.random.SeedSequence([int(seed), int(step), int(rank), 0x9E37]).generate_state(2, dtype=np.uint32)
+    return torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+
+
+class _StopRequest:
+    """Turns SIGINT/SIGTERM into a flag checked between steps (main thread only)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> "_StopRequest":
+        try:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+        except ValueError:  # not the main thread: leave signals alone
+            self._previous.clear()
+        return self
+
+    def _handle(self, signum, frame) -> None:  # noqa: ARG002
+        if self.requested:  # second signal: give up immediately
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+
+def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[str, Any] | None:
+    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``)."""
+    last = checkpoint_dir(run_dir) / LAST
+    if not resume:
+        if last.exists():
+            raise FileExistsError(f"{run_dir} already holds a training run ({last}); pass --resume to continue it "
+                                  "or --out to start a new run elsewhere")
+        return None
+    if not last.exists():
+        raise FileNotFoundError(f"--resume: no checkpoint at {last}; run without --resume to start training")
+    payload = load_checkpoint(last)
+    saved = TrainConfig.from_dict(yaml.safe_load(payload["config"]))
+    changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
+    if changed:
+        raise ValueError(f"--resume: the config differs from the run's saved config in {changed}; only "
+                         f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
+    return payload
+
+
+def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dataset: Any = None) -> TrainResult:
+    """Train Cerberus.
+
+    Args:
+        config: the training config (validated here).
+        run_dir: where config, checkpoints, logs and pictures go.
+        resume: continue from ``run_dir/checkpoints/last.pt``.
+        dataset: a quadruplet dataset to use instead of the one ``config.data`` names (any object
+            following the contract of :mod:`cerberus_core.train.data`).
+    Returns:
+        A :class:`TrainResult`.
+    Raises:
+        NonFiniteError: with ``train.on_nonfinite: stop``, when a step's loss or gradient is not finite.
+    """
+    config = dataclasses.replace(config)  # shallow copy: the caller's object is not mutated below
+    config.model = dataclasses.replace(config.model)
+    config.validate()
+    device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
+    if config.threads is not None:
+        torch.set_num_threads(config.threads)
+    info = init_distributed(device)
+    try:
+        return _Trainer(config, Path(run_dir), info, device, dataset).run(resume)
+    finally:
+        shutdown(info)
+
+
+class _Trainer:
+    def __init__(self, config: TrainConfig, run_dir: Path, info: DistInfo, device: torch.device, dataset: Any) -> None:
+        self.config, self.run_dir, self.info, self.device = config, run_dir, info, device
+        self.dataset = dataset if dataset is not None else build_dataset(config.data.root, config.data.split)
+        check_dataset(self.dataset)
+        self.scene = SceneSetup.from_dict(dict(self.dataset.scene))
+        if config.model.depth_offset == "auto":
+            config.model.depth_offset = self.scene.distance
+        self.image_size = config.data.image_size or int(self.dataset.image_size)
+        self.renderer = make_renderer(config.renderer)
+
+    # ------------------------------------------------------------------ set-up
+    def _build(self, payload: dict[str, Any] | None) -> int:
+        cfg = self.config
+        seed_everything(cfg.seed)
+        self.model = Cerberus(cfg.model).to(self.device)
+        o = cfg.optim
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=o.lr, betas=tuple(o.betas), eps=o.eps,
+                                          weight_decay=o.weight_decay)
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lr_factor(o, cfg.train.steps))
+        start, self.skipped = 0, 0
+        if payload is not None:
+            self.model.load_state_dict(payload["model"])
+            self.optimizer.load_state_dict(payload["optimizer"])
+            self.scheduler.load_state_dict(payload["scheduler"])
+            start = int(payload["step"])
+            self.skipped = int(payload["extra"].get("skipped", 0))
+            restore_rng(payload["rng"])
+        self.net: torch.nn.Module = self.model
+        if self.info.enabled:
+            ids = [self.device.index] if self.device.type == "cuda" else None
+            self.net = DistributedDataParallel(self.model, device_ids=ids)
+        return start
+
+    def _checkpoint(self, step: int) -> None:
+        if self.info.is_main:
+            ckdir = checkpoint_dir(self.run_dir)
+            path = save_checkpoint(ckdir / LAST, model=self.model, optimizer=self.optimizer, scheduler=self.scheduler,
+                                   step=step, config_yaml=self.config_yaml, extra={"skipped": self.skipped})
+            keep = self.config.train.keep_every
+            if keep and step % keep == 0:
+                shutil.copyfile(path, ckdir / f"step_{step:07d}.pt")
+        barrier(self.info)
+
+    # ------------------------------------------------------------------ loop
+    def _due(self, done: int, every: int) -> bool:
+        """Whether a periodic action (every ``every`` steps, and at the last step) is due."""
+        return bool(every) and (done % every == 0 or done == self.config.train.steps)
+
+    def _loader(self, start: int) -> DataLoader:
+        cfg, info = self.config, self.info
+        sampler = StepBatchSampler(len(self.dataset), cfg.seed, cfg.train.batch_size, start, cfg.train.steps,
+                                   info.rank, info.world_size)
+        return DataLoader(self.dataset, batch_sampler=sampler, num_workers=cfg.data.num_workers,
+                          pin_memory=self.device.type == "cuda")
+
+    def run(self, resume: bool) -> TrainResult:
+        cfg, info, loop = self.config, self.info, self.config.train
+        start = self._build(prepare_run_dir(self.run_dir, resume, cfg))
+        self.config_yaml = cfg.to_yaml()
+        log = None
+        if info.is_main:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(self.run_dir / "config.yaml", self.config_yaml)
+            log = MetricsLog(self.run_dir, start, loop.tensorboard)
+        bar = tqdm(total=loop.steps, initial=start, desc="train", unit="step", dynamic_ncols=True,
+                   disable=not (info.is_main and loop.progress))
+        terms: dict[str, float] = {}
+        consecutive, done, interrupted = 0, start, False
+        window = [time.perf_counter(), 0]  # start time and steps of the current logging window
+        t0 = window[0]
+        poison = set(cfg.debug.poison_steps)
+        try:
+            with _StopRequest() as stop:
+                for step, raw in zip(range(start, loop.steps), self._loader(start)):
+                    batch = quadruplet_batch(raw, self.device, self.scene, self.image_size)
+                    if step in poison:
+                        batch.images = torch.full_like(batch.images, float("nan"))
+                    ok, out, grad_norm = self._step(batch, step)
+                    consecutive = 0 if ok else consecutive + 1
+                    if not ok:
+                        self.skipped += 1
+                        message = self._nonfinite_message(step, out.terms, grad_norm)
+                        if loop.on_nonfinite == "stop" or consecutive > loop.max_consecutive_skips:
+                            raise NonFiniteError(message)
+                        bar.write(f"warning: {message}; update skipped ({consecutive} in a row)")
+                    self.scheduler.step()
+                    done, window[1] = step + 1, window[1] + 1
+                    if self._due(done, loop.log_every):
+                        terms = mean_over_ranks(out.terms, info)
+                        now = time.perf_counter()
+                        extra = {"lr": self.optimizer.param_groups[0]["lr"], "grad_norm": grad_norm,
+                                 "steps_per_s": window[1] / max(now - window[0], 1e-9), "skipped": self.skipped,
+                                 "elapsed_s": now - t0}
+                        window = [now, 0]
+                        if log is not None:
+                            log.log(done, terms | extra)
+                        bar.set_postfix({k: f"{v:.3g}" for k, v in terms.items()})
+                    if info.is_main and ok and self._due(done, loop.image_every):
+                        self._pictures(batch, out, done)
+                    bar.update(1)
+                    if self._due(done, loop.checkpoint_every):
+                        self._checkpoint(done)
+                    if any_true(stop.requested, info, self.device):
+                        if not self._due(done, loop.checkpoint_every):
+                            self._checkpoint(done)
+                        bar.write(f"interrupted: checkpoint written at step {done}; continue with --resume")
+                        interrupted = True
+                        break
+        finally:
+            bar.close()
+            if log is not None:
+                log.close()
+        if info.is_main and not interrupted:
+            export_weights(self.model, self.run_dir / "model.safetensors", self.config_yaml, done)
+            plot_loss_curves(self.run_dir / "metrics.csv", self.run_dir / "loss_curves.png")
+        barrier(info)
+        return TrainResult(self.run_dir, done, self.model, terms, self.skipped, interrupted, info.rank)
+
+    def _step(self, batch, step: int):
+        """One optimisation step; returns ``(ok, objective output, gradient norm)``."""
+        self.net.train()
+        # Batch-norm statistics change in the forward pass: keep them to undo a non-finite step.
+        buffers = [b.detach().clone() for b in self.model.buffers()]
+        gen = step_generator(self.config.seed, step, self.info.rank)
+        out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen)
+        self.optimizer.zero_grad(set_to_none=True)
+        grad_norm = float("nan")
+        ok = not any_true(not out.finite, self.info, self.device)
+        if ok:
+            out.total.backward()
+            grads = [p.grad for p in self.model.parameters() if p.grad is not None]
+            norm = torch.nn.utils.get_total_norm(grads)
+            grad_norm = float(norm)
+            ok = not any_true(not math.isfinite(grad_norm), self.info, self.device)
+        if not ok:
+            self.optimizer.zero_grad(set_to_none=True)
+            with torch.no_grad():
+                for b, saved in zip(self.model.buffers(), buffers):
+                    b.copy_(saved)
+            return False, out, grad_norm
+        if self.config.optim.grad_clip is not None:
+            torch.nn.utils.clip_grads_with_norm_(grads, self.config.optim.grad_clip, norm)
+        self.optimizer.step()
+        return True, out, grad_norm
+
+    def _nonfinite_message(self, step: int, terms: dict[str, torch.Tensor], grad_norm: float) -> str:
+        values = ", ".join(f"{k}={float(v):.4g}" for k, v in terms.items())
+        last = checkpoint_dir(self.run_dir) / LAST
+        where = f"the last good checkpoint is {last}" if last.exists() else "no checkpoint was written yet"
+        return (f"non-finite loss or gradient at step {step} ({values}, grad_norm={grad_norm:.4g}); the weights were "
+                f"not updated and {where}. Lower optim.lr, set optim.grad_clip, check the data, or set "
+                "train.on_nonfinite=skip")
+
+    @torch.no_grad()
+    def _pictures(self, batch, out, step: int) -> None:
+        k = min(8, batch.images.shape[0] * 4)
+        images = batch.images.flatten(0, 1)[:k]
+        save_progress_grid(self.run_dir / "images" / f"step_{step:07d}.png", self.renderer, images,
+                           out.renders.flatten(0, 1)[:k], out.parts.flatten(0, 1)[:k], self.model.faces,
+                           batch.camera.index(slice(0, k)), self.scene)

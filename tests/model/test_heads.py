@@ -1,0 +1,125 @@
+"""The shape, rotation and translation heads; equation 1 (translation = unprojected expectation)."""
+import math
+
+import pytest
+import torch
+
+from cerberus_core.camera import Camera
+from cerberus_core.model.heads import (
+    RotationHead,
+    ShapeHead,
+    TranslationHead,
+    anchor_grid,
+    expectation,
+    unproject_expectation,
+)
+from cerberus_core.templates import icosphere
+
+
+def test_shape_head_shapes_and_initial_sphere():
+    t = icosphere(2)
+    head = ShapeHead(512, 64, 9, t.vertices, init_scale=0.12)
+    s = head.latent(torch.randn(3, 512))
+    assert s.shape == (3, 64)
+    verts = head.deform(s)
+    assert verts.shape == (3, 9, 162, 3)
+    radius = verts.norm(dim=-1)
+    assert torch.allclose(radius, torch.full_like(radius, 0.12), atol=0.01)
+
+
+def test_rotation_head_unit_quaternions_identity_init_and_valid_rotations():
+    head = RotationHead(32, 5)
+    q, r = head(torch.randn(4, 32))
+    assert q.shape == (4, 5, 4) and r.shape == (4, 5, 3, 3)
+    assert torch.allclose(q.norm(dim=-1), torch.ones(4, 5), atol=1e-6)
+    assert torch.allclose(r, torch.eye(3).expand_as(r), atol=0.05)  # starts near the identity
+    with torch.no_grad():
+        head.linear.weight.normal_()
+    _, r = head(torch.randn(4, 32))
+    eye = torch.eye(3).expand_as(r)
+    assert torch.allclose(r @ r.transpose(-1, -2), eye, atol=1e-5)
+    assert torch.allclose(torch.linalg.det(r), torch.ones(4, 5), atol=1e-5)
+
+
+def test_quaternions_are_real_part_first():
+    """(w, x, y, z) = (cos 45, 0, 0, sin 45) is +90 degrees about +z: x maps to y (kornia's convention)."""
+    head = RotationHead(1, 1)
+    with torch.no_grad():
+        head.linear.weight.zero_()
+        head.linear.bias.copy_(torch.tensor([math.cos(math.pi / 4), 0, 0, math.sin(math.pi / 4)]) * 3.0)
+    _, r = head(torch.zeros(1, 1))
+    assert torch.allclose(r[0, 0] @ torch.tensor([1.0, 0, 0]), torch.tensor([0.0, 1, 0]), atol=1e-6)
+
+
+def test_anchor_grid_starts_central_and_spreads():
+    torch.testing.assert_close(anchor_grid(1, 0.4), torch.zeros(1, 2))
+    g = anchor_grid(9, 0.4)
+    assert g.shape == (9, 2) and torch.equal(g[0], torch.zeros(2))
+    assert len({tuple(p) for p in g.tolist()}) == 9 and g.abs().max() == pytest.approx(0.4)
+
+
+def test_translation_head_starts_each_part_at_its_anchor():
+    head = TranslationHead(16, 4, depth_offset=2.5, anchor_spread=0.4)
+    with torch.no_grad():
+        head.logits.weight.zero_()
+    maps = head(torch.randn(1, 16, 16, 16), (64, 64))
+    anchors_px = (anchor_grid(4, 0.4) + 1) * 32  # normalised -> pixels
+    # a broad Gaussian bump inside a bounded image: the expectation lies between centre and anchor
+    direction = (maps.uv[0] - 32) / (anchors_px - 32)
+    assert ((direction > 0.3) & (direction < 1.0)).all()
+    flat = TranslationHead(16, 4, depth_offset=2.5, anchor_spread=0.0)
+    with torch.no_grad():
+        flat.logits.weight.zero_()
+    torch.testing.assert_close(flat(torch.randn(1, 16, 16, 16), (64, 64)).uv, torch.full((1, 4, 2), 32.0))
+
+
+def test_translation_head_maps_shapes_and_depth_init():
+    head = TranslationHead(16, 9, depth_offset=2.5)
+    maps = head(torch.randn(2, 16, 8, 8), (32, 32))
+    assert maps.prob.shape == (2, 9, 32, 32)
+    assert maps.depth_map.shape == (2, 9, 32, 32)
+    assert maps.uv.shape == (2, 9, 2) and maps.depth.shape == (2, 9)
+    assert torch.allclose(maps.prob.sum(dim=(-2, -1)), torch.ones(2, 9), atol=1e-5)
+    assert torch.allclose(maps.depth, torch.full((2, 9), 2.5))
+    assert ((maps.uv >= 0) & (maps.uv <= 32)).all()
+
+
+def _camera(batch=2, size=(24, 32)):
+    return Camera.look_at(torch.tensor([20.0, -65.0])[:batch], 15.0, 2.7, fov_y_deg=35.0, image_size=size)
+
+
+def test_equation1_translation_is_unprojection_of_expected_pixel_and_depth():
+    """T_k = pi^{-1}(sum x p, sum y p, sum d p), with x, y the pixel centres (j + 0.5, i + 0.5)."""
+    g = torch.Generator().manual_seed(0)
+    h, w = 24, 32
+    prob = torch.softmax(torch.randn(2, 3, h * w, generator=g), -1).view(2, 3, h, w)
+    depth = 2.0 + torch.rand(2, 3, h, w, generator=g)
+    cam = _camera(2, (h, w))
+    maps = expectation(prob, depth)
+    rows, cols = torch.meshgrid(torch.arange(h) + 0.5, torch.arange(w) + 0.5, indexing="ij")
+    u = (prob * cols).sum(dim=(-2, -1))
+    v = (prob * rows).sum(dim=(-2, -1))
+    d = (prob * depth).sum(dim=(-2, -1))
+    expected_cam = cam.unproject(torch.stack([u, v], -1), d, to_world=False)
+    expected_world = cam.unproject(torch.stack([u, v], -1), d, to_world=True)
+    torch.testing.assert_close(unproject_expectation(maps, cam, to_world=False), expected_cam)
+    torch.testing.assert_close(unproject_expectation(maps, cam, to_world=True), expected_world)
+
+
+def test_equation1_one_hot_map_projects_back_to_its_pixel():
+    h, w = 24, 32
+    prob = torch.zeros(2, 1, h, w)
+    prob[0, 0, 5, 7] = 1.0
+    prob[1, 0, 20, 30] = 1.0
+    depth = torch.full((2, 1, h, w), 2.4)
+    cam = _camera(2, (h, w))
+    t = unproject_expectation(expectation(prob, depth), cam, to_world=True)
+    uv, d = cam.project(t)
+    torch.testing.assert_close(uv, torch.tensor([[[7.5, 5.5]], [[30.5, 20.5]]]), atol=1e-4, rtol=0)
+    torch.testing.assert_close(d, torch.full((2, 1), 2.4), atol=1e-5, rtol=0)
+
+
+def test_unproject_expectation_checks_camera_size():
+    maps = expectation(torch.full((1, 1, 8, 8), 1 / 64), torch.ones(1, 1, 8, 8))
+    with pytest.raises(ValueError, match="does not match"):
+        unproject_expectation(maps, _camera(1, (16, 16)), to_world=True)

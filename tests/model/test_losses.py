@@ -1,0 +1,223 @@
+"""Every loss term (cerberus_core.losses) and how the training objective wires them (eqs. 2-7)."""
+import math
+
+import pytest
+import torch
+
+from cerberus_core.data.dataset import background_mask
+from cerberus_core.data.scene import SceneSetup
+from cerberus_core.losses import (
+    VIEW_PARTNER,
+    LossConfig,
+    background_loss,
+    dihedral_cosines,
+    mix_shape_latents,
+    reconstruction_loss,
+    smoothness_loss,
+    translation_loss,
+    viewpoint_reconstruction,
+    viewpoint_scenes,
+)
+from cerberus_core.model import Cerberus, ModelConfig
+from cerberus_core.plugins import make_renderer
+from cerberus_core.render.api import render_parts
+from cerberus_core.templates import icosphere
+from cerberus_core.train.data import QuadrupletBatch
+from cerberus_core.train.objective import partner_cameras, quadruplet_mixer, quadruplet_objective
+
+
+def test_reconstruction_loss_is_mean_over_pixels_of_squared_rgb_error():
+    rendered = torch.zeros(2, 4, 3, 8, 8)
+    target = torch.full((2, 4, 3, 8, 8), 0.5)
+    target[0, 0, :, :4] = 0.0  # half the pixels of one image are right
+    loss = reconstruction_loss(rendered, target)
+    assert loss.shape == (2, 4)
+    assert loss[0, 0] == pytest.approx(0.375)
+    assert loss[1, 3] == pytest.approx(0.75)
+
+
+def test_mixing_draws_each_element_from_one_of_the_four_latents():
+    g = torch.Generator().manual_seed(0)
+    latents = torch.arange(4.0).view(1, 4, 1) + 10 * torch.arange(3.0).view(3, 1, 1) + torch.zeros(3, 4, 500)
+    mixed, choice = mix_shape_latents(latents, g)
+    assert mixed.shape == (3, 500) and choice.shape == (3, 500)
+    torch.testing.assert_close(mixed, latents.gather(1, choice.unsqueeze(1)).squeeze(1))
+    torch.testing.assert_close(mixed, choice.float() + 10 * torch.arange(3.0).view(3, 1))
+    counts = torch.bincount(choice.flatten(), minlength=4).float() / choice.numel()
+    assert torch.allclose(counts, torch.full((4,), 0.25), atol=0.04)  # uniform categorical Z
+
+
+def test_quadruplet_mixer_shares_one_mixed_latent_per_quadruplet():
+    own = torch.randn(8, 32)  # 2 quadruplets
+    mixed = quadruplet_mixer(torch.Generator().manual_seed(1))(own)
+    quads, mq = own.view(2, 4, 32), mixed.view(2, 4, 32)
+    for b in range(2):
+        assert all(torch.equal(mq[b, 0], mq[b, k]) for k in range(4))
+        from_one = (mq[b, 0].unsqueeze(0) == quads[b]).any(0)
+        assert from_one.all()
+        assert not torch.equal(mq[b, 0], quads[b, 0])
+
+
+def test_viewpoint_scenes_cross_uses_partner_translation_with_own_rotation():
+    """Equation 4: a0 -> a1 renders R^a0 V^a0 + T^a1 (and a1 -> a0 is R^a1 V^a1 + T^a0, etc.)."""
+    g = torch.Generator().manual_seed(2)
+    local = torch.randn(1, 4, 2, 5, 3, generator=g)
+    rot = torch.linalg.qr(torch.randn(1, 4, 2, 3, 3, generator=g))[0]
+    trans = torch.randn(1, 4, 2, 3, generator=g)
+    own, cross = viewpoint_scenes(local, rot, trans)
+    assert VIEW_PARTNER == (1, 0, 3, 2)
+    for x, partner in enumerate(VIEW_PARTNER):
+        rotated = local[0, x] @ rot[0, x].transpose(-1, -2)
+        torch.testing.assert_close(own[0, x], rotated + trans[0, x].unsqueeze(-2))
+        torch.testing.assert_close(cross[0, x], rotated + trans[0, partner].unsqueeze(-2))
+
+
+def test_viewpoint_reconstruction_halves_own_and_cross_then_averages():
+    own = torch.tensor([[1.0, 2.0, 3.0, 4.0]])
+    cross = torch.tensor([[3.0, 2.0, 1.0, 0.0]])
+    assert viewpoint_reconstruction(own, cross).item() == pytest.approx(2.0)
+    assert viewpoint_reconstruction(own, None).item() == pytest.approx(2.5)
+
+
+def test_translation_loss_equations_5_and_6():
+    t = torch.zeros(1, 4, 3, 3)
+    t[0, 0, :, 0] = 1.0  # a0 differs from a1 by 1 in x for every part; b0 == b1
+    t[0, 2] = t[0, 3] = 5.0
+    assert translation_loss(t).item() == pytest.approx(0.5)
+    t[0, 3, 0, 1] = 7.0  # one of 3 parts of pose b off by 2 in y: L_t^b = 4 / 3
+    assert translation_loss(t).item() == pytest.approx(0.5 * (1 + 4 / 3))
+
+
+def test_background_loss_is_probability_mass_on_background():
+    prob = torch.full((2, 3, 4, 4), 1 / 16)
+    images = torch.ones(2, 3, 4, 4)
+    images[:, :, :2] = 0.3  # top half is body, bottom half is white background
+    mask = background_mask(images, (1.0, 1.0, 1.0), 0.02)
+    assert mask.shape == (2, 1, 4, 4)
+    torch.testing.assert_close(background_loss(prob, mask), torch.full((2,), 0.5))
+    prob = torch.zeros(2, 3, 4, 4)
+    prob[..., 0, 0] = 1.0  # all mass on a body pixel
+    torch.testing.assert_close(background_loss(prob, mask), torch.zeros(2))
+
+
+def _hinge(phi: float) -> torch.Tensor:
+    """Two triangles sharing edge (0,0,0)-(1,0,0); the second wing at angle ``phi`` from the first."""
+    return torch.tensor([[0.0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, math.cos(phi), math.sin(phi)]])
+
+
+@pytest.mark.parametrize("phi, expected", [(math.pi, 0.0), (math.pi / 2, 1.0), (2 * math.pi / 3, 0.25),
+                                           (1e-3, 4.0)])
+def test_smoothness_of_a_hinge_is_cos_plus_one_squared(phi, expected):
+    quad = torch.tensor([[0, 1, 2, 3]])
+    v = _hinge(phi).view(1, 1, 4, 3)
+    assert dihedral_cosines(v, quad).item() == pytest.approx(math.cos(phi), abs=1e-5)
+    assert smoothness_loss(v, quad).item() == pytest.approx(expected, abs=1e-4)
+
+
+def test_smoothness_of_spheres_is_small_and_summed_over_parts():
+    t = icosphere(2)
+    parts = t.vertices.expand(2, 3, -1, -1) * 0.1
+    loss = smoothness_loss(parts, t.dihedral)
+    assert loss.shape == (2,)
+    per_part = smoothness_loss(parts[:, :1], t.dihedral)
+    torch.testing.assert_close(loss, 3 * per_part)
+    assert 0 < per_part[0] < 0.01 * len(t.dihedral)
+    bumpy = parts.clone()
+    bumpy[..., ::7, :] *= 1.5
+    assert (smoothness_loss(bumpy, t.dihedral) > 10 * loss).all()
+
+
+def test_loss_config_rejects_negative_weights():
+    with pytest.raises(ValueError, match="losses.smoothness"):
+        LossConfig(smoothness=-1).validate()
+
+
+# ------------------------------------------------------------------ the objective's wiring
+def _setup(pose_consistency=True, viewpoint_consistency=True):
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(num_parts=3, sphere_level=1, width=8, shape_latent_dim=8, depth_offset=2.5))
+    with torch.no_grad():
+        model.rotation.linear.weight.normal_(std=0.5)  # distinct rotations per image
+    scene = SceneSetup(distance=2.5)
+    az = torch.tensor([0.0, 80.0, 20.0, 140.0])
+    cam = scene.cameras(az, 32)
+    images = 0.9 * torch.rand(1, 4, 3, 32, 32)
+    images[..., :8, :] = 1.0  # a band of white dataset background
+    losses = LossConfig(pose_consistency=pose_consistency, viewpoint_consistency=viewpoint_consistency)
+    return model, scene, QuadrupletBatch(images, cam), losses
+
+
+def test_objective_cross_renders_own_rotated_mesh_with_partner_translation_from_partner_view():
+    """Equation 4 end to end, with the loss's black background (background pixels of the targets
+    zeroed, renderings composited over black)."""
+    model, scene, batch, losses = _setup()
+    assert losses.render_background == "black"
+    targets = batch.images.clone()
+    targets[..., :8, :] = 0.0
+    renderer = make_renderer("torch")
+    out = quadruplet_objective(model, renderer, batch, scene, losses, torch.Generator().manual_seed(3))
+    # Recompute the reconstruction term scene by scene, from the model's own predictions.
+    mixed = quadruplet_mixer(torch.Generator().manual_seed(3))
+    pred = model(batch.images[0], mixed)
+    rot, trans, _, _ = model.world_pose(pred, batch.camera)
+    rotated = pred.local_vertices @ rot.transpose(-1, -2)
+    own, cross = [], []
+    for x, partner in enumerate(VIEW_PARTNER):
+        def draw(verts, cam_index):
+            cam = batch.camera.index([cam_index])
+            return render_parts(renderer, verts.unsqueeze(0), model.faces, cam, scene.light(cam),
+                                albedo=scene.albedo, background=(0.0, 0.0, 0.0)).image[0]
+        own.append(reconstruction_loss(draw(rotated[x] + trans[x].unsqueeze(-2), x), targets[0, x]))
+        cross.append(reconstruction_loss(draw(rotated[x] + trans[partner].unsqueeze(-2), partner),
+                                         targets[0, partner]))
+    expected = sum(0.5 * (o + c) for o, c in zip(own, cross)) / 4
+    assert out.terms["recon"].item() == pytest.approx(expected.item(), rel=1e-5)
+    renders = out.renders[0]
+    assert renders.shape == (4, 3, 32, 32)
+
+
+def test_partner_cameras_swap_views_within_each_pose():
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.arange(8.0) * 10, 32)
+    swapped = partner_cameras(cam, 2)
+    expected = torch.tensor([1, 0, 3, 2, 5, 4, 7, 6])
+    torch.testing.assert_close(swapped.rotation, cam.rotation[expected])
+
+
+def _latents_seen(model, pose_consistency):
+    seen = {}
+    model.shape.to_latent.register_forward_hook(lambda m, i, o: seen.__setitem__("own", o.detach()))
+    model.shape.to_displacement.register_forward_hook(lambda m, i, o: seen.__setitem__("render", i[0].detach()))
+    return seen
+
+
+@pytest.mark.parametrize("pose_consistency", [True, False])
+def test_objective_pose_consistency_switch(pose_consistency):
+    model, scene, batch, losses = _setup(pose_consistency=pose_consistency)
+    seen = _latents_seen(model, pose_consistency)
+    quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    own, render = seen["own"], seen["render"]
+    if pose_consistency:
+        assert all(torch.equal(render[0], render[k]) for k in range(4))
+        assert ((render[0].unsqueeze(0) == own).any(0)).all()
+        assert not torch.equal(render, own)
+    else:  # Free Cerberus: every image renders its own shape latent
+        torch.testing.assert_close(render, own)
+
+
+def test_objective_without_viewpoint_consistency_renders_only_own_views():
+    model, scene, batch, losses = _setup(viewpoint_consistency=False)
+    losses.render_background = "dataset"  # the dataset's white background, as in the input images
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    assert (out.renders[0, :, :, 0, 0] == 1.0).any()  # some corner shows the white background
+    own = reconstruction_loss(out.renders, batch.images).mean()
+    assert out.terms["recon"].item() == pytest.approx(own.item(), rel=1e-5)
+    total = sum(getattr(losses, k) * out.terms[k] for k in ("recon", "translation", "background", "smoothness"))
+    assert out.total.item() == pytest.approx(total.item(), rel=1e-6)
+
+
+def test_objective_reports_non_finite_geometry_without_rendering():
+    model, scene, batch, losses = _setup()
+    batch.images[0, 1] = float("nan")
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses)
+    assert not out.finite and math.isnan(out.total.item()) and out.renders is None

@@ -1,0 +1,52 @@
+"""Data-parallel training: 2 CPU processes (gloo) end with identical weights, also across a skipped
+(non-finite) step, which every rank must agree to skip."""
+import socket
+
+import pytest
+import torch
+import torch.multiprocessing as mp
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _worker(rank: int, world: int, port: int, root: str, run_dir: str, out: str) -> None:
+    import os
+
+    os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE=str(world),
+                      LOCAL_RANK=str(rank))
+    torch.set_num_threads(1)
+    from cerberus_core.train import load_config, train
+
+    cfg = load_config(preset="tiny", overrides=[f"data.root={root}", "train.tensorboard=false", "train.steps=3",
+                                                "train.batch_size=4", "train.image_every=0",
+                                                "train.on_nonfinite=skip", "debug.poison_steps=[1]"])
+    result = train(cfg, run_dir)
+    params = {k: v.detach().clone() for k, v in result.model.named_parameters()}
+    torch.save({"params": params, "step": result.step, "skipped": result.skipped}, f"{out}/rank{rank}.pt")
+
+
+@pytest.mark.slow
+def test_two_processes_keep_identical_weights(tiny_root, tmp_path):
+    from cerberus_core.model import Cerberus
+    from cerberus_core.train import load_config, load_model
+
+    mp.start_processes(_worker, args=(2, _free_port(), str(tiny_root), str(tmp_path / "run"), str(tmp_path)),
+                       nprocs=2, join=True, start_method="spawn")
+    a = torch.load(tmp_path / "rank0.pt", weights_only=True)
+    b = torch.load(tmp_path / "rank1.pt", weights_only=True)
+    assert a["step"] == b["step"] == 3 and a["skipped"] == b["skipped"] == 1
+    for k in a["params"]:
+        assert torch.equal(a["params"][k], b["params"][k]), k
+    saved, _ = load_model(tmp_path / "run")
+    for k, v in saved.named_parameters():
+        assert torch.equal(v, a["params"][k]), k
+    # training moved the weights away from the (seeded) initialisation
+    cfg = load_config(preset="tiny")
+    cfg.model.depth_offset = saved.config.depth_offset
+    torch.manual_seed(cfg.seed)
+    init = dict(Cerberus(cfg.model).named_parameters())
+    assert not torch.equal(init["shape.to_displacement.weight"], a["params"]["shape.to_displacement.weight"])

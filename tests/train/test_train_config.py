@@ -1,0 +1,65 @@
+"""Training configs: presets, files with ``extends``, ``--set`` overrides, validation messages."""
+import pytest
+
+from cerberus_core.train.config import TrainConfig, config_diff, load_config, parse_overrides, preset_names
+
+
+def test_bundled_presets_load_and_validate():
+    assert {"paper", "cpu", "free_cerberus", "nmrr", "tiny"} <= set(preset_names())
+    for name in preset_names():
+        load_config(preset=name)
+
+
+def test_paper_preset_has_the_papers_settings():
+    c = load_config(preset="paper")
+    assert (c.model.num_parts, c.model.sphere_level, c.model.width) == (9, 2, 64)
+    assert (c.losses.recon, c.losses.translation, c.losses.background, c.losses.smoothness) == (1, 1, 1, 0.0001)
+    assert c.losses.pose_consistency and c.losses.viewpoint_consistency
+    assert (c.optim.lr, c.train.batch_size, c.train.steps) == (0.0005, 16, 100_000)
+    assert config_diff(c, TrainConfig.from_dict({"data": {"num_workers": 4}, "train": {"log_every": 20,
+                                                                                        "image_every": 2000}})) == []
+
+
+def test_variant_presets_differ_from_paper_only_where_the_variant_says():
+    paper = load_config(preset="paper")
+    assert config_diff(paper, load_config(preset="free_cerberus")) == ["losses.pose_consistency"]
+    nmrr = load_config(preset="nmrr")
+    assert (nmrr.model.num_parts, nmrr.model.sphere_level, nmrr.model.predict_rotation) == (1, 3, False)
+    assert not nmrr.losses.pose_consistency and nmrr.losses.smoothness > 0
+    assert all(k.startswith(("model.", "losses.")) for k in config_diff(paper, nmrr))
+
+
+def test_overrides_are_yaml_and_type_checked():
+    c = load_config(preset="tiny", overrides=["optim.lr=5e-4", "losses.pose_consistency=false",
+                                              "optim.betas=[0.8, 0.9]", "data.image_size=null"])
+    assert c.optim.lr == 0.0005 and c.losses.pose_consistency is False
+    assert c.optim.betas == [0.8, 0.9] and c.data.image_size is None
+    assert parse_overrides(["a.b.c=1"]) == {"a": {"b": {"c": 1}}}
+    with pytest.raises(ValueError, match="optim.lr: expected a number"):
+        load_config(overrides=["optim.lr=fast"])
+    with pytest.raises(ValueError, match=r"unknown config key.*model.parts.*model.num_parts"):
+        load_config(overrides=["model.parts=3"])
+    with pytest.raises(ValueError, match="section.key=value"):
+        load_config(overrides=["optim.lr"])
+    with pytest.raises(ValueError, match="train.on_nonfinite"):
+        load_config(overrides=["train.on_nonfinite=ignore"])
+
+
+def test_config_file_extends_a_preset_or_another_file(tmp_path):
+    base = tmp_path / "base.yaml"
+    base.write_text("extends: cpu\nmodel:\n  num_parts: 5\n")
+    top = tmp_path / "top.yaml"
+    top.write_text("extends: base.yaml\noptim:\n  lr: 0.001\n")
+    c = load_config(top)
+    cpu = load_config(preset="cpu")
+    assert c.model.num_parts == 5 and c.optim.lr == 0.001 and c.data.image_size == cpu.data.image_size
+    with pytest.raises(ValueError, match="unknown preset"):
+        load_config(preset="huge")
+    with pytest.raises(ValueError, match="does not exist"):
+        load_config(tmp_path / "missing.yaml")
+
+
+def test_yaml_round_trip():
+    c = load_config(preset="nmrr")
+    import yaml
+    assert TrainConfig.from_dict(yaml.safe_load(c.to_yaml())) == c

@@ -1,0 +1,145 @@
+"""The training loop: learning on a fixed batch, exact resumption, non-finite handling, outputs."""
+import csv
+
+import pytest
+import torch
+
+from cerberus_core.data.dataset import QuadrupletDataset
+from cerberus_core.train import NonFiniteError, load_checkpoint, load_model, train
+from cerberus_core.train.checkpoint import checkpoint_dir
+
+
+def params(model):
+    return {k: v.detach().clone() for k, v in model.state_dict().items()}
+
+
+def assert_same_weights(a, b):
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), f"{k} differs"
+
+
+def rows(run_dir):
+    with open(run_dir / "metrics.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+class FirstItems(torch.utils.data.Dataset):
+    """The first ``n`` quadruplets of a dataset, keeping its ``image_size`` and ``scene``."""
+
+    def __init__(self, dataset, n):
+        self.dataset, self.n = dataset, n
+        self.image_size, self.scene = dataset.image_size, dataset.scene
+
+    def __len__(self):
+        return self.n
+
+    def __getitem__(self, i):
+        return self.dataset[i]
+
+
+def test_a_few_steps_reduce_the_loss_on_a_fixed_batch(tiny_config, tiny_root, tmp_path):
+    # batch_size 2 = the whole 2-quadruplet dataset: every step sees the same quadruplets.
+    data = FirstItems(QuadrupletDataset(tiny_root), 2)
+    cfg = tiny_config("train.steps=20", "train.batch_size=2", "train.image_every=0", "train.checkpoint_every=100",
+                      "optim.lr=0.002")
+    result = train(cfg, tmp_path / "run", dataset=data)
+    totals = [float(r["total"]) for r in rows(tmp_path / "run")]
+    assert len(totals) == 20
+    first, last = sum(totals[:3]) / 3, sum(totals[-3:]) / 3
+    assert last < 0.9 * first, totals
+    assert result.step == 20 and result.skipped == 0
+
+
+def test_resumed_run_ends_with_the_same_weights_as_an_uninterrupted_one(tiny_config, tmp_path):
+    straight = train(tiny_config(), tmp_path / "straight")  # 4 steps, checkpoint at 2 and 4
+    # The interrupted run dies at step 3 (a poisoned batch stops it) after its step-2 checkpoint.
+    with pytest.raises(NonFiniteError):
+        train(tiny_config("debug.poison_steps=[2]"), tmp_path / "killed")
+    assert load_checkpoint(checkpoint_dir(tmp_path / "killed") / "last.pt")["step"] == 2
+    resumed = train(tiny_config(), tmp_path / "killed", resume=True)
+    assert resumed.step == 4
+    assert_same_weights(params(straight.model), params(resumed.model))
+    ck_a = load_checkpoint(checkpoint_dir(tmp_path / "straight") / "last.pt")
+    ck_b = load_checkpoint(checkpoint_dir(tmp_path / "killed") / "last.pt")
+    for group_a, group_b in zip(ck_a["optimizer"]["state"].values(), ck_b["optimizer"]["state"].values()):
+        assert torch.equal(group_a["exp_avg"], group_b["exp_avg"])
+    assert [r["step"] for r in rows(tmp_path / "killed")] == ["1", "2", "3", "4"]  # no duplicates
+    assert [r["total"] for r in rows(tmp_path / "killed")] == [r["total"] for r in rows(tmp_path / "straight")]
+
+
+def test_resume_refuses_a_different_run_and_fresh_start_refuses_an_existing_one(tiny_config, tmp_path):
+    train(tiny_config("train.steps=2"), tmp_path / "run")
+    with pytest.raises(FileExistsError, match="--resume"):
+        train(tiny_config("train.steps=2"), tmp_path / "run")
+    with pytest.raises(ValueError, match="optim.lr"):
+        train(tiny_config("optim.lr=0.1"), tmp_path / "run", resume=True)
+    with pytest.raises(FileNotFoundError, match="no checkpoint"):
+        train(tiny_config(), tmp_path / "other", resume=True)
+
+
+def test_nonfinite_loss_stops_and_keeps_the_last_good_checkpoint(tiny_config, tmp_path):
+    run = tmp_path / "run"
+    with pytest.raises(NonFiniteError, match=r"step 3 .*last good checkpoint .*last.pt"):
+        train(tiny_config("debug.poison_steps=[3]"), run)
+    payload = load_checkpoint(checkpoint_dir(run) / "last.pt")
+    assert payload["step"] == 2
+    assert all(torch.isfinite(v).all() for v in payload["model"].values() if v.is_floating_point())
+    assert not (run / "model.safetensors").exists()
+
+
+def test_nonfinite_step_is_skipped_without_touching_weights_or_batchnorm(tiny_config, tmp_path):
+    before = train(tiny_config("train.steps=1"), tmp_path / "ref").model
+    result = train(tiny_config("train.steps=2", "train.on_nonfinite=skip", "debug.poison_steps=[1]"),
+                   tmp_path / "run")
+    assert result.skipped == 1
+    assert_same_weights(params(before), params(result.model))  # the poisoned step changed nothing
+    with pytest.raises(NonFiniteError, match="non-finite"):
+        train(tiny_config("train.on_nonfinite=skip", "train.max_consecutive_skips=1",
+                          "debug.poison_steps=[1, 2]"), tmp_path / "run2")
+
+
+def test_run_folder_outputs_and_safe_loading(tiny_config, tmp_path):
+    run = tmp_path / "run"
+    result = train(tiny_config(), run)
+    for name in ("config.yaml", "metrics.csv", "loss_curves.png", "model.safetensors", "checkpoints/last.pt",
+                 "images/step_0000002.png", "images/step_0000004.png"):
+        assert (run / name).is_file(), name
+    payload = torch.load(run / "checkpoints" / "last.pt", weights_only=True)  # no arbitrary pickles
+    assert payload["step"] == 4 and "rng" in payload and "optimizer" in payload
+    for source in (run, run / "model.safetensors", run / "checkpoints" / "last.pt"):
+        model, config = load_model(source)
+        assert config.model.depth_offset == pytest.approx(result.model.config.depth_offset)
+        assert_same_weights(params(model), params(result.model))
+        assert not model.training
+
+
+class InterruptAt(FirstItems):
+    """Sends SIGINT to this process when item ``at`` is read (as Ctrl-C during that step)."""
+
+    def __init__(self, dataset, n, at):
+        super().__init__(dataset, n)
+        self.at = at
+
+    def __getitem__(self, i):
+        if i == self.at:
+            import os
+            import signal
+            os.kill(os.getpid(), signal.SIGINT)
+        return super().__getitem__(i)
+
+
+def test_interrupt_finishes_the_step_checkpoints_and_resumes(tiny_config, tiny_root, tmp_path):
+    # batch_size 1 over a 4-item dataset: step s of epoch 0 reads permutation[s]; interrupt at step 1.
+    from cerberus_core.train.data import step_indices
+
+    data = QuadrupletDataset(tiny_root)
+    cfg = tiny_config("train.batch_size=1", "train.checkpoint_every=10", "train.image_every=0")
+    at = step_indices(4, cfg.seed, 1, 1)[0]
+    result = train(cfg, tmp_path / "run", dataset=InterruptAt(data, 4, at))
+    assert result.interrupted and result.step == 2
+    assert load_checkpoint(checkpoint_dir(tmp_path / "run") / "last.pt")["step"] == 2
+    resumed = train(cfg, tmp_path / "run", resume=True, dataset=FirstItems(data, 4))
+    straight = train(cfg, tmp_path / "straight", dataset=FirstItems(data, 4))
+    assert resumed.step == 4 and not resumed.interrupted
+    assert_same_weights(params(straight.model), params(resumed.model))
