@@ -126,10 +126,3 @@ def test_look_at_is_continuous_at_the_poles(pole: float) -> None:
     near = Camera.look_at(0.0, pole - math.copysign(1e-3, pole), 2.0).rotation
     assert torch.allclose(exact, near, atol=1e-4)
 
-
-def test_cli_reports_unknown_renderer_without_traceback(tmp_path, capsys) -> None:
-    from cerberus_core.cli import main
-
-    assert main(["demo", "--renderer", "no-such-backend", "--out", str(tmp_path)]) == 2
-    err = capsys.readouterr().err
-    assert "unknown renderer 'no-such-backend'" in err and "Traceback" not in err

@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from cerberus_core.cli import main
-from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError
+from cerberus_core.plugins import RENDERER_GROUP
 
 
 def test_renderers_table(capsys) -> None:
@@ -48,9 +48,11 @@ def test_demo_writes_pictures(tmp_path, capsys) -> None:
     assert not list((tmp_path / "demo").glob("*.tmp")), "no temporary files left behind"
 
 
-def test_demo_with_an_unknown_renderer_names_the_known_ones(tmp_path) -> None:
-    with pytest.raises(UnknownPluginError, match="torch"):
-        main(["demo", "--out", str(tmp_path), "--renderer", "nope"])
+def test_demo_with_an_unknown_renderer_names_the_known_ones(tmp_path, capsys) -> None:
+    """A plugin error is a message and exit code 2, not a traceback."""
+    assert main(["demo", "--out", str(tmp_path), "--renderer", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown renderer 'nope'" in err and "torch" in err and "Traceback" not in err
 
 
 @pytest.mark.slow  # a fresh interpreter importing torch: seconds

@@ -14,6 +14,8 @@ COMMAND_MODULES = [
     "cerberus_core.commands.demo",
     "cerberus_core.commands.data",
     "cerberus_core.commands.train",
+    "cerberus_core.commands.eval",
+    "cerberus_core.commands.reconstruct",
 ]
 
 
