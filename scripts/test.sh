@@ -5,4 +5,6 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup.sh"
 cd "$ROOT"
-exec "${CERBERUS_VENV:-$ROOT/.venv}/bin/python" -m pytest "$@"
+VENV="${CERBERUS_VENV:-$ROOT/.venv}"
+export PATH="$VENV/bin:$PATH"   # the console scripts (cerberus, cerberus-metrics) are tested too
+exec "$VENV/bin/python" -m pytest "$@"

@@ -16,7 +16,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
         "entry point, 'kato' protocol), per image and per subject; the Hard Human test (parts from each subject's "
         "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
-        "training never saw. Writes results.json, results.md and a Table-2-like figure (table2.png).")
+        "training never saw. Writes results.json, results.md, a Table-2-like figure (table2.png) and, for the same images, the pictures "
+        "of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose).")
     p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
@@ -35,7 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _figure(args, model, config, dataset, out: Path) -> Path:
-    from cerberus_core.eval.figures import comparison_figure, save_png
+    from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
     from cerberus_core.eval.reconstruction import as_part_reconstruction
     from cerberus_core.train.checkpoint import load_model
 
@@ -56,7 +57,12 @@ def _figure(args, model, config, dataset, out: Path) -> Path:
             other, _ = load_model(path, args.device)
             baselines[name] = as_part_reconstruction(other.reconstruct(images.to(args.device), camera.to(args.device))).to("cpu")
     renderer = make_renderer(args.renderer or config.renderer)
-    fig = comparison_figure(renderer, images, camera, ours, baselines, background=tuple(dataset.scene["background"]))
+    background = tuple(dataset.scene["background"])
+    fig = comparison_figure(renderer, images, camera, ours, baselines, background=background)
+    for k, i in enumerate(idx):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
+        donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
+        save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
+                            f"test_{i:05d}", pose_donor=donor, background=background)
     return save_png(fig, out / "table2.png")
 
 
@@ -83,5 +89,5 @@ def run(args: argparse.Namespace) -> int:
     if result.hard is not None:
         line += f"; Hard Human: {result.hard.mean:.4f}"
     print(line)
-    print(f"results: {out / 'results.json'}, {out / 'results.md'}; figure: {fig}")
+    print(f"results: {out / 'results.json'}, {out / 'results.md'}; figures: {fig}, {out / 'pictures'}")
     return 0
