@@ -4,31 +4,25 @@ The workload of the issue: a batch of scenes, each ``--parts`` icosphere-level-2
 placed in a [-0.5, 0.5]^3 body, seen from distance 2.5 with a 30 degree field of view, rendered with
 :func:`cerberus_core.render_parts` and back-propagated to the part vertices. Stages (milliseconds):
 
-* ``core_fwd``: world_to_clip + vertex_normals (core torch code before the backend),
+* ``core_fwd``: world_to_clip + ``renderer.vertex_normals`` (before rasterization),
 * ``raster``: ``renderer.rasterize``; ``shade``: ``renderer.shade``,
 * ``composite``: core's alpha / background / part-id code after the backend,
 * ``*_bwd``: the backward of the same groups (core, backend shading, compositing).
 
-Columns: ``torch``, ``warp``, and ``warp+normals``: the warp backend with core's
-``vertex_normals`` swapped for the backend's fused Warp version (what core would do if it called an
-optional ``Renderer.vertex_normals`` hook; patched in this script only). Prints one table per image
-size with the median over ``--repeats`` runs (after one warm-up run) and the ratios to ``torch``.
+Columns: one per backend (default ``torch`` and ``warp``). Prints one table per image size with the median over ``--repeats`` runs (after one warm-up run) and the ratios to ``torch``.
 Example: ``python scripts/profile_split.py --batch 128 --sizes 64 128 --threads 2``.
 """
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import statistics
 import time
-from unittest import mock
 
 import torch
 
 from cerberus_core import Camera, Light, icosphere, make_renderer, render_parts
 from cerberus_core.render.api import pack_parts
-from cerberus_core.templates import vertex_normals
 
 
 def make_scene(batch: int, parts: int, size: int, seed: int = 0):
@@ -46,14 +40,14 @@ CLOCK = time.perf_counter
 shared machine inflates less (compare backends at ``--threads 1`` then)."""
 
 
-def staged(renderer, part_vertices, faces, cam, normals_fn=vertex_normals):
+def staged(renderer, part_vertices, faces, cam):
     """One forward + backward, timed per stage (ms), mirroring :func:`cerberus_core.render.api.render`."""
     clock = CLOCK
     pv = part_vertices.clone().requires_grad_(True)
     t0 = clock()
     vertices, packed, face_part = pack_parts(pv, faces)
     clip = cam.world_to_clip(vertices)
-    normals = normals_fn(vertices, packed)
+    normals = renderer.vertex_normals(vertices, packed)
     t1 = clock()
     with torch.no_grad():
         face_id = renderer.rasterize(clip.detach(), packed, cam.height, cam.width, cam.near)
@@ -79,14 +73,11 @@ def staged(renderer, part_vertices, faces, cam, normals_fn=vertex_normals):
     return {k: 1e3 * v for k, v in t.items()}
 
 
-def end_to_end(renderer, part_vertices, faces, cam, normals_fn=None):
+def end_to_end(renderer, part_vertices, faces, cam):
     """The plain ``render_parts`` forward and ``loss.backward()`` (ms)."""
     pv = part_vertices.clone().requires_grad_(True)
-    patch = (mock.patch("cerberus_core.render.api.vertex_normals", normals_fn) if normals_fn
-             else contextlib.nullcontext())
     t0 = CLOCK()
-    with patch:
-        out = render_parts(renderer, pv, faces, cam, Light.following(cam))
+    out = render_parts(renderer, pv, faces, cam, Light.following(cam))
     loss = out.image.square().mean() + out.depth.mean()
     t1 = CLOCK()
     loss.backward()
@@ -99,8 +90,7 @@ def main() -> None:
     p.add_argument("--batch", type=int, default=128)
     p.add_argument("--parts", type=int, default=9)
     p.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
-    p.add_argument("--backends", nargs="+", default=["torch", "warp", "warp+normals"],
-                   help="backend names; NAME+normals also swaps in the backend's vertex_normals")
+    p.add_argument("--backends", nargs="+", default=["torch", "warp"], help="backend names")
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's choice)")
     p.add_argument("--clock", choices=["wall", "cpu"], default="wall",
@@ -116,11 +106,10 @@ def main() -> None:
         scene = make_scene(args.batch, args.parts, size)
         rows = {}
         for name in args.backends:
-            r = make_renderer(name.removesuffix("+normals"))
-            normals_fn = r.vertex_normals if name.endswith("+normals") else None
-            end_to_end(r, *scene, normals_fn)  # warm-up (and kernel load)
-            e2e = [end_to_end(r, *scene, normals_fn) for _ in range(args.repeats)]
-            st = [staged(r, *scene, normals_fn or vertex_normals) for _ in range(args.repeats)]
+            r = make_renderer(name)
+            end_to_end(r, *scene)  # warm-up (and kernel load)
+            e2e = [end_to_end(r, *scene) for _ in range(args.repeats)]
+            st = [staged(r, *scene) for _ in range(args.repeats)]
             row = {k: statistics.median(x[k] for x in e2e) for k in e2e[0]}
             row.update({k: statistics.median(x[k] for x in st) for k in st[0]})
             rows[name] = row
