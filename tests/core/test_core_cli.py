@@ -60,3 +60,4 @@ def test_demo_with_an_unknown_renderer_names_the_known_ones(tmp_path, capsys) ->
 def test_console_script_help() -> None:
     proc = subprocess.run(["cerberus", "--help"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "renderers" in proc.stdout and "demo" in proc.stdout
+

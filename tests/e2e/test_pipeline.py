@@ -58,3 +58,9 @@ def test_reconstruct_refuses_missing_image(trained, capsys) -> None:
     assert main(["reconstruct", str(trained["run"]), str(trained["root"] / "nope.png"),
                  "--out", str(trained["root"] / "rec2")]) == 2
     assert "no such file" in capsys.readouterr().out
+
+
+def test_eval_on_a_missing_split_is_a_message_not_a_traceback(trained, capsys) -> None:
+    assert main(["eval", str(trained["run"]), "--split", "nosuch", "--out", str(trained["root"] / "eval2")]) == 2
+    err = capsys.readouterr().err
+    assert "no split 'nosuch'" in err and "Traceback" not in err

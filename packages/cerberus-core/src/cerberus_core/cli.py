@@ -6,6 +6,7 @@ import argparse
 import importlib
 import sys
 
+from cerberus_core.data.format import DatasetError
 from cerberus_core.plugins import PluginError
 
 #: Modules that contribute sub-commands, in the order ``--help`` lists them.
@@ -38,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except PluginError as exc:
+    except (PluginError, DatasetError) as exc:
         print(f"cerberus {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -258,7 +258,7 @@ class _Trainer:
             self.run_dir.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.run_dir / "config.yaml", self.config_yaml)
             log = MetricsLog(self.run_dir, start, loop.tensorboard)
-        bar = tqdm(total=loop.steps, initial=start, desc="train", unit="step", dynamic_ncols=True,
+        bar = tqdm(total=loop.steps, initial=start, desc="train", unit="step", dynamic_ncols=True, mininterval=1.0,
                    disable=not (info.is_main and loop.progress))
         terms: dict[str, float] = {}
         consecutive, done, interrupted = 0, start, False
