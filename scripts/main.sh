@@ -3,7 +3,7 @@
 #   generate the small human dataset (anny bodies, 64x64), train the CPU preset, evaluate
 #   (voxel IoU, Hard Human, part quality), and write pictures and the results table.
 # Usage: bash scripts/main.sh [--quick] [OUT]     (default OUT: out/main)
-#   --quick  tiny dataset and a few training steps: checks the whole pipeline in about a minute.
+#   --quick  tiny dataset and a few training steps: checks the whole pipeline in under two minutes.
 # Every step resumes: re-running continues an interrupted dataset or training run.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
