@@ -2,14 +2,14 @@
 from __future__ import annotations
 
 import colorsys
-import os
-import tempfile
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 import torch
 from PIL import Image, ImageDraw
+
+from cerberus_core.atomic import atomic_write
 
 Tensor = torch.Tensor
 
@@ -29,17 +29,8 @@ def to_uint8(images: Tensor) -> np.ndarray:
 
 
 def atomic_save_png(img: Image.Image, path: str | Path) -> None:
-    """Write a PNG through a temporary file and rename, so a reader never sees half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".png.tmp")
-    os.close(fd)
-    try:
-        img.save(tmp, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write a PNG atomically (:func:`cerberus_core.atomic.atomic_write`): a reader never sees half a file."""
+    atomic_write(Path(path), lambda fh: img.save(fh, format="PNG"))
 
 
 def image_grid(rows: Sequence[Tensor], titles: Sequence[str] | None = None, scale: int = 1, pad: int = 2) -> Image.Image:

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 import trimesh
 
-from cerberus_core.data.format import atomic_write
+from cerberus_core.atomic import atomic_write
 from cerberus_core.eval.reconstruction import PartReconstruction
 from cerberus_core.viz import part_colors
 

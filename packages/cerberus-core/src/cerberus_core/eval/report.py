@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from cerberus_core.data.format import atomic_write
+from cerberus_core.atomic import atomic_write_text
 from cerberus_core.eval.runner import EvaluationResult
 
 
@@ -35,14 +35,12 @@ def to_jsonable(result: EvaluationResult | Mapping[str, Any]) -> dict[str, Any]:
 
 def write_json(result: EvaluationResult | Mapping[str, Any], path: str | Path) -> Path:
     """Write ``result`` as indented, strict JSON, atomically."""
-    text = json.dumps(to_jsonable(result), indent=2, allow_nan=False) + "\n"
-    atomic_write(Path(path), lambda fh: fh.write(text.encode()))
-    return Path(path)
+    return write_text(json.dumps(to_jsonable(result), indent=2, allow_nan=False) + "\n", path)
 
 
 def write_text(text: str, path: str | Path) -> Path:
     """Write a text file (e.g. a Markdown report) atomically."""
-    atomic_write(Path(path), lambda fh: fh.write(text.encode()))
+    atomic_write_text(path, text)
     return Path(path)
 
 

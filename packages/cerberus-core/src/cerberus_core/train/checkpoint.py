@@ -13,15 +13,15 @@ every RNG state (Python, NumPy, torch CPU and CUDA) and the config as YAML — s
 """
 from __future__ import annotations
 
-import os
 import random
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file, save
+
+from cerberus_core.atomic import atomic_write
 
 from cerberus_core.model.cerberus import Cerberus
 
@@ -34,24 +34,6 @@ LAST = "last.pt"
 
 def checkpoint_dir(run_dir: str | Path) -> Path:
     return Path(run_dir) / "checkpoints"
-
-
-def _atomic(path: Path, write) -> None:
-    """Call ``write(tmp_path)`` then rename over ``path`` (readers never see half a file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def atomic_write_text(path: str | Path, text: str) -> None:
-    """Write a text file atomically."""
-    _atomic(Path(path), lambda tmp: Path(tmp).write_text(text))
 
 
 # ------------------------------------------------------------------ RNG state
@@ -109,7 +91,7 @@ def save_checkpoint(path: str | Path, *, model: torch.nn.Module, optimizer: torc
         "extra": dict(extra or {}),
     }
     path = Path(path)
-    _atomic(path, lambda tmp: torch.save(payload, tmp))
+    atomic_write(path, lambda fh: torch.save(payload, fh))
     return path
 
 
@@ -132,7 +114,7 @@ def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: in
     tensors = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     meta = {"config": config_yaml, "step": str(step), "format": "cerberus-model"}
     path = Path(path)
-    _atomic(path, lambda tmp: save_file(tensors, tmp, metadata=meta))
+    atomic_write(path, lambda fh: fh.write(save(tensors, metadata=meta)))
     return path
 
 

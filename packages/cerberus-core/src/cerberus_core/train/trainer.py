@@ -33,12 +33,12 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from cerberus_core.atomic import atomic_write_text
 from cerberus_core.data.scene import SceneSetup
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer
 from cerberus_core.train.checkpoint import (
     LAST,
-    atomic_write_text,
     checkpoint_dir,
     export_weights,
     load_checkpoint,
