@@ -38,15 +38,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def _figure(args, model, config, dataset, out: Path) -> Path:
     from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
     from cerberus_core.eval.reconstruction import as_part_reconstruction
+    from cerberus_core.eval.runner import collate
     from cerberus_core.train.checkpoint import load_model
 
     n = min(args.figure_images, len(dataset))
     idx = torch.linspace(0, len(dataset) - 1, n).round().long().unique().tolist()
-    items = [dataset[i] for i in idx]
-    batch = {k: torch.stack([torch.as_tensor(it[k]) for it in items]) for k in items[0]}
+    batch = collate([dataset[i] for i in idx])
     camera = dataset.cameras(batch)
-    images = batch["images"].float()
-    images = images / 255.0 if images.max() > 1.5 else images
+    images = batch["images"]
     with torch.no_grad():
         ours = as_part_reconstruction(model.reconstruct(images.to(args.device), camera.to(args.device))).to("cpu")
         baselines = {}
