@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import torch
@@ -31,16 +30,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def scene_for(config, data: Path | None):
-    """The scene set-up the model was trained with: from ``data`` or the run's data root, else defaults."""
+    """The scene set-up the model was trained with: from ``data`` (which must be a dataset), else from
+    the run's training data if it is still there, else the toolkit's default scene."""
+    from cerberus_core.data.format import MANIFEST, read_manifest
     from cerberus_core.data.scene import SceneSetup
 
-    for root in (data, Path(config.data.root)):
-        manifest = root / "manifest.json" if root else None
-        if manifest and manifest.is_file():
-            return SceneSetup.from_dict(json.loads(manifest.read_text())["scene"])
-    if data:
-        raise SystemExit(f"cerberus reconstruct: {data} has no manifest.json; pass a dataset folder made by 'cerberus data generate'")
-    return SceneSetup()
+    if data is None and (Path(config.data.root) / MANIFEST).is_file():
+        data = Path(config.data.root)
+    return SceneSetup.from_dict(read_manifest(data)["scene"]) if data is not None else SceneSetup()
 
 
 def run(args: argparse.Namespace) -> int:
