@@ -33,3 +33,6 @@ def test_print_config_resolves_presets(capsys):
     assert main(["train", "--preset", "free_cerberus", "--print-config"]) == 0
     cfg = yaml.safe_load(capsys.readouterr().out)
     assert cfg["losses"]["pose_consistency"] is False and cfg["model"]["num_parts"] == 9
+    assert main(["train", "--preset", "cpu", "--preset", "nmrr", "--print-config"]) == 0
+    cfg = yaml.safe_load(capsys.readouterr().out)
+    assert cfg["model"]["num_parts"] == 1 and cfg["model"]["width"] == 32 and cfg["train"]["steps"] == 10000

@@ -1,4 +1,6 @@
 """Training configs: presets, files with ``extends``, ``--set`` overrides, validation messages."""
+from pathlib import Path
+
 import pytest
 
 from cerberus_core.train.config import TrainConfig, config_diff, load_config, parse_overrides, preset_names
@@ -59,7 +61,40 @@ def test_config_file_extends_a_preset_or_another_file(tmp_path):
         load_config(tmp_path / "missing.yaml")
 
 
+def test_variants_compose_with_a_schedule(tmp_path):
+    """``extends: [cpu, nmrr]`` and ``--preset cpu --preset nmrr``: the CPU schedule with the NMRr
+    changes; the paper settings both presets extend are applied once, first, and do not come back."""
+    cpu = load_config(preset="cpu")
+    both = load_config(preset=["cpu", "nmrr"])
+    assert config_diff(cpu, both) == config_diff(load_config(preset="paper"), load_config(preset="nmrr"))
+    assert (both.model.width, both.model.num_parts, both.train.steps) == (cpu.model.width, 1, cpu.train.steps)
+    f = tmp_path / "exp.yaml"
+    f.write_text("extends: [cpu, free_cerberus]\ntrain:\n  steps: 7\n")
+    c = load_config(f)
+    assert config_diff(cpu, c) == ["losses.pose_consistency", "train.steps"] and c.train.steps == 7
+    assert load_config(preset=["nmrr", "cpu"]).model.num_parts == 1  # cpu says nothing of parts
+    with pytest.raises(ValueError, match="unknown preset 'gpu'"):
+        load_config(preset=["cpu", "gpu"])
+    loop = tmp_path / "loop.yaml"
+    loop.write_text("extends: loop.yaml\n")
+    with pytest.raises(ValueError, match="deeper than 8"):
+        load_config(loop)
+
+
 def test_yaml_round_trip():
     c = load_config(preset="nmrr")
     import yaml
     assert TrainConfig.from_dict(yaml.safe_load(c.to_yaml())) == c
+
+
+def test_table1_experiment_configs_load_and_say_what_their_names_say():
+    """The configs behind docs/results.md stay loadable as the presets evolve."""
+    root = Path(__file__).resolve().parents[2] / "experiments" / "table1"
+    files = sorted(root.glob("*.yaml"))
+    assert len(files) == 6
+    for f in files:
+        c = load_config(f)
+        dataset, variant = f.stem.split("_", 1)
+        assert c.data.root == f"data/{dataset}" and c.renderer == "warp" and c.model.width == 32
+        assert c.losses.pose_consistency == (variant == "cerberus")
+        assert c.model.num_parts == (1 if variant == "nmrr" else 9)

@@ -9,6 +9,7 @@ EPILOG = """\
 examples:
   cerberus train --preset cpu --set data.root=data/human            # ~1 hour on 2 CPU cores
   cerberus train --preset paper --set data.root=data/human --out runs/paper
+  cerberus train --preset cpu --preset nmrr --set data.root=data/human  # a variant on the CPU schedule
   cerberus train --config my.yaml --set optim.lr=1e-4 --set train.steps=2000
   cerberus train --out runs/paper --resume                           # continue a run
   torchrun --nproc_per_node 2 -m cerberus_core.cli train --preset cpu  # data parallel
@@ -30,7 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--config", type=Path, metavar="FILE", help="YAML training config")
-    src.add_argument("--preset", choices=preset_names(), help="a bundled config (default: paper)")
+    src.add_argument("--preset", choices=preset_names(), action="append", metavar="NAME",
+                     help=f"a bundled config, one of {', '.join(preset_names())} (default: paper); repeat to "
+                     "merge left to right: --preset cpu --preset nmrr is the NMRr baseline on the CPU schedule")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set optim.lr=1e-4 (repeatable; values are YAML)")
     p.add_argument("--out", type=Path, metavar="RUN_DIR",
@@ -49,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.train.config import TrainConfig, deep_merge, load_config, parse_overrides
     from cerberus_core.train.trainer import NonFiniteError, train
 
-    name = args.config.stem if args.config else (args.preset or "paper")
+    name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
     out = args.out or Path("runs") / name
     try:
         saved = out / "config.yaml"
@@ -58,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
             raw = deep_merge(yaml.safe_load(saved.read_text()), parse_overrides(args.overrides))
             config = TrainConfig.from_dict(raw)
         else:
-            config = load_config(args.config, preset=None if args.config else (args.preset or "paper"),
+            config = load_config(args.config, preset=None if args.config else (args.preset or ["paper"]),
                                  overrides=args.overrides)
     except ValueError as exc:
         print(f"cerberus train: {exc}", file=sys.stderr)

@@ -2,7 +2,8 @@
 
 A config file holds any subset of the sections below; missing keys take the defaults (which are the
 paper's settings). ``extends: NAME`` (a bundled preset) or ``extends: path/to/other.yaml`` (relative
-to the file) loads that config first and applies this file on top. ``--set section.key=value``
+to the file) loads that config first and applies this file on top; ``extends: [cpu, nmrr]`` merges
+several, left to right, each shared ancestor once (the CPU schedule with the NMRr changes). ``--set section.key=value``
 overrides apply last; values are parsed as YAML (``--set optim.lr=1e-4``,
 ``--set losses.pose_consistency=false``, ``--set optim.betas=[0.9,0.99]``).
 
@@ -246,7 +247,21 @@ def deep_merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _load_raw(text: str, source: str, base_dir: Path | None, depth: int = 0) -> dict[str, Any]:
+def _load_raw(text: str, source: str, base_dir: Path | None) -> dict[str, Any]:
+    """A config's mapping with its ``extends`` chain resolved."""
+    raw: dict[str, Any] = {}
+    for _, layer in _layers(text, source, base_dir):
+        raw = deep_merge(raw, layer)
+    return raw
+
+
+def _layers(text: str, source: str, base_dir: Path | None, depth: int = 0) -> list[tuple[str, dict[str, Any]]]:
+    """The config and its ancestors as ``(source, mapping)`` layers, most basic first.
+
+    ``extends: [a, b]`` lists a's layers, then b's layers not already listed, then this file's own:
+    ``[cpu, nmrr]`` (both extending ``paper``) gives paper, cpu, nmrr, so the variant lands on the CPU
+    schedule instead of bringing the paper's settings back.
+    """
     if depth > 8:
         raise ValueError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
     try:
@@ -255,16 +270,22 @@ def _load_raw(text: str, source: str, base_dir: Path | None, depth: int = 0) -> 
         raise ValueError(f"{source} is not valid YAML: {exc}") from exc
     if not isinstance(raw, dict):
         raise ValueError(f"{source} must hold a YAML mapping of config sections")
-    parent = raw.pop("extends", None)
-    if parent is None:
-        return raw
-    parent = str(parent)
+    parents = raw.pop("extends", None)
+    parents = [] if parents is None else parents if isinstance(parents, list) else [parents]
+    layers: list[tuple[str, dict[str, Any]]] = []
+    for parent in parents:
+        for layer in _parent_layers(str(parent), base_dir, depth + 1):
+            if layer[0] not in {name for name, _ in layers}:
+                layers.append(layer)
+    return [*layers, (source, raw)]
+
+
+def _parent_layers(parent: str, base_dir: Path | None, depth: int) -> list[tuple[str, dict[str, Any]]]:
+    """The layers of one ``extends`` entry: a config file (relative to ``base_dir``) or a preset name."""
     if parent.endswith((".yaml", ".yml")):
         path = Path(parent) if base_dir is None or Path(parent).is_absolute() else base_dir / parent
-        base = _load_raw(_read(path), str(path), path.parent, depth + 1)
-    else:
-        base = _load_raw(_preset_text(parent), f"preset {parent}", None, depth + 1)
-    return deep_merge(base, raw)
+        return _layers(_read(path), str(path.resolve()), path.parent, depth)
+    return _layers(_preset_text(parent), f"preset {parent}", None, depth)
 
 
 def _read(path: Path) -> str:
@@ -290,18 +311,21 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     return out
 
 
-def load_config(path: str | Path | None = None, *, preset: str | None = None,
+def load_config(path: str | Path | None = None, *, preset: str | list[str] | None = None,
                 overrides: list[str] | None = None) -> TrainConfig:
-    """Build a :class:`TrainConfig` from a YAML file or a bundled preset, plus ``--set`` overrides.
+    """Build a :class:`TrainConfig` from a YAML file or bundled preset(s), plus ``--set`` overrides.
 
-    With neither ``path`` nor ``preset`` the defaults (the paper's settings) are used.
+    ``preset`` may be a list, merged left to right like ``extends: [a, b]`` (``["cpu", "nmrr"]``:
+    the CPU schedule with the NMRr baseline's changes). With neither ``path`` nor ``preset`` the
+    defaults (the paper's settings) are used.
     """
     if path is not None and preset is not None:
         raise ValueError("give either a config file or a preset, not both (a file can say 'extends: PRESET')")
     if path is not None:
         raw = _load_raw(_read(Path(path)), str(path), Path(path).parent)
     elif preset is not None:
-        raw = _load_raw(_preset_text(preset), f"preset {preset}", None)
+        names = [preset] if isinstance(preset, str) else list(preset)
+        raw = _load_raw(yaml.safe_dump({"extends": names}), "--preset " + " --preset ".join(names), None)
     else:
         raw = {}
     raw = deep_merge(raw, parse_overrides(overrides or []))

@@ -1,0 +1,79 @@
+"""Print Table 1 of docs/results.md from the evaluated runs of ``experiments/table1/run.sh``.
+
+    python experiments/table1/table.py runs/table1 > runs/table1/table1.md
+
+Reads ``RUNS/<dataset>_<variant>/eval/results.json`` (written by ``cerberus eval``) and
+``RUNS/<dataset>_<variant>/metrics.csv`` (training time), and prints Markdown: the paper's Table 1
+layout (voxel IoU, 32^3, kato protocol) with the paper's numbers beside ours, then part quality and
+training cost. A run that is missing shows ``-``.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+from cerberus_core.eval.report import comparison_table, markdown_table
+
+VARIANTS = {"nmrr": "NMRr", "free_cerberus": "Free Cerberus", "cerberus": "Cerberus"}
+PAPER = {  # Deng, Kornblith & Hinton, Table 1: voxel IoU on Human, Hard Human, Animal
+    "NMRr": {"Human": 0.3084, "Hard Human": None, "Animal": 0.3201},
+    "Free Cerberus": {"Human": 0.5099, "Hard Human": 0.4365, "Animal": 0.4196},
+    "Cerberus": {"Human": 0.4970, "Hard Human": 0.4728, "Animal": 0.4255},
+}
+
+
+def load(runs: Path, dataset: str, variant: str) -> tuple[dict | None, list[dict]]:
+    """The run's ``results.json`` (or None) and its ``metrics.csv`` rows (or [])."""
+    run = runs / f"{dataset}_{variant}"
+    res = run / "eval" / "results.json"
+    results = json.loads(res.read_text()) if res.is_file() else None
+    log = run / "metrics.csv"
+    rows = list(csv.DictReader(log.open())) if log.is_file() else []
+    return results, rows
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 1:
+        print(__doc__, file=sys.stderr)
+        return 2
+    runs = Path(argv[0])
+    ours: dict[str, dict[str, float | None]] = {}
+    quality, cost = [], []
+    for variant, label in VARIANTS.items():
+        human, human_log = load(runs, "human", variant)
+        animal, animal_log = load(runs, "animal", variant)
+        hard = (human or {}).get("hard") or {}
+        ours[label] = {"Human": (human or {}).get("standard", {}).get("mean"),
+                       "Hard Human": hard.get("mean") if variant != "nmrr" else None,
+                       "Animal": (animal or {}).get("standard", {}).get("mean")}
+        for name, res in (("Human", human), ("Animal", animal)):
+            pq = (res or {}).get("part_quality") or {}
+            quality.append([f"{label}, {name}", pq.get("consistency"), pq.get("mean_entropy_bits"),
+                            pq.get("mean_segmentation_iou"), len(pq.get("unused_parts", []) or [])
+                            if pq else None])
+        for name, log in (("Human", human_log), ("Animal", animal_log)):
+            if log:
+                last = log[-1]
+                tail = log[-max(1, len(log) // 20):]  # last 5% of the logged steps
+                recon = sum(float(r["recon"]) for r in tail) / len(tail)
+                cost.append([f"{label}, {name}", int(last["step"]), float(last["elapsed_s"]) / 60,
+                             int(last["step"]) / float(last["elapsed_s"]), recon])
+            else:
+                cost.append([f"{label}, {name}", None, None, None, None])
+    columns = ["Human", "Hard Human", "Animal"]
+    print("### Voxel IoU (32^3, kato protocol, union of parts), ours\n")
+    print(comparison_table(ours, columns))
+    print("\n### The paper's Table 1\n")
+    print(comparison_table(PAPER, columns))
+    print("\n### Part quality against the ground-truth parts (never seen in training)\n")
+    print(markdown_table(["Run", "consistency", "entropy (bits)", "mean segmentation IoU", "unused parts"],
+                         quality, digits=3))
+    print("\n### Training\n")
+    print(markdown_table(["Run", "steps", "wall time (min)", "steps/s", "final recon MSE"], cost, digits=4))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
