@@ -26,7 +26,6 @@ from cerberus_core.data.plan import GenerationConfig, SplitConfig, make_plan, pr
 from cerberus_core.data.sources import make_source
 from cerberus_core.plugins import available_renderers, make_renderer
 
-
 CPU = {"wall": 0.0, "cpu": 0.0}
 """Totals of wall-clock and process CPU seconds over every timed call (to report machine contention)."""
 

@@ -39,13 +39,13 @@ def bench(preset: str, data_root: Path, steps: int, warmup: int, batch_size: int
     from cerberus_core.camera import Camera
     from cerberus_core.data.dataset import QuadrupletDataset
     from cerberus_core.data.scene import SceneSetup
+    from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.model import Cerberus
     from cerberus_core.plugins import make_renderer
     from cerberus_core.render.api import render_parts
     from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
     from cerberus_core.train.objective import partner_cameras, quadruplet_objective, unwrap
-    from cerberus_core.losses import viewpoint_scenes
 
     cfg = load_config(preset=preset)
     data = QuadrupletDataset(data_root)

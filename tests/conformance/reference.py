@@ -32,7 +32,7 @@ class PinholeCamera:
 
     @classmethod
     def orbit(cls, azimuth_deg: float, elevation_deg: float, distance: float, fov_y_deg: float,
-              height: int, width: int) -> "PinholeCamera":
+              height: int, width: int) -> PinholeCamera:
         az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
         eye = distance * np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
         return cls(eye, np.zeros(3), fov_y_deg, height, width)

@@ -5,8 +5,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from cerberus_core.eval.part_quality import (PartQualityAccumulator, assign_to_parts, image_overlap,
-                                             overlap_matrix, surface_samples, vertex_areas)
+from cerberus_core.eval.part_quality import (
+    PartQualityAccumulator,
+    assign_to_parts,
+    image_overlap,
+    overlap_matrix,
+    surface_samples,
+    vertex_areas,
+)
 
 
 def _parts(body):

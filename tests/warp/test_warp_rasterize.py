@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import pytest
 import torch
+from warp_scenes import clip_scene
 
 from cerberus_render_torch import rasterize as torch_rasterize
 from cerberus_render_warp import rasterize
 from cerberus_render_warp.arith import torch_cross_is_fused
-
-from warp_scenes import clip_scene
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])

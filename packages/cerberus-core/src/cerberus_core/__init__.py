@@ -6,8 +6,8 @@ backends live in separate packages found through the ``cerberus.renderers`` entr
 """
 from cerberus_core.camera import Camera
 from cerberus_core.plugins import available_renderers, make_renderer
-from cerberus_core.render.interface import Light, RenderOutput, Renderer
 from cerberus_core.render.api import render, render_parts
+from cerberus_core.render.interface import Light, Renderer, RenderOutput
 from cerberus_core.templates import MeshTemplate, icosphere
 
 __version__ = "0.1.0"

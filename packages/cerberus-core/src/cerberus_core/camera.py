@@ -127,7 +127,7 @@ class Camera:
         near: float = 0.05,
         far: float = 100.0,
         device: torch.device | str | None = None,
-    ) -> "Camera":
+    ) -> Camera:
         """Cameras on a sphere around ``target`` (default the origin), looking at it, +Y up.
 
         Scalars broadcast against tensors; the batch size is the largest of the inputs.
@@ -165,17 +165,17 @@ class Camera:
         """``(B,)`` normalised focal length ``f = 1 / tan(fov_y / 2)``."""
         return 1.0 / torch.tan(torch.deg2rad(self.fov_y_deg) / 2)
 
-    def to(self, device: torch.device | str) -> "Camera":
+    def to(self, device: torch.device | str) -> Camera:
         return Camera(self.rotation.to(device), self.translation.to(device), self.fov_y_deg.to(device),
                       self.height, self.width, self.near, self.far)
 
-    def index(self, idx: Tensor | slice | list[int]) -> "Camera":
+    def index(self, idx: Tensor | slice | list[int]) -> Camera:
         """A sub-batch of cameras."""
         return Camera(self.rotation[idx], self.translation[idx], self.fov_y_deg[idx],
                       self.height, self.width, self.near, self.far)
 
     @staticmethod
-    def cat(cameras: list["Camera"]) -> "Camera":
+    def cat(cameras: list[Camera]) -> Camera:
         """Concatenate camera batches that share image size and clipping planes."""
         first = cameras[0]
         for c in cameras[1:]:

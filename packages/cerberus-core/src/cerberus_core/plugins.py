@@ -13,8 +13,9 @@ Failure modes are explicit:
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import entrypoints
 

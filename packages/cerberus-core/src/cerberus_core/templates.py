@@ -45,11 +45,11 @@ class MeshTemplate:
     def num_faces(self) -> int:
         return self.faces.shape[0]
 
-    def to(self, device: torch.device | str) -> "MeshTemplate":
+    def to(self, device: torch.device | str) -> MeshTemplate:
         return MeshTemplate(*(getattr(self, k).to(device) for k in ("vertices", "faces", "edges", "dihedral", "neighbours")))
 
     @classmethod
-    def from_trimesh(cls, mesh: trimesh.Trimesh) -> "MeshTemplate":
+    def from_trimesh(cls, mesh: trimesh.Trimesh) -> MeshTemplate:
         """Build a template (with its connectivity) from any closed trimesh."""
         if len(mesh.faces) == 0:
             raise ValueError("MeshTemplate needs a mesh with at least one face")

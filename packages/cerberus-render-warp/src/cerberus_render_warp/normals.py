@@ -13,8 +13,15 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
-from cerberus_render_warp._runtime import (as_warp, items_per_thread, launch_scenes, launch_stream, vec_view,
-                                          warp_device, wp)
+from cerberus_render_warp._runtime import (
+    as_warp,
+    items_per_thread,
+    launch_scenes,
+    launch_stream,
+    vec_view,
+    warp_device,
+    wp,
+)
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
 
 wp.set_module_options({"fuse_fp": False, "enable_backward": False})

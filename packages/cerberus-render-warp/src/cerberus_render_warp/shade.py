@@ -20,8 +20,15 @@ from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.interface import Light
 from cerberus_core.render.shading import pixel_ndc
-from cerberus_render_warp._runtime import (as_warp, items_per_thread, launch_scenes, launch_stream, vec_view,
-                                          warp_device, wp)
+from cerberus_render_warp._runtime import (
+    as_warp,
+    items_per_thread,
+    launch_scenes,
+    launch_stream,
+    vec_view,
+    warp_device,
+    wp,
+)
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
 from cerberus_render_warp.rasterize import check_inputs
 

@@ -13,8 +13,8 @@ keeps part shapes identical across poses, which pose consistency relies on.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 

@@ -11,8 +11,9 @@ shards are opened lazily in each process with ``np.load(mmap_mode="r")``.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 import torch

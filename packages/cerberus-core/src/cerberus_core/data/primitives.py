@@ -15,9 +15,9 @@ each pose is centred on its own bounding-box centre.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Sequence
 
 import numpy as np
 import trimesh

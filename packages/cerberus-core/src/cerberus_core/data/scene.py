@@ -116,7 +116,7 @@ class SceneSetup:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "SceneSetup":
+    def from_dict(cls, d: dict) -> SceneSetup:
         keys = {"elevation", "fov_y", "distance", "ambient", "diffuse", "albedo", "background", "near", "far",
                 "fitted_extent"}
         return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})

@@ -13,8 +13,9 @@ Sources: ``human`` (anny, :mod:`cerberus_core.data.human`), ``animal`` (procedur
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 from cerberus_core.data.body import PosedBody
 

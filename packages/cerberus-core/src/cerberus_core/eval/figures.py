@@ -11,8 +11,8 @@ Table 2 columns: input, any number of baselines, ours, parts, turn (ours from an
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import torch
 from PIL import Image, ImageDraw, ImageFont

@@ -11,8 +11,8 @@ canonical pose are scored like any pose.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 from cerberus_core.eval.reconstruction import PartReconstruction, transfer_pose
 

@@ -22,9 +22,9 @@ other size                         resized (Lanczos) to the model's image size
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import torch

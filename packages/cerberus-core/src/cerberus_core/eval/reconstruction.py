@@ -53,7 +53,7 @@ class PartReconstruction:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_posed(cls, vertices: Tensor, faces: Tensor) -> "PartReconstruction":
+    def from_posed(cls, vertices: Tensor, faces: Tensor) -> PartReconstruction:
         """Wrap meshes already in world coordinates (identity rotations, zero translations).
 
         Useful for baselines that predict one mesh per image (``P = 1``, e.g. NMR) or for ground
@@ -89,22 +89,22 @@ class PartReconstruction:
         return self.local_vertices @ self.rotation.transpose(-1, -2) + self.translation.unsqueeze(-2)
 
     # ------------------------------------------------------------------ batch handling
-    def index(self, idx: int | slice | list[int] | Tensor) -> "PartReconstruction":
+    def index(self, idx: int | slice | list[int] | Tensor) -> PartReconstruction:
         """A sub-batch (an ``int`` keeps a batch dimension of 1)."""
         if isinstance(idx, int):
             idx = slice(idx, idx + 1) if idx != -1 else slice(-1, None)
         return PartReconstruction(self.local_vertices[idx], self.faces, self.rotation[idx], self.translation[idx])
 
-    def to(self, device: torch.device | str) -> "PartReconstruction":
+    def to(self, device: torch.device | str) -> PartReconstruction:
         return PartReconstruction(self.local_vertices.to(device), self.faces.to(device), self.rotation.to(device),
                                   self.translation.to(device))
 
-    def detach(self) -> "PartReconstruction":
+    def detach(self) -> PartReconstruction:
         return PartReconstruction(self.local_vertices.detach(), self.faces.detach(), self.rotation.detach(),
                                   self.translation.detach())
 
     @staticmethod
-    def cat(items: list["PartReconstruction"]) -> "PartReconstruction":
+    def cat(items: list[PartReconstruction]) -> PartReconstruction:
         """Concatenate batches that share the face template."""
         first = items[0]
         for it in items[1:]:

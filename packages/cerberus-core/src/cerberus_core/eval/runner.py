@@ -16,8 +16,9 @@ cameras of a collated batch); and ``ds.gt_mesh(i) -> PosedBody``. Optional: ``ds
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import torch

@@ -11,8 +11,8 @@ Frames: a part's local vertices ``x`` (deformed sphere) map to the camera frame 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import torch
 from torch import nn

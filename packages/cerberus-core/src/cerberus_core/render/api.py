@@ -11,12 +11,12 @@ torch.Size([1, 3, 64, 64])
 """
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import torch
 
 from cerberus_core.camera import Camera
-from cerberus_core.render.interface import Light, RenderOutput, Renderer
+from cerberus_core.render.interface import Light, Renderer, RenderOutput
 
 Tensor = torch.Tensor
 

@@ -52,7 +52,7 @@ class Light:
     diffuse: Tensor
 
     @classmethod
-    def white(cls, direction: Tensor, ambient: float = 0.4, diffuse: float = 0.6) -> "Light":
+    def white(cls, direction: Tensor, ambient: float = 0.4, diffuse: float = 0.6) -> Light:
         """White light from ``direction`` ``(B, 3)`` (normalised here)."""
         d = torch.nn.functional.normalize(direction, dim=-1)
         b = d.shape[0]
@@ -60,11 +60,11 @@ class Light:
         return cls(d, ones * ambient, ones * diffuse)
 
     @classmethod
-    def following(cls, camera, ambient: float = 0.4, diffuse: float = 0.6) -> "Light":
+    def following(cls, camera, ambient: float = 0.4, diffuse: float = 0.6) -> Light:
         """White light shining along each camera's viewing direction (the paper's set-up)."""
         return cls.white(camera.view_direction(), ambient, diffuse)
 
-    def index(self, idx) -> "Light":
+    def index(self, idx) -> Light:
         return Light(self.direction[idx], self.ambient[idx], self.diffuse[idx])
 
 

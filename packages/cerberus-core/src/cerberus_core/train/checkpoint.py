@@ -22,7 +22,6 @@ import torch
 from safetensors.torch import load_file, save
 
 from cerberus_core.atomic import atomic_write
-
 from cerberus_core.model.cerberus import Cerberus
 
 if TYPE_CHECKING:

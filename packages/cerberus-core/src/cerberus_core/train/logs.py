@@ -12,17 +12,17 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import torch
 from PIL import Image, ImageDraw
 
+from cerberus_core.atomic import atomic_write_text
 from cerberus_core.camera import Camera
+from cerberus_core.data.scene import SceneSetup
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.interface import Renderer
-from cerberus_core.atomic import atomic_write_text
-from cerberus_core.data.scene import SceneSetup
 from cerberus_core.viz import atomic_save_png, part_colors, save_image_grid
 
 Tensor = torch.Tensor

@@ -11,8 +11,8 @@ averaged over the batch (:mod:`cerberus_core.losses` defines every term).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import torch
 from torch import nn
