@@ -5,7 +5,7 @@ shading, plugin discovery, and (in sub-packages) data, model, training and evalu
 backends live in separate packages found through the ``cerberus.renderers`` entry-point group.
 """
 from cerberus_core.camera import Camera
-from cerberus_core.plugins import available_renderers, make_renderer
+from cerberus_core.plugins import available_renderers, make_renderer, resolve_renderer
 from cerberus_core.render.api import render, render_parts
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 from cerberus_core.templates import MeshTemplate, icosphere
@@ -21,6 +21,7 @@ __all__ = [
     "available_renderers",
     "icosphere",
     "make_renderer",
+    "resolve_renderer",
     "render",
     "render_parts",
 ]

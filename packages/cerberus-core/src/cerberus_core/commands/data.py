@@ -38,7 +38,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--test-subjects", help="folder: comma-separated test subject names (default: --test-fraction)")
     g.add_argument("--test-fraction", type=float, default=0.3,
                    help="folder: fraction of subjects (last in sorted order) held out for testing (default 0.3)")
-    g.add_argument("--renderer", default="torch", help="renderer backend: torch or warp (default: torch)")
+    g.add_argument("--renderer", default="auto",
+                   help="renderer backend: warp, torch or auto (default: auto, warp if it works, else torch)")
     g.add_argument("--image-size", type=int, default=64, help="image size in pixels (default 64; 128 available)")
     g.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
     g.add_argument("--shard-images", type=int, default=1024, help="images per shard (default 1024)")
@@ -65,7 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--count", type=int, default=8, help="rows (default 8)")
     s.add_argument("--parts", action="store_true", help="add ground-truth part renderings")
     s.add_argument("--scale", type=int, default=2, help="tile upscaling (default 2)")
-    s.add_argument("--renderer", default="torch", help="backend for --parts (default torch)")
+    s.add_argument("--renderer", default="auto", help="backend for --parts (default auto: warp, else torch)")
     s.set_defaults(func=run_show)
 
 

@@ -33,7 +33,7 @@ from cerberus_core.data.format import (
 from cerberus_core.data.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
 from cerberus_core.data.scene import SceneSetup
 from cerberus_core.data.sources import BodySource, make_source
-from cerberus_core.plugins import make_renderer
+from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Renderer
 
@@ -235,7 +235,8 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
     source_options = dict(source_options or {})
     if source is None:
         source = make_source(config.dataset, **source_options)
-    config = replace(config, source=_jsonable(source.describe()))
+    # The manifest names the backend that drew the images (``auto`` resolved).
+    config = replace(config, source=_jsonable(source.describe()), renderer=resolve_renderer(config.renderer))
     cfg = _jsonable(config.to_dict())
     resume = _prepare(out, cfg, overwrite, log)
     clean_temporaries(out)

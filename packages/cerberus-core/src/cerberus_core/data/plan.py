@@ -87,7 +87,7 @@ class GenerationConfig:
         splits: split name → :class:`SplitConfig`, in generation order.
         seed: the seed every random choice derives from.
         image_size: square image size in pixels.
-        renderer: renderer backend name (``make_renderer``).
+        renderer: renderer backend name (``make_renderer``; ``auto``: warp if it works, else torch).
         scene: the scene set-up.
         shard_images: target images per shard (a grid training subject is never split).
         source: the body source's :meth:`BodySource.describe` (versions, content fingerprints).
@@ -98,7 +98,7 @@ class GenerationConfig:
     splits: dict[str, SplitConfig]
     seed: int = 0
     image_size: int = 64
-    renderer: str = "torch"
+    renderer: str = "auto"
     scene: SceneSetup = field(default_factory=SceneSetup)
     shard_images: int = 1024
     source: dict[str, Any] = field(default_factory=dict)

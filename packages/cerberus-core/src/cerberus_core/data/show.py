@@ -35,7 +35,7 @@ def _evenly(n_items: int, count: int) -> list[int]:
 
 
 def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, parts: bool = False,
-                  renderer: str = "torch", scale: int = 2) -> Image.Image:
+                  renderer: str = "auto", scale: int = 2) -> Image.Image:
     """A picture of ``count`` rows of a split.
 
     Rows are quadruplets ``a0 a1 b0 b1`` when the split has quadruplets, else the views of one pose

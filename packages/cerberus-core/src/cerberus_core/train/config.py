@@ -112,13 +112,14 @@ class TrainConfig:
         threads: CPU threads of each training process (``torch.set_num_threads``); ``null`` keeps
             PyTorch's default (all cores). On a machine shared with other jobs, 1 thread can be many
             times faster than an oversubscribed default.
-        renderer: renderer backend by entry-point name (``torch``, ``warp``).
+        renderer: renderer backend by entry-point name (``torch``, ``warp``), or ``auto`` (Warp if it
+            works, else torch; the run's saved config names the one used).
     """
 
     seed: int = 0
     device: str = "auto"
     threads: int | None = None
-    renderer: str = "torch"
+    renderer: str = "auto"
     data: DataConfig = field(default_factory=DataConfig)
     model: ModelConfig = field(default_factory=ModelConfig)
     losses: LossConfig = field(default_factory=LossConfig)

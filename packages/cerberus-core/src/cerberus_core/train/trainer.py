@@ -37,7 +37,7 @@ from tqdm import tqdm
 from cerberus_core.atomic import atomic_write_text
 from cerberus_core.data.scene import SceneSetup
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plugins import make_renderer
+from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
     LAST,
     checkpoint_dir,
@@ -203,6 +203,7 @@ class _Trainer:
         if config.model.depth_offset == "auto":
             config.model.depth_offset = self.scene.distance
         self.image_size = config.data.image_size or int(self.dataset.image_size)
+        config.renderer = resolve_renderer(config.renderer)  # the saved config names the backend used
         self.renderer = make_renderer(config.renderer)
 
     # ------------------------------------------------------------------ set-up
