@@ -96,6 +96,11 @@ def icosphere(level: int = 2, radius: float = 1.0) -> MeshTemplate:
     return MeshTemplate(t.vertices * radius, t.faces, t.edges, t.dihedral, t.neighbours)
 
 
+NORMAL_EPS = 1e-12
+"""The ``eps`` of every normalisation of a normal (``torch.nn.functional.normalize``): vertex normals
+here, interpolated normals in the shading; backends that compute them in kernels use the same."""
+
+
 def vertex_normals(vertices: Tensor, faces: Tensor) -> Tensor:
     """Area-weighted vertex normals, differentiable.
 
@@ -112,4 +117,4 @@ def vertex_normals(vertices: Tensor, faces: Tensor) -> Tensor:
     normals = torch.zeros_like(vertices)
     idx = faces.reshape(-1)
     normals = normals.index_add(1, idx, face_n.repeat_interleave(3, dim=1))
-    return torch.nn.functional.normalize(normals, dim=-1, eps=1e-12)
+    return torch.nn.functional.normalize(normals, dim=-1, eps=NORMAL_EPS)

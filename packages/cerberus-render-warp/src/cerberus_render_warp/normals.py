@@ -4,7 +4,8 @@
 Core's torch version (gathers, cross product, ``index_add``, normalize, and their autograd
 backward) is the largest cost left around a fast backend in the training render; this fused version
 computes the same thing: per face ``n_f = (v1 - v0) x (v2 - v0)`` summed onto its three vertices in
-face order, then ``normalize(eps=1e-12)``. Core does not call it yet (see the package README).
+face order, then ``normalize(eps=NORMAL_EPS)``. :class:`~cerberus_render_warp.WarpRenderer` offers it
+as the renderer interface's ``vertex_normals``, which :func:`cerberus_core.render.render` calls.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
+from cerberus_core.templates import NORMAL_EPS
 from cerberus_render_warp._runtime import (
     as_warp,
     items_per_thread,
@@ -27,9 +29,6 @@ from cerberus_render_warp.arith import cross, torch_cross_is_fused
 wp.set_module_options({"fuse_fp": False, "enable_backward": False})
 
 Tensor = torch.Tensor
-
-NORMAL_EPS = 1e-12
-"""The ``eps`` of ``torch.nn.functional.normalize`` in core's ``vertex_normals``."""
 
 
 @wp.func

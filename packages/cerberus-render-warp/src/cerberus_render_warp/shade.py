@@ -20,6 +20,7 @@ from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.interface import Light
 from cerberus_core.render.shading import pixel_ndc
+from cerberus_core.templates import NORMAL_EPS
 from cerberus_render_warp._runtime import (
     as_warp,
     items_per_thread,
@@ -35,9 +36,6 @@ from cerberus_render_warp.rasterize import check_inputs
 wp.set_module_options({"fuse_fp": False, "enable_backward": False})
 
 Tensor = torch.Tensor
-
-NORMAL_EPS = 1e-12
-"""The ``eps`` of ``torch.nn.functional.normalize`` in the reference shading."""
 
 
 @wp.func

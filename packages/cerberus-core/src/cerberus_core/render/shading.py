@@ -13,6 +13,7 @@ from __future__ import annotations
 import torch
 
 from cerberus_core.render.interface import Light
+from cerberus_core.templates import NORMAL_EPS
 
 Tensor = torch.Tensor
 
@@ -90,7 +91,7 @@ def lambert(normal: Tensor, albedo: Tensor, direction: Tensor, ambient: Tensor, 
     Returns:
         ``(N, 3)`` RGB.
     """
-    n = torch.nn.functional.normalize(normal, dim=-1, eps=1e-12)
+    n = torch.nn.functional.normalize(normal, dim=-1, eps=NORMAL_EPS)
     cos = (n * direction).sum(-1, keepdim=True).clamp_min(0.0)
     return albedo * (ambient + diffuse * cos)
 
