@@ -1,14 +1,14 @@
 """Training speed: steps per second of the ``cpu`` preset and of the ``paper`` preset's network, and
 the share of each step spent rendering.
 
-For each preset the script builds the model and optimiser, takes one batch of the preset's batch size
+For each preset and each renderer backend (``--renderers``, default torch and warp) the script builds the model and optimiser, takes one batch of the preset's batch size
 from a small ``primitives`` dataset rendered at the preset's training resolution (generated into a
 temporary folder, or ``--data ROOT``), runs a few warm-up steps, then times full optimisation steps
 (objective, backward, Adam). The rendering share is the time of the step's render call alone
 (forward and backward of ``render_parts`` on the same scenes, all 8 B of them) over the step time.
 
-    python benchmarks/bench_train.py                 # 2 threads, both presets
-    python benchmarks/bench_train.py --threads 1 --steps 5
+    python benchmarks/bench_train.py                 # 2 threads, both presets, both backends
+    python benchmarks/bench_train.py --threads 1 --steps 5 --renderers warp
 
 Timings on a shared machine are noisy: the load average is printed with the results.
 """
@@ -35,13 +35,13 @@ def make_data(root: Path, image_size: int) -> Path:
     return root
 
 
-def bench(preset: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
+def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
     from cerberus_core.camera import Camera
     from cerberus_core.data.dataset import QuadrupletDataset
     from cerberus_core.data.scene import SceneSetup
     from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.model import Cerberus
-    from cerberus_core.plugins import make_renderer
+    from cerberus_core.plugins import make_renderer, resolve_renderer
     from cerberus_core.render.api import render_parts
     from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
@@ -56,7 +56,8 @@ def bench(preset: str, data_root: Path, steps: int, warmup: int, batch_size: int
     torch.manual_seed(0)
     model = Cerberus(cfg.model)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
-    renderer = make_renderer(cfg.renderer)
+    renderer_name = resolve_renderer(renderer_name)
+    renderer = make_renderer(renderer_name)
     raw = torch.utils.data.default_collate([data[i % len(data)] for i in range(bsz)])
     batch = quadruplet_batch(raw, torch.device("cpu"), scene, size)
 
@@ -98,7 +99,7 @@ def bench(preset: str, data_root: Path, steps: int, warmup: int, batch_size: int
     for _ in range(steps):
         render_once()
     render_s = (time.perf_counter() - t0) / steps
-    return {"preset": preset, "batch": bsz, "size": size, "width": cfg.model.width, "images": 4 * bsz,
+    return {"preset": preset, "renderer": renderer_name, "batch": bsz, "size": size, "width": cfg.model.width, "images": 4 * bsz,
             "renders": verts.shape[0], "step_s": step_s, "steps_per_s": 1 / step_s, "render_s": render_s,
             "render_share": render_s / step_s}
 
@@ -107,6 +108,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--presets", nargs="+", default=["cpu", "paper"], help="training presets to time")
+    p.add_argument("--renderers", nargs="+", default=["torch", "warp"],
+                   help="renderer backends to time each preset with (default: torch warp; 'auto' as training picks)")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
     p.add_argument("--steps", type=int, default=5, help="timed steps per preset")
     p.add_argument("--warmup", type=int, default=2, help="untimed steps first")
@@ -125,23 +128,30 @@ def main() -> None:
                 root = Path(tmp) / f"prim{size}"
                 if not root.exists():
                     make_data(root, size)
-            rows.append(bench(preset, root, args.steps, args.warmup, args.batch_size))
-            r = rows[-1]
-            print(f"  {preset}: {r['step_s']:.3f} s/step", flush=True)
+            for name in args.renderers:
+                rows.append(bench(preset, name, root, args.steps, args.warmup, args.batch_size))
+                r = rows[-1]
+                print(f"  {preset} / {r['renderer']}: {r['step_s']:.3f} s/step", flush=True)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} "
           f"(on {os.cpu_count()} CPUs), {args.steps} timed steps after {args.warmup} warm-up")
-    head = f"{'preset':<14}{'batch':>6}{'px':>5}{'width':>6}{'images':>7}{'renders':>8}{'s/step':>9}" \
+    head = f"{'preset':<14}{'renderer':>9}{'batch':>6}{'px':>5}{'width':>6}{'images':>7}{'renders':>8}{'s/step':>9}" \
            f"{'steps/s':>9}{'render s':>10}{'render %':>9}"
     print(head)
     print("-" * len(head))
     for r in rows:
-        print(f"{r['preset']:<14}{r['batch']:>6}{r['size']:>5}{r['width']:>6}{r['images']:>7}{r['renders']:>8}"
+        print(f"{r['preset']:<14}{r['renderer']:>9}{r['batch']:>6}{r['size']:>5}{r['width']:>6}{r['images']:>7}{r['renders']:>8}"
               f"{r['step_s']:>9.3f}{r['steps_per_s']:>9.3f}{r['render_s']:>10.3f}{100 * r['render_share']:>8.1f}%")
-    if len(rows) > 1:
-        base = rows[0]
-        for r in rows[1:]:
-            print(f"{r['preset']} step / {base['preset']} step: {r['step_s'] / base['step_s']:.2f}x")
+    base = {r["renderer"]: r for r in rows if r["preset"] == rows[0]["preset"]}
+    for r in rows:
+        if r["preset"] != rows[0]["preset"] and r["renderer"] in base:
+            print(f"{r['preset']} step / {rows[0]['preset']} step ({r['renderer']}): "
+                  f"{r['step_s'] / base[r['renderer']]['step_s']:.2f}x")
+    by = {(r["preset"], r["renderer"]): r for r in rows}
+    for preset in dict.fromkeys(r["preset"] for r in rows):
+        if (preset, "torch") in by and (preset, "warp") in by:
+            print(f"{preset}: torch step / warp step = "
+                  f"{by[preset, 'torch']['step_s'] / by[preset, 'warp']['step_s']:.2f}")
 
 
 if __name__ == "__main__":

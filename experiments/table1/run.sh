@@ -27,4 +27,9 @@ export -f one
 printf '%s\n' human_cerberus human_nmrr human_free_cerberus animal_cerberus animal_free_cerberus animal_nmrr \
   | xargs -P "$JOBS" -I{} bash -c 'one {} '"$RUNS"
 python experiments/table1/table.py "$RUNS" > "$RUNS/table1.md"
+for ds in human animal; do  # the paper's Table 2 layout: input, baselines, ours, parts, turntable
+  cerberus eval "$RUNS/${ds}_cerberus" --data "data/$ds" --out "$RUNS/${ds}_figure" --no-part-quality \
+    --baseline NMRr="$RUNS/${ds}_nmrr" --baseline "Free Cerberus=$RUNS/${ds}_free_cerberus" > "$RUNS/${ds}_figure.log" 2>&1
+done
 cat "$RUNS/table1.md"
+echo "figures: $RUNS/human_figure/table2.png $RUNS/animal_figure/table2.png"
