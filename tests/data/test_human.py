@@ -204,3 +204,17 @@ def test_bad_input_is_rejected(source, subject):
         source.pose(subject, np.zeros((2, len(DOF_NAMES))), [0])
     with pytest.raises(ValueError, match=">= 0"):
         source.pose_params(subject, [-1])
+
+
+def test_loading_the_body_model_prints_nothing():
+    """anny skins with Warp; its banner and the CUDA-driver note must not reach the user."""
+    import subprocess
+    import sys
+
+    code = ("from cerberus_core.data.human import HumanBodySource, sample_subjects\n"
+            "s = HumanBodySource()\n"
+            "(b,) = s.posed_bodies(sample_subjects(1, 0, 'test')[0], [0])\n"
+            "assert len(b.vertices) > 1000\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout == "" and res.stderr == "", (res.stdout, res.stderr)

@@ -5,15 +5,14 @@ install in the message) but does not initialise it; :func:`ensure_init` does tha
 """
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import torch
+
+from cerberus_core.quiet_warp import init_warp_quietly, quiet_warp_logging
 
 WARP_REQUIREMENT = "warp-lang>=1.19"
 
@@ -25,44 +24,13 @@ except ImportError as exc:  # pragma: no cover - exercised only without warp ins
         f"Install it with `pip install '{WARP_REQUIREMENT}'`, or use the 'torch' renderer."
     ) from exc
 
-# Quiet by default: no banner on init, no "module loaded/compiled" lines (older Warp: config.quiet).
-if hasattr(wp.config, "log_level") and hasattr(wp, "LOG_WARNING"):
-    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
-if hasattr(wp.config, "quiet"):
-    wp.config.quiet = True
-
-_CUDA_DRIVER_NOTE = "Could not find or load the NVIDIA CUDA driver"
+quiet_warp_logging(wp)  # no banner on init, no "module loaded/compiled" lines
 _init_lock = threading.Lock()
 _initialised = False
 
 
 class WarpInitError(RuntimeError):
     """Warp is installed but its runtime could not be initialised."""
-
-
-def _init_silently() -> None:
-    """``wp.init()`` with the native CUDA-driver warning dropped on CPU-only machines.
-
-    Warp prints that warning from C code straight to file descriptor 2 when no NVIDIA driver is
-    present; it is noise when torch has no CUDA either. Anything else Warp writes is passed on.
-    """
-    if torch.cuda.is_available():
-        wp.init()
-        return
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile(mode="w+b") as capture:
-        os.dup2(capture.fileno(), 2)
-        try:
-            wp.init()
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        capture.seek(0)
-        lines = capture.read().decode("utf-8", "replace").splitlines(keepends=True)
-    rest = "".join(line for line in lines if _CUDA_DRIVER_NOTE not in line)
-    if rest:
-        sys.stderr.write(rest)
 
 
 def ensure_init() -> None:
@@ -74,7 +42,7 @@ def ensure_init() -> None:
         if _initialised:
             return
         try:
-            _init_silently()
+            init_warp_quietly()
         except Exception as exc:  # noqa: BLE001 - any init failure gets the same hint
             raise WarpInitError(
                 f"NVIDIA Warp failed to initialise ({type(exc).__name__}: {exc}). Reinstall it with "

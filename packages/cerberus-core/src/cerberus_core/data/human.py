@@ -393,6 +393,9 @@ class HumanBodySource:
             import torch
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise ImportError("HumanBodySource needs the 'anny' package: pip install 'cerberus-core[human]'") from exc
+        from cerberus_core.quiet_warp import init_warp_quietly
+
+        init_warp_quietly()  # anny skins with Warp: start it without the banner and the CUDA-driver note
         self._torch = torch
         self.device = torch.device(device)
         self.model = anny.Anny(rig="anny", topology="anny", pose_parameterization="local-ref").to(self.device)
