@@ -27,6 +27,30 @@ def test_shape_head_shapes_and_initial_sphere():
     assert torch.allclose(radius, torch.full_like(radius, 0.12), atol=0.01)
 
 
+def test_bounded_shape_head_starts_at_the_template_and_never_leaves_the_box():
+    t = icosphere(2)
+    head = ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, displacement_scale=0.05, vertex_bound=0.5)
+    torch.nn.init.zeros_(head.to_displacement.weight)
+    s = head.latent(torch.randn(2, 16))
+    assert torch.allclose(head.deform(s), 0.3 * t.vertices.expand(2, 1, -1, -1), atol=1e-6)
+    torch.nn.init.normal_(head.to_displacement.weight, std=1e3)  # displacements of hundreds of units
+    s = head.latent(torch.randn(2, 16))
+    v = head.deform(s)
+    assert v.abs().max() <= 0.5 and torch.isfinite(v).all()  # tanh may round to 1 in float32
+    v.sum().backward()
+    assert torch.isfinite(head.to_displacement.weight.grad).all()
+    # Small displacements pass almost unchanged (slope 1 - (t/b)^2 of tanh at the template).
+    unbounded = ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, displacement_scale=0.05)
+    bounded = ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, displacement_scale=0.05, vertex_bound=0.5)
+    bounded.load_state_dict(unbounded.state_dict())
+    z = unbounded.latent(torch.randn(1, 16))
+    d_unb = unbounded.deform(z) - unbounded.template
+    d_b = bounded.deform(z) - bounded.template
+    assert torch.allclose(d_b, d_unb, atol=1e-3 * float(d_unb.abs().max()) + 1e-9, rtol=0.7)
+    with pytest.raises(ValueError, match="must exceed init_scale"):
+        ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, vertex_bound=0.3)
+
+
 def test_rotation_head_unit_quaternions_identity_init_and_valid_rotations():
     head = RotationHead(32, 5)
     q, r = head(torch.randn(4, 32))

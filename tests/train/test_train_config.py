@@ -27,6 +27,7 @@ def test_variant_presets_differ_from_paper_only_where_the_variant_says():
     assert config_diff(paper, load_config(preset="free_cerberus")) == ["losses.pose_consistency"]
     nmrr = load_config(preset="nmrr")
     assert (nmrr.model.num_parts, nmrr.model.sphere_level, nmrr.model.predict_rotation) == (1, 3, False)
+    assert nmrr.model.vertex_bound == 0.5 and load_config(preset="paper").model.vertex_bound is None
     assert not nmrr.losses.pose_consistency and nmrr.losses.smoothness > 0
     assert all(k.startswith(("model.", "losses.")) for k in config_diff(paper, nmrr))
 

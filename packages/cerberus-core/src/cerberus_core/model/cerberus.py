@@ -38,6 +38,10 @@ class ModelConfig:
         init_scale: radius of each part's initial sphere (world units).
         displacement_scale: output scale of the vertex-displacement map (a per-layer learning
             rate under Adam, see :class:`~cerberus_core.model.heads.ShapeHead`).
+        vertex_bound: ``null`` (the paper's Cerberus: displacements added to the template as they
+            are) or ``b > init_scale``: every local vertex coordinate is squashed into ``(-b, b)``
+            as in Kato et al.'s NMR decoder (see :class:`~cerberus_core.model.heads.ShapeHead`).
+            The NMRr preset uses 0.5, the half-size of the normalised object box.
         anchor_spread: parts start at keypoints on a grid spanning ``[-spread, spread]`` of the
             normalised image (0: all at the centre); see
             :class:`~cerberus_core.model.heads.TranslationHead`.
@@ -54,6 +58,7 @@ class ModelConfig:
     shape_latent_dim: int = 256
     init_scale: float = 0.12
     displacement_scale: float = 0.05
+    vertex_bound: float | None = None
     anchor_spread: float = 0.4
     depth_offset: float | str = "auto"
     predict_rotation: bool = True
@@ -72,6 +77,9 @@ class ModelConfig:
             raise ValueError(f"model.init_scale must be positive, got {self.init_scale!r}")
         if not self.displacement_scale > 0:
             raise ValueError(f"model.displacement_scale must be positive, got {self.displacement_scale!r}")
+        if self.vertex_bound is not None and not self.vertex_bound > self.init_scale:
+            raise ValueError(f"model.vertex_bound must be null or larger than model.init_scale "
+                             f"({self.init_scale}), got {self.vertex_bound!r}")
         if not 0 <= self.anchor_spread < 1:
             raise ValueError(f"model.anchor_spread must be in [0, 1), got {self.anchor_spread!r}")
         if isinstance(self.depth_offset, str):
@@ -168,7 +176,7 @@ class Cerberus(nn.Module):
         self.decoder = UpDecoder(self.encoder.channels)
         latent = self.encoder.out_channels
         self.shape = ShapeHead(latent, config.shape_latent_dim, config.num_parts, self.template.vertices,
-                               config.init_scale, config.displacement_scale)
+                               config.init_scale, config.displacement_scale, config.vertex_bound)
         self.rotation = RotationHead(latent, config.num_parts)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
                                            config.anchor_spread)

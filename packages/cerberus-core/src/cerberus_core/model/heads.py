@@ -42,6 +42,13 @@ class ShapeHead(nn.Module):
     moves by ``lr * ||S||_1`` per step — for a 256-dimensional latent, a sizeable fraction of a
     part's radius — and the meshes turn spiky within a few steps.
 
+    With ``vertex_bound = b`` the coordinates are squashed instead, as in Kato et al.'s NMR decoder
+    (which bounds them with a sigmoid): ``v = b * tanh(atanh(t / b) + d / b)`` for template
+    coordinate ``t`` and displacement ``d``; ``v = t`` at ``d = 0``, ``v ≈ t + d`` while ``|v| << b``,
+    and ``|v| <= b`` always. A single deformed sphere without the bound can grow past the camera: with
+    the camera inside the mesh every pixel is covered, and the barycentric renderer, which has no
+    silhouette gradient, cannot pull the surface back out (an NMRr run did this after 4,700 steps).
+
     Args:
         in_dim: object latent size.
         latent_dim: shape latent size.
@@ -49,10 +56,11 @@ class ShapeHead(nn.Module):
         template: ``(V, 3)`` unit-sphere template vertices (a buffer of this module).
         init_scale: radius of the initial sphere (world units).
         displacement_scale: the output scale of the displacement map.
+        vertex_bound: ``None`` or the bound ``b`` (world units, larger than ``init_scale``).
     """
 
     def __init__(self, in_dim: int, latent_dim: int, num_parts: int, template: Tensor, init_scale: float,
-                 displacement_scale: float = 1.0) -> None:
+                 displacement_scale: float = 1.0, vertex_bound: float | None = None) -> None:
         super().__init__()
         self.num_parts = num_parts
         self.num_vertices = template.shape[0]
@@ -62,6 +70,11 @@ class ShapeHead(nn.Module):
         nn.init.normal_(self.to_displacement.weight, std=1e-4)
         nn.init.zeros_(self.to_displacement.bias)
         self.register_buffer("template", template.float() * init_scale, persistent=False)
+        self.vertex_bound = None if vertex_bound is None else float(vertex_bound)
+        if self.vertex_bound is not None:
+            if not self.vertex_bound > init_scale:
+                raise ValueError(f"vertex_bound ({vertex_bound}) must exceed init_scale ({init_scale})")
+            self.register_buffer("template_logit", torch.atanh(self.template / self.vertex_bound), persistent=False)
 
     def latent(self, object_latent: Tensor) -> Tensor:
         """``(B, in_dim)`` → ``(B, latent_dim)`` shape latent ``S``."""
@@ -69,8 +82,12 @@ class ShapeHead(nn.Module):
 
     def deform(self, shape_latent: Tensor) -> Tensor:
         """``(B, latent_dim)`` shape latent → ``(B, N, V, 3)`` deformed part vertices (local frame)."""
-        disp = self.to_displacement(shape_latent).view(-1, self.num_parts, self.num_vertices, 3)
-        return self.template + self.displacement_scale * disp
+        disp = self.displacement_scale * self.to_displacement(shape_latent).view(-1, self.num_parts,
+                                                                                  self.num_vertices, 3)
+        if self.vertex_bound is None:
+            return self.template + disp
+        b = self.vertex_bound
+        return b * torch.tanh(self.template_logit + disp / b)
 
 
 class RotationHead(nn.Module):
