@@ -25,8 +25,7 @@ except ImportError as exc:  # pragma: no cover - exercised only without warp ins
     ) from exc
 
 quiet_warp_logging(wp)  # no banner on init, no "module loaded/compiled" lines
-_init_lock = threading.Lock()
-_initialised = False
+_pool_lock = threading.Lock()
 
 
 class WarpInitError(RuntimeError):
@@ -34,21 +33,15 @@ class WarpInitError(RuntimeError):
 
 
 def ensure_init() -> None:
-    """Initialise the Warp runtime once (thread-safe, quiet)."""
-    global _initialised
-    if _initialised:
-        return
-    with _init_lock:
-        if _initialised:
-            return
-        try:
-            init_warp_quietly()
-        except Exception as exc:  # noqa: BLE001 - any init failure gets the same hint
-            raise WarpInitError(
-                f"NVIDIA Warp failed to initialise ({type(exc).__name__}: {exc}). Reinstall it with "
-                f"`pip install --force-reinstall '{WARP_REQUIREMENT}'`, or use the 'torch' renderer."
-            ) from exc
-        _initialised = True
+    """Initialise the Warp runtime once (thread-safe, quiet: :func:`cerberus_core.quiet_warp.init_warp_quietly`,
+    which returns at once after the first success)."""
+    try:
+        init_warp_quietly()
+    except Exception as exc:  # noqa: BLE001 - any init failure gets the same hint
+        raise WarpInitError(
+            f"NVIDIA Warp failed to initialise ({type(exc).__name__}: {exc}). Reinstall it with "
+            f"`pip install --force-reinstall '{WARP_REQUIREMENT}'`, or use the 'torch' renderer."
+        ) from exc
 
 
 def warp_device(device: torch.device):
@@ -116,7 +109,7 @@ MIN_SCENES_PER_THREAD = 2
 
 def _cpu_pool(threads: int) -> ThreadPoolExecutor:
     global _pool, _pool_size
-    with _init_lock:
+    with _pool_lock:
         if _pool is None or _pool_size != threads:
             if _pool is not None:
                 _pool.shutdown(wait=False)
