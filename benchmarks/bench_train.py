@@ -26,8 +26,8 @@ import torch
 def make_data(root: Path, image_size: int) -> Path:
     from dataclasses import replace
 
-    from cerberus_core.data.generate import generate
-    from cerberus_core.data.plan import SplitConfig, preset_config
+    from cerberus_core.datasets.generate import generate
+    from cerberus_core.datasets.plan import SplitConfig, preset_config
 
     cfg = preset_config("primitives", "tiny", image_size=image_size)
     cfg = replace(cfg, splits={"train": SplitConfig("pairs", subjects=2, pairs=16, meshes=False)})
@@ -36,9 +36,9 @@ def make_data(root: Path, image_size: int) -> Path:
 
 
 def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
-    from cerberus_core.camera import Camera
-    from cerberus_core.data.dataset import QuadrupletDataset
-    from cerberus_core.data.scene import SceneSetup
+    from cerberus_core.render.camera import Camera
+    from cerberus_core.datasets.readers import QuadrupletDataset
+    from cerberus_core.datasets.scene import SceneSetup
     from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.model import Cerberus
     from cerberus_core.plugins import make_renderer, resolve_renderer

@@ -14,8 +14,8 @@ import sys
 
 import torch
 
-from cerberus_core.data.dataset import ViewDataset
-from cerberus_core.eval.reconstruction import as_part_reconstruction
+from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.parts import as_part_reconstruction
 from cerberus_core.eval.runner import collate
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts

@@ -4,8 +4,8 @@ from __future__ import annotations
 import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
-from cerberus_core.camera import Camera
-from cerberus_core.templates import icosphere
+from cerberus_core.render.camera import Camera
+from cerberus_core.render.templates import icosphere
 
 Tensor = torch.Tensor
 

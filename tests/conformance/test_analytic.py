@@ -6,10 +6,10 @@ import math
 import pytest
 import torch
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Light
-from cerberus_core.templates import icosphere
+from cerberus_core.render.templates import icosphere
 
 RADIUS, DISTANCE, FOV, SIZE, LEVEL = 0.5, 2.5, 30.0, 129, 4  # odd size: the centre pixel is on the axis
 VIEWS = [(0.0, 0.0), (37.0, 25.0), (200.0, -60.0)]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.api import render_parts
 from cerberus_core.viz import part_colors
 

@@ -1,4 +1,4 @@
-"""Camera conventions, projection and unprojection (cerberus_core.camera)."""
+"""Camera conventions, projection and unprojection (cerberus_core.render.camera)."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import pytest
 import torch
 
-from cerberus_core.camera import Camera, default_fov_for
+from cerberus_core.render.camera import Camera, default_fov_for
 
 ATOL = 1e-5
 

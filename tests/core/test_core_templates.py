@@ -1,11 +1,11 @@
-"""Icosphere templates and their connectivity (cerberus_core.templates)."""
+"""Icosphere templates and their connectivity (cerberus_core.render.templates)."""
 from __future__ import annotations
 
 import pytest
 import torch
 import trimesh
 
-from cerberus_core.templates import MeshTemplate, icosphere, vertex_normals
+from cerberus_core.render.templates import MeshTemplate, icosphere, vertex_normals
 
 
 def test_level_two_is_the_paper_template() -> None:

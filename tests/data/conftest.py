@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cerberus_core.data.plan import GenerationConfig, SplitConfig, preset_config
+from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, preset_config
 
 
 def tiny_pairs_config(**overrides) -> GenerationConfig:
@@ -33,7 +33,7 @@ def tiny_grid_config(**overrides) -> GenerationConfig:
 
 @pytest.fixture(scope="session")
 def pairs_dataset(tmp_path_factory) -> Path:
-    from cerberus_core.data.generate import generate
+    from cerberus_core.datasets.generate import generate
 
     out = tmp_path_factory.mktemp("pairs") / "ds"
     generate(tiny_pairs_config(), out, progress=False, log=lambda s: None)
@@ -42,7 +42,7 @@ def pairs_dataset(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def grid_dataset(tmp_path_factory) -> Path:
-    from cerberus_core.data.generate import generate
+    from cerberus_core.datasets.generate import generate
 
     out = tmp_path_factory.mktemp("grid") / "ds"
     generate(tiny_grid_config(), out, progress=False, log=lambda s: None)

@@ -1,4 +1,4 @@
-"""Tests for the procedural quadruped body source (cerberus_core.data.animal*)."""
+"""Tests for the procedural quadruped body source (cerberus_core.bodies.animal*)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from cerberus_core.data.animal import (
+from cerberus_core.bodies.animal import (
     ANIMAL_PART_NAMES,
     N_SPECIES,
     N_TEST_POSES,
@@ -22,11 +22,11 @@ from cerberus_core.data.animal import (
     species_extent,
     species_scale,
 )
-from cerberus_core.data.animal_mesh import marching_cubes
-from cerberus_core.data.animal_sdf import primitives_bounds
-from cerberus_core.data.animal_shape import ARCHETYPES, SHAPE_PARAMS, archetype_species
-from cerberus_core.data.animal_skeleton import animal_primitives
-from cerberus_core.data.body import FILL, PosedBody
+from cerberus_core.bodies.animal_mesh import marching_cubes
+from cerberus_core.bodies.animal_sdf import primitives_bounds
+from cerberus_core.bodies.animal_shape import ARCHETYPES, SHAPE_PARAMS, archetype_species
+from cerberus_core.bodies.animal_skeleton import animal_primitives
+from cerberus_core.bodies.body import FILL, PosedBody
 
 
 def _vertex_manifold(faces: np.ndarray, n_vertices: int) -> bool:

@@ -51,7 +51,7 @@ def test_cli_input_errors(tmp_path, capsys):
 @pytest.mark.parametrize("dataset", ["human", "animal"])
 def test_generate_tiny_real_sources(tmp_path, dataset):
     """The anny humans and the procedural animals through the whole pipeline (tens of seconds)."""
-    from cerberus_core.data.dataset import QuadrupletDataset, ViewDataset
+    from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 
     out = tmp_path / dataset
     assert main(["data", "generate", "--dataset", dataset, "--preset", "tiny", "--out", str(out), "--quiet"]) == 0

@@ -8,9 +8,9 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from cerberus_core.camera import Camera
-from cerberus_core.data.dataset import QuadrupletDataset, ShardStream, ViewDataset, background_mask
-from cerberus_core.data.format import DatasetError
+from cerberus_core.render.camera import Camera
+from cerberus_core.datasets.readers import QuadrupletDataset, ShardStream, ViewDataset, background_mask
+from cerberus_core.datasets.format import DatasetError
 
 
 def test_quadruplet_item_contract(pairs_dataset):
@@ -95,8 +95,8 @@ def test_view_dataset_contract_gt_mesh_and_canonical(pairs_dataset):
 def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     from dataclasses import replace
 
-    from cerberus_core.data.generate import generate
-    from cerberus_core.data.sources import make_source
+    from cerberus_core.datasets.generate import generate
+    from cerberus_core.bodies.sources import make_source
 
     cfg = pairs_config()
     cfg = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], meshes=False)})

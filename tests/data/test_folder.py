@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from cerberus_core.data.body import FILL
-from cerberus_core.data.dataset import QuadrupletDataset, ViewDataset
-from cerberus_core.data.folder import FolderSource
-from cerberus_core.data.format import DatasetError, verify_dataset
-from cerberus_core.data.generate import generate
-from cerberus_core.data.plan import preset_config
-from cerberus_core.data.primitives import PrimitiveBodySource, sample_subjects
+from cerberus_core.bodies.body import FILL
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
+from cerberus_core.bodies.folder import FolderSource
+from cerberus_core.datasets.format import DatasetError, verify_dataset
+from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.plan import preset_config
+from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 
 
 def _export(path, vertices, faces):

@@ -7,8 +7,8 @@ import shutil
 import numpy as np
 import pytest
 
-from cerberus_core.data.body import PosedBody
-from cerberus_core.data.format import (
+from cerberus_core.bodies.body import PosedBody
+from cerberus_core.datasets.format import (
     FORMAT_VERSION,
     MANIFEST,
     VIEW_DTYPE,
@@ -130,7 +130,7 @@ def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
     (ds / MANIFEST).write_text(json.dumps(m))
     _, problems = verify_dataset(ds)
     assert any("escapes the dataset folder" in p for p in problems)
-    from cerberus_core.data.dataset import QuadrupletDataset
+    from cerberus_core.datasets.readers import QuadrupletDataset
 
     with pytest.raises(DatasetError, match="escapes the dataset folder"):
         QuadrupletDataset(ds)

@@ -9,8 +9,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from cerberus_core.data.format import MANIFEST, DatasetError, sha256_file, verify_dataset
-from cerberus_core.data.generate import generate
+from cerberus_core.datasets.format import MANIFEST, DatasetError, sha256_file, verify_dataset
+from cerberus_core.datasets.generate import generate
 
 QUIET = {"progress": False, "log": lambda s: None}
 
@@ -45,7 +45,7 @@ def test_interrupted_run_resumes_to_the_identical_dataset(pairs_dataset, pairs_c
         generate(pairs_config(), out, on_shard=crash_after_two, **QUIET)
     manifest = json.loads((out / MANIFEST).read_text())
     assert not manifest["complete"] and len(manifest["splits"]["train"]["shards"]) == 2
-    from cerberus_core.data.dataset import QuadrupletDataset
+    from cerberus_core.datasets.readers import QuadrupletDataset
 
     with pytest.raises(DatasetError, match="incomplete"):
         QuadrupletDataset(out)
@@ -65,9 +65,9 @@ def test_killed_mid_shard_leaves_no_accepted_half_shard(pairs_dataset, pairs_con
     out = tmp_path / "ds"
     script = textwrap.dedent(f"""
         import os, signal
-        from cerberus_core.data import format as fmt
-        from cerberus_core.data.generate import generate
-        from cerberus_core.data.plan import GenerationConfig, SplitConfig
+        from cerberus_core.datasets import format as fmt
+        from cerberus_core.datasets.generate import generate
+        from cerberus_core.datasets.plan import GenerationConfig, SplitConfig
         saves = []
         original = fmt.atomic_save_npy
         def save(path, array):
@@ -144,7 +144,7 @@ def test_stored_images_match_a_fresh_render_of_the_stored_mesh(pairs_dataset):
     """Cameras, light, albedo and meshes in the files are exactly what produced the images."""
     import torch
 
-    from cerberus_core.data.dataset import ViewDataset
+    from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.plugins import make_renderer
     from cerberus_core.render.api import render
 

@@ -1,4 +1,4 @@
-"""Tests of the anny human body source (cerberus_core.data.human).
+"""Tests of the anny human body source (cerberus_core.bodies.human).
 
 The first test needing anny builds anny's model cache if this machine has none (about 90 s, once);
 later runs load it in well under a second.
@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cerberus_core.data.body import FILL, PosedBody
-from cerberus_core.data.human import (
+from cerberus_core.bodies.body import FILL, PosedBody
+from cerberus_core.bodies.human import (
     CANONICAL_POSE_ID,
     DEFAULT_SUBJECT_COUNTS,
     DOF_LIMITS,
@@ -68,7 +68,7 @@ def test_pose_sampling_deterministic_within_limits_and_varied():
 @pytest.fixture(scope="module")
 def source():
     pytest.importorskip("anny")
-    from cerberus_core.data.human import HumanBodySource
+    from cerberus_core.bodies.human import HumanBodySource
 
     return HumanBodySource()
 
@@ -211,7 +211,7 @@ def test_loading_the_body_model_prints_nothing():
     import subprocess
     import sys
 
-    code = ("from cerberus_core.data.human import HumanBodySource, sample_subjects\n"
+    code = ("from cerberus_core.bodies.human import HumanBodySource, sample_subjects\n"
             "s = HumanBodySource()\n"
             "(b,) = s.posed_bodies(sample_subjects(1, 0, 'test')[0], [0])\n"
             "assert len(b.vertices) > 1000\n")

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import torch
 
-from cerberus_core.data.body import FILL
-from cerberus_core.data.plan import GenerationConfig, SplitConfig, make_plan, preset_config
-from cerberus_core.data.scene import SceneSetup, evenly_spaced, fit_distance
-from cerberus_core.data.sources import make_source
+from cerberus_core.bodies.body import FILL
+from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
+from cerberus_core.datasets.scene import SceneSetup, evenly_spaced, fit_distance
+from cerberus_core.bodies.sources import make_source
 
 
 @pytest.mark.parametrize("elevation", [10.0, 15.0, 20.0])

@@ -36,7 +36,7 @@ def test_eval_writes_scores_and_figure(trained) -> None:
 
 
 def test_reconstruct_exports_parts_and_pictures(trained) -> None:
-    from cerberus_core.data.dataset import ViewDataset
+    from cerberus_core.datasets.readers import ViewDataset
 
     ds = ViewDataset(trained["data"], "test")
     paths = []

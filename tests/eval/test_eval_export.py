@@ -10,7 +10,7 @@ import trimesh
 from conftest import body_parts
 
 from cerberus_core.eval.export import export_parts, export_reconstruction
-from cerberus_core.eval.reconstruction import PartReconstruction
+from cerberus_core.parts import PartReconstruction
 from cerberus_core.viz import part_colors
 
 

@@ -14,7 +14,7 @@ from cerberus_core.eval.standard import VoxelScorer
 
 @pytest.mark.slow
 def test_untrained_model_on_generated_primitives(tmp_path, voxel_iou):
-    from cerberus_core.data.dataset import ViewDataset
+    from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.model import Cerberus, ModelConfig
 
     root = tmp_path / "prim"

@@ -6,8 +6,8 @@ import torch
 from conftest import body_parts, random_rotations
 
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.eval.reconstruction import PartReconstruction, transfer_pose
-from cerberus_core.templates import icosphere
+from cerberus_core.parts import PartReconstruction, transfer_pose
+from cerberus_core.render.templates import icosphere
 
 
 def _recon(b: int, p: int, seed: int) -> PartReconstruction:

@@ -2,7 +2,7 @@
 import pytest
 import torch
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.model import Cerberus, ModelConfig, pose_parts, world_part_meshes
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts

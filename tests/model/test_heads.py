@@ -4,7 +4,7 @@ import math
 import pytest
 import torch
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.model.heads import (
     RotationHead,
     ShapeHead,
@@ -13,7 +13,7 @@ from cerberus_core.model.heads import (
     expectation,
     unproject_expectation,
 )
-from cerberus_core.templates import icosphere
+from cerberus_core.render.templates import icosphere
 
 
 def test_shape_head_shapes_and_initial_sphere():

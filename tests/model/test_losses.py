@@ -4,8 +4,8 @@ import math
 import pytest
 import torch
 
-from cerberus_core.data.dataset import background_mask
-from cerberus_core.data.scene import SceneSetup
+from cerberus_core.datasets.readers import background_mask
+from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.losses import (
     VIEW_PARTNER,
     LossConfig,
@@ -21,7 +21,7 @@ from cerberus_core.losses import (
 from cerberus_core.model import Cerberus, ModelConfig
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
-from cerberus_core.templates import icosphere
+from cerberus_core.render.templates import icosphere
 from cerberus_core.train.data import QuadrupletBatch
 from cerberus_core.train.objective import partner_cameras, quadruplet_mixer, quadruplet_objective
 

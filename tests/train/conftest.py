@@ -1,6 +1,6 @@
 """Shared fixtures of the training tests: a tiny on-disk dataset and the tiny training config.
 
-The dataset is the toolkit's own format (``cerberus_core.data``) built from the ``primitives`` body
+The dataset is the toolkit's own format (``cerberus_core.datasets``) built from the ``primitives`` body
 source (articulated capsule figures) at 32 pixels: 6 training quadruplets, made in a few seconds
 with the real renderer.
 """
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from cerberus_core.data.generate import generate
-from cerberus_core.data.plan import preset_config
+from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.plan import preset_config
 from cerberus_core.train.config import load_config
 
 

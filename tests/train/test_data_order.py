@@ -1,7 +1,7 @@
 """Data order is a pure function of (seed, step); ranks draw disjoint slices of each global batch."""
 import torch
 
-from cerberus_core.data.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.train.data import StepBatchSampler, epoch_permutation, quadruplet_batch, step_indices
 
 

@@ -4,7 +4,7 @@ import csv
 import pytest
 import torch
 
-from cerberus_core.data.dataset import QuadrupletDataset
+from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.train import NonFiniteError, load_checkpoint, load_model, train
 from cerberus_core.train.checkpoint import checkpoint_dir
 

@@ -7,7 +7,7 @@ from warp_scenes import part_scene
 
 from cerberus_core import Light, make_renderer, render_parts
 from cerberus_core.render.api import pack_parts
-from cerberus_core.templates import vertex_normals as core_vertex_normals
+from cerberus_core.render.templates import vertex_normals as core_vertex_normals
 from cerberus_render_warp import vertex_normals
 
 

@@ -5,7 +5,7 @@ import torch
 
 from cerberus_core import Camera, Light, icosphere
 from cerberus_core.render.api import pack_parts
-from cerberus_core.templates import vertex_normals
+from cerberus_core.render.templates import vertex_normals
 
 Tensor = torch.Tensor
 

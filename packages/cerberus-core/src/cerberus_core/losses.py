@@ -58,7 +58,7 @@ class LossConfig:
             grow it. Since the mask is exact, this equals a dataset rendered on black.
         background_tolerance: a pixel is background (``b_xy = 1``) when every channel is within this
             of the dataset's background colour
-            (:func:`cerberus_core.data.dataset.background_mask`).
+            (:func:`cerberus_core.datasets.readers.background_mask`).
     """
 
     recon: float = 1.0
@@ -167,7 +167,7 @@ def background_loss(prob: Tensor, mask: Tensor) -> Tensor:
     Args:
         prob: ``(..., N, H, W)`` probability maps (each sums to 1).
         mask: ``(..., 1, H, W)`` background mask ``b`` of the input image
-            (:func:`cerberus_core.data.dataset.background_mask`).
+            (:func:`cerberus_core.datasets.readers.background_mask`).
     Returns:
         ``(...)`` in [0, 1].
     """

@@ -12,7 +12,6 @@ from typing import Any
 
 import torch
 
-from cerberus_core.quiet_warp import init_warp_quietly, quiet_warp_logging
 
 WARP_REQUIREMENT = "warp-lang>=1.19"
 
@@ -24,7 +23,9 @@ except ImportError as exc:  # pragma: no cover - exercised only without warp ins
         f"Install it with `pip install '{WARP_REQUIREMENT}'`, or use the 'torch' renderer."
     ) from exc
 
-quiet_warp_logging(wp)  # no banner on init, no "module loaded/compiled" lines
+from cerberus_render_warp.quiet import init_warp_quietly, quiet_warp_logging  # noqa: E402 (after the import check)
+
+quiet_warp_logging()  # no banner on init, no "module loaded/compiled" lines
 _pool_lock = threading.Lock()
 
 
@@ -33,7 +34,7 @@ class WarpInitError(RuntimeError):
 
 
 def ensure_init() -> None:
-    """Initialise the Warp runtime once (thread-safe, quiet: :func:`cerberus_core.quiet_warp.init_warp_quietly`,
+    """Initialise the Warp runtime once (thread-safe, quiet: :func:`cerberus_render_warp.quiet.init_warp_quietly`,
     which returns at once after the first success)."""
     try:
         init_warp_quietly()

@@ -1,5 +1,5 @@
 """Area-weighted vertex normals as Warp kernels (forward and backward), a drop-in for
-:func:`cerberus_core.templates.vertex_normals`.
+:func:`cerberus_core.render.templates.vertex_normals`.
 
 Core's torch version (gathers, cross product, ``index_add``, normalize, and their autograd
 backward) is the largest cost left around a fast backend in the training render; this fused version
@@ -14,7 +14,7 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
-from cerberus_core.templates import NORMAL_EPS
+from cerberus_core.render.templates import NORMAL_EPS
 from cerberus_render_warp._runtime import (
     as_warp,
     items_per_thread,

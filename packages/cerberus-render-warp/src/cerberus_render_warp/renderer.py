@@ -41,6 +41,6 @@ class WarpRenderer(Renderer):
 
     def vertex_normals(self, vertices: Tensor, faces: Tensor) -> Tensor:
         """Area-weighted unit vertex normals ``(B, V, 3)`` as fused Warp kernels (forward and
-        backward); the same maths as :func:`cerberus_core.templates.vertex_normals`, about 10x faster
+        backward); the same maths as :func:`cerberus_core.render.templates.vertex_normals`, about 10x faster
         on the CPU."""
         return vertex_normals(vertices, faces)

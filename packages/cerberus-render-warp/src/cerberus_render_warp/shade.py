@@ -20,7 +20,7 @@ from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.interface import Light
 from cerberus_core.render.shading import pixel_ndc
-from cerberus_core.templates import NORMAL_EPS
+from cerberus_core.render.templates import NORMAL_EPS
 from cerberus_render_warp._runtime import (
     as_warp,
     items_per_thread,

@@ -11,6 +11,6 @@
 * :mod:`.figures` — Figure 1 (b)-(f), Table 2, turntables.
 * :mod:`.images` — reading user images for ``cerberus reconstruct``.
 """
-from cerberus_core.eval.reconstruction import PartReconstruction, transfer_pose
+from cerberus_core.parts import PartReconstruction, transfer_pose
 
 __all__ = ["PartReconstruction", "transfer_pose"]

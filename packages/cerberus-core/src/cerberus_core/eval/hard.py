@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from cerberus_core.eval.reconstruction import PartReconstruction, transfer_pose
+from cerberus_core.parts import PartReconstruction, transfer_pose
 
 
 @dataclass(frozen=True)

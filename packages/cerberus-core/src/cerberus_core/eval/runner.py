@@ -6,7 +6,7 @@ unproject its translations). It may also return any object with ``local_vertices
 ``rotations`` and ``translations`` (the model's ``PartMeshes``): see :func:`as_part_reconstruction`.
 ``cerberus eval`` wraps a trained checkpoint into that and calls :func:`evaluate_dataset`.
 
-Dataset contract (:class:`cerberus_core.data.dataset.ViewDataset` follows it): ``len(ds)``; ``ds[i]``
+Dataset contract (:class:`cerberus_core.datasets.readers.ViewDataset` follows it): ``len(ds)``; ``ds[i]``
 a dict with ``images`` ``(3, H, W)`` float in [0, 1] (uint8 is accepted), ``azimuth``, ``elevation``
 (degrees), ``distance``, ``fov_y`` (degrees), ``subject`` (a name, or an index into
 ``ds.subject_names``), ``pose``, ``view``, ``is_canonical``; ``ds.cameras(batch) -> Camera`` (the
@@ -24,10 +24,10 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
-from cerberus_core.eval.reconstruction import PartReconstruction, as_part_reconstruction
+from cerberus_core.parts import PartReconstruction, as_part_reconstruction
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, Score, VoxelScorer, summarize
 
 Tensor = torch.Tensor
@@ -48,7 +48,7 @@ def subject_label(dataset: Any, value: Any) -> str:
 def dataset_metadata(dataset: Any) -> list[ItemMeta]:
     """Subject, pose, view and canonical flag of every item, read as cheaply as the dataset allows:
     ``dataset.records`` (a structured array with ``subject``, ``pose``, ``view``, ``canonical``, as
-    :class:`~cerberus_core.data.dataset.ViewDataset` has), else ``dataset.metadata(i)``, else
+    :class:`~cerberus_core.datasets.readers.ViewDataset` has), else ``dataset.metadata(i)``, else
     ``dataset[i]``."""
     rec = getattr(dataset, "records", None)
     fields = {"subject", "pose", "view", "canonical"}
@@ -83,7 +83,7 @@ def iterate_batches(dataset: Any, indices: Sequence[int], batch_size: int, num_w
                                          collate_fn=collate)
     if not callable(getattr(dataset, "cameras", None)):
         raise TypeError(f"{type(dataset).__name__} has no cameras(batch) method; the evaluation needs the cameras "
-                        "the test images were rendered with (see cerberus_core.data.dataset.ViewDataset.cameras)")
+                        "the test images were rendered with (see cerberus_core.datasets.readers.ViewDataset.cameras)")
     start = 0
     for batch in loader:
         n = batch["images"].shape[0]

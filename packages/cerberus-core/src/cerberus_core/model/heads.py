@@ -28,7 +28,7 @@ from kornia.geometry.conversions import quaternion_to_rotation_matrix
 from kornia.geometry.subpix import spatial_expectation2d, spatial_softmax2d
 from torch import nn
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
 
@@ -121,7 +121,7 @@ class KeypointMaps:
         prob: ``(B, N, H, W)`` probability maps ``p^k`` (each sums to 1).
         depth_map: ``(B, N, H, W)`` depth maps ``d^k`` (world units).
         uv: ``(B, N, 2)`` expected pixel coordinates ``(u, v) = (sum x p, sum y p)`` with pixel
-            centres at ``j + 0.5`` (the :mod:`cerberus_core.camera` convention).
+            centres at ``j + 0.5`` (the :mod:`cerberus_core.render.camera` convention).
         depth: ``(B, N)`` expected depth ``sum d p`` (world units).
     """
 

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import torch
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 
 Tensor = torch.Tensor

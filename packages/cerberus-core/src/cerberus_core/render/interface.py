@@ -4,7 +4,7 @@ The split follows nvdiffrast and TF Graphics: a backend's must-have is the hot, 
 step, :meth:`Renderer.rasterize` (clip-space triangles → visible face id per pixel). Everything
 differentiable (vertex normals, perspective-correct barycentrics recomputed from the face ids,
 interpolation of normals and albedo, Lambertian shading, depth) is done by
-:func:`cerberus_core.templates.vertex_normals` and :func:`cerberus_core.render.shading.shade` in plain
+:func:`cerberus_core.render.templates.vertex_normals` and :func:`cerberus_core.render.shading.shade` in plain
 torch, shared by all backends. A backend may override :meth:`Renderer.vertex_normals` and
 :meth:`Renderer.shade` with fused kernels (forward and backward) when that is faster; the conformance suite in ``tests/conformance``
 holds both paths to the same numbers.
@@ -123,9 +123,9 @@ class Renderer(ABC):
             vertices: ``(B, V, 3)`` world coordinates.
             faces: ``(F, 3)`` int64.
         Returns:
-            ``(B, V, 3)`` unit normals, the maths of :func:`cerberus_core.templates.vertex_normals`.
+            ``(B, V, 3)`` unit normals, the maths of :func:`cerberus_core.render.templates.vertex_normals`.
         """
-        from cerberus_core.templates import vertex_normals
+        from cerberus_core.render.templates import vertex_normals
 
         return vertex_normals(vertices, faces)
 

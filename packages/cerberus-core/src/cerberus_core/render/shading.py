@@ -13,7 +13,7 @@ from __future__ import annotations
 import torch
 
 from cerberus_core.render.interface import Light
-from cerberus_core.templates import NORMAL_EPS
+from cerberus_core.render.templates import NORMAL_EPS
 
 Tensor = torch.Tensor
 

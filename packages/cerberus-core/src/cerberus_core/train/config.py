@@ -28,7 +28,7 @@ from cerberus_core.model.cerberus import ModelConfig
 @dataclass
 class DataConfig:
     """Attributes:
-        root: dataset folder (read by ``cerberus_core.data.dataset.QuadrupletDataset``).
+        root: dataset folder (read by ``cerberus_core.datasets.readers.QuadrupletDataset``).
         split: the split to train on.
         image_size: train at this resolution (images are resized, antialiased); ``null``: the
             dataset's own size.

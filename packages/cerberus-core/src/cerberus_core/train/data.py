@@ -7,9 +7,9 @@ with
 * ``azimuth``, ``elevation``, ``distance``, ``fov_y``: ``(4,)`` float32, degrees / world units;
 
 and which has the attributes ``image_size`` (int) and ``scene`` (a dict read by
-:meth:`cerberus_core.data.scene.SceneSetup.from_dict`: ``distance``, ``albedo``, ``background``,
+:meth:`cerberus_core.datasets.scene.SceneSetup.from_dict`: ``distance``, ``albedo``, ``background``,
 ``ambient``, ``diffuse``, ``near``, ``far``). Anything else in the items (subject, pose and view ids)
-is carried along and ignored. :class:`cerberus_core.data.dataset.QuadrupletDataset` is the reader
+is carried along and ignored. :class:`cerberus_core.datasets.readers.QuadrupletDataset` is the reader
 of the toolkit's on-disk format.
 
 Data order is a pure function of ``(seed, step)``: the sample stream is the concatenation of one
@@ -28,8 +28,8 @@ import numpy as np
 import torch
 from torch.utils.data import Sampler
 
-from cerberus_core.camera import Camera
-from cerberus_core.data.scene import SceneSetup
+from cerberus_core.render.camera import Camera
+from cerberus_core.datasets.scene import SceneSetup
 
 Tensor = torch.Tensor
 
@@ -45,8 +45,8 @@ def check_dataset(dataset: Any) -> None:
 
 
 def build_dataset(root: str, split: str) -> Any:
-    """The quadruplet dataset of ``root`` (:class:`cerberus_core.data.dataset.QuadrupletDataset`)."""
-    from cerberus_core.data.dataset import QuadrupletDataset
+    """The quadruplet dataset of ``root`` (:class:`cerberus_core.datasets.readers.QuadrupletDataset`)."""
+    from cerberus_core.datasets.readers import QuadrupletDataset
 
     return QuadrupletDataset(root, split=split)
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from cerberus_core.camera import Camera
-from cerberus_core.data.dataset import background_mask
-from cerberus_core.data.scene import SceneSetup
+from cerberus_core.render.camera import Camera
+from cerberus_core.datasets.readers import background_mask
+from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.losses import (
     VIEW_PARTNER,
     LossConfig,

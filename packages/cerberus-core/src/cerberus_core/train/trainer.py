@@ -35,7 +35,7 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from cerberus_core.atomic import atomic_write_text
-from cerberus_core.data.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (

@@ -232,7 +232,7 @@ def pack_meshes(bodies: list, subject_index: list[int]) -> tuple[np.ndarray, dic
     """Pack ground-truth meshes of one shard; topologies (faces + part labels) are stored once.
 
     Args:
-        bodies: ``M`` :class:`~cerberus_core.data.body.PosedBody`.
+        bodies: ``M`` :class:`~cerberus_core.bodies.body.PosedBody`.
         subject_index: ``M`` manifest subject indices.
 
     Returns:

@@ -32,8 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def scene_for(config, data: Path | None):
     """The scene set-up the model was trained with: from ``data`` (which must be a dataset), else from
     the run's training data if it is still there, else the toolkit's default scene."""
-    from cerberus_core.data.format import MANIFEST, read_manifest
-    from cerberus_core.data.scene import SceneSetup
+    from cerberus_core.datasets.format import MANIFEST, read_manifest
+    from cerberus_core.datasets.scene import SceneSetup
 
     if data is None and (Path(config.data.root) / MANIFEST).is_file():
         data = Path(config.data.root)
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.export import export_reconstruction
     from cerberus_core.eval.figures import save_image_pictures
     from cerberus_core.eval.images import ImageInputError, load_images
-    from cerberus_core.eval.reconstruction import as_part_reconstruction
+    from cerberus_core.parts import as_part_reconstruction
     from cerberus_core.train.checkpoint import load_model
 
     model, config = load_model(args.run, args.device)

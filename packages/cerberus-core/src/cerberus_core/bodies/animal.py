@@ -4,12 +4,12 @@ Pipeline for one (species, pose): forward kinematics turns the species' shape pa
 pose's joint angles into posed SDF primitives (:mod:`.animal_skeleton`); their smooth union is
 sampled on a grid (:mod:`.animal_sdf`), meshed by a crack-free marching cubes and decimated to a
 face budget with topology preserved (:mod:`.animal_mesh`); each vertex is labelled with the part
-whose primitives are nearest. The result is a watertight :class:`~cerberus_core.data.body.PosedBody`.
+whose primitives are nearest. The result is a watertight :class:`~cerberus_core.bodies.body.PosedBody`.
 
 Scale rule (``normalise_subject`` semantics with a scale that never depends on which poses are
 generated): a species' scale is ``FILL / species_extent(species)``, where ``species_extent`` is the
 largest axis-aligned extent, in body units, of the union of the species' primitives over its fixed
-:func:`~cerberus_core.data.animal_pose.envelope_poses` (rest; neck vertical; sitting tall; neck and
+:func:`~cerberus_core.bodies.animal_pose.envelope_poses` (rest; neck vertical; sitting tall; neck and
 tail horizontal with legs stretched; grazing; folded sit). Every pose is centred on its own
 bounding-box centre and multiplied by that scale. Over 41 species x 250 sampled poses the largest
 pose extent is 0.99 x the envelope (mean 0.84), i.e. at most ~0.89 normalised units and ~0.76 on
@@ -28,18 +28,18 @@ from functools import lru_cache
 import numpy as np
 from scipy.sparse import coo_matrix
 
-from cerberus_core.data.animal_mesh import decimate, marching_cubes
-from cerberus_core.data.animal_pose import (
+from cerberus_core.bodies.animal_mesh import decimate, marching_cubes
+from cerberus_core.bodies.animal_pose import (
     AnimalPose,
     animal_pose_splits,
     envelope_poses,
     rest_pose,
     sample_animal_poses,
 )
-from cerberus_core.data.animal_sdf import group_distances, primitives_bounds, sample_field
-from cerberus_core.data.animal_shape import AnimalSpecies, sample_species
-from cerberus_core.data.animal_skeleton import PART_GROUPS, animal_primitives
-from cerberus_core.data.body import FILL, PosedBody
+from cerberus_core.bodies.animal_sdf import group_distances, primitives_bounds, sample_field
+from cerberus_core.bodies.animal_shape import AnimalSpecies, sample_species
+from cerberus_core.bodies.animal_skeleton import PART_GROUPS, animal_primitives
+from cerberus_core.bodies.body import FILL, PosedBody
 
 __all__ = [
     "ANIMAL_PART_NAMES",

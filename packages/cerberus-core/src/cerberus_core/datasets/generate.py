@@ -1,6 +1,6 @@
 """The generation driver: plan → pose → render in batches → write shards atomically → manifest.
 
-Resumable and deterministic: the plan (:mod:`cerberus_core.data.plan`) is a pure function of the
+Resumable and deterministic: the plan (:mod:`cerberus_core.datasets.plan`) is a pure function of the
 config, every shard is rebuilt from it alone, and the manifest lists a shard (with the sha256 of its
 files) only after its files are complete on disk. Rerunning the same config in the same folder skips
 the finished shards; a config that differs from the folder's refuses unless ``overwrite=True``.
@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.data.body import PosedBody
-from cerberus_core.data.format import (
+from cerberus_core.bodies.body import PosedBody
+from cerberus_core.datasets.format import (
     FORMAT_NAME,
     FORMAT_VERSION,
     MANIFEST,
@@ -30,9 +30,9 @@ from cerberus_core.data.format import (
     pack_meshes,
     write_shard,
 )
-from cerberus_core.data.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
-from cerberus_core.data.scene import SceneSetup
-from cerberus_core.data.sources import BodySource, make_source
+from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.bodies.sources import BodySource, make_source
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Renderer
@@ -110,7 +110,7 @@ def build_bodies(source: BodySource, subjects: list[dict], meshes: list[tuple[in
             reach = float(np.abs(b.vertices).max()) if len(b.vertices) else 0.0
             if reach > 0.5 + 1e-6:
                 raise ValueError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "
-                                 "[-0.5, 0.5]^3 every body must lie in (see cerberus_core.data.body)")
+                                 "[-0.5, 0.5]^3 every body must lie in (see cerberus_core.bodies.body)")
             if len(b.vertex_parts) and (b.vertex_parts.min() < 0 or b.vertex_parts.max() >= n_parts):
                 raise ValueError(f"{source.name} body {name} pose {p}: part labels outside 0..{n_parts - 1}")
             built[(s, p)] = b
@@ -138,7 +138,7 @@ def _remove_dataset(out: Path, splits: list[str]) -> None:
 
 def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None]) -> dict | None:
     """Decide between a fresh run and a resume; return the manifest to resume from (or ``None``)."""
-    from cerberus_core.data.format import read_manifest
+    from cerberus_core.datasets.format import read_manifest
 
     if not out.exists():
         out.mkdir(parents=True)
@@ -214,7 +214,7 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
     """Generate (or resume) a dataset in ``out``.
 
     Args:
-        config: what to generate (:func:`cerberus_core.data.plan.preset_config`).
+        config: what to generate (:func:`cerberus_core.datasets.plan.preset_config`).
         out: the dataset folder (created if needed).
         source: the body source (default: built from ``config.dataset`` and ``source_options``).
         source_options: JSON-ready options of the source (e.g. the folder's ``root``), stored in

@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.data.format import VIEW_DTYPE
-from cerberus_core.data.scene import SceneSetup, evenly_spaced
-from cerberus_core.data.sources import BodySource, SubjectInfo
+from cerberus_core.datasets.format import VIEW_DTYPE
+from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
+from cerberus_core.bodies.sources import BodySource, SubjectInfo
 
 LAYOUTS = ("pairs", "grid")
 

@@ -6,17 +6,17 @@ import argparse
 import importlib
 import sys
 
-from cerberus_core.data.format import DatasetError
+from cerberus_core.datasets.format import DatasetError
 from cerberus_core.plugins import PluginError
 
 #: Modules that contribute sub-commands, in the order ``--help`` lists them.
 COMMAND_MODULES = [
-    "cerberus_core.commands.renderers",
-    "cerberus_core.commands.demo",
-    "cerberus_core.commands.data",
-    "cerberus_core.commands.train",
-    "cerberus_core.commands.eval",
-    "cerberus_core.commands.reconstruct",
+    "cerberus_core.cli.renderers",
+    "cerberus_core.cli.demo",
+    "cerberus_core.cli.data",
+    "cerberus_core.cli.train",
+    "cerberus_core.cli.eval",
+    "cerberus_core.cli.reconstruct",
 ]
 
 

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import torch
 
-from cerberus_core.camera import Camera
+from cerberus_core.render.camera import Camera
 from cerberus_core.plugins import available_renderers, make_renderer
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.interface import Light
-from cerberus_core.templates import icosphere
+from cerberus_core.render.templates import icosphere
 from cerberus_core.viz import part_colors, save_image_grid
 
 # A stick figure of 9 ellipsoids: (centre xyz, radii xyz), normalised units.

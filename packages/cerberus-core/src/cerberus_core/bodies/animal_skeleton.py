@@ -1,6 +1,6 @@
 """Forward kinematics of the procedural quadruped: shape parameters + pose -> posed SDF primitives.
 
-Body frame (body units, see :mod:`cerberus_core.data.animal_shape`): +Y up, head towards +Z, the
+Body frame (body units, see :mod:`cerberus_core.bodies.animal_shape`): +Y up, head towards +Z, the
 animal's left is +X, ground at ``y = 0`` in the rest pose. The skeleton is
 
 * torso: belly ellipsoid at the root, chest and rump ellipsoids on two spine joints that share the
@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cerberus_core.data.animal_sdf import Ellipsoid, Primitive, RoundCone
+from cerberus_core.bodies.animal_sdf import Ellipsoid, Primitive, RoundCone
 
 if TYPE_CHECKING:  # animal_pose imports this module (sitting poses are solved with the skeleton)
-    from cerberus_core.data.animal_pose import AnimalPose
+    from cerberus_core.bodies.animal_pose import AnimalPose
 
 PART_GROUPS: tuple[str, ...] = (
     "head",

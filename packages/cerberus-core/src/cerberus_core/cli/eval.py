@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _figure(args, model, config, dataset, out: Path) -> Path:
     from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
-    from cerberus_core.eval.reconstruction import as_part_reconstruction
+    from cerberus_core.parts import as_part_reconstruction
     from cerberus_core.eval.runner import collate
     from cerberus_core.train.checkpoint import load_model
 
@@ -66,7 +66,7 @@ def _figure(args, model, config, dataset, out: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.data.dataset import ViewDataset
+    from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.eval.report import markdown_report, write_json, write_text
     from cerberus_core.eval.runner import evaluate_dataset
     from cerberus_core.train.checkpoint import load_model

@@ -3,7 +3,7 @@
 Section 5 of the paper: "We fix the elevation angle and distance to the origin of all viewpoints but
 vary the azimuth angles. On scene set-ups, we use a directional light following the direction of the
 camera and an ambient light, all in white." Bodies have one uniform albedo and arrive normalised
-into ``[-FILL/2, FILL/2]^3`` (:mod:`cerberus_core.data.body`).
+into ``[-FILL/2, FILL/2]^3`` (:mod:`cerberus_core.bodies.body`).
 
 The camera distance is *fitted*: the smallest distance at which every corner of the cube
 ``[-FILL/2, FILL/2]^3`` (hence every body) stays inside the frame, with a margin, from every
@@ -19,8 +19,8 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from cerberus_core.camera import Camera
-from cerberus_core.data.body import FILL
+from cerberus_core.render.camera import Camera
+from cerberus_core.bodies.body import FILL
 from cerberus_core.render.interface import Light
 
 Tensor = torch.Tensor

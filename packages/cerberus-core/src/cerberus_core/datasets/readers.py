@@ -19,9 +19,9 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset, IterableDataset, get_worker_info
 
-from cerberus_core.camera import Camera
-from cerberus_core.data.body import PosedBody
-from cerberus_core.data.format import (
+from cerberus_core.render.camera import Camera
+from cerberus_core.bodies.body import PosedBody
+from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
     check_shard_files,
@@ -31,7 +31,7 @@ from cerberus_core.data.format import (
     split_info,
     unpack_mesh,
 )
-from cerberus_core.data.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.interface import Light
 
 Tensor = torch.Tensor
@@ -280,7 +280,7 @@ class ViewDataset(_Base):
 
     @property
     def records(self) -> np.ndarray:
-        """``(N,)`` :data:`~cerberus_core.data.format.VIEW_DTYPE` records of every image, in index order."""
+        """``(N,)`` :data:`~cerberus_core.datasets.format.VIEW_DTYPE` records of every image, in index order."""
         if self._records is None:
             r = self._reader
             parts = [np.asarray(r.array(k, "views")) for k in range(len(r.shards))]
@@ -314,7 +314,7 @@ class ViewDataset(_Base):
         return PosedBody(verts, faces, parts, self.part_names, self.subject_names[subject], pose, meta=meta)
 
     def _regenerate(self, subject: int, pose: int) -> PosedBody:
-        from cerberus_core.data.sources import make_source
+        from cerberus_core.bodies.sources import make_source
 
         if self._source is None:
             src = self.manifest["source"]

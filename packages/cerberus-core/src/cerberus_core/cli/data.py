@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from cerberus_core.data.format import DatasetError
+from cerberus_core.datasets.format import DatasetError
 
 _DATASETS = ("human", "animal", "folder", "primitives")
 
@@ -76,10 +76,10 @@ def _fail(exc: Exception) -> int:
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    from cerberus_core.data.generate import generate
-    from cerberus_core.data.plan import default_preset, make_plan, preset_config
-    from cerberus_core.data.scene import SceneSetup
-    from cerberus_core.data.sources import make_source
+    from cerberus_core.datasets.generate import generate
+    from cerberus_core.datasets.plan import default_preset, make_plan, preset_config
+    from cerberus_core.datasets.scene import SceneSetup
+    from cerberus_core.bodies.sources import make_source
 
     if (args.dataset == "folder") != (args.source is not None):
         return _fail(ValueError("--source DIR is required with --dataset folder (and only then)"))
@@ -113,7 +113,7 @@ def run_generate(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from cerberus_core.data.format import verify_dataset
+    from cerberus_core.datasets.format import verify_dataset
 
     manifest, problems = verify_dataset(args.root, checksums=not args.quick, progress=sys.stderr.isatty())
     if manifest is not None:
@@ -131,7 +131,7 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from cerberus_core.data.show import save_contact_sheet
+    from cerberus_core.datasets.show import save_contact_sheet
 
     out = args.out or args.root / f"contact_{args.split}.png"
     try:

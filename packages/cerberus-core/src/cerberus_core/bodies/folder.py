@@ -8,7 +8,7 @@ Layout (any format trimesh reads: .obj .ply .stl .off .glb .gltf)::
     DIR/<subject>/parts.npy        optional (V,) labels shared by all poses of the subject
     DIR/<subject>/canonical.<ext>  optional canonical pose (flagged in test splits: Hard Human test)
 
-Every subject is normalised with :func:`~cerberus_core.data.body.normalise_subject` (one scale per
+Every subject is normalised with :func:`~cerberus_core.bodies.body.normalise_subject` (one scale per
 subject, each pose centred on its bounding box). Meshes are read with ``process=False`` so vertex
 order, hence sidecar labels, is kept. Subjects are split by name: ``test_subjects`` explicitly, or
 the last ``round(test_fraction * n)`` subjects in sorted order (at least one when there are two or
@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.data.body import FILL, PosedBody, normalise_subject
-from cerberus_core.data.format import DatasetError
-from cerberus_core.data.sources import BodySource, SubjectInfo
+from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
+from cerberus_core.datasets.format import DatasetError
+from cerberus_core.bodies.sources import BodySource, SubjectInfo
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"

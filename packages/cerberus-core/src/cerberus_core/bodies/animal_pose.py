@@ -22,9 +22,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from cerberus_core.data.animal_sdf import primitives_bounds
-from cerberus_core.data.animal_shape import AnimalSpecies
-from cerberus_core.data.animal_skeleton import LEG_GROUPS, TORSO, animal_primitives
+from cerberus_core.bodies.animal_sdf import primitives_bounds
+from cerberus_core.bodies.animal_shape import AnimalSpecies
+from cerberus_core.bodies.animal_skeleton import LEG_GROUPS, TORSO, animal_primitives
 
 LEG_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "back_left", "back_right")
 """Leg order used by :attr:`AnimalPose.legs`."""

@@ -1,14 +1,14 @@
 """Body sources behind the datasets: one small adapter per geometry provider.
 
-A :class:`BodySource` answers four questions for the generator (:mod:`cerberus_core.data.generate`):
+A :class:`BodySource` answers four questions for the generator (:mod:`cerberus_core.datasets.generate`):
 which subjects a split has, which pose ids a subject offers for a split, which pose is canonical,
-and the :class:`~cerberus_core.data.body.PosedBody` of (subject, pose ids). Every answer is a
+and the :class:`~cerberus_core.bodies.body.PosedBody` of (subject, pose ids). Every answer is a
 deterministic function of the source's options and the seed, so a shard can be regenerated alone.
 
-Sources: ``human`` (anny, :mod:`cerberus_core.data.human`), ``animal`` (procedural quadrupeds,
-:mod:`cerberus_core.data.animal`), ``primitives`` (capsule figures,
-:mod:`cerberus_core.data.primitives`) and ``folder`` (your own meshes,
-:mod:`cerberus_core.data.folder`).
+Sources: ``human`` (anny, :mod:`cerberus_core.bodies.human`), ``animal`` (procedural quadrupeds,
+:mod:`cerberus_core.bodies.animal`), ``primitives`` (capsule figures,
+:mod:`cerberus_core.bodies.primitives`) and ``folder`` (your own meshes,
+:mod:`cerberus_core.bodies.folder`).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from cerberus_core.data.body import PosedBody
+from cerberus_core.bodies.body import PosedBody
 
 
 @dataclass(frozen=True)
@@ -105,13 +105,13 @@ class _SeededSubjects(BodySource):
 
 
 class HumanSource(_SeededSubjects):
-    """anny humans (:mod:`cerberus_core.data.human`); loads anny lazily on first posing."""
+    """anny humans (:mod:`cerberus_core.bodies.human`); loads anny lazily on first posing."""
 
     name = "human"
 
     def __init__(self, device: str = "cpu") -> None:
         super().__init__()
-        from cerberus_core.data import human
+        from cerberus_core.bodies import human
 
         self._human = human
         self.part_names = list(human.PART_NAMES)
@@ -140,13 +140,13 @@ class HumanSource(_SeededSubjects):
 
 
 class PrimitiveSource(_SeededSubjects):
-    """Capsule figures (:mod:`cerberus_core.data.primitives`)."""
+    """Capsule figures (:mod:`cerberus_core.bodies.primitives`)."""
 
     name = "primitives"
 
     def __init__(self) -> None:
         super().__init__()
-        from cerberus_core.data import primitives
+        from cerberus_core.bodies import primitives
 
         self._prim = primitives
         self._model = primitives.PrimitiveBodySource()
@@ -163,11 +163,11 @@ class PrimitiveSource(_SeededSubjects):
 
 
 class AnimalSource(BodySource):
-    """Procedural quadrupeds (:mod:`cerberus_core.data.animal`): the same species in every split,
+    """Procedural quadrupeds (:mod:`cerberus_core.bodies.animal`): the same species in every split,
     with disjoint poses (the paper's protocol: 47 training and 3 test poses per species).
 
     Pose ids: training pose ``k`` has id ``k``; test pose ``k`` has id :attr:`TEST_POSE_BASE` ``+ k``.
-    Poses come from :func:`~cerberus_core.data.animal.animal_pose_splits` with the dataset's seed.
+    Poses come from :func:`~cerberus_core.bodies.animal.animal_pose_splits` with the dataset's seed.
     """
 
     name = "animal"
@@ -175,7 +175,7 @@ class AnimalSource(BodySource):
     TEST_POSE_BASE = 1000
 
     def __init__(self) -> None:
-        from cerberus_core.data import animal
+        from cerberus_core.bodies import animal
 
         self._animal = animal
         self.part_names = list(animal.ANIMAL_PART_NAMES)
@@ -223,7 +223,7 @@ class AnimalSource(BodySource):
 
 def make_source(name: str, **options: Any) -> BodySource:
     """Build a body source by name: ``human``, ``animal``, ``primitives`` or ``folder`` (which needs
-    ``root=``; see :class:`cerberus_core.data.folder.FolderSource`)."""
+    ``root=``; see :class:`cerberus_core.bodies.folder.FolderSource`)."""
     if name == "human":
         return HumanSource(**options)
     if name == "primitives":
@@ -231,7 +231,7 @@ def make_source(name: str, **options: Any) -> BodySource:
     if name == "animal":
         return AnimalSource(**options)
     if name == "folder":
-        from cerberus_core.data.folder import FolderSource
+        from cerberus_core.bodies.folder import FolderSource
 
         return FolderSource(**options)
     raise ValueError(f"unknown dataset source {name!r}; choose human, animal, primitives or folder")

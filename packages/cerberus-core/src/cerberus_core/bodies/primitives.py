@@ -5,10 +5,10 @@ own proportions; a pose is a vector of joint angles in degrees (:data:`DOF_NAMES
 limits. Meshes are tiny (about 700 vertices), so datasets of these bodies generate in seconds: the
 source behind the ``primitives`` dataset, handy for tests, debugging and quick experiments.
 
-Frames and units follow :mod:`cerberus_core.data.body` (+Y up, facing +Z, normalised units).
+Frames and units follow :mod:`cerberus_core.bodies.body` (+Y up, facing +Z, normalised units).
 Pose ids: ``0`` is the canonical pose (standing, arms 20 degrees from the body), ``k >= 1`` is drawn
 from ``numpy.random.default_rng([subject.pose_seed, k])``. Scale rule (as for the anny humans): one
-scale per subject, :func:`~cerberus_core.data.body.normalise_subject` over a fixed reference set
+scale per subject, :func:`~cerberus_core.bodies.body.normalise_subject` over a fixed reference set
 (the canonical pose plus :data:`REFERENCE_POSES` poses drawn from ``default_rng(REFERENCE_SEED)``);
 each pose is centred on its own bounding-box centre.
 """
@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 import trimesh
 
-from cerberus_core.data.body import FILL, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 
 PART_NAMES: list[str] = ["head", "torso", "upper_arm.L", "lower_arm.L", "upper_arm.R", "lower_arm.R",
                          "thigh.L", "shin.L", "thigh.R", "shin.R"]

@@ -1,7 +1,7 @@
 """The output of a part-based reconstruction, as plain tensors.
 
 A reconstruction of ``B`` images with ``P`` parts is, for every part, a deformed template in the
-part's own local frame plus a rigid transform into the world frame of :mod:`cerberus_core.camera`
+part's own local frame plus a rigid transform into the world frame of :mod:`cerberus_core.render.camera`
 (+Y up, normalised units). A part's posed (world) vertices are ``local @ R^T + T``.
 
 Keeping the shapes and the transforms apart is what lets the evaluation re-pose one image's parts

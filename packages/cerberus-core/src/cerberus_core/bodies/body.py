@@ -2,7 +2,7 @@
 
 A body source turns (subject, pose) into a :class:`PosedBody`: a watertight-ish triangle mesh in the
 dataset's world frame plus per-vertex ground-truth part labels. World frame conventions (shared with
-:mod:`cerberus_core.camera`): right-handed, +Y up, the body faces +Z at azimuth 0, units are
+:mod:`cerberus_core.render.camera`): right-handed, +Y up, the body faces +Z at azimuth 0, units are
 "normalised units" in which every ground truth lies inside ``[-0.5, 0.5]^3`` (the voxel-IoU
 convention of Kato et al.).
 
