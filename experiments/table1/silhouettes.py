@@ -15,7 +15,6 @@ import sys
 import torch
 
 from cerberus_core.datasets.readers import ViewDataset
-from cerberus_core.parts import as_part_reconstruction
 from cerberus_core.eval.runner import collate
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
@@ -40,7 +39,7 @@ def main(argv: list[str]) -> int:
         batch = collate([ds[i] for i in range(start, min(start + 32, len(ds)))])
         cams = ds.cameras(batch)
         with torch.no_grad():
-            rec = as_part_reconstruction(model.reconstruct(batch["images"], cams))
+            rec = model.reconstruct(batch["images"], cams)
             out = render_parts(renderer, rec.posed(), rec.faces, cams)
         pred = out.alpha[:, 0] > 0.5
         true = (batch["images"] < BACKGROUND_LEVEL).any(1)

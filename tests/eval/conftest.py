@@ -1,7 +1,7 @@
 """Shared set-up of the evaluation tests: real capsule-figure bodies, rendered with the torch backend.
 
 ``body_parts`` turns a ground-truth body of the ``primitives`` source (10 capsules sharing one
-topology) into a :class:`PartReconstruction` that reproduces it exactly (an oracle "model"), with
+topology) into a :class:`PartSet` that reproduces it exactly (an oracle "model"), with
 non-trivial local frames so that rotations are exercised. :class:`TinyViewDataset` is a test set of
 such bodies (2 subjects x 3 poses x 2 views, pose 0 canonical) that follows the dataset contract of
 :mod:`cerberus_core.eval.runner`, with images really rendered.
@@ -13,7 +13,7 @@ import torch
 
 from cerberus_core.render.camera import Camera
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
-from cerberus_core.parts import PartReconstruction
+from cerberus_core.parts import PartSet
 from cerberus_core.plugins import PluginError, get_metric, make_renderer
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Light
@@ -31,7 +31,7 @@ def random_rotations(n: int, seed: int) -> torch.Tensor:
     return q
 
 
-def body_parts(body, seed: int = 0) -> PartReconstruction:
+def body_parts(body, seed: int = 0) -> PartSet:
     """A batch-1 reconstruction whose posed parts are exactly the body's capsules."""
     nparts = len(body.part_names)
     verts = torch.as_tensor(body.vertices, dtype=torch.float64).reshape(nparts, -1, 3)
@@ -39,7 +39,7 @@ def body_parts(body, seed: int = 0) -> PartReconstruction:
     centre = verts.mean(1)  # (P, 3)
     rot = random_rotations(nparts, seed)
     local = (verts - centre[:, None]) @ rot  # row-vector form of R^T (x - c)
-    return PartReconstruction(local[None].float(), faces, rot[None].float(), centre[None].float())
+    return PartSet(local[None].float(), faces, rot[None].float(), centre[None].float())
 
 
 class TinyViewDataset:
@@ -99,10 +99,10 @@ class OracleModel:
         dataset.gt_calls = 0
         self.calls = 0
 
-    def __call__(self, images: torch.Tensor, camera: Camera) -> PartReconstruction:
+    def __call__(self, images: torch.Tensor, camera: Camera) -> PartSet:
         assert camera.batch_size == images.shape[0]
         self.calls += images.shape[0]
-        return PartReconstruction.cat([self.table[img.numpy().tobytes()] for img in images])
+        return PartSet.cat([self.table[img.numpy().tobytes()] for img in images])
 
 
 @pytest.fixture(scope="session")

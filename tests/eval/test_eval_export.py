@@ -10,7 +10,7 @@ import trimesh
 from conftest import body_parts
 
 from cerberus_core.eval.export import export_parts, export_reconstruction
-from cerberus_core.parts import PartReconstruction
+from cerberus_core.parts import PartSet
 from cerberus_core.viz import part_colors
 
 
@@ -53,6 +53,6 @@ def test_export_refuses_broken_input_without_writing(tmp_path):
     with pytest.raises(ValueError, match="unknown format"):
         export_parts(np.zeros((1, 3, 3)), np.array([[0, 1, 2]]), tmp_path, "x", formats=["fbx"])
     with pytest.raises(ValueError, match="names"):
-        export_reconstruction(PartReconstruction.from_posed(torch.zeros(2, 3, 3), torch.tensor([[0, 1, 2]])),
+        export_reconstruction(PartSet.from_posed(torch.zeros(2, 3, 3), torch.tensor([[0, 1, 2]])),
                               tmp_path, ["only_one"])
     assert list(tmp_path.iterdir()) == []

@@ -10,7 +10,7 @@ from PIL import Image
 from cerberus_core.render.camera import Camera
 from cerberus_core.eval import figures
 from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
-from cerberus_core.parts import PartReconstruction
+from cerberus_core.parts import PartSet
 
 H = 40
 
@@ -56,7 +56,7 @@ def test_turntable_views_differ(renderer, primitive_bodies):
 
 def test_new_pose_equals_render_of_donor_when_shapes_agree(renderer, primitive_bodies):
     a = body_parts(primitive_bodies[0], seed=3)
-    donor = PartReconstruction(a.local_vertices, a.faces, a.rotation.flip(1), a.translation.flip(1))
+    donor = PartSet(a.local_vertices, a.faces, a.rotations.flip(1), a.translations.flip(1))
     got = figures.reposed(renderer, a, donor, _camera())
     torch.testing.assert_close(got, figures.render_reconstruction(renderer, donor, _camera()))
 
@@ -79,10 +79,10 @@ def test_save_image_pictures_writes_pngs_of_expected_size(tmp_path, renderer, pr
 
 def test_comparison_figure_columns(renderer, primitive_bodies):
     bodies = primitive_bodies[:3]
-    ours = PartReconstruction.cat([body_parts(b) for b in bodies])
+    ours = PartSet.cat([body_parts(b) for b in bodies])
     cams = Camera.cat([_camera(az) for az in (0.0, 45.0, 90.0)])
     images = figures.render_reconstruction(renderer, ours, cams)
-    blob = PartReconstruction.from_posed(torch.as_tensor(bodies[0].vertices)[None].expand(3, -1, -1),
+    blob = PartSet.from_posed(torch.as_tensor(bodies[0].vertices)[None].expand(3, -1, -1),
                                          torch.as_tensor(bodies[0].faces))
     titles, rows = figures.comparison_rows(renderer, images, cams, ours, {"NMR": blob, "NMRs": blob})
     assert titles == ["Input", "NMR", "NMRs", "Ours", "Parts", "Turn"]

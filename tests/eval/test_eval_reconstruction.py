@@ -1,4 +1,4 @@
-"""PartReconstruction and the posing math behind Hard Human and "new pose"."""
+"""PartSet and the posing math behind Hard Human and "new pose"."""
 from __future__ import annotations
 
 import pytest
@@ -6,27 +6,27 @@ import torch
 from conftest import body_parts, random_rotations
 
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.parts import PartReconstruction, transfer_pose
+from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.templates import icosphere
 
 
-def _recon(b: int, p: int, seed: int) -> PartReconstruction:
+def _recon(b: int, p: int, seed: int) -> PartSet:
     g = torch.Generator().manual_seed(seed)
     t = icosphere(1)
     local = t.vertices * (0.05 + 0.05 * torch.rand(b, p, 1, 3, generator=g))
     rot = random_rotations(b * p, seed).float().reshape(b, p, 3, 3)
-    return PartReconstruction(local, t.faces, rot, 0.2 * torch.randn(b, p, 3, generator=g))
+    return PartSet(local, t.faces, rot, 0.2 * torch.randn(b, p, 3, generator=g))
 
 
 def test_posed_is_rotation_then_translation():
     r = _recon(2, 3, 0)
-    expected = torch.einsum("bpij,bpvj->bpvi", r.rotation, r.local_vertices) + r.translation[:, :, None]
+    expected = torch.einsum("bpij,bpvj->bpvi", r.rotations, r.local_vertices) + r.translations[:, :, None]
     torch.testing.assert_close(r.posed(), expected)
 
 
 def test_identity_pose_leaves_canonical_shape_unchanged():
     canon = _recon(1, 4, 1)
-    identity = PartReconstruction(canon.local_vertices, canon.faces, torch.eye(3).expand(1, 4, 3, 3).clone(),
+    identity = PartSet(canon.local_vertices, canon.faces, torch.eye(3).expand(1, 4, 3, 3).clone(),
                                   torch.zeros(1, 4, 3))
     torch.testing.assert_close(transfer_pose(canon, identity).posed(), canon.local_vertices)
 
@@ -34,11 +34,11 @@ def test_identity_pose_leaves_canonical_shape_unchanged():
 def test_transfer_reproduces_other_image_when_shapes_agree(primitive_bodies):
     # Real capsule-figure parts; image B has the same part shapes as A but other transforms.
     a = body_parts(primitive_bodies[0], seed=5)
-    b = PartReconstruction(a.local_vertices.clone(), a.faces, random_rotations(a.num_parts, 9).float()[None],
-                           a.translation + torch.tensor([0.1, -0.05, 0.02]))
+    b = PartSet(a.local_vertices.clone(), a.faces, random_rotations(a.num_parts, 9).float()[None],
+                           a.translations + torch.tensor([0.1, -0.05, 0.02]))
     torch.testing.assert_close(transfer_pose(a, b).posed(), b.posed())
     torch.testing.assert_close(transfer_pose(b, a).posed(), a.posed())
-    poses = PartReconstruction.cat([a, b])  # one canonical shape broadcasts over a batch of poses
+    poses = PartSet.cat([a, b])  # one canonical shape broadcasts over a batch of poses
     torch.testing.assert_close(transfer_pose(a, poses).posed(), poses.posed())
     # Shapes from another pose (capsules at other angles in the same local frames) do not reproduce B.
     other = body_parts(primitive_bodies[1], seed=5)
@@ -54,19 +54,19 @@ def test_transfer_pose_rejects_mismatched_parts():
 
 def test_validation_messages():
     r = _recon(1, 2, 0)
-    with pytest.raises(ValueError, match="rotation must be"):
-        PartReconstruction(r.local_vertices, r.faces, r.rotation[:, :1], r.translation)
+    with pytest.raises(ValueError, match="rotations must be"):
+        PartSet(r.local_vertices, r.faces, r.rotations[:, :1], r.translations)
     with pytest.raises(ValueError, match="faces index"):
-        PartReconstruction(r.local_vertices, r.faces + 1000, r.rotation, r.translation)
+        PartSet(r.local_vertices, r.faces + 1000, r.rotations, r.translations)
 
 
 def test_from_posed_index_cat_and_part_meshes():
     r = _recon(3, 2, 2)
-    wrapped = PartReconstruction.from_posed(r.posed(), r.faces)
+    wrapped = PartSet.from_posed(r.posed(), r.faces)
     torch.testing.assert_close(wrapped.posed(), r.posed())
-    single = PartReconstruction.from_posed(r.posed()[:, 0], r.faces)
+    single = PartSet.from_posed(r.posed()[:, 0], r.faces)
     assert single.num_parts == 1
-    assert PartReconstruction.cat([r.index(2), r.index(0)]).batch_size == 2
+    assert PartSet.cat([r.index(2), r.index(0)]).batch_size == 2
     meshes = r.part_meshes(1)
     assert len(meshes) == 2 and meshes[0][0].shape == (r.num_vertices, 3)
     torch.testing.assert_close(torch.as_tensor(meshes[1][0]).float(), r.posed()[1, 1])

@@ -60,7 +60,7 @@ def test_subset_and_switches(tiny_dataset, voxel_iou):
 
 
 def test_model_output_is_checked(tiny_dataset, voxel_iou):
-    with pytest.raises(TypeError, match="PartReconstruction"):
+    with pytest.raises(TypeError, match="PartSet"):
         evaluate_dataset(tiny_dataset, lambda images, camera: images, hard=False,
                          scorer=VoxelScorer(metric=voxel_iou), progress=False)
 

@@ -3,7 +3,8 @@ import pytest
 import torch
 
 from cerberus_core.render.camera import Camera
-from cerberus_core.model import Cerberus, ModelConfig, pose_parts, world_part_meshes
+from cerberus_core.model import Cerberus, ModelConfig
+from cerberus_core.parts import PartSet, pose_parts
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
 
@@ -19,15 +20,21 @@ def cameras(b=2, size=32):
 
 def test_reconstruct_shapes_of_every_output():
     model = small_model()
-    parts = model.reconstruct(torch.rand(2, 3, 32, 32), cameras())
-    assert parts.vertices.shape == (2, 9, 162, 3)
-    assert parts.vertices_cam.shape == (2, 9, 162, 3)
+    images, cam = torch.rand(2, 3, 32, 32), cameras()
+    parts = model.reconstruct(images, cam)
+    assert isinstance(parts, PartSet)
+    pred = model(images)
+    parts_cam = model.pose(pred, cam, frame="camera")
+    assert parts.posed().shape == (2, 9, 162, 3)
+    assert parts_cam.posed().shape == (2, 9, 162, 3)
     assert parts.local_vertices.shape == (2, 9, 162, 3)
     assert parts.faces.shape == (320, 3) and parts.faces.dtype == torch.int64
-    assert parts.rotations.shape == parts.rotations_cam.shape == (2, 9, 3, 3)
-    assert parts.translations.shape == parts.translations_cam.shape == (2, 9, 3)
-    assert parts.shape_latent.shape == (2, 16)
-    assert parts.prob_maps.shape == parts.depth_maps.shape == (2, 9, 32, 32)
+    assert parts.rotations.shape == parts_cam.rotations.shape == (2, 9, 3, 3)
+    assert parts.translations.shape == parts_cam.translations.shape == (2, 9, 3)
+    assert pred.shape_latent.shape == (2, 16)
+    assert pred.maps.prob.shape == pred.maps.depth_map.shape == (2, 9, 32, 32)
+    with pytest.raises(ValueError, match="frame"):
+        model.pose(pred, cam, frame="screen")
 
 
 def test_world_and_camera_frames_agree():
@@ -35,16 +42,19 @@ def test_world_and_camera_frames_agree():
     with torch.no_grad():
         model.rotation.linear.weight.normal_()  # non-trivial rotations
     cam = cameras()
-    parts = model.reconstruct(torch.rand(2, 3, 32, 32), cam)
-    torch.testing.assert_close(cam.camera_to_world(parts.vertices_cam.flatten(1, 2)).view_as(parts.vertices),
-                               parts.vertices, atol=1e-5, rtol=0)
-    torch.testing.assert_close(parts.rotations, cam.rotation.transpose(-1, -2).unsqueeze(1) @ parts.rotations_cam)
-    torch.testing.assert_close(pose_parts(parts.local_vertices, parts.rotations, parts.translations), parts.vertices)
+    pred = model(torch.rand(2, 3, 32, 32))
+    parts, parts_cam = model.pose(pred, cam), model.pose(pred, cam, frame="camera")
+    vertices = parts.posed()
+    torch.testing.assert_close(cam.camera_to_world(parts_cam.posed().flatten(1, 2)).view_as(vertices),
+                               vertices, atol=1e-5, rtol=0)
+    torch.testing.assert_close(parts.rotations, cam.rotation.transpose(-1, -2).unsqueeze(1) @ parts_cam.rotations)
+    torch.testing.assert_close(pose_parts(parts.local_vertices, parts.rotations, parts.translations), vertices)
     # the translation projects to the expected keypoint of the probability map
     uv, depth = cam.project(parts.translations)
-    h, w = parts.prob_maps.shape[-2:]
+    prob = pred.maps.prob
+    h, w = prob.shape[-2:]
     rows, cols = torch.meshgrid(torch.arange(h) + 0.5, torch.arange(w) + 0.5, indexing="ij")
-    expected_u = (parts.prob_maps * cols).sum(dim=(-2, -1))
+    expected_u = (prob * cols).sum(dim=(-2, -1))
     torch.testing.assert_close(uv[..., 0], expected_u, atol=1e-3, rtol=0)
 
 
@@ -55,7 +65,7 @@ def test_initial_parts_are_visible_spread_and_near_the_origin():
     assert parts.translations.abs().max() < 0.5  # inside the unit cube where bodies are
     gaps = torch.cdist(parts.translations, parts.translations) + 9 * torch.eye(9)
     assert gaps.min() > 0.05  # each part starts at its own anchor
-    out = render_parts(make_renderer("torch"), parts.vertices.detach(), parts.faces, cam)
+    out = render_parts(make_renderer("torch"), parts.posed().detach(), parts.faces, cam)
     coverage = out.alpha.mean(dim=(1, 2, 3))
     assert (coverage > 0.02).all()
 
@@ -64,9 +74,10 @@ def test_no_rotation_head_fixes_world_rotation_to_identity():
     model = small_model(num_parts=1, sphere_level=3, predict_rotation=False)
     cam = cameras()
     parts = model.reconstruct(torch.rand(2, 3, 32, 32), cam)
-    assert parts.vertices.shape == (2, 1, 642, 3)
+    assert parts.posed().shape == (2, 1, 642, 3)
     torch.testing.assert_close(parts.rotations, torch.eye(3).expand(2, 1, 3, 3))
-    torch.testing.assert_close(parts.rotations_cam, cam.rotation.unsqueeze(1))
+    parts_cam = model.pose(model(torch.rand(2, 3, 32, 32)), cam, frame="camera")
+    torch.testing.assert_close(parts_cam.rotations, cam.rotation.unsqueeze(1))
 
 
 def test_forward_mixer_replaces_the_render_latent_only():
@@ -74,23 +85,3 @@ def test_forward_mixer_replaces_the_render_latent_only():
     pred = model(torch.rand(4, 3, 32, 32), mix=lambda s: s.flip(0))
     torch.testing.assert_close(pred.render_latent, pred.shape_latent.flip(0))
     torch.testing.assert_close(pred.local_vertices, model.shape.deform(pred.shape_latent.flip(0)))
-
-
-def test_world_part_meshes_evaluates_in_chunks_and_restores_mode():
-    model = small_model()
-    model.train()
-    images, cam = torch.rand(5, 3, 32, 32), cameras(5)
-    verts, faces = world_part_meshes(model, images, cam, batch_size=2)
-    assert model.training
-    assert verts.shape == (5, 9, 162, 3) and faces.shape == (320, 3)
-    model.eval()
-    with torch.no_grad():
-        ref = model.reconstruct(images, cam).vertices
-    torch.testing.assert_close(verts, ref, atol=1e-5, rtol=0)
-
-
-def test_model_config_validation_names_the_key():
-    with pytest.raises(ValueError, match="model.num_parts"):
-        ModelConfig(num_parts=0).validate()
-    with pytest.raises(ValueError, match="depth_offset"):
-        Cerberus(ModelConfig())  # 'auto' must be resolved first

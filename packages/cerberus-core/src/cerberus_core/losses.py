@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import torch
 
+from cerberus_core.parts import pose_parts
+
 Tensor = torch.Tensor
 
 QUADRUPLET: tuple[str, ...] = ("a0", "a1", "b0", "b1")
@@ -126,9 +128,8 @@ def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Te
         ``own`` and ``cross``, both ``(B, 4, N, V, 3)``; ``cross[:, x]`` is to be rendered with the
         camera of image ``VIEW_PARTNER[x]`` and compared with that image.
     """
-    rotated = local_vertices @ rotations.transpose(-1, -2)
-    own = rotated + translations.unsqueeze(-2)
-    cross = rotated + translations[:, list(VIEW_PARTNER)].unsqueeze(-2)
+    own = pose_parts(local_vertices, rotations, translations)
+    cross = pose_parts(local_vertices, rotations, translations[:, list(VIEW_PARTNER)])
     return own, cross
 
 

@@ -1,8 +1,10 @@
-"""The output of a part-based reconstruction, as plain tensors.
+"""Posed parts: the one object for "``P`` part meshes per image" (the model's output, what
+evaluation scores, what the exporters and figures take).
 
-A reconstruction of ``B`` images with ``P`` parts is, for every part, a deformed template in the
-part's own local frame plus a rigid transform into the world frame of :mod:`cerberus_core.render.camera`
-(+Y up, normalised units). A part's posed (world) vertices are ``local @ R^T + T``.
+A part set of ``B`` images with ``P`` parts is, for every part, a deformed template in the part's own
+local frame plus a rigid transform into a frame (the world frame of
+:mod:`cerberus_core.render.camera`, +Y up, normalised units, unless said otherwise). A part's posed
+vertices are ``local @ R^T + T`` (:func:`pose_parts`, the one place that formula is written).
 
 Keeping the shapes and the transforms apart is what lets the evaluation re-pose one image's parts
 with another image's transforms (the paper's "Hard Human" test and Figure 1 (f), "New Pose"):
@@ -18,42 +20,55 @@ import torch
 Tensor = torch.Tensor
 
 
+def pose_parts(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -> Tensor:
+    """Rotate and translate part meshes: ``x' = R x + T`` (any leading batch dimensions).
+
+    Args:
+        local_vertices: ``(..., P, V, 3)``.
+        rotations: ``(..., P, 3, 3)``.
+        translations: ``(..., P, 3)``.
+    Returns:
+        ``(..., P, V, 3)``.
+    """
+    return local_vertices @ rotations.transpose(-1, -2) + translations.unsqueeze(-2)
+
+
 @dataclass
-class PartReconstruction:
+class PartSet:
     """``P`` part meshes for each of ``B`` images.
 
     Attributes:
         local_vertices: ``(B, P, V, 3)`` each part's deformed template in its local frame (before
             rotation and translation), normalised units.
         faces: ``(F, 3)`` int64 template faces shared by every part and image.
-        rotation: ``(B, P, 3, 3)`` local→world rotations.
-        translation: ``(B, P, 3)`` world-frame translations (normalised units).
+        rotations: ``(B, P, 3, 3)`` local→world rotations.
+        translations: ``(B, P, 3)`` world-frame translations (normalised units).
     """
 
     local_vertices: Tensor
     faces: Tensor
-    rotation: Tensor
-    translation: Tensor
+    rotations: Tensor
+    translations: Tensor
 
     def __post_init__(self) -> None:
-        lv, f, r, t = self.local_vertices, self.faces, self.rotation, self.translation
+        lv, f, r, t = self.local_vertices, self.faces, self.rotations, self.translations
         if lv.ndim != 4 or lv.shape[-1] != 3:
-            raise ValueError(f"PartReconstruction.local_vertices must be (B, P, V, 3), got {tuple(lv.shape)}")
+            raise ValueError(f"PartSet.local_vertices must be (B, P, V, 3), got {tuple(lv.shape)}")
         b, p, v, _ = lv.shape
         if f.ndim != 2 or f.shape[-1] != 3:
-            raise ValueError(f"PartReconstruction.faces must be (F, 3), got {tuple(f.shape)}")
+            raise ValueError(f"PartSet.faces must be (F, 3), got {tuple(f.shape)}")
         if f.dtype not in (torch.int32, torch.int64):
-            raise ValueError(f"PartReconstruction.faces must be an integer tensor, got {f.dtype}")
+            raise ValueError(f"PartSet.faces must be an integer tensor, got {f.dtype}")
         if f.numel() and (int(f.min()) < 0 or int(f.max()) >= v):
-            raise ValueError(f"PartReconstruction.faces index vertices outside 0..{v - 1}")
+            raise ValueError(f"PartSet.faces index vertices outside 0..{v - 1}")
         if r.shape != (b, p, 3, 3):
-            raise ValueError(f"PartReconstruction.rotation must be ({b}, {p}, 3, 3), got {tuple(r.shape)}")
+            raise ValueError(f"PartSet.rotations must be ({b}, {p}, 3, 3), got {tuple(r.shape)}")
         if t.shape != (b, p, 3):
-            raise ValueError(f"PartReconstruction.translation must be ({b}, {p}, 3), got {tuple(t.shape)}")
+            raise ValueError(f"PartSet.translations must be ({b}, {p}, 3), got {tuple(t.shape)}")
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_posed(cls, vertices: Tensor, faces: Tensor) -> PartReconstruction:
+    def from_posed(cls, vertices: Tensor, faces: Tensor) -> PartSet:
         """Wrap meshes already in world coordinates (identity rotations, zero translations).
 
         Useful for baselines that predict one mesh per image (``P = 1``, e.g. NMR) or for ground
@@ -86,32 +101,32 @@ class PartReconstruction:
 
     def posed(self) -> Tensor:
         """``(B, P, V, 3)`` world vertices ``local @ R^T + T`` (differentiable)."""
-        return self.local_vertices @ self.rotation.transpose(-1, -2) + self.translation.unsqueeze(-2)
+        return pose_parts(self.local_vertices, self.rotations, self.translations)
 
     # ------------------------------------------------------------------ batch handling
-    def index(self, idx: int | slice | list[int] | Tensor) -> PartReconstruction:
+    def index(self, idx: int | slice | list[int] | Tensor) -> PartSet:
         """A sub-batch (an ``int`` keeps a batch dimension of 1)."""
         if isinstance(idx, int):
             idx = slice(idx, idx + 1) if idx != -1 else slice(-1, None)
-        return PartReconstruction(self.local_vertices[idx], self.faces, self.rotation[idx], self.translation[idx])
+        return PartSet(self.local_vertices[idx], self.faces, self.rotations[idx], self.translations[idx])
 
-    def to(self, device: torch.device | str) -> PartReconstruction:
-        return PartReconstruction(self.local_vertices.to(device), self.faces.to(device), self.rotation.to(device),
-                                  self.translation.to(device))
+    def to(self, device: torch.device | str) -> PartSet:
+        return PartSet(self.local_vertices.to(device), self.faces.to(device), self.rotations.to(device),
+                       self.translations.to(device))
 
-    def detach(self) -> PartReconstruction:
-        return PartReconstruction(self.local_vertices.detach(), self.faces.detach(), self.rotation.detach(),
-                                  self.translation.detach())
+    def detach(self) -> PartSet:
+        return PartSet(self.local_vertices.detach(), self.faces.detach(), self.rotations.detach(),
+                       self.translations.detach())
 
     @staticmethod
-    def cat(items: list[PartReconstruction]) -> PartReconstruction:
+    def cat(items: list[PartSet]) -> PartSet:
         """Concatenate batches that share the face template."""
         first = items[0]
         for it in items[1:]:
             if it.faces.shape != first.faces.shape or not torch.equal(it.faces.cpu(), first.faces.cpu()):
-                raise ValueError("PartReconstruction.cat: reconstructions must share one face template")
-        return PartReconstruction(torch.cat([i.local_vertices for i in items]), first.faces,
-                                  torch.cat([i.rotation for i in items]), torch.cat([i.translation for i in items]))
+                raise ValueError("PartSet.cat: reconstructions must share one face template")
+        return PartSet(torch.cat([i.local_vertices for i in items]), first.faces,
+                                  torch.cat([i.rotations for i in items]), torch.cat([i.translations for i in items]))
 
     def part_meshes(self, i: int) -> list[tuple[np.ndarray, np.ndarray]]:
         """The posed parts of image ``i`` as ``(vertices (V, 3) float64, faces (F, 3) int64)`` numpy
@@ -121,7 +136,7 @@ class PartReconstruction:
         return [(posed[k], faces) for k in range(self.num_parts)]
 
 
-def transfer_pose(shapes: PartReconstruction, poses: PartReconstruction) -> PartReconstruction:
+def transfer_pose(shapes: PartSet, poses: PartSet) -> PartSet:
     """Give the part shapes of ``shapes`` the rotations and translations of ``poses``.
 
     Used by the identity-conditional ("Hard Human") evaluation, where the parts extracted once from
@@ -130,7 +145,7 @@ def transfer_pose(shapes: PartReconstruction, poses: PartReconstruction) -> Part
 
     Args:
         shapes: batch ``1`` (broadcast) or ``B`` — provides ``local_vertices``.
-        poses: batch ``B`` — provides ``rotation`` and ``translation``; must have the same number
+        poses: batch ``B`` — provides ``rotations`` and ``translations``; must have the same number
             of parts as ``shapes``.
     Returns:
         A batch-``B`` reconstruction whose ``posed()`` is ``shapes.local @ poses.R^T + poses.T``.
@@ -140,20 +155,7 @@ def transfer_pose(shapes: PartReconstruction, poses: PartReconstruction) -> Part
     b = poses.batch_size
     if shapes.batch_size not in (1, b):
         raise ValueError(f"transfer_pose: shapes batch must be 1 or {b}, got {shapes.batch_size}")
-    local = shapes.local_vertices.to(poses.rotation.device)
+    local = shapes.local_vertices.to(poses.rotations.device)
     if local.shape[0] != b:
         local = local.expand(b, -1, -1, -1)
-    return PartReconstruction(local, shapes.faces.to(local.device), poses.rotation, poses.translation)
-
-
-def as_part_reconstruction(output: object) -> PartReconstruction:
-    """Accept a :class:`PartReconstruction`, or any object with the attributes ``local_vertices``,
-    ``faces``, ``rotations`` and ``translations`` in the same conventions (e.g. the model's
-    ``PartMeshes``), and return a :class:`PartReconstruction`."""
-    if isinstance(output, PartReconstruction):
-        return output
-    names = ("local_vertices", "faces", "rotations", "translations")
-    if all(hasattr(output, n) for n in names):
-        return PartReconstruction(*(getattr(output, n) for n in names))
-    raise TypeError(f"expected a PartReconstruction (or an object with {', '.join(names)}), "
-                    f"got {type(output).__name__}")
+    return PartSet(local, shapes.faces.to(local.device), poses.rotations, poses.translations)

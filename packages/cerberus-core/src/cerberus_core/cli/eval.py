@@ -37,7 +37,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _figure(args, model, config, dataset, out: Path) -> Path:
     from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
-    from cerberus_core.parts import as_part_reconstruction
     from cerberus_core.eval.runner import collate
     from cerberus_core.train.checkpoint import load_model
 
@@ -47,14 +46,14 @@ def _figure(args, model, config, dataset, out: Path) -> Path:
     camera = dataset.cameras(batch)
     images = batch["images"]
     with torch.no_grad():
-        ours = as_part_reconstruction(model.reconstruct(images.to(args.device), camera.to(args.device))).to("cpu")
+        ours = model.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
         baselines = {}
         for spec in args.baseline:
             name, _, path = spec.partition("=")
             if not path:
                 raise SystemExit(f"cerberus eval: --baseline takes NAME=RUN, got {spec!r}")
             other, _ = load_model(path, args.device)
-            baselines[name] = as_part_reconstruction(other.reconstruct(images.to(args.device), camera.to(args.device))).to("cpu")
+            baselines[name] = other.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
     renderer = make_renderer(args.renderer or config.renderer)
     background = tuple(dataset.scene["background"])
     fig = comparison_figure(renderer, images, camera, ours, baselines, background=background)

@@ -44,7 +44,6 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.export import export_reconstruction
     from cerberus_core.eval.figures import save_image_pictures
     from cerberus_core.eval.images import ImageInputError, load_images
-    from cerberus_core.parts import as_part_reconstruction
     from cerberus_core.train.checkpoint import load_model
 
     model, config = load_model(args.run, args.device)
@@ -57,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     camera = scene.cameras([args.azimuth] * len(images), size)
     with torch.no_grad():
-        recon = as_part_reconstruction(model.reconstruct(images.to(args.device), camera.to(args.device))).to("cpu")
+        recon = model.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
     renderer = make_renderer(args.renderer or config.renderer)
     stems = [p.stem for p in args.images]
     written = export_reconstruction(recon, args.out, stems)

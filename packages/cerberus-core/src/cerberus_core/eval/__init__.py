@@ -1,6 +1,6 @@
 """Evaluation and use of a trained model (see docs/evaluation.md).
 
-* :mod:`.reconstruction` — :class:`PartReconstruction`, the model's output as plain tensors, and
+* :mod:`.reconstruction` — :class:`PartSet`, the model's output as plain tensors, and
   :func:`transfer_pose` (one image's parts, another's rotations and translations).
 * :mod:`.standard` — voxel IoU of the union of parts (metric found through ``cerberus.metrics``).
 * :mod:`.hard` — the identity-conditional "Hard Human" test.
@@ -11,6 +11,6 @@
 * :mod:`.figures` — Figure 1 (b)-(f), Table 2, turntables.
 * :mod:`.images` — reading user images for ``cerberus reconstruct``.
 """
-from cerberus_core.parts import PartReconstruction, transfer_pose
+from cerberus_core.parts import PartSet, transfer_pose
 
-__all__ = ["PartReconstruction", "transfer_pose"]
+__all__ = ["PartSet", "transfer_pose"]

@@ -21,7 +21,7 @@ import torch
 import trimesh
 
 from cerberus_core.atomic import atomic_write
-from cerberus_core.parts import PartReconstruction
+from cerberus_core.parts import PartSet
 from cerberus_core.viz import part_colors
 
 FORMATS = ("glb", "obj")
@@ -118,7 +118,7 @@ def export_parts(part_vertices: np.ndarray, faces: np.ndarray, out_dir: str | Pa
     return written
 
 
-def export_reconstruction(recon: PartReconstruction, out_dir: str | Path, stems: Sequence[str] | None = None, *,
+def export_reconstruction(recon: PartSet, out_dir: str | Path, stems: Sequence[str] | None = None, *,
                           formats: Sequence[str] = FORMATS) -> list[Path]:
     """Export every image of a reconstruction (``stems[i]`` names image ``i``; default ``recon_000``...)."""
     stems = [f"recon_{i:03d}" for i in range(recon.batch_size)] if stems is None else list(stems)

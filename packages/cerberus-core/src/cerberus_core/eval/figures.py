@@ -1,7 +1,7 @@
 """Pictures of reconstructions: Figure 1 (b)-(f) and Table 2 of the paper, and per-image outputs.
 
 Every function renders with a backend from :func:`cerberus_core.make_renderer` through
-:func:`cerberus_core.render_parts`, and takes the :class:`PartReconstruction` and the input camera.
+:func:`cerberus_core.render_parts`, and takes the :class:`PartSet` and the input camera.
 Cameras are look-at cameras aimed at the world origin (as the datasets render); new viewpoints keep
 the input camera's elevation, distance and field of view and change the azimuth.
 
@@ -18,7 +18,7 @@ import torch
 from PIL import Image, ImageDraw, ImageFont
 
 from cerberus_core.render.camera import Camera
-from cerberus_core.parts import PartReconstruction, transfer_pose
+from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.interface import Light, Renderer
 from cerberus_core.viz import atomic_save_png, part_colors, to_uint8
@@ -77,7 +77,7 @@ def camera_relative_light(camera: Camera, direction_cam: Sequence[float] = NEW_L
 
 
 # ------------------------------------------------------------------ renders
-def render_reconstruction(renderer: Renderer, recon: PartReconstruction, camera: Camera, *,
+def render_reconstruction(renderer: Renderer, recon: PartSet, camera: Camera, *,
                           light: Light | None = None, parts: bool = False, albedo: RGB = DEFAULT_ALBEDO,
                           background: RGB = DEFAULT_BACKGROUND) -> Tensor:
     """``(B, 3, H, W)`` images of the posed parts: shaded grey, or each part in its colour (``parts``).
@@ -93,7 +93,7 @@ def render_reconstruction(renderer: Renderer, recon: PartReconstruction, camera:
     return out.image
 
 
-def turntable(renderer: Renderer, recon: PartReconstruction, camera: Camera, n_views: int = 8, *,
+def turntable(renderer: Renderer, recon: PartSet, camera: Camera, n_views: int = 8, *,
               parts: bool = False, background: RGB = DEFAULT_BACKGROUND) -> Tensor:
     """``(n_views, 3, H, W)``: one reconstruction seen from ``n_views`` azimuths evenly spaced from the
     input camera's, each lit by a light following that view."""
@@ -106,14 +106,14 @@ def turntable(renderer: Renderer, recon: PartReconstruction, camera: Camera, n_v
     return render_reconstruction(renderer, many, cams, parts=parts, background=background)
 
 
-def relit(renderer: Renderer, recon: PartReconstruction, camera: Camera, light: Light | None = None, *,
+def relit(renderer: Renderer, recon: PartSet, camera: Camera, light: Light | None = None, *,
           background: RGB = DEFAULT_BACKGROUND) -> Tensor:
     """The reconstruction under a new light (default :func:`camera_relative_light`)."""
     light = camera_relative_light(camera) if light is None else light
     return render_reconstruction(renderer, recon, camera, light=light, background=background)
 
 
-def reposed(renderer: Renderer, shapes: PartReconstruction, poses: PartReconstruction, camera: Camera, *,
+def reposed(renderer: Renderer, shapes: PartSet, poses: PartSet, camera: Camera, *,
             parts: bool = False, background: RGB = DEFAULT_BACKGROUND) -> Tensor:
     """The parts of ``shapes`` with the rotations and translations of ``poses`` (Figure 1 (f))."""
     return render_reconstruction(renderer, transfer_pose(shapes, poses), camera, parts=parts, background=background)
@@ -189,8 +189,8 @@ FIGURE_ONE_TITLES = {"input": "(a) Input", "output": "(b) 3D Output", "parts": "
                      "new_pose": "(f) New Pose"}
 
 
-def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartReconstruction, camera: Camera, *,
-                      pose_donor: PartReconstruction | None = None, view_offset_deg: float = 90.0,
+def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartSet, camera: Camera, *,
+                      pose_donor: PartSet | None = None, view_offset_deg: float = 90.0,
                       light: Light | None = None, background: RGB = DEFAULT_BACKGROUND) -> dict[str, Tensor]:
     """The panels of Figure 1 for one image, each ``(3, H, W)``.
 
@@ -233,8 +233,8 @@ def figure_one(panels: Mapping[str, Tensor], scale: int = 2, columns: int = 3) -
 
 
 # ------------------------------------------------------------------ Table 2
-def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartReconstruction,
-                    baselines: Mapping[str, PartReconstruction] | None = None, *, turn_deg: float = 90.0,
+def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSet,
+                    baselines: Mapping[str, PartSet] | None = None, *, turn_deg: float = 90.0,
                     background: RGB = DEFAULT_BACKGROUND) -> tuple[list[str], list[list[Tensor]]]:
     """The cells of a Table-2 figure: for each image, input | baselines... | ours | parts | turn.
 
@@ -242,7 +242,7 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
         images: ``(N, 3, H, W)`` inputs; camera: their ``N`` cameras.
         ours: our reconstructions (batch ``N``).
         baselines: ``{name: reconstruction (batch N)}`` of other models; a single-mesh model is a
-            one-part reconstruction (:meth:`PartReconstruction.from_posed`). Rendered shaded grey.
+            one-part reconstruction (:meth:`PartSet.from_posed`). Rendered shaded grey.
         turn_deg: azimuth change of the "Turn" column.
     Returns:
         ``(column titles, rows of (3, H, W) cells)``.
@@ -263,8 +263,8 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
     return titles, [[columns[t][i] for t in titles] for i in range(n)]
 
 
-def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: PartReconstruction,
-                      baselines: Mapping[str, PartReconstruction] | None = None, *, turn_deg: float = 90.0,
+def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSet,
+                      baselines: Mapping[str, PartSet] | None = None, *, turn_deg: float = 90.0,
                       scale: int = 2, background: RGB = DEFAULT_BACKGROUND) -> Image.Image:
     """A Table-2-like figure (see :func:`comparison_rows`) as one picture."""
     titles, rows = comparison_rows(renderer, images, camera, ours, baselines, turn_deg=turn_deg, background=background)
@@ -272,9 +272,9 @@ def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: 
 
 
 # ------------------------------------------------------------------ one image, every picture
-def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartReconstruction, camera: Camera,
+def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camera: Camera,
                         out_dir: str | Path, stem: str, *, n_views: int = 8,
-                        pose_donor: PartReconstruction | None = None, scale: int = 2,
+                        pose_donor: PartSet | None = None, scale: int = 2,
                         background: RGB = DEFAULT_BACKGROUND) -> list[Path]:
     """Every picture of one reconstruction, as PNGs named ``<stem>_<what>.png`` in ``out_dir``.
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from cerberus_core.parts import PartReconstruction, transfer_pose
+from cerberus_core.parts import PartSet, transfer_pose
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,7 @@ class CanonicalParts:
         indices: ``{subject: dataset index}`` of those images.
     """
 
-    def __init__(self, shapes: dict[str, PartReconstruction], indices: dict[str, int]) -> None:
+    def __init__(self, shapes: dict[str, PartSet], indices: dict[str, int]) -> None:
         missing = set(indices) - set(shapes)
         if missing:
             raise ValueError(f"CanonicalParts: no shapes for subjects {sorted(missing)}")
@@ -70,7 +70,7 @@ class CanonicalParts:
         not that image)."""
         return item.subject in self.shapes and self.indices.get(item.subject) != item.index
 
-    def pose(self, subject: str, poses: PartReconstruction) -> PartReconstruction:
+    def pose(self, subject: str, poses: PartSet) -> PartSet:
         """The canonical parts of ``subject`` with the transforms of ``poses`` (any batch size)."""
         if subject not in self.shapes:
             raise KeyError(f"no canonical image for subject {subject!r}; known: {sorted(self.shapes)}")

@@ -1,9 +1,8 @@
 """One pass over a test set: standard voxel IoU, Hard Human and part quality together.
 
-The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartReconstruction``
+The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartSet``
 (world-frame output; the camera is the one the image was rendered with, which the model needs to
-unproject its translations). It may also return any object with ``local_vertices``, ``faces``,
-``rotations`` and ``translations`` (the model's ``PartMeshes``): see :func:`as_part_reconstruction`.
+unproject its translations); :meth:`cerberus_core.model.Cerberus.reconstruct` is one.
 ``cerberus eval`` wraps a trained checkpoint into that and calls :func:`evaluate_dataset`.
 
 Dataset contract (:class:`cerberus_core.datasets.readers.ViewDataset` follows it): ``len(ds)``; ``ds[i]``
@@ -27,11 +26,11 @@ from tqdm import tqdm
 from cerberus_core.render.camera import Camera
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
-from cerberus_core.parts import PartReconstruction, as_part_reconstruction
+from cerberus_core.parts import PartSet
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, Score, VoxelScorer, summarize
 
 Tensor = torch.Tensor
-Reconstructor = Callable[[Tensor, Camera], PartReconstruction]
+Reconstructor = Callable[[Tensor, Camera], PartSet]
 
 
 # ------------------------------------------------------------------ batches and cameras
@@ -92,10 +91,12 @@ def iterate_batches(dataset: Any, indices: Sequence[int], batch_size: int, num_w
 
 
 def reconstruct_batch(reconstruct: Reconstructor, images: Tensor, camera: Camera,
-                      device: torch.device | str) -> PartReconstruction:
-    """Run the model without gradients; the result is a :class:`PartReconstruction` on the CPU."""
+                      device: torch.device | str) -> PartSet:
+    """Run the model without gradients; the result is a :class:`PartSet` on the CPU."""
     with torch.no_grad():
-        recon = as_part_reconstruction(reconstruct(images.to(device), camera.to(device)))
+        recon = reconstruct(images.to(device), camera.to(device))
+    if not isinstance(recon, PartSet):
+        raise TypeError(f"the model must return a PartSet (cerberus_core.parts), got {type(recon).__name__}")
     if recon.batch_size != images.shape[0]:
         raise ValueError(f"the model returned {recon.batch_size} reconstructions for {images.shape[0]} images")
     return recon.detach().to("cpu")
@@ -143,7 +144,7 @@ def extract_canonical(dataset: Any, reconstruct: Reconstructor, indices: dict[st
                       batch_size: int = 16) -> CanonicalParts:
     """Reconstruct each subject's canonical image once and keep its part shapes."""
     subject_of = {idx: s for s, idx in indices.items()}
-    shapes: dict[str, PartReconstruction] = {}
+    shapes: dict[str, PartSet] = {}
     for batch_idx, batch, camera in iterate_batches(dataset, list(subject_of), batch_size):
         recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
         for b, idx in enumerate(batch_idx):
@@ -173,7 +174,7 @@ def evaluate_dataset(
 
     Args:
         dataset: see the module docstring.
-        reconstruct: ``(images, camera) -> PartReconstruction`` in world coordinates.
+        reconstruct: ``(images, camera) -> PartSet`` in world coordinates.
         protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's).
         hard: also run the Hard Human test (needs ``is_canonical`` images).
         part_quality: also score the parts against the ground-truth semantic parts.

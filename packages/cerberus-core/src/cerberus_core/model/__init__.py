@@ -3,15 +3,12 @@
 >>> from cerberus_core.model import Cerberus, ModelConfig
 >>> model = Cerberus(ModelConfig(depth_offset=2.2))
 >>> parts = model.reconstruct(images, camera)   # images (B, 3, H, W), camera: B cameras
->>> parts.vertices.shape                         # (B, 9, 162, 3) world coordinates
+>>> parts.posed().shape                          # (B, 9, 162, 3) world coordinates
 """
 from cerberus_core.model.cerberus import (
     Cerberus,
     ModelConfig,
-    PartMeshes,
     Predictions,
-    pose_parts,
-    world_part_meshes,
 )
 from cerberus_core.model.encoder import FeaturePyramid, ResNet10, UpDecoder, resnet10
 from cerberus_core.model.heads import KeypointMaps, expectation, unproject_expectation
@@ -21,13 +18,10 @@ __all__ = [
     "FeaturePyramid",
     "KeypointMaps",
     "ModelConfig",
-    "PartMeshes",
     "Predictions",
     "ResNet10",
     "UpDecoder",
     "expectation",
-    "pose_parts",
     "resnet10",
     "unproject_expectation",
-    "world_part_meshes",
 ]

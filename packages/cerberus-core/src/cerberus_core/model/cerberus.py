@@ -3,7 +3,7 @@
 ``Cerberus.forward(images)`` runs the down-sampling network, the up-sampling network and the three
 heads and returns camera-independent :class:`Predictions`; :meth:`Cerberus.pose` places the parts
 with the known camera (rotation and translation predicted relative to the camera, expressed in the
-world frame); :meth:`Cerberus.reconstruct` does both and returns :class:`PartMeshes`.
+world frame); :meth:`Cerberus.reconstruct` does both and returns a :class:`~cerberus_core.parts.PartSet`.
 
 Frames: a part's local vertices ``x`` (deformed sphere) map to the camera frame as
 ``R_cam x + T_cam`` and to the world as ``R_world x + T_world`` with ``R_world = R^T R_cam`` and
@@ -20,6 +20,7 @@ from torch import nn
 from cerberus_core.render.camera import Camera
 from cerberus_core.model.encoder import ResNet10, UpDecoder
 from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
+from cerberus_core.parts import PartSet
 from cerberus_core.render.templates import MeshTemplate, icosphere
 
 Tensor = torch.Tensor
@@ -113,48 +114,6 @@ class Predictions:
     maps: KeypointMaps
 
 
-@dataclass
-class PartMeshes:
-    """``N`` posed part meshes per image (the model's output, :meth:`Cerberus.reconstruct`).
-
-    Attributes:
-        vertices: ``(B, N, V, 3)`` world coordinates.
-        vertices_cam: ``(B, N, V, 3)`` camera-frame coordinates.
-        faces: ``(F, 3)`` int64 template faces shared by every part.
-        local_vertices: ``(B, N, V, 3)`` the deformed parts before rotation and translation (the
-            part *shapes*; apply other rotations/translations with :func:`pose_parts`).
-        rotations, translations: ``(B, N, 3, 3)`` and ``(B, N, 3)`` in the world frame.
-        rotations_cam, translations_cam: the same relative to the camera.
-        shape_latent: ``(B, S)`` shape latents.
-        prob_maps, depth_maps: ``(B, N, H, W)`` the translation head's maps.
-    """
-
-    vertices: Tensor
-    vertices_cam: Tensor
-    faces: Tensor
-    local_vertices: Tensor
-    rotations: Tensor
-    translations: Tensor
-    rotations_cam: Tensor
-    translations_cam: Tensor
-    shape_latent: Tensor
-    prob_maps: Tensor
-    depth_maps: Tensor
-
-
-def pose_parts(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -> Tensor:
-    """Rotate and translate part meshes: ``x' = R x + T``.
-
-    Args:
-        local_vertices: ``(B, N, V, 3)``.
-        rotations: ``(B, N, 3, 3)``.
-        translations: ``(B, N, 3)``.
-    Returns:
-        ``(B, N, V, 3)``.
-    """
-    return local_vertices @ rotations.transpose(-1, -2) + translations.unsqueeze(-2)
-
-
 class Cerberus(nn.Module):
     """The multi-headed derenderer.
 
@@ -221,54 +180,23 @@ class Cerberus(nn.Module):
             r_cam = camera.rotation.unsqueeze(1) @ r_world
         return r_world, t_world, r_cam, t_cam
 
-    def pose(self, pred: Predictions, camera: Camera) -> PartMeshes:
-        """Place the predicted parts with the cameras that took the images."""
-        r_world, t_world, r_cam, t_cam = self.world_pose(pred, camera)
-        return PartMeshes(
-            vertices=pose_parts(pred.local_vertices, r_world, t_world),
-            vertices_cam=pose_parts(pred.local_vertices, r_cam, t_cam),
-            faces=self.faces,
-            local_vertices=pred.local_vertices,
-            rotations=r_world,
-            translations=t_world,
-            rotations_cam=r_cam,
-            translations_cam=t_cam,
-            shape_latent=pred.shape_latent,
-            prob_maps=pred.maps.prob,
-            depth_maps=pred.maps.depth_map,
-        )
+    def pose(self, pred: Predictions, camera: Camera, frame: str = "world") -> PartSet:
+        """Place the predicted parts with the cameras that took the images.
 
-    def reconstruct(self, images: Tensor, camera: Camera) -> PartMeshes:
-        """Images and their known cameras → posed part meshes (differentiable; no mode change)."""
+        Args:
+            frame: ``"world"`` (the default: rotations and translations in the world frame) or
+                ``"camera"`` (relative to each image's camera).
+        """
+        r_world, t_world, r_cam, t_cam = self.world_pose(pred, camera)
+        if frame == "world":
+            return PartSet(pred.local_vertices, self.faces, r_world, t_world)
+        if frame == "camera":
+            return PartSet(pred.local_vertices, self.faces, r_cam, t_cam)
+        raise ValueError(f"Cerberus.pose: frame must be 'world' or 'camera', got {frame!r}")
+
+    def reconstruct(self, images: Tensor, camera: Camera) -> PartSet:
+        """Images and their known cameras → posed parts in the world frame (differentiable; no mode
+        change: call ``model.eval()`` first for inference)."""
         if camera.batch_size != images.shape[0]:
             raise ValueError(f"reconstruct: {images.shape[0]} images but {camera.batch_size} cameras")
         return self.pose(self(images), camera)
-
-
-@torch.no_grad()
-def world_part_meshes(model: Cerberus, images: Tensor, camera: Camera, batch_size: int = 64) -> tuple[Tensor, Tensor]:
-    """World-space part meshes for a batch of images, as evaluation needs them.
-
-    Runs the model in eval mode (batch-norm running statistics), in chunks of ``batch_size``, on
-    the model's device, and restores the previous mode.
-
-    Args:
-        model: a trained :class:`Cerberus`.
-        images: ``(B, 3, H, W)`` in [0, 1].
-        camera: the ``B`` cameras of the images (any device).
-    Returns:
-        ``vertices`` ``(B, N, V, 3)`` world coordinates (CPU, float32) and ``faces`` ``(F, 3)`` int64.
-        The union of the ``N`` parts is the reconstructed object.
-    """
-    was_training = model.training
-    model.eval()
-    device = next(model.parameters()).device
-    out = []
-    try:
-        for start in range(0, images.shape[0], batch_size):
-            idx = slice(start, start + batch_size)
-            parts = model.reconstruct(images[idx].to(device), camera.index(idx).to(device))
-            out.append(parts.vertices.float().cpu())
-    finally:
-        model.train(was_training)
-    return torch.cat(out), model.faces.cpu()
