@@ -123,3 +123,19 @@ def test_torch_backend_options(renderer, scene) -> None:
     assert torch.equal(chunked, render_parts(renderer, parts, faces, cam).face_id)
     with pytest.raises(ValueError, match="max_candidates"):
         make_renderer("torch", max_candidates=0)
+
+
+def test_one_pixel_centre_rule_in_every_dtype():
+    """The shared shading and the rasterizers take pixel centres from one function, in the scene's dtype."""
+    from cerberus_core.render.interface import pixel_centres
+    from cerberus_core.render.shading import pixel_ndc
+
+    for dtype in (torch.float32, torch.float64):
+        px, py = pixel_centres(4, 6, dtype)
+        assert px.dtype == py.dtype == dtype and px.shape == (6,) and py.shape == (4,)
+        torch.testing.assert_close(px, (2 * torch.arange(6, dtype=dtype) + 1) / 6 - 1, rtol=0, atol=0)
+        torch.testing.assert_close(py, 1 - (2 * torch.arange(4, dtype=dtype) + 1) / 4, rtol=0, atol=0)
+        rows, cols = torch.tensor([0, 3]), torch.tensor([5, 1])
+        p = pixel_ndc(4, 6, rows, cols, dtype)
+        assert p.dtype == dtype
+        assert torch.equal(p, torch.stack([px[cols], py[rows], torch.ones(2, dtype=dtype)], -1))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.render.interface import Renderer
+from cerberus_core.render.interface import Renderer, pixel_centres
 
 Tensor = torch.Tensor
 
@@ -83,6 +83,7 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
         start_total = int(csum[bounds[-1] - 1]) if bounds[-1] > 0 else 0
         nxt = int(torch.searchsorted(csum, start_total + max_candidates, right=True))
         bounds.append(max(nxt, bounds[-1] + 1))
+    px_of_col, py_of_row = pixel_centres(height, width, clip.dtype, device)
     passes = []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         sel = slice(lo, hi)
@@ -93,8 +94,7 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
         width_t = bw[sel][tri]
         rows = r0[sel][tri] + k // width_t
         cols = c0[sel][tri] + k % width_t
-        px = (2.0 * cols.to(clip.dtype) + 1.0) / width - 1.0
-        py = 1.0 - (2.0 * rows.to(clip.dtype) + 1.0) / height
+        px, py = px_of_col[cols], py_of_row[rows]
         cr = cross_t[sel][tri]  # (N, 3, 3)
         c = cr[..., 0] * px.unsqueeze(-1) + cr[..., 1] * py.unsqueeze(-1) + cr[..., 2]  # (N, 3)
         d = det_t[sel][tri]

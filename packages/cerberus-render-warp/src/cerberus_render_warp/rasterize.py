@@ -18,6 +18,8 @@ from typing import Any
 
 import torch
 
+from cerberus_core.render.interface import pixel_centres
+
 from cerberus_render_warp._runtime import as_warp, launch_scenes, launch_stream, vec_view, warp_device, wp
 from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
 
@@ -180,18 +182,6 @@ def check_inputs(clip: Tensor, faces: Tensor) -> None:
     if faces.device != clip.device:
         raise ValueError(f"warp renderer: faces are on {faces.device} but clip is on {clip.device}; "
                          "move both to one device")
-
-
-def pixel_centres(height: int, width: int, dtype: torch.dtype, device: torch.device) -> tuple[Tensor, Tensor]:
-    """NDC of pixel centres per column and per row, computed with the torch expression of the torch
-    backend and of :func:`cerberus_core.render.shading.pixel_ndc` (so they agree bit for bit).
-
-    Returns:
-        ``px`` ``(W,)`` and ``py`` ``(H,)``.
-    """
-    cols = torch.arange(width, device=device).to(dtype)
-    rows = torch.arange(height, device=device).to(dtype)
-    return (2.0 * cols + 1.0) / width - 1.0, 1.0 - (2.0 * rows + 1.0) / height
 
 
 def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float = 0.05, *,

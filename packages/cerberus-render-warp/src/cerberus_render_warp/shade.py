@@ -18,8 +18,7 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
-from cerberus_core.render.interface import Light
-from cerberus_core.render.shading import pixel_ndc
+from cerberus_core.render.interface import Light, pixel_centres
 from cerberus_core.render.templates import NORMAL_EPS
 from cerberus_render_warp._runtime import (
     as_warp,
@@ -269,16 +268,6 @@ _BACKWARD = _overloads(
     {**_SCALAR_IN, "grad_rgb": wp.array4d, "grad_depth": wp.array3d})
 
 
-def _pixel_centres(height: int, width: int, dtype: torch.dtype, device: torch.device) -> tuple[Tensor, Tensor]:
-    """NDC ``x`` per column ``(W,)`` and ``y`` per row ``(H,)``, from core's own :func:`pixel_ndc` (which
-    rounds them in float32 for every dtype), so the barycentrics match the reference shading."""
-    cols = torch.arange(width, device=device)
-    rows = torch.arange(height, device=device)
-    px = pixel_ndc(height, width, torch.zeros_like(cols), cols)[:, 0]
-    py = pixel_ndc(height, width, rows, torch.zeros_like(rows))[:, 1]
-    return px.to(dtype), py.to(dtype)
-
-
 def _scene_inputs(b0: int, b1: int, clip, faces, face_id, px, py, normals, albedo, direction, ambient,
                   diffuse) -> list[Any]:
     """Kernel arguments shared by the forward and backward kernels, for scenes ``b0 .. b1 - 1``."""
@@ -305,7 +294,7 @@ class WarpShade(torch.autograd.Function):
     def forward(ctx, clip, faces, face_id, normals, albedo, direction, ambient, diffuse):
         device = warp_device(clip.device)
         bsz, height, width = face_id.shape
-        px, py = _pixel_centres(height, width, clip.dtype, clip.device)
+        px, py = pixel_centres(height, width, clip.dtype, clip.device)
         rgb = torch.empty((bsz, height, width, 3), dtype=clip.dtype, device=clip.device)
         depth = torch.empty((bsz, height, width), dtype=clip.dtype, device=clip.device)
         cols = items_per_thread(width, device)
@@ -335,7 +324,7 @@ class WarpShade(torch.autograd.Function):
         grads = [zeros_if(need[0], clip), zeros_if(need[3], normals), zeros_if(need[4], albedo),
                  zeros_if(need_light, direction), zeros_if(need_light, ambient), zeros_if(need_light, diffuse)]
         if any(g is not None for g in grads):
-            px, py = _pixel_centres(height, width, clip.dtype, clip.device)
+            px, py = pixel_centres(height, width, clip.dtype, clip.device)
             cols = items_per_thread(width, device)
             fused = torch_cross_is_fused(clip.device, clip.dtype)
             flags = [int(need[0]), int(need[3]), int(need[4]), int(need_light)]

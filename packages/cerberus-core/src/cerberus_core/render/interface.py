@@ -34,6 +34,21 @@ import torch
 Tensor = torch.Tensor
 
 
+def pixel_centres(height: int, width: int, dtype: torch.dtype = torch.float32,
+                  device: torch.device | str | None = None) -> tuple[Tensor, Tensor]:
+    """NDC coordinates of the pixel centres, the rule above: the one place it is computed (the
+    backends' rasterizers and the shared shading all take it from here, so they agree bit for bit in
+    every dtype).
+
+    Returns:
+        ``px`` ``(W,)`` = ``2 (j + 0.5) / W - 1`` per column and ``py`` ``(H,)`` = ``1 - 2 (i + 0.5) / H``
+        per row, in ``dtype``.
+    """
+    cols = torch.arange(width, device=device).to(dtype)
+    rows = torch.arange(height, device=device).to(dtype)
+    return (2.0 * cols + 1.0) / width - 1.0, 1.0 - (2.0 * rows + 1.0) / height
+
+
 @dataclass
 class Light:
     """One directional light plus ambient light, in world coordinates.

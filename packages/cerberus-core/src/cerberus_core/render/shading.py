@@ -12,22 +12,23 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.render.interface import Light
+from cerberus_core.render.interface import Light, pixel_centres
 from cerberus_core.render.templates import NORMAL_EPS
 
 Tensor = torch.Tensor
 
 
-def pixel_ndc(height: int, width: int, rows: Tensor, cols: Tensor) -> Tensor:
-    """NDC of pixel centres.
+def pixel_ndc(height: int, width: int, rows: Tensor, cols: Tensor, dtype: torch.dtype = torch.float32) -> Tensor:
+    """NDC of pixel centres (:func:`~cerberus_core.render.interface.pixel_centres`).
 
     Args:
         rows, cols: ``(N,)`` integer pixel indices.
+        dtype: the dtype of the scene (the clip-space vertices).
     Returns:
         ``(N, 3)`` homogeneous NDC points ``(x, y, 1)``.
     """
-    x = (2.0 * cols.to(torch.float32) + 1.0) / width - 1.0
-    y = 1.0 - (2.0 * rows.to(torch.float32) + 1.0) / height
+    px, py = pixel_centres(height, width, dtype, rows.device)
+    x, y = px[cols], py[rows]
     return torch.stack([x, y, torch.ones_like(x)], dim=-1)
 
 
@@ -105,7 +106,7 @@ def shade(clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo:
     """
     bsz, height, width = face_id.shape
     b, r, c, f = foreground(face_id)
-    p = pixel_ndc(height, width, r, c)
+    p = pixel_ndc(height, width, r, c, clip.dtype)
     tri_clip = clip[b.unsqueeze(-1), faces[f]]  # (N, 3, 4)
     bary, depth = homogeneous_barycentrics(p, tri_clip)
     n = interpolate(normals, faces, b, f, bary)
