@@ -106,10 +106,10 @@ class OracleModel:
 
 
 @pytest.fixture(scope="session")
-def voxel_iou():
-    """The ``voxel_iou`` metric through its entry point, or a skip while cerberus-metrics is absent."""
+def iou_scorer():
+    """The ``voxel_iou_scorer`` factory through its entry point, or a skip while cerberus-metrics is absent."""
     try:
-        return get_metric("voxel_iou")
+        return get_metric("voxel_iou_scorer")
     except PluginError as exc:
         pytest.skip(f"the voxel_iou metric is not installed (pip install cerberus-metrics): {exc}")
 

@@ -13,7 +13,7 @@ from cerberus_core.eval.standard import VoxelScorer
 
 
 @pytest.mark.slow
-def test_untrained_model_on_generated_primitives(tmp_path, voxel_iou):
+def test_untrained_model_on_generated_primitives(tmp_path, iou_scorer):
     from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.model import Cerberus, ModelConfig
 
@@ -23,7 +23,7 @@ def test_untrained_model_on_generated_primitives(tmp_path, voxel_iou):
     ds = ViewDataset(root)
     torch.manual_seed(0)
     model = Cerberus(ModelConfig(depth_offset=ds.scene["distance"])).eval()
-    res = evaluate_dataset(ds, model.reconstruct, batch_size=6, scorer=VoxelScorer(metric=voxel_iou), progress=False)
+    res = evaluate_dataset(ds, model.reconstruct, batch_size=6, scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.standard.count == len(ds)
     assert set(res.standard.per_group) <= set(ds.subject_names)
     assert res.canonical and all(ds.records["canonical"][i] for i in res.canonical.values())

@@ -13,9 +13,9 @@ from cerberus_core.eval.runner import evaluate_dataset
 from cerberus_core.eval.standard import VoxelScorer
 
 
-def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, voxel_iou, tmp_path):
+def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, iou_scorer, tmp_path):
     model = OracleModel(tiny_dataset)
-    scorer = VoxelScorer(metric=voxel_iou)
+    scorer = VoxelScorer(factory=iou_scorer)
     res = evaluate_dataset(tiny_dataset, model, batch_size=5, scorer=scorer, progress=False)
     n = len(tiny_dataset)
     assert res.standard.count == n and res.standard.mean == pytest.approx(1.0)
@@ -47,29 +47,29 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, vo
     assert "| all | 1.0000 |" in md and "Hard Human" in md and "| head | 1.000 |" in md
 
 
-def test_subset_and_switches(tiny_dataset, voxel_iou):
+def test_subset_and_switches(tiny_dataset, iou_scorer):
     model = OracleModel(tiny_dataset)
     res = evaluate_dataset(tiny_dataset, model, indices=[3, 4], hard=False, part_quality=False,
-                           scorer=VoxelScorer(metric=voxel_iou), progress=False)
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.standard.count == 2 and res.hard is None and res.part_quality is None and res.canonical == {}
     res = evaluate_dataset(tiny_dataset, model, indices=[3], part_quality=False,
-                           scorer=VoxelScorer(metric=voxel_iou), progress=False)
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.hard.count == 1  # the canonical image is found outside the subset
     with pytest.raises(ValueError, match="no images"):
         evaluate_dataset(tiny_dataset, model, indices=[], progress=False)
 
 
-def test_model_output_is_checked(tiny_dataset, voxel_iou):
+def test_model_output_is_checked(tiny_dataset, iou_scorer):
     with pytest.raises(TypeError, match="PartSet"):
         evaluate_dataset(tiny_dataset, lambda images, camera: images, hard=False,
-                         scorer=VoxelScorer(metric=voxel_iou), progress=False)
+                         scorer=VoxelScorer(factory=iou_scorer), progress=False)
 
 
-def test_scorer_clamps_escaping_predictions_and_zeroes_rejected_ones(primitive_bodies, voxel_iou):
+def test_scorer_clamps_escaping_predictions_and_zeroes_rejected_ones(primitive_bodies, iou_scorer):
     body = primitive_bodies[1]
     parts = body_parts(body).part_meshes(0)
     gt = (body.vertices, body.faces)
-    scorer = VoxelScorer(metric=voxel_iou)
+    scorer = VoxelScorer(factory=iou_scorer)
     assert scorer(parts, gt).iou == pytest.approx(1.0)
     shifted = [(v + np.array([0.3, 0.0, 0.0]), f) for v, f in parts]
     s = scorer(shifted, gt)

@@ -210,3 +210,21 @@ def test_part_boxes_equal_whole_grid_voxelization(helpers):
         tri = 31 * np.asarray(m.vertices)[np.asarray(m.faces)] + 16
         whole |= fill_exterior(kato_surface(tri, np.zeros(3, int), (32, 32, 32)))
     assert np.array_equal(voxelize(parts).occupancy, whole)
+
+
+def test_scorer_entry_point_clamps_into_the_kato_cube_and_caches_ground_truths():
+    """``voxel_iou_scorer``: what evaluation uses; escaping predictions are clamped and reported."""
+
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    box = trimesh.creation.box(extents=(0.6, 0.6, 0.6))
+    gt = (np.asarray(box.vertices), np.asarray(box.faces))
+    scorer = VoxelIoUScorer("kato", 32)
+    iou, clipped = scorer([gt], gt)
+    assert iou == 1.0 and not clipped
+    big = (np.asarray(box.vertices) * 3.0, np.asarray(box.faces))  # leaves [-0.5, 0.5]^3
+    iou_big, clipped_big = scorer([big], gt)
+    assert clipped_big and 0.0 < iou_big < 1.0
+    assert (scorer.cache.misses, scorer.cache.hits) == (1, 1)
+    with pytest.raises(Exception, match="unknown protocol"):
+        VoxelIoUScorer("foo")
