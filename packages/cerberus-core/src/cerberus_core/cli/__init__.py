@@ -17,6 +17,7 @@ COMMAND_MODULES = [
     "cerberus_core.cli.train",
     "cerberus_core.cli.eval",
     "cerberus_core.cli.reconstruct",
+    "cerberus_core.cli.models",
 ]
 
 

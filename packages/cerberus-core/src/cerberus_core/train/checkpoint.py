@@ -13,6 +13,7 @@ every RNG state (Python, NumPy, torch CPU and CUDA) and the config as YAML — s
 """
 from __future__ import annotations
 
+import json
 import random
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -108,13 +109,33 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
     return payload
 
 
-def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: int) -> Path:
-    """Write the model weights as safetensors, with the config and step in the metadata."""
+def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: int,
+                   scene: dict[str, Any] | None = None) -> Path:
+    """Write the model weights as safetensors, with the config, the step and (``scene``) the scene
+    set-up the model was trained with in the metadata, so the file alone can reconstruct images."""
     tensors = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     meta = {"config": config_yaml, "step": str(step), "format": "cerberus-model"}
+    if scene is not None:
+        meta["scene"] = json.dumps(scene, sort_keys=True)
     path = Path(path)
     atomic_write(path, lambda fh: fh.write(save(tensors, metadata=meta)))
     return path
+
+
+def _resolve(path: str | Path) -> Path:
+    """A run folder, weights file, or the name of a shipped model (:mod:`cerberus_core.zoo`) → the file."""
+    p = Path(path)
+    if not p.exists() and isinstance(path, str) and "/" not in path and not p.suffix:
+        from cerberus_core.zoo import model_path
+
+        return model_path(path)
+    if p.is_dir():
+        for candidate in (p / "model.safetensors", checkpoint_dir(p) / LAST):
+            if candidate.is_file():
+                return candidate
+        raise FileNotFoundError(f"{p} holds neither model.safetensors nor checkpoints/{LAST}; "
+                                "is it a training run folder?")
+    return p
 
 
 def load_model(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerberus, TrainConfig]:
@@ -122,31 +143,19 @@ def load_model(path: str | Path, device: str | torch.device = "cpu") -> tuple[Ce
 
     Args:
         path: a run folder (uses ``model.safetensors``, else ``checkpoints/last.pt``), a
-            ``.safetensors`` export or a ``.pt`` checkpoint.
+            ``.safetensors`` export, a ``.pt`` checkpoint, or the name of a shipped pretrained
+            model (``"human"``, ``"animal"``: ``cerberus models`` lists them).
         device: where to put the model.
     Returns:
         ``(model, config)`` with the model in eval mode.
     """
     import yaml
-    from safetensors import safe_open
 
     from cerberus_core.train.config import TrainConfig
 
-    path = Path(path)
-    if path.is_dir():
-        for candidate in (path / "model.safetensors", checkpoint_dir(path) / LAST):
-            if candidate.is_file():
-                path = candidate
-                break
-        else:
-            raise FileNotFoundError(f"{path} holds neither model.safetensors nor checkpoints/{LAST}; "
-                                    "is it a training run folder?")
+    path = _resolve(path)
     if path.suffix == ".safetensors":
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
-        if "config" not in meta:
-            raise ValueError(f"{path} has no Cerberus config in its metadata; export it with export_weights")
-        config_yaml, state = meta["config"], load_file(str(path))
+        config_yaml, state = _read_safetensors(path)
     else:
         payload = load_checkpoint(path)
         config_yaml, state = payload["config"], payload["model"]
@@ -155,3 +164,44 @@ def load_model(path: str | Path, device: str | torch.device = "cpu") -> tuple[Ce
     model.load_state_dict(state)
     return model.to(device).eval(), config
 
+
+def _metadata(path: Path) -> dict[str, str]:
+    from safetensors import safe_open
+
+    with safe_open(str(path), framework="pt") as f:
+        return f.metadata() or {}
+
+
+def _read_safetensors(path: Path) -> tuple[str, dict[str, torch.Tensor]]:
+    meta = _metadata(path)
+    if "config" not in meta:
+        raise ValueError(f"{path} has no Cerberus config in its metadata; export it with export_weights")
+    return meta["config"], load_file(str(path))
+
+
+def model_scene(path: str | Path, config: TrainConfig, data: str | Path | None = None):
+    """The scene set-up (camera elevation, distance, field of view, light, background) a model was
+    trained with, as a :class:`~cerberus_core.datasets.scene.SceneSetup`.
+
+    In order: the dataset ``data`` if given (its manifest); the scene stored with the weights
+    (:func:`export_weights`); the run's training dataset if it is still there. Raises
+    ``FileNotFoundError`` when none is available rather than guessing a scene the model never saw.
+    ``path`` as in :func:`load_model`.
+    """
+    from cerberus_core.datasets.format import MANIFEST, read_manifest
+    from cerberus_core.datasets.scene import SceneSetup
+
+    if data is not None:
+        return SceneSetup.from_dict(read_manifest(Path(data))["scene"])
+    weights = _resolve(path)
+    if weights.suffix != ".safetensors" and weights.parent.name == "checkpoints":
+        weights = weights.parent.parent / "model.safetensors"
+    if weights.is_file() and weights.suffix == ".safetensors":
+        meta = _metadata(weights)
+        if "scene" in meta:
+            return SceneSetup.from_dict(json.loads(meta["scene"]))
+    root = Path(config.data.root)
+    if (root / MANIFEST).is_file():
+        return SceneSetup.from_dict(read_manifest(root)["scene"])
+    raise FileNotFoundError(f"the scene set-up of {path} is unknown: its weights predate stored scenes and its "
+                            f"training data {root} is gone; pass the dataset it was trained on with --data")

@@ -309,7 +309,8 @@ class _Trainer:
             if log is not None:
                 log.close()
         if info.is_main and not interrupted:
-            export_weights(self.model, self.run_dir / "model.safetensors", self.config_yaml, done)
+            export_weights(self.model, self.run_dir / "model.safetensors", self.config_yaml, done,
+                           scene=self.scene.to_dict())
             plot_loss_curves(self.run_dir / "metrics.csv", self.run_dir / "loss_curves.png")
         barrier(info)
         return TrainResult(self.run_dir, done, self.model, terms, self.skipped, interrupted, info.rank)

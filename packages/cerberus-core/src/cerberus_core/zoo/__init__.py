@@ -1,0 +1,99 @@
+"""Pretrained models shipped with the toolkit: ``load_model("human")`` works right after install.
+
+Each model is three files in this folder, all package data:
+
+* ``NAME.safetensors`` — the weights, with the training config and the scene set-up (camera
+  elevation, distance, field of view, light, background) in the safetensors metadata, so a model
+  is self-contained. Loaded only with safetensors (never pickle).
+* ``NAME.json`` — the registry entry: the file's SHA-256 (checked on every load), a one-line
+  summary, and the figures of its model card (test IoU, part quality, training time).
+* ``NAME.md`` — the model card: data, preset, exact commands, results, machine, what changed.
+
+``cerberus models`` lists them; :func:`model_path` resolves a name to its verified weights file.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cerberus_core.errors import CerberusError
+
+ZOO_DIR = Path(__file__).resolve().parent
+"""Where the shipped models live."""
+
+
+class ZooError(CerberusError, ValueError):
+    """A pretrained model is unknown, missing or fails its checksum."""
+
+
+@dataclass(frozen=True)
+class PretrainedModel:
+    """One shipped model (the fields of ``NAME.json``).
+
+    Attributes:
+        name: what ``load_model`` and ``cerberus reconstruct --model`` take.
+        summary: one line.
+        weights: file name of the safetensors weights beside the entry.
+        sha256: hex digest of the weights file.
+        card: file name of the model card.
+        results: headline figures of the card (e.g. ``test_iou``), for ``cerberus models``.
+    """
+
+    name: str
+    summary: str
+    weights: str
+    sha256: str
+    card: str
+    results: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def path(self) -> Path:
+        return ZOO_DIR / self.weights
+
+    @property
+    def card_path(self) -> Path:
+        return ZOO_DIR / self.card
+
+
+def available() -> dict[str, PretrainedModel]:
+    """Every shipped model by name (read from the ``*.json`` entries; cheap, no weights loaded)."""
+    out: dict[str, PretrainedModel] = {}
+    for entry in sorted(ZOO_DIR.glob("*.json")):
+        data = json.loads(entry.read_text())
+        model = PretrainedModel(**data)
+        out[model.name] = model
+    return out
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def model_path(name: str) -> Path:
+    """The verified weights file of a shipped model.
+
+    Raises:
+        ZooError: unknown name (the message lists the shipped ones), a missing file, or a checksum
+            mismatch (a damaged install: reinstall cerberus-core).
+    """
+    models = available()
+    if name not in models:
+        names = ", ".join(sorted(models)) or "none"
+        raise ZooError(f"no pretrained model named {name!r} (shipped: {names}); give a run folder, a "
+                       ".safetensors file or one of those names")
+    model = models[name]
+    if not model.path.is_file():
+        raise ZooError(f"pretrained model {name!r}: {model.path} is missing; reinstall cerberus-core")
+    actual = sha256_file(model.path)
+    if actual != model.sha256:
+        raise ZooError(f"pretrained model {name!r}: {model.path} fails its checksum (sha256 {actual[:12]}..., "
+                       f"expected {model.sha256[:12]}...); the file is damaged: reinstall cerberus-core")
+    return model.path

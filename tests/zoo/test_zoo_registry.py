@@ -1,0 +1,55 @@
+"""The pretrained-model registry: names, checksums, clear errors (no weights needed)."""
+import json
+
+import pytest
+import torch
+import yaml
+
+from cerberus_core import zoo
+from cerberus_core.model import Cerberus, ModelConfig
+from cerberus_core.train.checkpoint import export_weights, load_model, model_scene
+from cerberus_core.train.config import TrainConfig
+
+
+def _fake_zoo(tmp_path, monkeypatch, tamper=False):
+    """A zoo folder holding one small exported model."""
+    monkeypatch.setattr(zoo, "ZOO_DIR", tmp_path)
+    config = TrainConfig()
+    config.model = ModelConfig(width=8, shape_latent_dim=16, depth_offset=2.5)
+    torch.manual_seed(0)
+    model = Cerberus(config.model)
+    scene = {"elevation": 20.0, "fov_y": 30.0, "distance": 2.5}
+    export_weights(model, tmp_path / "tiny.safetensors", yaml.safe_dump(config.to_dict()), 7, scene=scene)
+    digest = zoo.sha256_file(tmp_path / "tiny.safetensors")
+    if tamper:
+        digest = "0" * 64
+    entry = {"name": "tiny", "summary": "a test model", "weights": "tiny.safetensors", "sha256": digest,
+             "card": "tiny.md", "results": {"test_iou": 0.5}}
+    (tmp_path / "tiny.json").write_text(json.dumps(entry))
+    (tmp_path / "tiny.md").write_text("# tiny\n")
+    return model
+
+
+def test_a_shipped_name_loads_verified_weights_and_its_scene(tmp_path, monkeypatch):
+    ref = _fake_zoo(tmp_path, monkeypatch)
+    assert list(zoo.available()) == ["tiny"]
+    model, config = load_model("tiny")
+    for (k, a), (_, b) in zip(model.state_dict().items(), ref.state_dict().items(), strict=True):
+        assert torch.equal(a, b), k
+    scene = model_scene("tiny", config)
+    assert (scene.elevation, scene.fov_y, scene.distance) == (20.0, 30.0, 2.5)
+
+
+def test_unknown_names_and_damaged_files_are_refused_with_the_fix(tmp_path, monkeypatch):
+    _fake_zoo(tmp_path, monkeypatch, tamper=True)
+    with pytest.raises(zoo.ZooError, match="fails its checksum.*reinstall"):
+        load_model("tiny")
+    with pytest.raises(zoo.ZooError, match="no pretrained model named 'dog'.*shipped: tiny"):
+        load_model("dog")
+
+
+def test_every_shipped_entry_matches_its_file():
+    """The real registry: every entry's weights exist, verify, and name a model card."""
+    for name, entry in zoo.available().items():
+        assert zoo.model_path(name).is_file()
+        assert entry.card_path.is_file(), f"{name}: model card {entry.card_path} missing"
