@@ -221,3 +221,26 @@ def test_objective_reports_non_finite_geometry_without_rendering():
     batch.images[0, 1] = float("nan")
     out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses)
     assert not out.finite and math.isnan(out.total.item()) and out.renders is None
+
+
+def test_silhouette_chamfer_pulls_toward_uncovered_foreground_and_vanishes_on_a_fit():
+    from cerberus_core.losses import silhouette_chamfer
+
+    fg = torch.zeros(1, 1, 16, 16)
+    fg[..., 4:12, 2:4] = 1  # a thin vertical limb
+    rows, cols = torch.nonzero(fg[0, 0], as_tuple=True)
+    exact = (torch.stack([cols, rows], -1).float() + 0.5)[None]
+    assert float(silhouette_chamfer(exact, fg)) == 0.0
+    far = torch.tensor([[[13.0, 8.0], [14.0, 9.0]]], requires_grad=True)  # two vertices off to the right
+    loss = silhouette_chamfer(far, fg)
+    loss.backward()
+    assert float(loss.detach()) > 0 and (far.grad[0, :, 0] > 0).all()  # descending moves both left, to the limb
+    assert float(silhouette_chamfer(far.detach(), torch.zeros(1, 16, 16))) == 0.0
+
+
+def test_silhouette_loss_is_the_mean_squared_coverage_error():
+    from cerberus_core.losses import silhouette_loss
+
+    alpha = torch.tensor([[[[1.0, 0.5], [0.0, 0.0]]]])
+    fg = torch.tensor([[[[1.0, 1.0], [1.0, 0.0]]]])
+    torch.testing.assert_close(silhouette_loss(alpha, fg), torch.tensor([(0.25 + 1.0) / 4]))

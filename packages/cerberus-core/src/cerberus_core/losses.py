@@ -214,3 +214,56 @@ def smoothness_loss(vertices: Tensor, dihedral: Tensor, eps: float = 1e-6) -> Te
     """
     cos = dihedral_cosines(vertices, dihedral, eps)
     return (cos + 1).square().sum(dim=(-2, -1))
+
+
+# ------------------------------------------------------------------ beyond the paper (off by default)
+def silhouette_loss(alpha: Tensor, foreground: Tensor) -> Tensor:
+    """Squared error between the rendered coverage and the input's foreground mask.
+
+    Needs a renderer with visibility gradients (``render_parts(..., antialias=True)``): with the
+    paper's renderer ``alpha`` is a hard 0/1 mask without gradient and this term is a constant.
+
+    Args:
+        alpha: ``(..., 1, H, W)`` rendered coverage in [0, 1].
+        foreground: ``(..., 1, H, W)`` 1 on the input's body pixels (``1 - b``).
+    Returns:
+        ``(...)`` mean over pixels.
+    """
+    if alpha.shape != foreground.shape:
+        raise ValueError(f"silhouette_loss: alpha {tuple(alpha.shape)} vs foreground {tuple(foreground.shape)}")
+    return (alpha - foreground).square().mean(dim=(-3, -2, -1))
+
+
+def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512) -> Tensor:
+    """Long-range pull of the parts onto the input's silhouette, in the image plane.
+
+    A symmetric 2D chamfer distance between the projected part vertices and the foreground pixel
+    centres: every foreground pixel pulls its nearest vertex (so limbs nobody covers attract a part),
+    and every vertex is pulled to its nearest foreground pixel (so parts over the background, or
+    hidden ones wandering outside, come back). Unlike the rendering loss it reaches every vertex,
+    visible or not, at any distance. Distances are in units of the image height, not squared, so the
+    pull has the same strength near and far.
+
+    Args:
+        points: ``(N, M, 2)`` projected vertices in pixels (:meth:`Camera.project`), all parts.
+        foreground: ``(N, 1, H, W)`` or ``(N, H, W)`` foreground mask (1 on the body).
+        max_points: vertices used per image (evenly strided), bounding the cost.
+    Returns:
+        ``(N,)``; 0 for an image with no foreground pixel.
+    """
+    fg = foreground.reshape(foreground.shape[0], *foreground.shape[-2:]) > 0.5
+    n, height, _ = fg.shape
+    if points.ndim != 3 or points.shape[0] != n or points.shape[-1] != 2:
+        raise ValueError(f"silhouette_chamfer: points must be ({n}, M, 2), got {tuple(points.shape)}")
+    stride = max(1, -(-points.shape[1] // max_points))
+    pts = points[:, ::stride]
+    out = []
+    for i in range(n):
+        rows, cols = torch.nonzero(fg[i], as_tuple=True)
+        if rows.numel() == 0:
+            out.append(pts.new_zeros(()))
+            continue
+        centres = torch.stack([cols, rows], -1).to(pts.dtype) + 0.5  # (K, 2) as (u, v)
+        dist = torch.cdist(centres, pts[i])  # (K, M')
+        out.append((dist.min(dim=1).values.mean() + dist.min(dim=0).values.mean()) / height)
+    return torch.stack(out)
