@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
-from cerberus_core.datasets.format import DatasetError
 from cerberus_core.bodies.sources import BodySource, SubjectInfo
+from cerberus_core.errors import DatasetError
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
