@@ -8,9 +8,9 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from cerberus_core.render.camera import Camera
-from cerberus_core.datasets.readers import QuadrupletDataset, ShardStream, ViewDataset, background_mask
 from cerberus_core.datasets.format import DatasetError
+from cerberus_core.datasets.readers import QuadrupletDataset, ShardStream, ViewDataset, background_mask
+from cerberus_core.render.camera import Camera
 
 
 def test_quadruplet_item_contract(pairs_dataset):
@@ -95,8 +95,8 @@ def test_view_dataset_contract_gt_mesh_and_canonical(pairs_dataset):
 def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     from dataclasses import replace
 
-    from cerberus_core.datasets.generate import generate
     from cerberus_core.bodies.sources import make_source
+    from cerberus_core.datasets.generate import generate
 
     cfg = pairs_config()
     cfg = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], meshes=False)})
@@ -105,8 +105,8 @@ def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     assert "vertices" not in ds.manifest["splits"]["train"]["shards"][0]["files"]
     body = ds.gt_mesh(6)
     src = make_source("primitives")
-    src.subjects("train", 2, 0)
-    expected = src.bodies(body.subject, [body.pose_id])[0]
+    (subject,) = [s for s in src.subjects("train", 2, 0) if s.name == body.subject]
+    expected = src.bodies(subject, [body.pose_id])[0]
     np.testing.assert_array_equal(body.vertices, expected.vertices)
 
 
@@ -149,3 +149,22 @@ def test_background_mask_is_exact(pairs_dataset):
     assert mask.shape == (1, 32, 32)
     body = img[:, mask[0] == 0]
     assert float(body.max()) <= 0.8 + 1 / 255  # albedo * (ambient + diffuse)
+
+
+@pytest.mark.parametrize("name", ["primitives", "animal"])
+def test_sources_are_stateless(name):
+    """A body depends only on (subject record, pose id): a fresh source, a JSON round trip of the
+    record and another batch of ids give the same mesh, without calling subjects() first."""
+    import json
+
+    from cerberus_core.bodies.sources import Subject, make_source
+
+    src = make_source(name)
+    subject = src.subjects("test", 2, 3)[1]
+    pose = src.pose_pool(subject, "test", 1)[0]
+    expected = src.bodies(subject, [pose])[0]
+    again = make_source(name).bodies(Subject.from_dict(json.loads(json.dumps(subject.to_dict()))), [pose])[0]
+    np.testing.assert_array_equal(again.vertices, expected.vertices)
+    np.testing.assert_array_equal(again.vertex_parts, expected.vertex_parts)
+    with pytest.raises(KeyError, match="rerun the same"):
+        src.bodies(Subject(subject.name), [pose])

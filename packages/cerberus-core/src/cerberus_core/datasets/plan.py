@@ -28,7 +28,7 @@ import numpy as np
 
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
-from cerberus_core.bodies.sources import BodySource, SubjectInfo
+from cerberus_core.bodies.sources import BodySource, Subject
 
 LAYOUTS = ("pairs", "grid")
 
@@ -244,17 +244,17 @@ def _spread(total: int, n: int) -> list[int]:
     return [total // n + (1 if i < total % n else 0) for i in range(n)]
 
 
-def _pairs_units(subject: int, name: str, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
-                 split: str, seed: int, rng: np.random.Generator, chunk: int) -> list[_Unit]:
+def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
+                 split: str, rng: np.random.Generator, chunk: int) -> list[_Unit]:
     if n_pairs is None:
-        pool = source.pose_pool(name, split, None, seed)
+        pool = source.pose_pool(who, split, None)
         n_pairs = len(pool)
     else:
-        pool = source.pose_pool(name, split, 2 * n_pairs, seed)
+        pool = source.pose_pool(who, split, 2 * n_pairs)
     if n_pairs == 0:
         return []
     if len(pool) < 2:
-        raise ValueError(f"subject {name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
+        raise ValueError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
     if len(pool) >= 2 * n_pairs:
         pairs = [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
     else:  # a fixed pose set smaller than needed: draw distinct pairs at random
@@ -280,10 +280,10 @@ def _pairs_units(subject: int, name: str, cfg: SplitConfig, n_pairs: int | None,
     return units
 
 
-def _grid_units(subject: int, name: str, cfg: SplitConfig, source: BodySource, split: str, seed: int,
+def _grid_units(subject: int, who: Subject, cfg: SplitConfig, source: BodySource, split: str,
                 rng: np.random.Generator, shard_images: int) -> list[_Unit]:
-    pool = list(source.pose_pool(name, split, cfg.poses, seed))
-    canonical = source.canonical_pose(name) if cfg.canonical else None
+    pool = list(source.pose_pool(who, split, cfg.poses))
+    canonical = source.canonical_pose(who) if cfg.canonical else None
     if canonical is not None and canonical in pool:
         pool.remove(canonical)
     v = cfg.views
@@ -362,7 +362,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     index: dict[str, int] = {}
     shards: dict[str, list[ShardPlan]] = {}
     for split, cfg in config.splits.items():
-        infos: list[SubjectInfo] = source.subjects(split, cfg.subjects, config.seed)
+        infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
         if not infos:
             raise ValueError(f"split {split!r} has no subject; adjust the preset or the folder's split options")
         for s in infos:
@@ -374,7 +374,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 entry["splits"].append(split)
             else:
                 index[s.name] = len(table)
-                table.append({"name": s.name, "splits": [split], "canonical_pose": source.canonical_pose(s.name),
+                table.append({"name": s.name, "splits": [split], "canonical_pose": source.canonical_pose(s),
                               "info": s.info})
         units: list[_Unit] = []
         pair_counts = _spread(cfg.pairs, len(infos)) if (cfg.layout == "pairs" and cfg.pairs is not None) else None
@@ -382,10 +382,10 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
         for pos, s in enumerate(infos):
             rng = np.random.default_rng([config.seed, _code(split), pos, _code(s.name)])
             if cfg.layout == "pairs":
-                units += _pairs_units(index[s.name], s.name, cfg, None if pair_counts is None else pair_counts[pos],
-                                      source, split, config.seed, rng, chunk)
+                units += _pairs_units(index[s.name], s, cfg, None if pair_counts is None else pair_counts[pos],
+                                      source, split, rng, chunk)
             else:
-                units += _grid_units(index[s.name], s.name, cfg, source, split, config.seed, rng, config.shard_images)
+                units += _grid_units(index[s.name], s, cfg, source, split, rng, config.shard_images)
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
             raise ValueError(f"split {split!r} would be empty; check the preset's counts")

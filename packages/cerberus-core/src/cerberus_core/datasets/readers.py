@@ -314,7 +314,8 @@ class ViewDataset(_Base):
         return PosedBody(verts, faces, parts, self.part_names, self.subject_names[subject], pose, meta=meta)
 
     def _regenerate(self, subject: int, pose: int) -> PosedBody:
-        from cerberus_core.bodies.sources import make_source
+        """Rebuild a body from the manifest alone: its source (name and options) and the subject's record."""
+        from cerberus_core.bodies.sources import Subject, make_source
 
         if self._source is None:
             src = self.manifest["source"]
@@ -323,10 +324,10 @@ class ViewDataset(_Base):
             except Exception as exc:  # noqa: BLE001
                 raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and its source "
                                    f"{src['name']!r} cannot be rebuilt here ({exc})") from exc
-            cfg = self.manifest["config"]
-            for split, sc in cfg["splits"].items():
-                self._source.subjects(split, sc["subjects"], cfg["seed"])
-        return self._source.bodies(self.subject_names[subject], [pose])[0]
+        try:
+            return self._source.bodies(Subject.from_dict(self.manifest["subjects"][subject]), [pose])[0]
+        except KeyError as exc:
+            raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
 
 
 class ShardStream(IterableDataset):
