@@ -9,7 +9,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from cerberus_core.datasets.format import DatasetError
-from cerberus_core.datasets.readers import QuadrupletDataset, ShardStream, ViewDataset, background_mask
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, background_mask
 from cerberus_core.render.camera import Camera
 
 
@@ -108,21 +108,6 @@ def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     (subject,) = [s for s in src.subjects("train", 2, 0) if s.name == body.subject]
     expected = src.bodies(subject, [body.pose_id])[0]
     np.testing.assert_array_equal(body.vertices, expected.vertices)
-
-
-def test_stream_yields_every_item_once_across_workers(grid_dataset):
-    full = QuadrupletDataset(grid_dataset)
-    stream = ShardStream(grid_dataset, "train", shuffle=True, seed=3)
-    assert len(stream) == len(full)
-    got = [b for b in DataLoader(stream, batch_size=None, num_workers=2)]
-    key = lambda it: (int(it["subject"]), tuple(it["pose"].tolist()), tuple(it["view"].tolist()))  # noqa: E731
-    assert sorted(map(key, got)) == sorted(key(full[i]) for i in range(len(full)))
-    first = [key(x) for x in ShardStream(grid_dataset, "train", shuffle=True, seed=3)]
-    stream2 = ShardStream(grid_dataset, "train", shuffle=True, seed=3)
-    stream2.set_epoch(1)
-    assert first != [key(x) for x in stream2]  # a new order each epoch
-    views = list(ShardStream(grid_dataset, "test", "views"))
-    assert len(views) == len(ViewDataset(grid_dataset))
 
 
 def test_grid_quadruplets_share_viewpoints(grid_dataset):

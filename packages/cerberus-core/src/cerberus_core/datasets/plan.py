@@ -21,7 +21,7 @@ that is what makes generation resumable and deterministic.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -390,9 +390,3 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
         if not shards[split]:
             raise ValueError(f"split {split!r} would be empty; check the preset's counts")
     return DatasetPlan(table, shards)
-
-
-def with_overrides(config: GenerationConfig, **changes: Any) -> GenerationConfig:
-    """A copy of ``config`` with fields replaced (``None`` values are ignored)."""
-    return replace(config, **{k: v for k, v in changes.items() if v is not None})
-

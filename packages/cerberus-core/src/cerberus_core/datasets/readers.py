@@ -3,23 +3,19 @@
 * :class:`QuadrupletDataset` — training quadruplets: one body in 2 poses (a, b) from 2 viewpoints
   (0, 1), images in the order ``(a0, a1, b0, b1)``.
 * :class:`ViewDataset` — single images (evaluation), with the ground-truth mesh of each image.
-* :class:`ShardStream` — an :class:`~torch.utils.data.IterableDataset` streaming either kind shard
-  by shard (sequential reads; shards are split over DataLoader workers and distributed ranks).
 
-All are cheap to construct (they read ``manifest.json`` and stat the shard files) and picklable:
+Both are cheap to construct (they read ``manifest.json`` and stat the shard files) and picklable:
 shards are opened lazily in each process with ``np.load(mmap_mode="r")``.
 """
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from torch.utils.data import Dataset, IterableDataset, get_worker_info
+from torch.utils.data import Dataset
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
@@ -32,6 +28,7 @@ from cerberus_core.datasets.format import (
     unpack_mesh,
 )
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 
 Tensor = torch.Tensor
@@ -330,57 +327,6 @@ class ViewDataset(_Base):
             raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
 
 
-class ShardStream(IterableDataset):
-    """Stream a split shard by shard (sequential reads), as quadruplets or single views.
-
-    Shards are dealt round-robin to ``world_size * num_workers`` consumers (distributed rank from
-    :mod:`torch.distributed` when initialised); with ``shuffle`` the shard order and the order
-    within each shard change every epoch (:meth:`set_epoch`) from ``seed``.
-
-    Args:
-        root, split: the dataset split.
-        items: ``"quadruplets"`` (items as :class:`QuadrupletDataset`) or ``"views"`` (as :class:`ViewDataset`).
-        shuffle, seed: shuffling.
-    """
-
-    def __init__(self, root: str | Path, split: str = "train", items: str = "quadruplets", *, shuffle: bool = False,
-                 seed: int = 0, allow_partial: bool = False) -> None:
-        if items not in ("quadruplets", "views"):
-            raise ValueError(f"items must be 'quadruplets' or 'views', got {items!r}")
-        cls = QuadrupletDataset if items == "quadruplets" else ViewDataset
-        self.dataset = cls(root, split, allow_partial=allow_partial)
-        self.items = items
-        self.shuffle = shuffle
-        self.seed = seed
-        self.epoch = 0
-
-    def set_epoch(self, epoch: int) -> None:
-        self.epoch = int(epoch)
-
-    def _counts(self) -> np.ndarray:
-        r = self.dataset._reader
-        return np.diff(r.quad_offsets if self.items == "quadruplets" else r.image_offsets)
-
-    def __len__(self) -> int:
-        """Items over all consumers (a consumer sees about ``len / (world_size * num_workers)``)."""
-        return int(self._counts().sum())
-
-    def __iter__(self) -> Iterator[dict[str, Tensor]]:
-        info = get_worker_info()
-        wid, nworkers = (info.id, info.num_workers) if info is not None else (0, 1)
-        rank, world = 0, 1
-        if torch.distributed.is_available() and torch.distributed.is_initialized():
-            rank, world = torch.distributed.get_rank(), torch.distributed.get_world_size()
-        counts = self._counts()
-        rng = np.random.default_rng([self.seed, self.epoch])
-        order = rng.permutation(len(counts)) if self.shuffle else np.arange(len(counts))
-        consumer, consumers = rank * nworkers + wid, world * nworkers
-        for shard in order[consumer::consumers]:
-            local = rng.permutation(counts[shard]) if self.shuffle else range(counts[shard])
-            for j in local:
-                yield self.dataset.item(int(shard), int(j))
-
-
 def background_mask(images: Tensor, background: tuple[float, float, float] | list[float],
                     tol: float = 0.5 / 255) -> Tensor:
     """Pixels equal to the background colour.
@@ -396,4 +342,4 @@ def background_mask(images: Tensor, background: tuple[float, float, float] | lis
     return ((images - bg).abs() <= tol).all(dim=-3, keepdim=True).to(torch.float32)
 
 
-__all__ = ["QuadrupletDataset", "ShardStream", "ViewDataset", "background_mask"]
+__all__ = ["QuadrupletDataset", "ViewDataset", "background_mask"]
