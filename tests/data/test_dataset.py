@@ -29,10 +29,10 @@ def test_quadruplet_item_contract(pairs_dataset):
         assert pose[0] == pose[1] != pose[2] == pose[3]  # (a0, a1, b0, b1)
         assert view.tolist() == [0, 1, 0, 1]
         assert az[0] == az[2] and az[1] == az[3] and az[0] != az[1]
-        assert torch.all(item["elevation"] == ds.scene["elevation"])
-        assert torch.all(item["distance"] == torch.tensor(ds.scene["distance"], dtype=torch.float32))
+        assert torch.all(item["elevation"] == ds.scene.elevation)
+        assert torch.all(item["distance"] == torch.tensor(ds.scene.distance, dtype=torch.float32))
         # the body is visible in every image, and not identical between viewpoints
-        mask = background_mask(item["images"], ds.scene["background"])
+        mask = background_mask(item["images"], ds.scene.background)
         assert bool((mask.mean((1, 2, 3)) < 0.99).all())
         assert not torch.equal(item["images"][0], item["images"][1])
     assert torch.equal(ds[-1]["images"], ds[len(ds) - 1]["images"])
@@ -42,7 +42,7 @@ def test_quadruplet_item_contract(pairs_dataset):
 
 def test_scene_and_cameras_helper(pairs_dataset):
     ds = QuadrupletDataset(pairs_dataset)
-    assert {"elevation", "distance", "fov_y", "ambient", "diffuse", "albedo", "background"} <= set(ds.scene)
+    assert {"elevation", "distance", "fov_y", "ambient", "diffuse", "albedo", "background"} <= set(ds.scene.to_dict())
     batch = next(iter(DataLoader(ds, batch_size=3)))
     assert batch["images"].shape == (3, 4, 3, 32, 32)
     cam = ds.cameras(batch, slot=1)
@@ -54,7 +54,7 @@ def test_scene_and_cameras_helper(pairs_dataset):
     every = ds.cameras(batch)
     assert every.batch_size == 12
     torch.testing.assert_close(every.rotation[1::4], cam.rotation)  # row-major (b, slot)
-    light = ds.light(cam)
+    light = ds.scene.light(cam)
     torch.testing.assert_close(light.direction, torch.nn.functional.normalize(cam.center, dim=-1))
 
 
@@ -130,7 +130,7 @@ def test_wrong_split_or_kind_is_a_clear_error(pairs_dataset):
 def test_background_mask_is_exact(pairs_dataset):
     ds = ViewDataset(pairs_dataset)
     img = ds[0]["images"]
-    mask = background_mask(img, ds.scene["background"])
+    mask = background_mask(img, ds.scene.background)
     assert mask.shape == (1, 32, 32)
     body = img[:, mask[0] == 0]
     assert float(body.max()) <= 0.8 + 1 / 255  # albedo * (ambient + diffuse)

@@ -22,7 +22,7 @@ def test_untrained_model_on_generated_primitives(tmp_path, voxel_iou):
                           "--quiet"]) == 0
     ds = ViewDataset(root)
     torch.manual_seed(0)
-    model = Cerberus(ModelConfig(depth_offset=ds.scene["distance"])).eval()
+    model = Cerberus(ModelConfig(depth_offset=ds.scene.distance)).eval()
     res = evaluate_dataset(ds, model.reconstruct, batch_size=6, scorer=VoxelScorer(metric=voxel_iou), progress=False)
     assert res.standard.count == len(ds)
     assert set(res.standard.per_group) <= set(ds.subject_names)

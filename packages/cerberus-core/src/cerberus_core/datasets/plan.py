@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
+from cerberus_core.bodies.sources import BodySource, Subject
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
-from cerberus_core.bodies.sources import BodySource, Subject
 
 LAYOUTS = ("pairs", "grid")
 
@@ -260,14 +260,14 @@ def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | No
     else:  # a fixed pose set smaller than needed: draw distinct pairs at random
         a = rng.integers(0, len(pool), n_pairs)
         b = (a + rng.integers(1, len(pool), n_pairs)) % len(pool)
-        pairs = [(pool[i], pool[j]) for i, j in zip(a, b)]
+        pairs = [(pool[i], pool[j]) for i, j in zip(a, b, strict=True)]
     azimuths = rng.uniform(0.0, 360.0, (n_pairs, 2))
     units = []
     for start in range(0, n_pairs, chunk):
         meshes: list[tuple[int, int]] = []
         index: dict[int, int] = {}
         images, quads = [], []
-        for (pa, pb), (az0, az1) in zip(pairs[start:start + chunk], azimuths[start:start + chunk]):
+        for (pa, pb), (az0, az1) in zip(pairs[start:start + chunk], azimuths[start:start + chunk], strict=True):
             for p in (pa, pb):
                 if p not in index:
                     index[p] = len(meshes)
@@ -289,7 +289,8 @@ def _grid_units(subject: int, who: Subject, cfg: SplitConfig, source: BodySource
     v = cfg.views
     shared = evenly_spaced(rng.uniform(0.0, 360.0), v)
     offsets = rng.uniform(0.0, 360.0, len(pool))
-    poses = [(p, shared if cfg.azimuths == "shared" else evenly_spaced(o, v), False) for p, o in zip(pool, offsets)]
+    poses = [(p, shared if cfg.azimuths == "shared" else evenly_spaced(o, v), False)
+             for p, o in zip(pool, offsets, strict=True)]
     quads: list[tuple[int, int, int, int]] = []
     if cfg.quadruplets_per_pose and len(pool) >= 2:
         pose_pairs = [(a, b) for a in range(len(pool)) for b in range(a + 1, len(pool))]

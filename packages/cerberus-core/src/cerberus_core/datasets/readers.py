@@ -29,7 +29,6 @@ from cerberus_core.datasets.format import (
 )
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light
 
 Tensor = torch.Tensor
 
@@ -118,6 +117,7 @@ class _Base(Dataset):
     """Manifest-level accessors shared by both datasets."""
 
     _reader: _SplitReader
+    _scene: SceneSetup | None
 
     @property
     def root(self) -> Path:
@@ -137,14 +137,12 @@ class _Base(Dataset):
         return self._reader.image_size
 
     @property
-    def scene(self) -> dict:
-        """The scene set-up: ``elevation``, ``fov_y`` (degrees), ``distance``, ``ambient``,
-        ``diffuse``, ``albedo``, ``background``, ``near``, ``far``, ``light`` (a description)."""
-        return dict(self.manifest["scene"])
-
-    @property
-    def scene_setup(self) -> SceneSetup:
-        return SceneSetup.from_dict(self.manifest["scene"])
+    def scene(self) -> SceneSetup:
+        """The scene set-up (cameras of view records, light, background, albedo); the manifest's
+        ``scene`` read with :meth:`SceneSetup.from_dict`."""
+        if self._scene is None:
+            self._scene = SceneSetup.from_dict(self.manifest["scene"])
+        return self._scene
 
     @property
     def part_names(self) -> list[str]:
@@ -156,12 +154,8 @@ class _Base(Dataset):
         """Subject index → name (indices are global over the dataset's splits)."""
         return [s["name"] for s in self.manifest["subjects"]]
 
-    def light(self, camera: Camera) -> Light:
-        """The dataset's light for ``camera``: white directional along the view plus white ambient."""
-        return Light.following(camera, ambient=self.scene["ambient"], diffuse=self.scene["diffuse"])
-
     def cameras(self, batch: dict[str, Tensor], slot: int | None = None) -> Camera:
-        """Cameras of a (collated) batch.
+        """Cameras of a (collated) batch at this dataset's image size: :meth:`SceneSetup.view_cameras`.
 
         Args:
             batch: a dict with ``azimuth``, ``elevation``, ``distance``, ``fov_y``, each ``(B, 4)``
@@ -172,15 +166,7 @@ class _Base(Dataset):
         Returns:
             :class:`Camera` on the batch's device with this dataset's image size.
         """
-        def pick(key: str) -> Tensor:
-            t = torch.as_tensor(batch[key], dtype=torch.float32)
-            if slot is not None:
-                t = t[..., slot]
-            return t.reshape(-1)
-
-        return Camera.look_at(pick("azimuth"), pick("elevation"), pick("distance"), fov_y_deg=pick("fov_y"),
-                              image_size=self.image_size, near=self.scene.get("near", 0.05),
-                              far=self.scene.get("far", 100.0), device=torch.as_tensor(batch["azimuth"]).device)
+        return self.scene.view_cameras(batch, self.image_size, slot=slot)
 
 
 class QuadrupletDataset(_Base):
@@ -205,6 +191,7 @@ class QuadrupletDataset(_Base):
     def __init__(self, root: str | Path, split: str = "train", *, allow_partial: bool = False,
                  verify: bool = False) -> None:
         self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
+        self._scene = None
         if self._reader.quad_offsets[-1] == 0:
             raise DatasetError(f"{self._reader.root}: split {split!r} has no quadruplets (a "
                                f"{self._reader.info['layout']} test split?); use ViewDataset for single images")
@@ -245,6 +232,7 @@ class ViewDataset(_Base):
     def __init__(self, root: str | Path, split: str = "test", *, allow_partial: bool = False,
                  verify: bool = False) -> None:
         self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
+        self._scene = None
         self._records: np.ndarray | None = None
         self._source = None
 
@@ -333,7 +321,7 @@ def background_mask(images: Tensor, background: tuple[float, float, float] | lis
 
     Args:
         images: ``(..., 3, H, W)`` in [0, 1] (as the datasets return them).
-        background: the dataset's ``scene["background"]``.
+        background: the dataset's ``scene.background``.
     Returns:
         ``(..., 1, H, W)`` float32, 1 on background. With the default scene every body pixel is at
         most 0.8 bright, so the mask is exact.
