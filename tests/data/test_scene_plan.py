@@ -151,6 +151,20 @@ def test_splits_must_not_share_subjects():
         make_plan(cfg, Same())
 
 
+def test_every_bundled_dataset_preset_loads():
+    from cerberus_core.datasets.plan import DATASETS, load_generation_config, sizes
+
+    assert sizes("human") == sizes("animal") == sizes("primitives") == ["paper", "small", "tiny"]
+    assert sizes("folder") == ["grid", "pairs"]
+    for dataset in DATASETS:
+        for size in sizes(dataset):
+            cfg = load_generation_config(dataset, size)
+            assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
+    assert preset_config("primitives", "small").splits == preset_config("human", "small").splits  # extends
+    assert preset_config("animal", "paper").splits["train"] == SplitConfig(
+        "grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20)
+
+
 def test_bad_configs_are_refused():
     with pytest.raises(ValueError, match="layout"):
         SplitConfig("triples")

@@ -18,7 +18,7 @@ def test_untrained_model_on_generated_primitives(tmp_path, voxel_iou):
     from cerberus_core.model import Cerberus, ModelConfig
 
     root = tmp_path / "prim"
-    assert cerberus_main(["data", "generate", "--dataset", "primitives", "--preset", "tiny", "--out", str(root),
+    assert cerberus_main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(root),
                           "--quiet"]) == 0
     ds = ViewDataset(root)
     torch.manual_seed(0)

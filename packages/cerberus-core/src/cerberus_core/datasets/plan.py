@@ -21,14 +21,17 @@ that is what makes generation resumable and deterministic.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any, Literal
 
 import numpy as np
 
 from cerberus_core.bodies.sources import BodySource, Subject
+from cerberus_core.config import Presets, build, did_you_mean, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
+from cerberus_core.errors import ConfigError
 
 LAYOUTS = ("pairs", "grid")
 
@@ -52,12 +55,12 @@ class SplitConfig:
             that the source regenerates).
     """
 
-    layout: str
+    layout: Literal["pairs", "grid"]
     subjects: int | None = None
     pairs: int | None = 0
     poses: int | None = None
     views: int = 4
-    azimuths: str = "per_pose"
+    azimuths: Literal["shared", "per_pose"] = "per_pose"
     quadruplets_per_pose: int = 0
     canonical: bool = False
     meshes: bool = True
@@ -83,7 +86,8 @@ class GenerationConfig:
 
     Attributes:
         dataset: source name (``human``, ``animal``, ``primitives``, ``folder``).
-        preset: preset name (informational).
+        preset: name of the size preset it came from (``--size``; informational, recorded as
+            ``preset`` in the manifest).
         splits: split name → :class:`SplitConfig`, in generation order.
         seed: the seed every random choice derives from.
         image_size: square image size in pixels.
@@ -123,71 +127,60 @@ class GenerationConfig:
 
 
 # ------------------------------------------------------------------------------------ presets
-_HUMAN = {
-    "paper": {  # 19,500 training pose pairs over 5 subjects; 810 test poses x 4 views over 2 subjects
-        "train": SplitConfig("pairs", subjects=5, pairs=19_500, meshes=False),
-        "test": SplitConfig("grid", subjects=2, poses=405, views=4, canonical=True),
-    },
-    "small": {
-        "train": SplitConfig("pairs", subjects=5, pairs=1_000, meshes=False),
-        "test": SplitConfig("grid", subjects=2, poses=25, views=4, canonical=True),
-    },
-    "tiny": {
-        "train": SplitConfig("pairs", subjects=2, pairs=8, meshes=False),
-        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
-    },
-}
-_ANIMAL = {
-    "paper": {  # 41 species x 47 poses x 4 views, 940 quadruplets each (38,540); 41 x 3 x 8 = 984 tests
-        "train": SplitConfig("grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20),
-        "test": SplitConfig("grid", subjects=41, poses=3, views=8),
-    },
-    "small": {
-        "train": SplitConfig("grid", subjects=12, poses=12, views=4, azimuths="shared", quadruplets_per_pose=10),
-        "test": SplitConfig("grid", subjects=12, poses=2, views=8),
-    },
-    "tiny": {
-        "train": SplitConfig("grid", subjects=2, poses=3, views=2, azimuths="shared", quadruplets_per_pose=1),
-        "test": SplitConfig("grid", subjects=2, poses=1, views=4),
-    },
-}
-_PRIMITIVES = {
-    "paper": _HUMAN["paper"],
-    "small": _HUMAN["small"],
-    "tiny": {
-        "train": SplitConfig("pairs", subjects=2, pairs=6, meshes=True),
-        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
-    },
-}
-_FOLDER = {
-    "pairs": {  # the Human protocol on your meshes
-        "train": SplitConfig("pairs", subjects=None, pairs=None),
-        "test": SplitConfig("grid", subjects=None, poses=None, views=4, canonical=True),
-    },
-    "grid": {  # the Animal protocol on your meshes (split by subject)
-        "train": SplitConfig("grid", subjects=None, poses=None, views=4, azimuths="shared", quadruplets_per_pose=20),
-        "test": SplitConfig("grid", subjects=None, poses=None, views=8),
-    },
-}
-PRESETS: dict[str, dict[str, dict[str, SplitConfig]]] = {
-    "human": _HUMAN, "animal": _ANIMAL, "primitives": _PRIMITIVES, "folder": _FOLDER,
-}
-"""dataset → preset → split configs. ``paper`` follows the paper's counts, ``small`` generates on a
-CPU in minutes, ``tiny`` in seconds (tests)."""
+DATASETS: tuple[str, ...] = ("human", "animal", "primitives", "folder")
+"""The body sources a dataset can be generated from (``--dataset``)."""
+
+DATA_PRESETS = Presets("configs/data", kind="dataset preset")
+"""The bundled dataset presets, ``cerberus_core/configs/data/<dataset>_<size>.yaml``: ``paper``
+follows the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in seconds (tests);
+``folder`` has ``pairs`` (the Human protocol) and ``grid`` (the Animal protocol) instead."""
+
+SET_EXAMPLE = "splits.train.pairs=2000"
+"""The ``--set`` example that error messages show."""
 
 
-def preset_config(dataset: str, preset: str, **overrides: Any) -> GenerationConfig:
-    """The :class:`GenerationConfig` of a preset, with ``overrides`` (seed, image_size, renderer,
-    scene, shard_images, source) applied."""
-    if dataset not in PRESETS:
-        raise ValueError(f"unknown dataset {dataset!r}; choose one of {sorted(PRESETS)}")
-    if preset not in PRESETS[dataset]:
-        raise ValueError(f"unknown preset {preset!r} for dataset {dataset!r}; choose one of {sorted(PRESETS[dataset])}")
-    return GenerationConfig(dataset=dataset, preset=preset, splits=dict(PRESETS[dataset][preset]), **overrides)
+def sizes(dataset: str) -> list[str]:
+    """The bundled size presets of ``dataset`` (``paper``, ``small``, ``tiny``; folder: ``pairs``, ``grid``)."""
+    if dataset not in DATASETS:
+        raise ConfigError(f"unknown dataset {dataset!r}{did_you_mean(dataset, DATASETS)}; choose one of "
+                          f"{', '.join(DATASETS)}")
+    prefix = f"{dataset}_"
+    return [n[len(prefix):] for n in DATA_PRESETS.names() if n.startswith(prefix)]
 
 
-def default_preset(dataset: str) -> str:
+def default_size(dataset: str) -> str:
+    """The size ``cerberus data generate`` uses without ``--size``: ``small`` (folder: ``pairs``)."""
     return "pairs" if dataset == "folder" else "small"
+
+
+def load_generation_config(dataset: str, size: str | None = None, overrides: Iterable[str] = ()) -> GenerationConfig:
+    """The :class:`GenerationConfig` of a bundled preset plus ``--set`` overrides (YAML values).
+
+    Args:
+        dataset: the body source (:data:`DATASETS`).
+        size: the size preset (:func:`sizes`; default :func:`default_size`).
+        overrides: ``KEY=VALUE`` strings over the config's keys: ``seed``, ``image_size``,
+            ``renderer``, ``shard_images``, ``scene.<field>`` and ``splits.<split>.<field>``.
+
+    Raises:
+        ConfigError: an unknown dataset or size, or a bad key or value (named, with what is allowed).
+    """
+    size = default_size(dataset) if size is None else size
+    known = sizes(dataset)
+    if size not in known:
+        raise ConfigError(f"unknown preset {size!r} for dataset {dataset!r} (--size){did_you_mean(size, known)}; "
+                          f"choose one of {', '.join(known)}")
+    raw = load_raw(DATA_PRESETS, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
+    for key, why in (("dataset", "--dataset"), ("preset", "--size"), ("source", "the body source")):
+        if key in raw:
+            raise ConfigError(f"{key}: set by {why}, not by a preset file or --set")
+    return build(GenerationConfig, {**raw, "dataset": dataset, "preset": size})
+
+
+def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig:
+    """The :class:`GenerationConfig` of a bundled preset, with ``overrides`` (Python values for
+    ``seed``, ``image_size``, ``renderer``, ``scene``, ``shard_images``, ``splits``) applied."""
+    return replace(load_generation_config(dataset, size), **overrides)
 
 
 # ------------------------------------------------------------------------------------ plan
