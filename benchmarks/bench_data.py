@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.generate import generate, render_views
 from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
-from cerberus_core.bodies.sources import make_source
+from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.plugins import available_renderers, make_renderer
 
 CPU = {"wall": 0.0, "cpu": 0.0}
