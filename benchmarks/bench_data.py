@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.generate import generate, render_views
 from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
-from cerberus_core.bodies.sources import make_source
+from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.plugins import available_renderers, make_renderer
 
 CPU = {"wall": 0.0, "cpu": 0.0}
@@ -60,13 +60,13 @@ def main() -> None:
     t0 = time.perf_counter()
     source = make_source(args.source)
     subjects = source.subjects("train", 2, 0)
-    source.bodies(subjects[0].name, [1])  # loads the model (anny) and computes subject 0's scale
+    source.bodies(subjects[0], [1])  # loads the model (anny) and computes subject 0's scale
     t_load = time.perf_counter() - t0
-    t_subject = _time(lambda: source.bodies(subjects[1].name, [1]))  # scale of a new subject + one pose
+    t_subject = _time(lambda: source.bodies(subjects[1], [1]))  # scale of a new subject + one pose
     ids = list(range(2, 2 + args.batch))
-    t_pose = _time(lambda: source.bodies(subjects[0].name, ids), repeat=2)
+    t_pose = _time(lambda: source.bodies(subjects[0], ids), repeat=2)
     pose_rate = len(ids) / t_pose
-    bodies = source.bodies(subjects[0].name, ids)
+    bodies = source.bodies(subjects[0], ids)
     scene = preset_config("human", "small").scene
     az = np.random.default_rng(0).uniform(0, 360, len(bodies)).astype(np.float32)
     render_rate = {}

@@ -36,20 +36,19 @@ def make_data(root: Path, image_size: int) -> Path:
 
 
 def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
-    from cerberus_core.render.camera import Camera
     from cerberus_core.datasets.readers import QuadrupletDataset
-    from cerberus_core.datasets.scene import SceneSetup
     from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.model import Cerberus
     from cerberus_core.plugins import make_renderer, resolve_renderer
     from cerberus_core.render.api import render_parts
+    from cerberus_core.render.camera import Camera
     from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
     from cerberus_core.train.objective import partner_cameras, quadruplet_objective, unwrap
 
     cfg = load_config(preset=preset)
     data = QuadrupletDataset(data_root)
-    scene = SceneSetup.from_dict(data.scene)
+    scene = data.scene
     cfg.model.depth_offset = scene.distance
     bsz = batch_size or cfg.train.batch_size
     size = cfg.data.image_size or data.image_size

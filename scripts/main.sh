@@ -7,8 +7,8 @@
 # Every step resumes: re-running continues an interrupted dataset or training run.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATA_PRESET=small TRAIN_PRESET=cpu
-if [ "${1:-}" = "--quick" ]; then DATA_PRESET=tiny TRAIN_PRESET=tiny; shift; fi
+DATA_SIZE=small TRAIN_PRESET=cpu
+if [ "${1:-}" = "--quick" ]; then DATA_SIZE=tiny TRAIN_PRESET=tiny; shift; fi
 OUT="${1:-out/main}"
 bash "$ROOT/scripts/setup.sh"
 cd "$ROOT"
@@ -19,8 +19,8 @@ step "renderer backends"
 cerberus renderers
 step "demo scene with every backend -> $OUT/demo"
 cerberus demo --out "$OUT/demo"
-step "human dataset (preset $DATA_PRESET) -> $OUT/data"
-cerberus data generate --dataset human --preset "$DATA_PRESET" --out "$OUT/data"
+step "human dataset (size $DATA_SIZE) -> $OUT/data"
+cerberus data generate --dataset human --size "$DATA_SIZE" --out "$OUT/data"
 cerberus data show "$OUT/data" --out "$OUT/data_contact_sheet.png"
 step "training (preset $TRAIN_PRESET) -> $OUT/run"
 RESUME=()

@@ -10,8 +10,8 @@ cd "$(dirname "$0")/../.."
 JOBS=${JOBS:-2}
 RUNS=${RUNS:-runs/table1}
 mkdir -p "$RUNS"
-cerberus data generate --dataset human --preset small --out data/human --renderer warp
-cerberus data generate --dataset animal --preset small --out data/animal --renderer warp
+cerberus data generate --dataset human --size small --out data/human --renderer warp
+cerberus data generate --dataset animal --size small --out data/animal --renderer warp
 
 one() {  # train then evaluate one experiment; logs in RUNS/NAME.log
   local name=$1 runs=$2

@@ -1,6 +1,8 @@
 """``cerberus data generate / check / show`` end to end."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -10,7 +12,7 @@ from cerberus_core.cli import main
 
 def test_generate_check_show_primitives(tmp_path, capsys):
     out = tmp_path / "ds"
-    args = ["data", "generate", "--dataset", "primitives", "--preset", "tiny", "--out", str(out), "--image-size", "32",
+    args = ["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(out), "--image-size", "32",
             "--quiet"]
     assert main(args) == 0
     assert "train" in capsys.readouterr().out
@@ -40,11 +42,34 @@ def test_cli_input_errors(tmp_path, capsys):
                  "--out", str(tmp_path / "x")]) == 1
     assert "does not exist" in capsys.readouterr().err
     assert main(["data", "check", str(tmp_path)]) == 1
-    assert main(["data", "generate", "--dataset", "human", "--preset", "paper", "--out", str(tmp_path / "p"),
+    assert main(["data", "generate", "--dataset", "human", "--size", "paper", "--out", str(tmp_path / "p"),
                  "--dry-run"]) == 0
     text = capsys.readouterr().out
     assert "78000 images" in text and "19500 quadruplets" in text and "3248 images" in text
     assert not (tmp_path / "p").exists()
+
+
+def test_generate_takes_set_overrides_with_the_training_configs_validation(tmp_path, capsys):
+    import yaml
+
+    base = ["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(tmp_path / "x")]
+    assert main([*base, "--set", "splits.train.pairs=3", "--set", "scene.elevation=20", "--image-size", "48",
+                 "--set", "image_size=40", "--print-config"]) == 0
+    cfg = yaml.safe_load(capsys.readouterr().out)
+    assert cfg["splits"]["train"]["pairs"] == 3 and cfg["scene"]["elevation"] == 20.0 and cfg["image_size"] == 40
+    assert cfg["preset"] == "tiny" and cfg["dataset"] == "primitives"
+    for flags, message in ((["--set", "splits.train.pair=3"], "did you mean 'splits.train.pairs'"),
+                           (["--set", "splits.train.layout=pair"], "splits.train.layout: must be one of 'pairs'"),
+                           (["--set", "scene.fov_y=200"], "scene: SceneSetup.fov_y must lie in"),
+                           (["--set", "seed"], "section.key=value"),
+                           (["--size", "tiniest"], "unknown preset 'tiniest' for dataset 'primitives'.*tiny")):
+        assert main([*base, *flags, "--dry-run"]) == 1
+        assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "x").exists()
+    # --preset still names the size, with a deprecation note
+    assert main([*base[:4], "--preset", "tiny", *base[6:], "--dry-run"]) == 0
+    captured = capsys.readouterr()
+    assert "--preset is deprecated" in captured.err and "primitives/tiny" in captured.out
 
 
 @pytest.mark.slow
@@ -54,7 +79,7 @@ def test_generate_tiny_real_sources(tmp_path, dataset):
     from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 
     out = tmp_path / dataset
-    assert main(["data", "generate", "--dataset", dataset, "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
+    assert main(["data", "generate", "--dataset", dataset, "--size", "tiny", "--out", str(out), "--quiet"]) == 0
     assert main(["data", "check", str(out)]) == 0
     quads, views = QuadrupletDataset(out), ViewDataset(out)
     item = quads[0]

@@ -8,9 +8,9 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from cerberus_core.render.camera import Camera
-from cerberus_core.datasets.readers import QuadrupletDataset, ShardStream, ViewDataset, background_mask
 from cerberus_core.datasets.format import DatasetError
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, background_mask
+from cerberus_core.render.camera import Camera
 
 
 def test_quadruplet_item_contract(pairs_dataset):
@@ -29,10 +29,10 @@ def test_quadruplet_item_contract(pairs_dataset):
         assert pose[0] == pose[1] != pose[2] == pose[3]  # (a0, a1, b0, b1)
         assert view.tolist() == [0, 1, 0, 1]
         assert az[0] == az[2] and az[1] == az[3] and az[0] != az[1]
-        assert torch.all(item["elevation"] == ds.scene["elevation"])
-        assert torch.all(item["distance"] == torch.tensor(ds.scene["distance"], dtype=torch.float32))
+        assert torch.all(item["elevation"] == ds.scene.elevation)
+        assert torch.all(item["distance"] == torch.tensor(ds.scene.distance, dtype=torch.float32))
         # the body is visible in every image, and not identical between viewpoints
-        mask = background_mask(item["images"], ds.scene["background"])
+        mask = background_mask(item["images"], ds.scene.background)
         assert bool((mask.mean((1, 2, 3)) < 0.99).all())
         assert not torch.equal(item["images"][0], item["images"][1])
     assert torch.equal(ds[-1]["images"], ds[len(ds) - 1]["images"])
@@ -42,7 +42,7 @@ def test_quadruplet_item_contract(pairs_dataset):
 
 def test_scene_and_cameras_helper(pairs_dataset):
     ds = QuadrupletDataset(pairs_dataset)
-    assert {"elevation", "distance", "fov_y", "ambient", "diffuse", "albedo", "background"} <= set(ds.scene)
+    assert {"elevation", "distance", "fov_y", "ambient", "diffuse", "albedo", "background"} <= set(ds.scene.to_dict())
     batch = next(iter(DataLoader(ds, batch_size=3)))
     assert batch["images"].shape == (3, 4, 3, 32, 32)
     cam = ds.cameras(batch, slot=1)
@@ -54,7 +54,7 @@ def test_scene_and_cameras_helper(pairs_dataset):
     every = ds.cameras(batch)
     assert every.batch_size == 12
     torch.testing.assert_close(every.rotation[1::4], cam.rotation)  # row-major (b, slot)
-    light = ds.light(cam)
+    light = ds.scene.light(cam)
     torch.testing.assert_close(light.direction, torch.nn.functional.normalize(cam.center, dim=-1))
 
 
@@ -95,8 +95,8 @@ def test_view_dataset_contract_gt_mesh_and_canonical(pairs_dataset):
 def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     from dataclasses import replace
 
-    from cerberus_core.datasets.generate import generate
     from cerberus_core.bodies.sources import make_source
+    from cerberus_core.datasets.generate import generate
 
     cfg = pairs_config()
     cfg = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], meshes=False)})
@@ -105,24 +105,9 @@ def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     assert "vertices" not in ds.manifest["splits"]["train"]["shards"][0]["files"]
     body = ds.gt_mesh(6)
     src = make_source("primitives")
-    src.subjects("train", 2, 0)
-    expected = src.bodies(body.subject, [body.pose_id])[0]
+    (subject,) = [s for s in src.subjects("train", 2, 0) if s.name == body.subject]
+    expected = src.bodies(subject, [body.pose_id])[0]
     np.testing.assert_array_equal(body.vertices, expected.vertices)
-
-
-def test_stream_yields_every_item_once_across_workers(grid_dataset):
-    full = QuadrupletDataset(grid_dataset)
-    stream = ShardStream(grid_dataset, "train", shuffle=True, seed=3)
-    assert len(stream) == len(full)
-    got = [b for b in DataLoader(stream, batch_size=None, num_workers=2)]
-    key = lambda it: (int(it["subject"]), tuple(it["pose"].tolist()), tuple(it["view"].tolist()))  # noqa: E731
-    assert sorted(map(key, got)) == sorted(key(full[i]) for i in range(len(full)))
-    first = [key(x) for x in ShardStream(grid_dataset, "train", shuffle=True, seed=3)]
-    stream2 = ShardStream(grid_dataset, "train", shuffle=True, seed=3)
-    stream2.set_epoch(1)
-    assert first != [key(x) for x in stream2]  # a new order each epoch
-    views = list(ShardStream(grid_dataset, "test", "views"))
-    assert len(views) == len(ViewDataset(grid_dataset))
 
 
 def test_grid_quadruplets_share_viewpoints(grid_dataset):
@@ -145,7 +130,26 @@ def test_wrong_split_or_kind_is_a_clear_error(pairs_dataset):
 def test_background_mask_is_exact(pairs_dataset):
     ds = ViewDataset(pairs_dataset)
     img = ds[0]["images"]
-    mask = background_mask(img, ds.scene["background"])
+    mask = background_mask(img, ds.scene.background)
     assert mask.shape == (1, 32, 32)
     body = img[:, mask[0] == 0]
     assert float(body.max()) <= 0.8 + 1 / 255  # albedo * (ambient + diffuse)
+
+
+@pytest.mark.parametrize("name", ["primitives", "animal"])
+def test_sources_are_stateless(name):
+    """A body depends only on (subject record, pose id): a fresh source, a JSON round trip of the
+    record and another batch of ids give the same mesh, without calling subjects() first."""
+    import json
+
+    from cerberus_core.bodies.sources import Subject, make_source
+
+    src = make_source(name)
+    subject = src.subjects("test", 2, 3)[1]
+    pose = src.pose_pool(subject, "test", 1)[0]
+    expected = src.bodies(subject, [pose])[0]
+    again = make_source(name).bodies(Subject.from_dict(json.loads(json.dumps(subject.to_dict()))), [pose])[0]
+    np.testing.assert_array_equal(again.vertices, expected.vertices)
+    np.testing.assert_array_equal(again.vertex_parts, expected.vertex_parts)
+    with pytest.raises(KeyError, match="rerun the same"):
+        src.bodies(Subject(subject.name), [pose])

@@ -6,12 +6,12 @@ import pytest
 import trimesh
 
 from cerberus_core.bodies.body import FILL
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 from cerberus_core.bodies.folder import FolderSource
+from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.format import DatasetError, verify_dataset
 from cerberus_core.datasets.generate import generate
 from cerberus_core.datasets.plan import preset_config
-from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 
 
 def _export(path, vertices, faces):
@@ -26,7 +26,7 @@ def mesh_folder(tmp_path_factory):
     src = PrimitiveBodySource()
     (root / "part_names.txt").write_text("\n".join(src.part_names) + "\n")
     layout = {"alice": ("obj", "pose"), "bob": ("ply", "subject"), "carol": ("off", "pose")}
-    for (name, (ext, labels)), subject in zip(layout.items(), sample_subjects(3, 5, "train")):
+    for (name, (ext, labels)), subject in zip(layout.items(), sample_subjects(3, 5, "train"), strict=True):
         folder = root / name
         folder.mkdir()
         bodies = src.posed_bodies(subject, [1, 2, 3, 0])
@@ -47,8 +47,9 @@ def test_folder_source_normalises_each_subject_once(mesh_folder):
     assert [s.name for s in src.subjects("train", None, 0)] == ["alice", "bob"]
     assert [s.name for s in src.subjects("test", None, 0)] == ["carol"]  # the last 30 %, at least one
     assert src.subjects("train", None, 0)[0].info["poses"] == ["frame0", "frame5", "frame10", "frame15"]
-    assert src.canonical_pose("carol") == 0 and src.canonical_pose("alice") is None
-    bodies = src.bodies("alice", [0, 1, 2, 3])
+    who = {s.name: s for split in ("train", "test") for s in src.subjects(split, None, 0)}
+    assert src.canonical_pose(who["carol"]) == 0 and src.canonical_pose(who["alice"]) is None
+    bodies = src.bodies(who["alice"], [0, 1, 2, 3])
     extents = [float((b.vertices.max(0) - b.vertices.min(0)).max()) for b in bodies]
     assert max(extents) == pytest.approx(FILL, abs=1e-5)  # one scale, the largest pose fills FILL
     for b in bodies:
@@ -59,7 +60,8 @@ def test_folder_source_normalises_each_subject_once(mesh_folder):
     np.testing.assert_allclose(ratio, ratio0, rtol=1e-4)  # the same scale for every pose
     labels = np.load(mesh_folder / "alice" / "frame5.parts.npy")
     np.testing.assert_array_equal(bodies[1].vertex_parts, labels)
-    np.testing.assert_array_equal(src.bodies("bob", [2])[0].vertex_parts, np.load(mesh_folder / "bob" / "parts.npy"))
+    bob = src.bodies(who["bob"], [2])[0]
+    np.testing.assert_array_equal(bob.vertex_parts, np.load(mesh_folder / "bob" / "parts.npy"))
 
 
 @pytest.mark.parametrize("preset", ["pairs", "grid"])
@@ -77,7 +79,8 @@ def test_folder_dataset_end_to_end(mesh_folder, tmp_path, preset):
     if preset == "pairs":
         assert len(next(iter(canon.values()))) == 4
     body = test.gt_mesh(0)
-    direct = FolderSource(mesh_folder, test_subjects=["carol"]).bodies("carol", [body.pose_id])[0]
+    folder = FolderSource(mesh_folder, test_subjects=["carol"])
+    direct = folder.bodies(folder.subjects("test", None, 0)[0], [body.pose_id])[0]
     np.testing.assert_array_equal(body.vertices, direct.vertices)
     np.testing.assert_array_equal(body.vertex_parts, direct.vertex_parts)
 

@@ -63,7 +63,7 @@ def test_write_shard_round_trip_and_records(tmp_path):
     images, views, quads, rec = _write_example(tmp_path)
     assert rec["images"] == 8 and rec["quadruplets"] == 2 and rec["meshes"] == 4
     assert set(rec["files"]) == {"images", "views", "quads", "vertices", "meshes"}
-    for role, f in rec["files"].items():
+    for f in rec["files"].values():
         assert not f["path"].startswith("/") and len(f["sha256"]) == 64
         assert (tmp_path / f["path"]).stat().st_size == f["bytes"]
     back = np.load(tmp_path / rec["files"]["images"]["path"], mmap_mode="r")

@@ -154,7 +154,7 @@ def test_stored_images_match_a_fresh_render_of_the_stored_mesh(pairs_dataset):
         item, body = views[i], views.gt_mesh(i)
         cam = views.cameras({k: item[k][None] for k in ("azimuth", "elevation", "distance", "fov_y")})
         out = render(renderer, torch.as_tensor(body.vertices)[None], torch.as_tensor(body.faces), cam,
-                     views.light(cam), albedo=views.scene["albedo"], background=views.scene["background"])
+                     views.scene.light(cam), albedo=views.scene.albedo, background=views.scene.background)
         again = (out.image[0].clamp(0, 1) * 255 + 0.5).to(torch.uint8).float() / 255
         assert torch.equal(again, item["images"])
         assert np.abs(body.vertices).max() <= 0.5

@@ -8,9 +8,9 @@ import pytest
 import torch
 
 from cerberus_core.bodies.body import FILL
+from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced, fit_distance
-from cerberus_core.bodies.sources import make_source
 
 
 @pytest.mark.parametrize("elevation", [10.0, 15.0, 20.0])
@@ -32,12 +32,31 @@ def test_scene_dict_round_trip_and_light_follows_camera():
     assert scene.distance == fit_distance(35.0, 12.0)
     back = SceneSetup.from_dict(scene.to_dict())
     assert back == scene
+    assert back.to_dict() == scene.to_dict()  # one stored form, both ways
+    with pytest.raises(ValueError, match="unknown key.*'elevaton'"):
+        SceneSetup.from_dict({**scene.to_dict(), "elevaton": 10.0})
+    with pytest.raises(ValueError, match="scene.light"):
+        SceneSetup.from_dict({**scene.to_dict(), "light": {"type": "point"}})
     cam = scene.cameras([0.0, 90.0], 64)
     light = scene.light(cam)
     torch.testing.assert_close(light.direction, torch.nn.functional.normalize(cam.center, dim=-1))
     assert light.ambient[0, 0].item() == pytest.approx(scene.ambient)
     assert light.diffuse[0, 0].item() == pytest.approx(scene.diffuse)
     np.testing.assert_allclose(evenly_spaced(300.0, 4), [300, 30, 120, 210])
+
+
+def test_view_records_give_the_generators_cameras():
+    from cerberus_core.datasets.format import VIEW_DTYPE
+
+    scene = SceneSetup(elevation=20.0, distance=2.5)
+    rec = np.zeros(3, VIEW_DTYPE)
+    rec["azimuth"], rec["elevation"], rec["distance"], rec["fov_y"] = [0, 45, 200], 20.0, 2.5, scene.fov_y
+    stored, rendered = scene.view_cameras(rec, (32, 48)), scene.cameras(rec["azimuth"], (32, 48))
+    torch.testing.assert_close(stored.rotation, rendered.rotation)
+    torch.testing.assert_close(stored.translation, rendered.translation)
+    assert (stored.height, stored.width) == (32, 48)
+    with pytest.raises(KeyError, match="fov_y"):
+        scene.view_cameras({"azimuth": [0.0], "elevation": [1.0], "distance": [2.0]}, 32)
 
 
 def _plan(config):
@@ -72,11 +91,11 @@ def test_presets_plan_and_are_deterministic(dataset, preset):
     a, b = _plan(preset_config(dataset, preset)), _plan(preset_config(dataset, preset))
     for split in a.shards:
         assert a.totals(split)["images"] > 0
-        for sa, sb in zip(a.shards[split], b.shards[split]):
+        for sa, sb in zip(a.shards[split], b.shards[split], strict=True):
             np.testing.assert_array_equal(sa.views, sb.views)
             np.testing.assert_array_equal(sa.quads, sb.quads)
     c = _plan(preset_config(dataset, preset, seed=1))
-    assert any(not np.array_equal(x.views, y.views) for x, y in zip(a.shards["train"], c.shards["train"]))
+    assert any(not np.array_equal(x.views, y.views) for x, y in zip(a.shards["train"], c.shards["train"], strict=True))
 
 
 def test_pairs_share_viewpoints_across_poses_and_differ_across_pairs():
@@ -130,6 +149,20 @@ def test_splits_must_not_share_subjects():
     cfg = preset_config("primitives", "tiny")
     with pytest.raises(ValueError, match="disjoint subjects"):
         make_plan(cfg, Same())
+
+
+def test_every_bundled_dataset_preset_loads():
+    from cerberus_core.datasets.plan import DATASETS, load_generation_config, sizes
+
+    assert sizes("human") == sizes("animal") == sizes("primitives") == ["paper", "small", "tiny"]
+    assert sizes("folder") == ["grid", "pairs"]
+    for dataset in DATASETS:
+        for size in sizes(dataset):
+            cfg = load_generation_config(dataset, size)
+            assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
+    assert preset_config("primitives", "small").splits == preset_config("human", "small").splits  # extends
+    assert preset_config("animal", "paper").splits["train"] == SplitConfig(
+        "grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20)
 
 
 def test_bad_configs_are_refused():

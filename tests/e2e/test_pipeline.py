@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 def trained(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("pipeline")
     data, run = root / "data", root / "run"
-    assert main(["data", "generate", "--dataset", "human", "--preset", "tiny", "--out", str(data), "--quiet"]) == 0
+    assert main(["data", "generate", "--dataset", "human", "--size", "tiny", "--out", str(data), "--quiet"]) == 0
     assert main(["train", "--preset", "tiny", "--set", f"data.root={data}", "--out", str(run)]) == 0
     return {"root": root, "data": data, "run": run}
 

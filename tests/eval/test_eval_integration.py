@@ -18,11 +18,11 @@ def test_untrained_model_on_generated_primitives(tmp_path, iou_scorer):
     from cerberus_core.model import Cerberus, ModelConfig
 
     root = tmp_path / "prim"
-    assert cerberus_main(["data", "generate", "--dataset", "primitives", "--preset", "tiny", "--out", str(root),
+    assert cerberus_main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(root),
                           "--quiet"]) == 0
     ds = ViewDataset(root)
     torch.manual_seed(0)
-    model = Cerberus(ModelConfig(depth_offset=ds.scene["distance"])).eval()
+    model = Cerberus(ModelConfig(depth_offset=ds.scene.distance)).eval()
     res = evaluate_dataset(ds, model.reconstruct, batch_size=6, scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.standard.count == len(ds)
     assert set(res.standard.per_group) <= set(ds.subject_names)

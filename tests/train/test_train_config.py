@@ -99,3 +99,14 @@ def test_table1_experiment_configs_load_and_say_what_their_names_say():
         assert c.data.root == f"data/{dataset}" and c.renderer == "warp" and c.model.width == 32
         assert c.losses.pose_consistency == (variant == "cerberus")
         assert c.model.num_parts == (1 if variant == "nmrr" else 9)
+
+
+def test_errors_name_the_key_the_choices_and_the_closest_name():
+    from cerberus_core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"model.num_part'\] \(did you mean 'model.num_parts'\?\)"):
+        load_config(overrides=["model.num_part=3"])
+    with pytest.raises(ConfigError, match=r"optim.schedule: must be one of 'constant', 'cosine'.*mean 'cosine'"):
+        load_config(overrides=["optim.schedule=cosin"])
+    with pytest.raises(ConfigError, match=r"unknown preset 'cpx' \(did you mean 'cpu'\?\)"):
+        load_config(preset="cpx")

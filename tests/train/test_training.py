@@ -62,7 +62,7 @@ def test_resumed_run_ends_with_the_same_weights_as_an_uninterrupted_one(tiny_con
     assert_same_weights(params(straight.model), params(resumed.model))
     ck_a = load_checkpoint(checkpoint_dir(tmp_path / "straight") / "last.pt")
     ck_b = load_checkpoint(checkpoint_dir(tmp_path / "killed") / "last.pt")
-    for group_a, group_b in zip(ck_a["optimizer"]["state"].values(), ck_b["optimizer"]["state"].values()):
+    for group_a, group_b in zip(ck_a["optimizer"]["state"].values(), ck_b["optimizer"]["state"].values(), strict=True):
         assert torch.equal(group_a["exp_avg"], group_b["exp_avg"])
     assert [r["step"] for r in rows(tmp_path / "killed")] == ["1", "2", "3", "4"]  # no duplicates
     assert [r["total"] for r in rows(tmp_path / "killed")] == [r["total"] for r in rows(tmp_path / "straight")]

@@ -1,14 +1,29 @@
-"""Typed errors of the toolkit: the CLI reports any :class:`CerberusError` as one line, exit 2."""
+"""The toolkit's typed errors: one base class, so a caller (the ``cerberus`` command) can report any
+of them the same way, and one module, so that no layer imports another just for an exception.
+
+* :class:`CerberusError` — base of every error the toolkit raises on purpose (its message names
+  the file or key at fault and the fix);
+* :class:`DatasetError` — a dataset folder or mesh folder is missing, corrupt, incomplete or of
+  another format;
+* :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid.
+
+``DatasetError`` and ``ConfigError`` are also ``ValueError``\\ s, so ``except ValueError`` keeps
+catching them.
+"""
 from __future__ import annotations
 
 
 class CerberusError(Exception):
-    """Base of the toolkit's errors about user input (the message names the problem and the fix)."""
+    """Base class of the toolkit's own errors."""
 
 
 class DatasetError(CerberusError, ValueError):
-    """A dataset folder, manifest or shard is missing, invalid or damaged."""
+    """A dataset folder (or a folder of meshes) is missing, corrupt, incomplete or of another format;
+    the message names the file and the fix."""
 
 
 class ConfigError(CerberusError, ValueError):
-    """A configuration value, preset or option is invalid."""
+    """An invalid configuration: the message names the key, the value and what is allowed."""
+
+
+__all__ = ["CerberusError", "ConfigError", "DatasetError"]

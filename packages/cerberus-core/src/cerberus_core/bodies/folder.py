@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
-from cerberus_core.datasets.format import DatasetError
-from cerberus_core.bodies.sources import BodySource, SubjectInfo
+from cerberus_core.bodies.sources import BodySource, Subject
+from cerberus_core.errors import DatasetError
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
@@ -182,32 +182,37 @@ class FolderSource(BodySource):
         self.fingerprint = digest.hexdigest()
 
     # -- BodySource ----------------------------------------------------------------------------
-    def subjects(self, split: str, n: int | None, seed: int) -> list[SubjectInfo]:
+    def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         if split not in self._split:
             raise ValueError(f"the folder source has splits train and test, not {split!r}")
         names = self._split[split][: n if n is not None else None]
-        return [SubjectInfo(s, {"poses": [f.stem for f in self._files[s]], "folder": s}) for s in names]
+        return [Subject(s, {"poses": [f.stem for f in self._files[s]], "folder": s}) for s in names]
 
-    def pose_pool(self, subject: str, split: str, n: int | None, seed: int) -> list[int]:
-        ids = list(range(len(self._files[subject])))
+    def _subject_files(self, subject: Subject) -> list[Path]:
+        if subject.name not in self._files:
+            raise DatasetError(f"{self.root}: no subject folder {subject.name!r}; subjects are {list(self._files)}")
+        return self._files[subject.name]
+
+    def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
+        ids = list(range(len(self._subject_files(subject))))
         return ids[: n if n is not None else None]
 
-    def canonical_pose(self, subject: str) -> int | None:
-        stems = [f.stem for f in self._files[subject]]
+    def canonical_pose(self, subject: Subject) -> int | None:
+        stems = [f.stem for f in self._subject_files(subject)]
         return stems.index(CANONICAL_STEM) if CANONICAL_STEM in stems else None
 
-    def bodies(self, subject: str, pose_ids: Sequence[int]) -> list[PosedBody]:
-        files = self._files[subject]
-        scale = self._scale[subject]
+    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
+        files = self._subject_files(subject)
+        scale = self._scale[subject.name]
         out = []
         for pid in pose_ids:
             f = files[pid]
             v, faces = load_mesh(f)
-            lo, hi = self._bbox[subject][pid]
+            lo, hi = self._bbox[subject.name][pid]
             vn = ((v - 0.5 * (lo + hi)) * scale).astype(np.float32)
             lab = self._label_file(f)
             parts = np.zeros(len(v), np.int16) if lab is None else _load_labels(lab, len(v), f)
-            out.append(PosedBody(vn, faces, parts, self.part_names, subject, int(pid), meta={"file": f.name}))
+            out.append(PosedBody(vn, faces, parts, self.part_names, subject.name, int(pid), meta={"file": f.name}))
         return out
 
     def describe(self) -> dict[str, Any]:

@@ -202,7 +202,7 @@ class PrimitiveBodySource:
         params = self.pose_params(subject, pose_ids)
         scale = self.subject_scale(subject)
         out = []
-        for pid, v, q in zip(pose_ids, self.raw_vertices(subject, params), params):
+        for pid, v, q in zip(pose_ids, self.raw_vertices(subject, params), params, strict=True):
             vn = (v - 0.5 * (v.max(0) + v.min(0))) * scale
             if np.abs(vn).max() > 0.5:
                 raise ValueError(f"{subject.subject_id} pose {pid} leaves the unit cube after scaling")

@@ -1,19 +1,28 @@
-"""Body sources behind the datasets: one small adapter per geometry provider.
+"""Body sources behind the datasets: one small, stateless adapter per geometry provider.
 
-A :class:`BodySource` answers four questions for the generator (:mod:`cerberus_core.datasets.generate`):
-which subjects a split has, which pose ids a subject offers for a split, which pose is canonical,
-and the :class:`~cerberus_core.bodies.body.PosedBody` of (subject, pose ids). Every answer is a
-deterministic function of the source's options and the seed, so a shard can be regenerated alone.
+A :class:`BodySource` is a set of pure functions of its construction options (and, for ``folder``,
+the files it reads):
+
+* :meth:`~BodySource.subjects` ``(split, n, seed) -> [Subject]`` — who is in a split;
+* :meth:`~BodySource.pose_pool` ``(subject, split, n) -> [pose id]`` — which poses a split may use;
+* :meth:`~BodySource.canonical_pose` ``(subject) -> pose id | None``;
+* :meth:`~BodySource.bodies` ``(subject, pose ids) -> [PosedBody]`` — mesh + part labels.
+
+A :class:`Subject` is a small JSON-ready record (its ``name`` and ``info``: phenotype, species
+parameters, pose seed, file names ...) that holds everything :meth:`~BodySource.bodies` needs. The
+dataset manifest stores these records (``manifest["subjects"]``), so a reader rebuilds any body from
+the manifest alone (:meth:`Subject.from_dict`), without replaying the generator's calls; no call
+depends on an earlier one. Sources may cache (a loaded model, a subject's scale), never remember.
 
 Sources: ``human`` (anny, :mod:`cerberus_core.bodies.human`), ``animal`` (procedural quadrupeds,
 :mod:`cerberus_core.bodies.animal`), ``primitives`` (capsule figures,
 :mod:`cerberus_core.bodies.primitives`) and ``folder`` (your own meshes,
-:mod:`cerberus_core.bodies.folder`).
+:mod:`cerberus_core.bodies.folder`); :func:`make_source` builds one by name.
 """
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,16 +30,37 @@ from cerberus_core.bodies.body import PosedBody
 
 
 @dataclass(frozen=True)
-class SubjectInfo:
-    """A subject as the manifest lists it: a unique ``name`` and JSON-ready ``info`` (phenotype,
-    species parameters, source file names ...)."""
+class Subject:
+    """One subject (person, species, mesh folder) as the manifest stores it.
+
+    Attributes:
+        name: unique within the dataset (``PosedBody.subject``).
+        info: JSON-ready parameters of the subject: everything its source needs to pose it.
+    """
 
     name: str
     info: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "info": dict(self.info)}
+
+    @classmethod
+    def from_dict(cls, record: Mapping[str, Any]) -> Subject:
+        """The subject of a manifest entry (``{"name": ..., "info": {...}, ...}``; other keys ignored)."""
+        return cls(str(record["name"]), dict(record.get("info", {})))
+
+    def need(self, source: str, *keys: str) -> list[Any]:
+        """``info[key]`` for each key, or a ``KeyError`` naming the missing ones (an older manifest)."""
+        missing = [k for k in keys if k not in self.info]
+        if missing:
+            raise KeyError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
+                           "self-contained subject records: rerun the same `cerberus data generate` command (it "
+                           "resumes and rewrites the manifest)")
+        return [self.info[k] for k in keys]
+
 
 class BodySource(ABC):
-    """Geometry provider of a dataset.
+    """Geometry provider of a dataset (module docstring).
 
     Attributes:
         name: the source's name as ``cerberus data generate --dataset`` spells it.
@@ -44,24 +74,25 @@ class BodySource(ABC):
     shared_subjects: bool = False
 
     @abstractmethod
-    def subjects(self, split: str, n: int | None, seed: int) -> list[SubjectInfo]:
+    def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         """The ``n`` subjects of ``split`` (``None``: all the source has for the split)."""
 
     @abstractmethod
-    def pose_pool(self, subject: str, split: str, n: int | None, seed: int) -> list[int]:
+    def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
         """Pose ids of ``subject`` available to ``split``, at most ``n`` of them (``None``: all).
 
         Sources with unlimited poses return exactly ``n`` fresh ids; sources with a fixed set
         return up to ``n`` (the generator reuses them when it needs more).
         """
 
-    def canonical_pose(self, subject: str) -> int | None:
+    def canonical_pose(self, subject: Subject) -> int | None:
         """Pose id of the subject's canonical pose, or ``None`` if the source has none."""
         return None
 
     @abstractmethod
-    def bodies(self, subject: str, pose_ids: Sequence[int]) -> list[PosedBody]:
-        """Normalised posed bodies of one subject, one per pose id, in order."""
+    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
+        """Normalised posed bodies of one subject, one per pose id, in order; each depends only on
+        ``(subject, pose id)``, never on the other ids asked for."""
 
     def describe(self) -> dict[str, Any]:
         """Options that determine the geometry (stored in the manifest's config; part of its hash)."""
@@ -70,64 +101,57 @@ class BodySource(ABC):
 
 class _SeededSubjects(BodySource):
     """Shared logic of sources whose subjects come from a ``sample_subjects(n, seed, split)`` function
-    and whose poses are unlimited (id 0 canonical, ids ``1..n`` sampled)."""
+    and whose poses are unlimited (id 0 canonical, ids ``1..n`` sampled from the subject's
+    ``pose_seed``)."""
 
-    def __init__(self) -> None:
-        self._subjects: dict[str, Any] = {}
+    def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
+        if n is None:
+            raise ValueError(f"the {self.name} source needs a subject count for split {split!r}")
+        return [Subject(s.subject_id, self._info(s)) for s in self._sample(n, seed, split)]
 
     def _sample(self, n: int, seed: int, split: str) -> list[Any]:
         raise NotImplementedError
 
     def _info(self, subject: Any) -> dict[str, Any]:
-        return {}
+        raise NotImplementedError
 
-    def subjects(self, split: str, n: int | None, seed: int) -> list[SubjectInfo]:
-        if n is None:
-            raise ValueError(f"the {self.name} source needs a subject count for split {split!r}")
-        out = []
-        for s in self._sample(n, seed, split):
-            self._subjects[s.subject_id] = s
-            out.append(SubjectInfo(s.subject_id, self._info(s)))
-        return out
-
-    def _subject(self, name: str) -> Any:
-        if name not in self._subjects:
-            raise KeyError(f"{self.name} subject {name!r} unknown; call subjects() for its split first")
-        return self._subjects[name]
-
-    def pose_pool(self, subject: str, split: str, n: int | None, seed: int) -> list[int]:
+    def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
         if n is None:
             raise ValueError(f"the {self.name} source has unlimited poses; give a pose count")
         return list(range(1, n + 1))
 
-    def canonical_pose(self, subject: str) -> int | None:
+    def canonical_pose(self, subject: Subject) -> int | None:
         return 0
 
 
 class HumanSource(_SeededSubjects):
-    """anny humans (:mod:`cerberus_core.bodies.human`); loads anny lazily on first posing."""
+    """anny humans (:mod:`cerberus_core.bodies.human`); loads anny lazily on first posing.
+
+    Subject record: ``{"phenotype": {...}, "split": ..., "pose_seed": int}``.
+    """
 
     name = "human"
 
     def __init__(self, device: str = "cpu") -> None:
-        super().__init__()
         from cerberus_core.bodies import human
 
         self._human = human
         self.part_names = list(human.PART_NAMES)
         self._device = device
-        self._model = None
+        self._model = None  # a cache: the loaded anny model
 
     def _sample(self, n: int, seed: int, split: str) -> list[Any]:
         return self._human.sample_subjects(n, seed, split)
 
     def _info(self, subject: Any) -> dict[str, Any]:
-        return {"phenotype": dict(subject.phenotype)}
+        return {"phenotype": dict(subject.phenotype), "split": subject.split, "pose_seed": int(subject.pose_seed)}
 
-    def bodies(self, subject: str, pose_ids: Sequence[int]) -> list[PosedBody]:
+    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
+        phenotype, split, pose_seed = subject.need(self.name, "phenotype", "split", "pose_seed")
+        person = self._human.HumanSubject(subject.name, dict(phenotype), str(split), int(pose_seed))
         if self._model is None:
             self._model = self._human.HumanBodySource(device=self._device)
-        return self._model.posed_bodies(self._subject(subject), list(pose_ids))
+        return self._model.posed_bodies(person, list(pose_ids))
 
     def describe(self) -> dict[str, Any]:
         import importlib.metadata as md
@@ -140,12 +164,14 @@ class HumanSource(_SeededSubjects):
 
 
 class PrimitiveSource(_SeededSubjects):
-    """Capsule figures (:mod:`cerberus_core.bodies.primitives`)."""
+    """Capsule figures (:mod:`cerberus_core.bodies.primitives`).
+
+    Subject record: ``{"proportions": {...}, "pose_seed": int}``.
+    """
 
     name = "primitives"
 
     def __init__(self) -> None:
-        super().__init__()
         from cerberus_core.bodies import primitives
 
         self._prim = primitives
@@ -156,18 +182,22 @@ class PrimitiveSource(_SeededSubjects):
         return self._prim.sample_subjects(n, seed, split)
 
     def _info(self, subject: Any) -> dict[str, Any]:
-        return {"proportions": dict(subject.proportions)}
+        return {"proportions": dict(subject.proportions), "pose_seed": int(subject.pose_seed)}
 
-    def bodies(self, subject: str, pose_ids: Sequence[int]) -> list[PosedBody]:
-        return self._model.posed_bodies(self._subject(subject), list(pose_ids))
+    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
+        proportions, pose_seed = subject.need(self.name, "proportions", "pose_seed")
+        figure = self._prim.PrimitiveSubject(subject.name, dict(proportions), int(pose_seed))
+        return self._model.posed_bodies(figure, list(pose_ids))
 
 
 class AnimalSource(BodySource):
     """Procedural quadrupeds (:mod:`cerberus_core.bodies.animal`): the same species in every split,
     with disjoint poses (the paper's protocol: 47 training and 3 test poses per species).
 
-    Pose ids: training pose ``k`` has id ``k``; test pose ``k`` has id :attr:`TEST_POSE_BASE` ``+ k``.
-    Poses come from :func:`~cerberus_core.bodies.animal.animal_pose_splits` with the dataset's seed.
+    Subject record: ``{"archetype": ..., "params": {...}, "pose_seed": int}``. Pose ids: training
+    pose ``k`` has id ``k``; test pose ``k`` has id :attr:`TEST_POSE_BASE` ``+ k``. Poses come from
+    :func:`~cerberus_core.bodies.animal.animal_pose_splits` with the subject's ``pose_seed`` (the
+    dataset's seed); their lists are prefix-stable, so pose ``k`` never depends on how many are asked.
     """
 
     name = "animal"
@@ -179,20 +209,13 @@ class AnimalSource(BodySource):
 
         self._animal = animal
         self.part_names = list(animal.ANIMAL_PART_NAMES)
-        self._species: dict[str, Any] = {}
-        self._seed = 0
-        self._poses: dict[str, tuple[list, list]] = {}
 
-    def subjects(self, split: str, n: int | None, seed: int) -> list[SubjectInfo]:
+    def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         n = self._animal.N_SPECIES if n is None else n
-        self._seed = seed
-        out = []
-        for sp in self._animal.sample_species(n, seed):
-            self._species[sp.name] = sp
-            out.append(SubjectInfo(sp.name, {"archetype": sp.archetype, "params": dict(sp.params)}))
-        return out
+        return [Subject(sp.name, {"archetype": sp.archetype, "params": dict(sp.params), "pose_seed": int(seed)})
+                for sp in self._animal.sample_species(n, seed)]
 
-    def pose_pool(self, subject: str, split: str, n: int | None, seed: int) -> list[int]:
+    def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
         if n is None:
             n = self._animal.N_TRAIN_POSES if split == "train" else self._animal.N_TEST_POSES
         base = 0 if split == "train" else self.TEST_POSE_BASE
@@ -200,22 +223,17 @@ class AnimalSource(BodySource):
             raise ValueError(f"at most {self.TEST_POSE_BASE} training poses per species")
         return [base + k for k in range(n)]
 
-    def _pose(self, subject: str, pose_id: int) -> Any:
-        train, test = self._poses.get(subject, ([], []))
-        is_test = pose_id >= self.TEST_POSE_BASE
-        k = pose_id - self.TEST_POSE_BASE if is_test else pose_id
-        if k >= len(test if is_test else train):  # the splits are prefix-stable: ask for enough of both
-            n_train = max(len(train), 0 if is_test else k + 1)
-            n_test = max(len(test), k + 1 if is_test else 0)
-            train, test = self._animal.animal_pose_splits(self._species[subject], n_train, n_test, seed=self._seed)
-            self._poses[subject] = (train, test)
-        return (test if is_test else train)[k]
-
-    def bodies(self, subject: str, pose_ids: Sequence[int]) -> list[PosedBody]:
-        if subject not in self._species:
-            raise KeyError(f"animal species {subject!r} unknown; call subjects() first")
-        sp = self._species[subject]
-        return [self._animal.build_animal(sp, self._pose(subject, p), int(p)) for p in pose_ids]
+    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
+        archetype, params, seed = subject.need(self.name, "archetype", "params", "pose_seed")
+        species = self._animal.AnimalSpecies(subject.name, dict(params), str(archetype))
+        ids = [int(p) for p in pose_ids]
+        test = [p - self.TEST_POSE_BASE for p in ids if p >= self.TEST_POSE_BASE]
+        train = [p for p in ids if p < self.TEST_POSE_BASE]
+        train_poses, test_poses = self._animal.animal_pose_splits(
+            species, max(train, default=-1) + 1, max(test, default=-1) + 1, seed=int(seed))
+        return [self._animal.build_animal(
+            species, test_poses[p - self.TEST_POSE_BASE] if p >= self.TEST_POSE_BASE else train_poses[p], p)
+            for p in ids]
 
     def describe(self) -> dict[str, Any]:
         return {"target_faces": self._animal.DEFAULT_TARGET_FACES}

@@ -5,9 +5,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from cerberus_core.datasets.format import DatasetError
+from cerberus_core.errors import DatasetError
 
-_DATASETS = ("human", "animal", "folder", "primitives")
+_DATASETS = ("human", "animal", "folder", "primitives")  # the order --help lists them
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -22,31 +22,43 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         formatter_class=argparse.RawDescriptionHelpFormatter,
                         description="Generate a dataset into --out. Rerunning the same command resumes an interrupted "
                         "run without redoing finished shards; a folder holding anything else is refused unless "
-                        "--overwrite.\n\npresets:\n"
+                        "--overwrite.\n\nsizes (bundled presets, cerberus_core/configs/data/<dataset>_<size>.yaml):\n"
                         "  human:      paper (19,500 train pairs / 5 subjects;\n"
                         "              810 test poses x 4 views / 2 subjects),\n"
                         "              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds)\n"
                         "  animal:     paper (41 species x 47 poses x 4 views, 38,540 quadruplets; 984 test views),\n"
                         "              small (12 species), tiny\n"
                         "  primitives: capsule figures with the human presets' structure (paper, small, tiny)\n"
-                        "  folder:     pairs (the Human protocol on your meshes), grid (the Animal protocol)")
+                        "  folder:     pairs (the Human protocol on your meshes), grid (the Animal protocol)\n\n"
+                        "--set KEY=VALUE changes any key of the resolved config (values are YAML; see it with\n"
+                        "--print-config): seed, image_size, renderer, shard_images, scene.<field>,\n"
+                        "splits.<split>.<field>, e.g. --set splits.train.pairs=2000 --set scene.elevation=20")
     g.add_argument("--dataset", choices=_DATASETS, required=True, help="body source")
-    g.add_argument("--preset", default=None, help="preset (default: small; folder: pairs)")
+    g.add_argument("--size", default=None, metavar="NAME",
+                   help="size preset: paper, small, tiny (folder: pairs, grid); default small (folder: pairs)")
+    g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size
+    g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
     g.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
     g.add_argument("--source", type=Path, help="folder of meshes: SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl> "
                    "(--dataset folder only)")
     g.add_argument("--test-subjects", help="folder: comma-separated test subject names (default: --test-fraction)")
     g.add_argument("--test-fraction", type=float, default=0.3,
                    help="folder: fraction of subjects (last in sorted order) held out for testing (default 0.3)")
-    g.add_argument("--renderer", default="auto",
-                   help="renderer backend: warp, torch or auto (default: auto, warp if it works, else torch)")
-    g.add_argument("--image-size", type=int, default=64, help="image size in pixels (default 64; 128 available)")
-    g.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    g.add_argument("--shard-images", type=int, default=1024, help="images per shard (default 1024)")
+    g.add_argument("--renderer", default=None,
+                   help="renderer backend: warp, torch or auto (default: auto, warp if it works, else torch); "
+                   "same as --set renderer=...")
+    g.add_argument("--image-size", type=int, default=None,
+                   help="image size in pixels (default 64; 128 available); same as --set image_size=...")
+    g.add_argument("--seed", type=int, default=None,
+                   help="seed of every random choice (default 0); same as --set seed=...")
+    g.add_argument("--shard-images", type=int, default=None,
+                   help="images per shard (default 1024); same as --set shard_images=...")
     g.add_argument("--batch-size", type=int, default=64, help="views per render call (default 64; no effect on output)")
     g.add_argument("--device", default="cpu", help="torch device for posing and rendering (default cpu)")
     g.add_argument("--overwrite", action="store_true", help="replace a different dataset in --out")
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
+    g.add_argument("--print-config", action="store_true", help="print the resolved config (YAML) and exit")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=run_generate)
 
@@ -75,28 +87,45 @@ def _fail(exc: Exception) -> int:
     return 1
 
 
+def _generation_config(args: argparse.Namespace):
+    """The resolved config: the size preset, then the shortcut flags, then --set (later wins)."""
+    from cerberus_core.datasets.plan import load_generation_config
+
+    size = args.size
+    if args.size_alias is not None:
+        print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "
+              "recipes are `cerberus train --preset`)", file=sys.stderr)
+        size = size or args.size_alias
+    shortcuts = [f"{key}={value}" for key, value in (("seed", args.seed), ("image_size", args.image_size),
+                                                     ("renderer", args.renderer), ("shard_images", args.shard_images))
+                 if value is not None]
+    return load_generation_config(args.dataset, size, [*shortcuts, *args.overrides])
+
+
 def run_generate(args: argparse.Namespace) -> int:
-    from cerberus_core.datasets.generate import generate
-    from cerberus_core.datasets.plan import default_preset, make_plan, preset_config
-    from cerberus_core.datasets.scene import SceneSetup
+    import yaml
+
     from cerberus_core.bodies.sources import make_source
+    from cerberus_core.datasets.generate import generate
+    from cerberus_core.datasets.plan import make_plan
 
     if (args.dataset == "folder") != (args.source is not None):
         return _fail(ValueError("--source DIR is required with --dataset folder (and only then)"))
-    preset = args.preset or default_preset(args.dataset)
     options = {}
     if args.dataset == "folder":
         options = {"root": str(args.source.resolve()), "test_fraction": args.test_fraction}
         if args.test_subjects:
             options["test_subjects"] = [s.strip() for s in args.test_subjects.split(",") if s.strip()]
     try:
-        config = preset_config(args.dataset, preset, seed=args.seed, image_size=args.image_size,
-                               renderer=args.renderer, shard_images=args.shard_images, scene=SceneSetup())
+        config = _generation_config(args)
+        if args.print_config:
+            print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
+            return 0
         runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
         source = make_source(args.dataset, **options, **runtime)
         if args.dry_run:
             plan = make_plan(config, source)
-            print(f"{args.dataset}/{preset}: {len(plan.subjects)} subjects, scene {config.scene.to_dict()}")
+            print(f"{args.dataset}/{config.preset}: {len(plan.subjects)} subjects, scene {config.scene.to_dict()}")
             for split in config.splits:
                 t = plan.totals(split)
                 print(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} quadruplets "

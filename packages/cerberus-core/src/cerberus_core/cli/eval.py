@@ -55,7 +55,7 @@ def _figure(args, model, config, dataset, out: Path) -> Path:
             other, _ = load_model(path, args.device)
             baselines[name] = other.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
     renderer = make_renderer(args.renderer or config.renderer)
-    background = tuple(dataset.scene["background"])
+    background = dataset.scene.background
     fig = comparison_figure(renderer, images, camera, ours, baselines, background=background)
     for k, i in enumerate(idx):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
         donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None

@@ -1,12 +1,16 @@
-"""Datasets: body sources, scene set-up, generation, the on-disk format and torch readers.
+"""Datasets: plan, generate, store and read rendered quadruplets (bodies come from :mod:`cerberus_core.bodies`).
 
-* bodies: :mod:`.body` (the ``PosedBody`` record), :mod:`.human` (anny), :mod:`.animal`
-  (procedural quadrupeds), :mod:`.primitives` (capsule figures), :mod:`.folder` (your meshes),
-  behind one interface in :mod:`.sources`;
-* :mod:`.scene` (cameras and light of a view), :mod:`.plan` (presets and the deterministic shard
-  plan), :mod:`.generate` (the resumable driver), :mod:`.format` (manifest, shards, checksums);
-* :mod:`.dataset` (``QuadrupletDataset``, ``ViewDataset``, ``ShardStream``), :mod:`.show`
-  (contact sheets).
+Modules, one line each:
+
+* :mod:`.scene` — :class:`~cerberus_core.datasets.scene.SceneSetup`, the one owner of a dataset's
+  scene: cameras (from azimuths or stored view records), light, background; round-trips the manifest;
+* :mod:`.plan` — generation configs (YAML size presets in ``configs/data/``, ``--set``) and the
+  deterministic shard plan;
+* :mod:`.generate` — the resumable, deterministic driver: plan → pose → render → atomic shards → manifest;
+* :mod:`.format` — the on-disk format: manifest, shard files, checksums, atomic writes, verification;
+* :mod:`.readers` — torch datasets: ``QuadrupletDataset`` (training), ``ViewDataset`` (evaluation,
+  ground-truth meshes rebuilt from the manifest's subject records when not stored);
+* :mod:`.show` — contact sheets of a split.
 
 The format is documented in ``docs/data_format.md``.
 """

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.atomic import atomic_write
+from cerberus_core.errors import DatasetError  # re-exported: the format's readers raise it
 
 FORMAT_NAME = "cerberus-dataset"
 FORMAT_VERSION = 1
@@ -44,11 +45,6 @@ VIEW_DTYPE = np.dtype([
 
 SHARD_ROLES = ("images", "views", "quads", "vertices", "meshes")
 """The files of a shard, by role; ``vertices`` and ``meshes`` exist only when meshes are stored."""
-
-
-class DatasetError(ValueError):
-    """A dataset folder is missing, corrupt, incomplete or of another format; the message names the
-    file and the fix."""
 
 
 # ------------------------------------------------------------------------------------ atomic I/O

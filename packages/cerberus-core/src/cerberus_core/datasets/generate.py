@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from cerberus_core.bodies.body import PosedBody
+from cerberus_core.bodies.sources import BodySource, Subject, make_source
 from cerberus_core.datasets.format import (
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -32,7 +33,6 @@ from cerberus_core.datasets.format import (
 )
 from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.bodies.sources import BodySource, make_source
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Renderer
@@ -102,11 +102,12 @@ def build_bodies(source: BodySource, subjects: list[dict], meshes: list[tuple[in
             by_subject[s].append(p)
     built: dict[tuple[int, int], PosedBody] = {}
     for s, poses in by_subject.items():
-        name = subjects[s]["name"]
-        bodies = source.bodies(name, poses)
+        who = Subject.from_dict(subjects[s])
+        name = who.name
+        bodies = source.bodies(who, poses)
         if len(bodies) != len(poses):
             raise RuntimeError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}")
-        for p, b in zip(poses, bodies):
+        for p, b in zip(poses, bodies, strict=True):
             reach = float(np.abs(b.vertices).max()) if len(b.vertices) else 0.0
             if reach > 0.5 + 1e-6:
                 raise ValueError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "

@@ -21,14 +21,17 @@ that is what makes generation resumable and deterministic.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
+from cerberus_core.bodies.sources import BodySource, Subject
+from cerberus_core.config import Presets, build, did_you_mean, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
-from cerberus_core.bodies.sources import BodySource, SubjectInfo
+from cerberus_core.errors import ConfigError
 
 LAYOUTS = ("pairs", "grid")
 
@@ -52,12 +55,12 @@ class SplitConfig:
             that the source regenerates).
     """
 
-    layout: str
+    layout: Literal["pairs", "grid"]
     subjects: int | None = None
     pairs: int | None = 0
     poses: int | None = None
     views: int = 4
-    azimuths: str = "per_pose"
+    azimuths: Literal["shared", "per_pose"] = "per_pose"
     quadruplets_per_pose: int = 0
     canonical: bool = False
     meshes: bool = True
@@ -83,7 +86,8 @@ class GenerationConfig:
 
     Attributes:
         dataset: source name (``human``, ``animal``, ``primitives``, ``folder``).
-        preset: preset name (informational).
+        preset: name of the size preset it came from (``--size``; informational, recorded as
+            ``preset`` in the manifest).
         splits: split name → :class:`SplitConfig`, in generation order.
         seed: the seed every random choice derives from.
         image_size: square image size in pixels.
@@ -123,71 +127,60 @@ class GenerationConfig:
 
 
 # ------------------------------------------------------------------------------------ presets
-_HUMAN = {
-    "paper": {  # 19,500 training pose pairs over 5 subjects; 810 test poses x 4 views over 2 subjects
-        "train": SplitConfig("pairs", subjects=5, pairs=19_500, meshes=False),
-        "test": SplitConfig("grid", subjects=2, poses=405, views=4, canonical=True),
-    },
-    "small": {
-        "train": SplitConfig("pairs", subjects=5, pairs=1_000, meshes=False),
-        "test": SplitConfig("grid", subjects=2, poses=25, views=4, canonical=True),
-    },
-    "tiny": {
-        "train": SplitConfig("pairs", subjects=2, pairs=8, meshes=False),
-        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
-    },
-}
-_ANIMAL = {
-    "paper": {  # 41 species x 47 poses x 4 views, 940 quadruplets each (38,540); 41 x 3 x 8 = 984 tests
-        "train": SplitConfig("grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20),
-        "test": SplitConfig("grid", subjects=41, poses=3, views=8),
-    },
-    "small": {
-        "train": SplitConfig("grid", subjects=12, poses=12, views=4, azimuths="shared", quadruplets_per_pose=10),
-        "test": SplitConfig("grid", subjects=12, poses=2, views=8),
-    },
-    "tiny": {
-        "train": SplitConfig("grid", subjects=2, poses=3, views=2, azimuths="shared", quadruplets_per_pose=1),
-        "test": SplitConfig("grid", subjects=2, poses=1, views=4),
-    },
-}
-_PRIMITIVES = {
-    "paper": _HUMAN["paper"],
-    "small": _HUMAN["small"],
-    "tiny": {
-        "train": SplitConfig("pairs", subjects=2, pairs=6, meshes=True),
-        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
-    },
-}
-_FOLDER = {
-    "pairs": {  # the Human protocol on your meshes
-        "train": SplitConfig("pairs", subjects=None, pairs=None),
-        "test": SplitConfig("grid", subjects=None, poses=None, views=4, canonical=True),
-    },
-    "grid": {  # the Animal protocol on your meshes (split by subject)
-        "train": SplitConfig("grid", subjects=None, poses=None, views=4, azimuths="shared", quadruplets_per_pose=20),
-        "test": SplitConfig("grid", subjects=None, poses=None, views=8),
-    },
-}
-PRESETS: dict[str, dict[str, dict[str, SplitConfig]]] = {
-    "human": _HUMAN, "animal": _ANIMAL, "primitives": _PRIMITIVES, "folder": _FOLDER,
-}
-"""dataset → preset → split configs. ``paper`` follows the paper's counts, ``small`` generates on a
-CPU in minutes, ``tiny`` in seconds (tests)."""
+DATASETS: tuple[str, ...] = ("human", "animal", "primitives", "folder")
+"""The body sources a dataset can be generated from (``--dataset``)."""
+
+DATA_PRESETS = Presets("configs/data", kind="dataset preset")
+"""The bundled dataset presets, ``cerberus_core/configs/data/<dataset>_<size>.yaml``: ``paper``
+follows the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in seconds (tests);
+``folder`` has ``pairs`` (the Human protocol) and ``grid`` (the Animal protocol) instead."""
+
+SET_EXAMPLE = "splits.train.pairs=2000"
+"""The ``--set`` example that error messages show."""
 
 
-def preset_config(dataset: str, preset: str, **overrides: Any) -> GenerationConfig:
-    """The :class:`GenerationConfig` of a preset, with ``overrides`` (seed, image_size, renderer,
-    scene, shard_images, source) applied."""
-    if dataset not in PRESETS:
-        raise ValueError(f"unknown dataset {dataset!r}; choose one of {sorted(PRESETS)}")
-    if preset not in PRESETS[dataset]:
-        raise ValueError(f"unknown preset {preset!r} for dataset {dataset!r}; choose one of {sorted(PRESETS[dataset])}")
-    return GenerationConfig(dataset=dataset, preset=preset, splits=dict(PRESETS[dataset][preset]), **overrides)
+def sizes(dataset: str) -> list[str]:
+    """The bundled size presets of ``dataset`` (``paper``, ``small``, ``tiny``; folder: ``pairs``, ``grid``)."""
+    if dataset not in DATASETS:
+        raise ConfigError(f"unknown dataset {dataset!r}{did_you_mean(dataset, DATASETS)}; choose one of "
+                          f"{', '.join(DATASETS)}")
+    prefix = f"{dataset}_"
+    return [n[len(prefix):] for n in DATA_PRESETS.names() if n.startswith(prefix)]
 
 
-def default_preset(dataset: str) -> str:
+def default_size(dataset: str) -> str:
+    """The size ``cerberus data generate`` uses without ``--size``: ``small`` (folder: ``pairs``)."""
     return "pairs" if dataset == "folder" else "small"
+
+
+def load_generation_config(dataset: str, size: str | None = None, overrides: Iterable[str] = ()) -> GenerationConfig:
+    """The :class:`GenerationConfig` of a bundled preset plus ``--set`` overrides (YAML values).
+
+    Args:
+        dataset: the body source (:data:`DATASETS`).
+        size: the size preset (:func:`sizes`; default :func:`default_size`).
+        overrides: ``KEY=VALUE`` strings over the config's keys: ``seed``, ``image_size``,
+            ``renderer``, ``shard_images``, ``scene.<field>`` and ``splits.<split>.<field>``.
+
+    Raises:
+        ConfigError: an unknown dataset or size, or a bad key or value (named, with what is allowed).
+    """
+    size = default_size(dataset) if size is None else size
+    known = sizes(dataset)
+    if size not in known:
+        raise ConfigError(f"unknown preset {size!r} for dataset {dataset!r} (--size){did_you_mean(size, known)}; "
+                          f"choose one of {', '.join(known)}")
+    raw = load_raw(DATA_PRESETS, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
+    for key, why in (("dataset", "--dataset"), ("preset", "--size"), ("source", "the body source")):
+        if key in raw:
+            raise ConfigError(f"{key}: set by {why}, not by a preset file or --set")
+    return build(GenerationConfig, {**raw, "dataset": dataset, "preset": size})
+
+
+def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig:
+    """The :class:`GenerationConfig` of a bundled preset, with ``overrides`` (Python values for
+    ``seed``, ``image_size``, ``renderer``, ``scene``, ``shard_images``, ``splits``) applied."""
+    return replace(load_generation_config(dataset, size), **overrides)
 
 
 # ------------------------------------------------------------------------------------ plan
@@ -244,30 +237,30 @@ def _spread(total: int, n: int) -> list[int]:
     return [total // n + (1 if i < total % n else 0) for i in range(n)]
 
 
-def _pairs_units(subject: int, name: str, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
-                 split: str, seed: int, rng: np.random.Generator, chunk: int) -> list[_Unit]:
+def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
+                 split: str, rng: np.random.Generator, chunk: int) -> list[_Unit]:
     if n_pairs is None:
-        pool = source.pose_pool(name, split, None, seed)
+        pool = source.pose_pool(who, split, None)
         n_pairs = len(pool)
     else:
-        pool = source.pose_pool(name, split, 2 * n_pairs, seed)
+        pool = source.pose_pool(who, split, 2 * n_pairs)
     if n_pairs == 0:
         return []
     if len(pool) < 2:
-        raise ValueError(f"subject {name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
+        raise ValueError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
     if len(pool) >= 2 * n_pairs:
         pairs = [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
     else:  # a fixed pose set smaller than needed: draw distinct pairs at random
         a = rng.integers(0, len(pool), n_pairs)
         b = (a + rng.integers(1, len(pool), n_pairs)) % len(pool)
-        pairs = [(pool[i], pool[j]) for i, j in zip(a, b)]
+        pairs = [(pool[i], pool[j]) for i, j in zip(a, b, strict=True)]
     azimuths = rng.uniform(0.0, 360.0, (n_pairs, 2))
     units = []
     for start in range(0, n_pairs, chunk):
         meshes: list[tuple[int, int]] = []
         index: dict[int, int] = {}
         images, quads = [], []
-        for (pa, pb), (az0, az1) in zip(pairs[start:start + chunk], azimuths[start:start + chunk]):
+        for (pa, pb), (az0, az1) in zip(pairs[start:start + chunk], azimuths[start:start + chunk], strict=True):
             for p in (pa, pb):
                 if p not in index:
                     index[p] = len(meshes)
@@ -280,16 +273,17 @@ def _pairs_units(subject: int, name: str, cfg: SplitConfig, n_pairs: int | None,
     return units
 
 
-def _grid_units(subject: int, name: str, cfg: SplitConfig, source: BodySource, split: str, seed: int,
+def _grid_units(subject: int, who: Subject, cfg: SplitConfig, source: BodySource, split: str,
                 rng: np.random.Generator, shard_images: int) -> list[_Unit]:
-    pool = list(source.pose_pool(name, split, cfg.poses, seed))
-    canonical = source.canonical_pose(name) if cfg.canonical else None
+    pool = list(source.pose_pool(who, split, cfg.poses))
+    canonical = source.canonical_pose(who) if cfg.canonical else None
     if canonical is not None and canonical in pool:
         pool.remove(canonical)
     v = cfg.views
     shared = evenly_spaced(rng.uniform(0.0, 360.0), v)
     offsets = rng.uniform(0.0, 360.0, len(pool))
-    poses = [(p, shared if cfg.azimuths == "shared" else evenly_spaced(o, v), False) for p, o in zip(pool, offsets)]
+    poses = [(p, shared if cfg.azimuths == "shared" else evenly_spaced(o, v), False)
+             for p, o in zip(pool, offsets, strict=True)]
     quads: list[tuple[int, int, int, int]] = []
     if cfg.quadruplets_per_pose and len(pool) >= 2:
         pose_pairs = [(a, b) for a in range(len(pool)) for b in range(a + 1, len(pool))]
@@ -362,7 +356,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     index: dict[str, int] = {}
     shards: dict[str, list[ShardPlan]] = {}
     for split, cfg in config.splits.items():
-        infos: list[SubjectInfo] = source.subjects(split, cfg.subjects, config.seed)
+        infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
         if not infos:
             raise ValueError(f"split {split!r} has no subject; adjust the preset or the folder's split options")
         for s in infos:
@@ -374,7 +368,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 entry["splits"].append(split)
             else:
                 index[s.name] = len(table)
-                table.append({"name": s.name, "splits": [split], "canonical_pose": source.canonical_pose(s.name),
+                table.append({"name": s.name, "splits": [split], "canonical_pose": source.canonical_pose(s),
                               "info": s.info})
         units: list[_Unit] = []
         pair_counts = _spread(cfg.pairs, len(infos)) if (cfg.layout == "pairs" and cfg.pairs is not None) else None
@@ -382,17 +376,11 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
         for pos, s in enumerate(infos):
             rng = np.random.default_rng([config.seed, _code(split), pos, _code(s.name)])
             if cfg.layout == "pairs":
-                units += _pairs_units(index[s.name], s.name, cfg, None if pair_counts is None else pair_counts[pos],
-                                      source, split, config.seed, rng, chunk)
+                units += _pairs_units(index[s.name], s, cfg, None if pair_counts is None else pair_counts[pos],
+                                      source, split, rng, chunk)
             else:
-                units += _grid_units(index[s.name], s.name, cfg, source, split, config.seed, rng, config.shard_images)
+                units += _grid_units(index[s.name], s, cfg, source, split, rng, config.shard_images)
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
             raise ValueError(f"split {split!r} would be empty; check the preset's counts")
     return DatasetPlan(table, shards)
-
-
-def with_overrides(config: GenerationConfig, **changes: Any) -> GenerationConfig:
-    """A copy of ``config`` with fields replaced (``None`` values are ignored)."""
-    return replace(config, **{k: v for k, v in changes.items() if v is not None})
-

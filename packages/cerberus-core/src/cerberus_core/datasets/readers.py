@@ -3,23 +3,19 @@
 * :class:`QuadrupletDataset` — training quadruplets: one body in 2 poses (a, b) from 2 viewpoints
   (0, 1), images in the order ``(a0, a1, b0, b1)``.
 * :class:`ViewDataset` — single images (evaluation), with the ground-truth mesh of each image.
-* :class:`ShardStream` — an :class:`~torch.utils.data.IterableDataset` streaming either kind shard
-  by shard (sequential reads; shards are split over DataLoader workers and distributed ranks).
 
-All are cheap to construct (they read ``manifest.json`` and stat the shard files) and picklable:
+Both are cheap to construct (they read ``manifest.json`` and stat the shard files) and picklable:
 shards are opened lazily in each process with ``np.load(mmap_mode="r")``.
 """
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from torch.utils.data import Dataset, IterableDataset, get_worker_info
+from torch.utils.data import Dataset
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
@@ -32,7 +28,7 @@ from cerberus_core.datasets.format import (
     unpack_mesh,
 )
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.render.interface import Light
+from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
 
@@ -121,6 +117,7 @@ class _Base(Dataset):
     """Manifest-level accessors shared by both datasets."""
 
     _reader: _SplitReader
+    _scene: SceneSetup | None
 
     @property
     def root(self) -> Path:
@@ -140,14 +137,12 @@ class _Base(Dataset):
         return self._reader.image_size
 
     @property
-    def scene(self) -> dict:
-        """The scene set-up: ``elevation``, ``fov_y`` (degrees), ``distance``, ``ambient``,
-        ``diffuse``, ``albedo``, ``background``, ``near``, ``far``, ``light`` (a description)."""
-        return dict(self.manifest["scene"])
-
-    @property
-    def scene_setup(self) -> SceneSetup:
-        return SceneSetup.from_dict(self.manifest["scene"])
+    def scene(self) -> SceneSetup:
+        """The scene set-up (cameras of view records, light, background, albedo); the manifest's
+        ``scene`` read with :meth:`SceneSetup.from_dict`."""
+        if self._scene is None:
+            self._scene = SceneSetup.from_dict(self.manifest["scene"])
+        return self._scene
 
     @property
     def part_names(self) -> list[str]:
@@ -159,12 +154,8 @@ class _Base(Dataset):
         """Subject index → name (indices are global over the dataset's splits)."""
         return [s["name"] for s in self.manifest["subjects"]]
 
-    def light(self, camera: Camera) -> Light:
-        """The dataset's light for ``camera``: white directional along the view plus white ambient."""
-        return Light.following(camera, ambient=self.scene["ambient"], diffuse=self.scene["diffuse"])
-
     def cameras(self, batch: dict[str, Tensor], slot: int | None = None) -> Camera:
-        """Cameras of a (collated) batch.
+        """Cameras of a (collated) batch at this dataset's image size: :meth:`SceneSetup.view_cameras`.
 
         Args:
             batch: a dict with ``azimuth``, ``elevation``, ``distance``, ``fov_y``, each ``(B, 4)``
@@ -175,15 +166,7 @@ class _Base(Dataset):
         Returns:
             :class:`Camera` on the batch's device with this dataset's image size.
         """
-        def pick(key: str) -> Tensor:
-            t = torch.as_tensor(batch[key], dtype=torch.float32)
-            if slot is not None:
-                t = t[..., slot]
-            return t.reshape(-1)
-
-        return Camera.look_at(pick("azimuth"), pick("elevation"), pick("distance"), fov_y_deg=pick("fov_y"),
-                              image_size=self.image_size, near=self.scene.get("near", 0.05),
-                              far=self.scene.get("far", 100.0), device=torch.as_tensor(batch["azimuth"]).device)
+        return self.scene.view_cameras(batch, self.image_size, slot=slot)
 
 
 class QuadrupletDataset(_Base):
@@ -208,6 +191,7 @@ class QuadrupletDataset(_Base):
     def __init__(self, root: str | Path, split: str = "train", *, allow_partial: bool = False,
                  verify: bool = False) -> None:
         self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
+        self._scene = None
         if self._reader.quad_offsets[-1] == 0:
             raise DatasetError(f"{self._reader.root}: split {split!r} has no quadruplets (a "
                                f"{self._reader.info['layout']} test split?); use ViewDataset for single images")
@@ -248,6 +232,7 @@ class ViewDataset(_Base):
     def __init__(self, root: str | Path, split: str = "test", *, allow_partial: bool = False,
                  verify: bool = False) -> None:
         self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
+        self._scene = None
         self._records: np.ndarray | None = None
         self._source = None
 
@@ -314,7 +299,8 @@ class ViewDataset(_Base):
         return PosedBody(verts, faces, parts, self.part_names, self.subject_names[subject], pose, meta=meta)
 
     def _regenerate(self, subject: int, pose: int) -> PosedBody:
-        from cerberus_core.bodies.sources import make_source
+        """Rebuild a body from the manifest alone: its source (name and options) and the subject's record."""
+        from cerberus_core.bodies.sources import Subject, make_source
 
         if self._source is None:
             src = self.manifest["source"]
@@ -323,61 +309,10 @@ class ViewDataset(_Base):
             except Exception as exc:  # noqa: BLE001
                 raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and its source "
                                    f"{src['name']!r} cannot be rebuilt here ({exc})") from exc
-            cfg = self.manifest["config"]
-            for split, sc in cfg["splits"].items():
-                self._source.subjects(split, sc["subjects"], cfg["seed"])
-        return self._source.bodies(self.subject_names[subject], [pose])[0]
-
-
-class ShardStream(IterableDataset):
-    """Stream a split shard by shard (sequential reads), as quadruplets or single views.
-
-    Shards are dealt round-robin to ``world_size * num_workers`` consumers (distributed rank from
-    :mod:`torch.distributed` when initialised); with ``shuffle`` the shard order and the order
-    within each shard change every epoch (:meth:`set_epoch`) from ``seed``.
-
-    Args:
-        root, split: the dataset split.
-        items: ``"quadruplets"`` (items as :class:`QuadrupletDataset`) or ``"views"`` (as :class:`ViewDataset`).
-        shuffle, seed: shuffling.
-    """
-
-    def __init__(self, root: str | Path, split: str = "train", items: str = "quadruplets", *, shuffle: bool = False,
-                 seed: int = 0, allow_partial: bool = False) -> None:
-        if items not in ("quadruplets", "views"):
-            raise ValueError(f"items must be 'quadruplets' or 'views', got {items!r}")
-        cls = QuadrupletDataset if items == "quadruplets" else ViewDataset
-        self.dataset = cls(root, split, allow_partial=allow_partial)
-        self.items = items
-        self.shuffle = shuffle
-        self.seed = seed
-        self.epoch = 0
-
-    def set_epoch(self, epoch: int) -> None:
-        self.epoch = int(epoch)
-
-    def _counts(self) -> np.ndarray:
-        r = self.dataset._reader
-        return np.diff(r.quad_offsets if self.items == "quadruplets" else r.image_offsets)
-
-    def __len__(self) -> int:
-        """Items over all consumers (a consumer sees about ``len / (world_size * num_workers)``)."""
-        return int(self._counts().sum())
-
-    def __iter__(self) -> Iterator[dict[str, Tensor]]:
-        info = get_worker_info()
-        wid, nworkers = (info.id, info.num_workers) if info is not None else (0, 1)
-        rank, world = 0, 1
-        if torch.distributed.is_available() and torch.distributed.is_initialized():
-            rank, world = torch.distributed.get_rank(), torch.distributed.get_world_size()
-        counts = self._counts()
-        rng = np.random.default_rng([self.seed, self.epoch])
-        order = rng.permutation(len(counts)) if self.shuffle else np.arange(len(counts))
-        consumer, consumers = rank * nworkers + wid, world * nworkers
-        for shard in order[consumer::consumers]:
-            local = rng.permutation(counts[shard]) if self.shuffle else range(counts[shard])
-            for j in local:
-                yield self.dataset.item(int(shard), int(j))
+        try:
+            return self._source.bodies(Subject.from_dict(self.manifest["subjects"][subject]), [pose])[0]
+        except KeyError as exc:
+            raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
 
 
 def background_mask(images: Tensor, background: tuple[float, float, float] | list[float],
@@ -386,7 +321,7 @@ def background_mask(images: Tensor, background: tuple[float, float, float] | lis
 
     Args:
         images: ``(..., 3, H, W)`` in [0, 1] (as the datasets return them).
-        background: the dataset's ``scene["background"]``.
+        background: the dataset's ``scene.background``.
     Returns:
         ``(..., 1, H, W)`` float32, 1 on background. With the default scene every body pixel is at
         most 0.8 bright, so the mask is exact.
@@ -395,4 +330,4 @@ def background_mask(images: Tensor, background: tuple[float, float, float] | lis
     return ((images - bg).abs() <= tol).all(dim=-3, keepdim=True).to(torch.float32)
 
 
-__all__ = ["QuadrupletDataset", "ShardStream", "ViewDataset", "background_mask"]
+__all__ = ["QuadrupletDataset", "ViewDataset", "background_mask"]

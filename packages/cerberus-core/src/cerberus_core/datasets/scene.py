@@ -8,19 +8,27 @@ into ``[-FILL/2, FILL/2]^3`` (:mod:`cerberus_core.bodies.body`).
 The camera distance is *fitted*: the smallest distance at which every corner of the cube
 ``[-FILL/2, FILL/2]^3`` (hence every body) stays inside the frame, with a margin, from every
 azimuth at the fixed elevation. Bodies thus fill most of the frame and are never clipped.
+
+:class:`SceneSetup` is the one owner of a dataset's scene: cameras (from azimuths when rendering,
+from stored view records when reading: :meth:`SceneSetup.view_cameras`), the light and the
+background. The manifest stores it as :meth:`SceneSetup.to_dict`, which :meth:`SceneSetup.from_dict`
+reads back exactly (``from_dict(d).to_dict() == d``); the readers' ``.scene`` and the trainer use
+the object.
 """
 from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import asdict, dataclass, field
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields
 from functools import lru_cache
 
 import numpy as np
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.bodies.body import FILL
+from cerberus_core.errors import ConfigError
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 
 Tensor = torch.Tensor
@@ -108,25 +116,79 @@ class SceneSetup:
         object.__setattr__(self, "albedo", tuple(float(a) for a in self.albedo))
         object.__setattr__(self, "background", tuple(float(b) for b in self.background))
 
+    LIGHT = {"type": "directional+ambient", "follows_camera": True, "colour": "white"}
+    """The only light there is (stored in the manifest for readers of the JSON): white directional
+    along each camera's viewing direction plus white ambient (:meth:`light`)."""
+
     def to_dict(self) -> dict:
-        """JSON-ready dict (as stored in the manifest's ``scene``)."""
+        """JSON-ready dict (as stored in the manifest's ``scene`` and ``config.scene``)."""
         d = asdict(self)
         d["albedo"], d["background"] = list(self.albedo), list(self.background)
-        d["light"] = {"type": "directional+ambient", "follows_camera": True, "colour": "white"}
+        d["light"] = dict(self.LIGHT)
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> SceneSetup:
-        keys = {"elevation", "fov_y", "distance", "ambient", "diffuse", "albedo", "background", "near", "far",
-                "fitted_extent"}
+    def from_dict(cls, d: Mapping) -> SceneSetup:
+        """The set-up of a :meth:`to_dict` dict (missing keys take the defaults).
+
+        Raises:
+            ConfigError: an unknown key or a light other than :attr:`LIGHT`.
+        """
+        keys = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - keys - {"light"})
+        if unknown:
+            raise ConfigError(f"scene: unknown key(s) {unknown}; valid keys: {sorted(keys)}")
+        if "light" in d and d["light"] != cls.LIGHT:
+            raise ConfigError(f"scene.light: only {cls.LIGHT} is supported, got {d['light']!r}")
         return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})
 
     def cameras(self, azimuth_deg: Tensor | np.ndarray | list[float], image_size: int,
                 device: torch.device | str | None = None) -> Camera:
-        """``B`` cameras at the given azimuths (degrees) with this set-up's elevation, distance and fov."""
-        az = torch.as_tensor(np.asarray(azimuth_deg, dtype=np.float32), device=device).reshape(-1)
+        """``B`` cameras at the given azimuths (degrees) with this set-up's elevation, distance and fov
+        (how the generator renders)."""
+        az = torch.as_tensor(np.ascontiguousarray(np.asarray(azimuth_deg, dtype=np.float32)), device=device).reshape(-1)
         return Camera.look_at(az, self.elevation, self.distance, fov_y_deg=self.fov_y, image_size=image_size,
                               near=self.near, far=self.far, device=device)
+
+    VIEW_KEYS = ("azimuth", "elevation", "distance", "fov_y")
+    """What a view record holds about its camera (degrees, degrees, normalised units, degrees)."""
+
+    def view_cameras(self, views: Mapping | np.ndarray, image_size: int | tuple[int, int], *,
+                     slot: int | None = None, device: torch.device | str | None = None) -> Camera:
+        """Cameras of stored view records (how readers and the trainer see a dataset's images).
+
+        Args:
+            views: anything indexable by :attr:`VIEW_KEYS`, each of any shape: a (collated) batch of
+                dataset items (``(B, 4)`` quadruplets, ``(B,)`` views, unbatched) or
+                :data:`~cerberus_core.datasets.format.VIEW_DTYPE` records.
+            image_size: square size or ``(H, W)`` in pixels (the training resolution may differ
+                from the dataset's).
+            slot: take ``[..., slot]`` of each field first (quadruplets: image slot 0..3 of
+                ``a0, a1, b0, b1`` → ``B`` cameras); ``None`` → every view, flattened row-major
+                (``B * 4`` cameras matching ``batch["images"].flatten(0, 1)``).
+            device: where the cameras live (default: the device of ``views["azimuth"]``).
+
+        Returns:
+            :class:`Camera` with this set-up's clipping planes.
+        """
+        if device is None:
+            az = views["azimuth"]
+            device = az.device if isinstance(az, Tensor) else None
+
+        def flat(key: str) -> Tensor:
+            try:
+                value = views[key]
+            except (KeyError, ValueError, IndexError):
+                raise KeyError(f"view records lack {key!r}; every view needs {', '.join(self.VIEW_KEYS)}") from None
+            if isinstance(value, (np.ndarray, np.generic)):
+                value = np.array(value, dtype=np.float32)  # a copy: memory-mapped records are read-only
+            t = torch.as_tensor(value).to(device=device, dtype=torch.float32)
+            if slot is not None:
+                t = t[..., slot]
+            return t.reshape(-1)
+
+        return Camera.look_at(flat("azimuth"), flat("elevation"), flat("distance"), fov_y_deg=flat("fov_y"),
+                              image_size=image_size, near=self.near, far=self.far, device=device)
 
     def light(self, camera: Camera) -> Light:
         """White directional light along each camera's viewing direction plus white ambient."""

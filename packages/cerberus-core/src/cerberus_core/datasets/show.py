@@ -21,7 +21,7 @@ def _parts_image(views: ViewDataset, index: int, scene: SceneSetup, renderer) ->
     """``(1, 3, H, W)``: the ground-truth body of image ``index`` coloured by part, same camera."""
     body = views.gt_mesh(index)
     rec = views.records[index]
-    camera = scene.cameras([float(rec["azimuth"])], views.image_size)
+    camera = scene.view_cameras(rec, views.image_size)
     colours = part_colors(max(len(views.part_names), 1))[torch.as_tensor(body.vertex_parts.astype(np.int64))]
     out = render(renderer, torch.as_tensor(body.vertices)[None], torch.as_tensor(body.faces), camera,
                  scene.light(camera), albedo=colours[None], background=scene.background)
@@ -51,7 +51,7 @@ def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, par
     """
     reader = _SplitReader(root, split, allow_partial=True)
     views = ViewDataset(root, split, allow_partial=True)
-    scene = views.scene_setup
+    scene = views.scene
     rend = make_renderer(renderer) if parts else None
     rows, titles = [], []
     if reader.quad_offsets[-1] > 0:

@@ -8,21 +8,26 @@ overrides apply last; values are parsed as YAML (``--set optim.lr=1e-4``,
 ``--set losses.pose_consistency=false``, ``--set optim.betas=[0.9,0.99]``).
 
 Bundled presets (``cerberus_core/configs/*.yaml``, listed by :func:`preset_names`): ``paper``,
-``cpu``, ``free_cerberus``, ``nmrr``, ``tiny``. See ``docs/training.md``.
+``cpu``, ``free_cerberus``, ``nmrr``, ``tiny``. See ``docs/training.md``. Files, ``extends``,
+``--set`` and the typed validation are the toolkit's one config mechanism, :mod:`cerberus_core.config`
+(dataset presets use it too).
 """
+
 from __future__ import annotations
 
-import types
-import typing
-from dataclasses import asdict, dataclass, field, fields, is_dataclass
-from importlib import resources
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 
+from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, parse_overrides
+from cerberus_core.errors import ConfigError
 from cerberus_core.losses import LossConfig
 from cerberus_core.model.cerberus import ModelConfig
+
+__all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "TrainConfig", "config_diff",
+           "deep_merge", "load_config", "parse_overrides", "preset_names"]
 
 
 @dataclass
@@ -59,7 +64,7 @@ class OptimConfig:
     eps: float = 1e-8
     weight_decay: float = 0.0
     grad_clip: float | None = None
-    schedule: str = "constant"
+    schedule: Literal["constant", "cosine"] = "constant"
     warmup_steps: int = 0
     min_lr_ratio: float = 0.0
 
@@ -88,7 +93,7 @@ class LoopConfig:
     keep_every: int = 0
     log_every: int = 10
     image_every: int = 1000
-    on_nonfinite: str = "stop"
+    on_nonfinite: Literal["stop", "skip"] = "stop"
     max_consecutive_skips: int = 20
     tensorboard: bool = True
     progress: bool = True
@@ -128,31 +133,31 @@ class TrainConfig:
     debug: DebugConfig = field(default_factory=DebugConfig)
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the bad key and what is allowed."""
+        """Raise :class:`ConfigError` (a ``ValueError``) naming the bad key and what is allowed."""
         self.model.validate()
         self.losses.validate()
         t, o = self.train, self.optim
         if t.steps < 1 or t.batch_size < 1:
-            raise ValueError(f"train.steps and train.batch_size must be positive, got {t.steps}, {t.batch_size}")
+            raise ConfigError(f"train.steps and train.batch_size must be positive, got {t.steps}, {t.batch_size}")
         if t.on_nonfinite not in ("stop", "skip"):
-            raise ValueError(f"train.on_nonfinite must be 'stop' or 'skip', got {t.on_nonfinite!r}")
+            raise ConfigError(f"train.on_nonfinite must be 'stop' or 'skip', got {t.on_nonfinite!r}")
         for key in ("checkpoint_every", "log_every"):
             if getattr(t, key) < 1:
-                raise ValueError(f"train.{key} must be >= 1, got {getattr(t, key)}")
+                raise ConfigError(f"train.{key} must be >= 1, got {getattr(t, key)}")
         if t.image_every < 0 or t.keep_every < 0:
-            raise ValueError("train.image_every and train.keep_every must be >= 0 (0 switches them off)")
+            raise ConfigError("train.image_every and train.keep_every must be >= 0 (0 switches them off)")
         if o.lr <= 0 or len(o.betas) != 2:
-            raise ValueError(f"optim.lr must be positive and optim.betas two numbers, got {o.lr}, {o.betas}")
+            raise ConfigError(f"optim.lr must be positive and optim.betas two numbers, got {o.lr}, {o.betas}")
         if o.schedule not in ("constant", "cosine"):
-            raise ValueError(f"optim.schedule must be 'constant' or 'cosine', got {o.schedule!r}")
+            raise ConfigError(f"optim.schedule must be 'constant' or 'cosine', got {o.schedule!r}")
         if o.grad_clip is not None and o.grad_clip <= 0:
-            raise ValueError(f"optim.grad_clip must be positive or null, got {o.grad_clip}")
+            raise ConfigError(f"optim.grad_clip must be positive or null, got {o.grad_clip}")
         if self.device != "auto" and self.device != "cpu" and not self.device.startswith("cuda"):
-            raise ValueError(f"device must be 'auto', 'cpu' or 'cuda[:N]', got {self.device!r}")
+            raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda[:N]', got {self.device!r}")
         if self.threads is not None and self.threads < 1:
-            raise ValueError(f"threads must be a positive integer or null, got {self.threads}")
+            raise ConfigError(f"threads must be a positive integer or null, got {self.threads}")
         if self.data.image_size is not None and self.data.image_size < 32:
-            raise ValueError(f"data.image_size must be >= 32 (or null), got {self.data.image_size}")
+            raise ConfigError(f"data.image_size must be >= 32 (or null), got {self.data.image_size}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -162,154 +167,19 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
-        cfg = _build(cls, d, "")
+        cfg = build(cls, d)
         cfg.validate()
         return cfg
 
 
-# ------------------------------------------------------------------ building from plain dicts
-_EXACT = {bool: "true/false", str: "a string", type(None): "null"}
-"""Types taken as they are (no conversion), with how an error message names them."""
-
-
-def _coerce(value: Any, hint: Any, key: str) -> Any:
-    """Check/convert one value against a type hint; ``ValueError`` names the key on mismatch."""
-    origin = typing.get_origin(hint)
-    if origin in (typing.Union, types.UnionType):
-        for option in typing.get_args(hint):
-            try:
-                return _coerce(value, option, key)
-            except ValueError:
-                pass
-        raise ValueError(f"{key}: {value!r} fits none of {hint}")
-    if hint in _EXACT:
-        if isinstance(value, hint):
-            return value
-        raise ValueError(f"{key}: expected {_EXACT[hint]}, got {value!r}")
-    if hint is int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-        if isinstance(value, float) and value.is_integer():
-            return int(value)
-        raise ValueError(f"{key}: expected an integer, got {value!r}")
-    if hint is float:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
-        if isinstance(value, str):
-            try:
-                return float(value)  # YAML reads "5e-4" as a string
-            except ValueError:
-                pass
-        raise ValueError(f"{key}: expected a number, got {value!r}")
-    if origin is list:
-        if not isinstance(value, (list, tuple)):
-            raise ValueError(f"{key}: expected a list, got {value!r}")
-        (item,) = typing.get_args(hint) or (Any,)
-        return [v if item is Any else _coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
-    if is_dataclass(hint):
-        if not isinstance(value, dict):
-            raise ValueError(f"{key}: expected a mapping of {sorted(f.name for f in fields(hint))}, got {value!r}")
-        return _build(hint, value, key + ".")
-    return value
-
-
-def _build(cls: type, d: dict[str, Any], prefix: str) -> Any:
-    hints = typing.get_type_hints(cls)
-    known = {f.name for f in fields(cls)}
-    unknown = set(d) - known
-    if unknown:
-        raise ValueError(f"unknown config key(s) {sorted(prefix + k for k in unknown)}; "
-                         f"valid keys here: {sorted(prefix + k for k in known)}")
-    return cls(**{k: _coerce(v, hints[k], prefix + k) for k, v in d.items()})
-
-
-# ------------------------------------------------------------------ files, presets, overrides
-def _presets_dir():
-    return resources.files("cerberus_core").joinpath("configs")
+# ------------------------------------------------------------------ presets, files, overrides
+PRESETS = Presets("configs", kind="preset")
+"""The bundled training recipes, ``cerberus_core/configs/*.yaml``."""
 
 
 def preset_names() -> list[str]:
     """Names of the bundled presets."""
-    return sorted(p.name[:-5] for p in _presets_dir().iterdir() if p.name.endswith(".yaml"))
-
-
-def _preset_text(name: str) -> str:
-    res = _presets_dir().joinpath(f"{name}.yaml")
-    if not res.is_file():
-        raise ValueError(f"unknown preset {name!r}; bundled presets: {', '.join(preset_names())}")
-    return res.read_text()
-
-
-def deep_merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
-    """Recursive dict merge: values of ``top`` win; nested mappings merge."""
-    out = dict(base)
-    for k, v in top.items():
-        out[k] = deep_merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
-
-
-def _load_raw(text: str, source: str, base_dir: Path | None) -> dict[str, Any]:
-    """A config's mapping with its ``extends`` chain resolved."""
-    raw: dict[str, Any] = {}
-    for _, layer in _layers(text, source, base_dir):
-        raw = deep_merge(raw, layer)
-    return raw
-
-
-def _layers(text: str, source: str, base_dir: Path | None, depth: int = 0) -> list[tuple[str, dict[str, Any]]]:
-    """The config and its ancestors as ``(source, mapping)`` layers, most basic first.
-
-    ``extends: [a, b]`` lists a's layers, then b's layers not already listed, then this file's own:
-    ``[cpu, nmrr]`` (both extending ``paper``) gives paper, cpu, nmrr, so the variant lands on the CPU
-    schedule instead of bringing the paper's settings back.
-    """
-    if depth > 8:
-        raise ValueError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
-    try:
-        raw = yaml.safe_load(text) or {}
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{source} is not valid YAML: {exc}") from exc
-    if not isinstance(raw, dict):
-        raise ValueError(f"{source} must hold a YAML mapping of config sections")
-    parents = raw.pop("extends", None)
-    parents = [] if parents is None else parents if isinstance(parents, list) else [parents]
-    layers: list[tuple[str, dict[str, Any]]] = []
-    for parent in parents:
-        for layer in _parent_layers(str(parent), base_dir, depth + 1):
-            if layer[0] not in {name for name, _ in layers}:
-                layers.append(layer)
-    return [*layers, (source, raw)]
-
-
-def _parent_layers(parent: str, base_dir: Path | None, depth: int) -> list[tuple[str, dict[str, Any]]]:
-    """The layers of one ``extends`` entry: a config file (relative to ``base_dir``) or a preset name."""
-    if parent.endswith((".yaml", ".yml")):
-        path = Path(parent) if base_dir is None or Path(parent).is_absolute() else base_dir / parent
-        return _layers(_read(path), str(path.resolve()), path.parent, depth)
-    return _layers(_preset_text(parent), f"preset {parent}", None, depth)
-
-
-def _read(path: Path) -> str:
-    try:
-        return Path(path).read_text()
-    except FileNotFoundError:
-        raise ValueError(f"config file {path} does not exist") from None
-
-
-def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """``["optim.lr=1e-4", "train.steps=10"]`` → nested dict (values parsed as YAML)."""
-    out: dict[str, Any] = {}
-    for item in items:
-        if "=" not in item:
-            raise ValueError(f"--set {item!r}: expected section.key=value, e.g. --set optim.lr=0.0001")
-        key, text = item.split("=", 1)
-        value = yaml.safe_load(text) if text.strip() else None
-        node = out
-        parts = key.strip().split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = value
-    return out
+    return PRESETS.names()
 
 
 def load_config(path: str | Path | None = None, *, preset: str | list[str] | None = None,
@@ -318,31 +188,12 @@ def load_config(path: str | Path | None = None, *, preset: str | list[str] | Non
 
     ``preset`` may be a list, merged left to right like ``extends: [a, b]`` (``["cpu", "nmrr"]``:
     the CPU schedule with the NMRr baseline's changes). With neither ``path`` nor ``preset`` the
-    defaults (the paper's settings) are used.
+    defaults (the paper's settings) are used. Errors are :class:`~cerberus_core.errors.ConfigError`.
     """
-    if path is not None and preset is not None:
-        raise ValueError("give either a config file or a preset, not both (a file can say 'extends: PRESET')")
-    if path is not None:
-        raw = _load_raw(_read(Path(path)), str(path), Path(path).parent)
-    elif preset is not None:
-        names = [preset] if isinstance(preset, str) else list(preset)
-        raw = _load_raw(yaml.safe_dump({"extends": names}), "--preset " + " --preset ".join(names), None)
-    else:
-        raw = {}
-    raw = deep_merge(raw, parse_overrides(overrides or []))
-    return TrainConfig.from_dict(raw)
+    return TrainConfig.from_dict(load_raw(PRESETS, path, preset=preset, overrides=overrides or ()))
 
 
 def config_diff(a: TrainConfig, b: TrainConfig) -> list[str]:
     """Dotted keys whose values differ between two configs."""
-    def flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for k, v in d.items():
-            if isinstance(v, dict):
-                out.update(flat(v, f"{prefix}{k}."))
-            else:
-                out[prefix + k] = v
-        return out
-
-    fa, fb = flat(a.to_dict()), flat(b.to_dict())
+    fa, fb = flatten(a.to_dict()), flatten(b.to_dict())
     return sorted(k for k in fa.keys() | fb.keys() if fa.get(k) != fb.get(k))

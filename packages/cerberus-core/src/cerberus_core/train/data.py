@@ -6,9 +6,9 @@ with
 * ``images``: ``(4, 3, H, W)`` float32 in [0, 1], ordered ``(a0, a1, b0, b1)``;
 * ``azimuth``, ``elevation``, ``distance``, ``fov_y``: ``(4,)`` float32, degrees / world units;
 
-and which has the attributes ``image_size`` (int) and ``scene`` (a dict read by
-:meth:`cerberus_core.datasets.scene.SceneSetup.from_dict`: ``distance``, ``albedo``, ``background``,
-``ambient``, ``diffuse``, ``near``, ``far``). Anything else in the items (subject, pose and view ids)
+and which has the attributes ``image_size`` (int) and ``scene`` (a
+:class:`cerberus_core.datasets.scene.SceneSetup`: camera distance and clipping planes, light, albedo,
+background; it turns the items' view fields into cameras). Anything else in the items (subject, pose and view ids)
 is carried along and ignored. :class:`cerberus_core.datasets.readers.QuadrupletDataset` is the reader
 of the toolkit's on-disk format.
 
@@ -28,8 +28,8 @@ import numpy as np
 import torch
 from torch.utils.data import Sampler
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
 
@@ -40,6 +40,9 @@ def check_dataset(dataset: Any) -> None:
     if missing:
         raise TypeError(f"training dataset {type(dataset).__name__} lacks {missing}; it must be a map-style "
                         "dataset of quadruplet dicts with .image_size and .scene (see cerberus_core.train.data)")
+    if not isinstance(dataset.scene, SceneSetup):
+        raise TypeError(f"training dataset {type(dataset).__name__}: .scene must be a SceneSetup, got "
+                        f"{type(dataset.scene).__name__} (SceneSetup.from_dict reads a manifest's scene dict)")
     if len(dataset) == 0:
         raise ValueError("the training dataset is empty")
 
@@ -122,8 +125,8 @@ class QuadrupletBatch:
 
 def quadruplet_batch(batch: dict[str, Any], device: torch.device, scene: SceneSetup,
                      image_size: int | None = None) -> QuadrupletBatch:
-    """Collated dataset items → images at ``image_size`` and their cameras (clipping planes from
-    ``scene``), on ``device``."""
+    """Collated dataset items → images at ``image_size`` and their cameras
+    (:meth:`SceneSetup.view_cameras`), on ``device``."""
     images = torch.as_tensor(batch["images"]).to(device=device, dtype=torch.float32)
     if images.ndim != 5 or images.shape[1:3] != (4, 3):
         raise ValueError(f"batch images must be (B, 4, 3, H, W), got {tuple(images.shape)}")
@@ -134,12 +137,5 @@ def quadruplet_batch(batch: dict[str, Any], device: torch.device, scene: SceneSe
         images = flat.clamp(0, 1).view(bsz, 4, 3, image_size, image_size)
         h = w = image_size
 
-    def flat(key: str) -> Tensor:
-        if key not in batch:
-            raise KeyError(f"dataset items lack {key!r}; every item needs images, azimuth, elevation, distance, fov_y")
-        return torch.as_tensor(batch[key]).to(device=device, dtype=torch.float32).reshape(-1)
-
-    camera = Camera.look_at(flat("azimuth"), flat("elevation"), flat("distance"), fov_y_deg=flat("fov_y"),
-                            image_size=(h, w), near=scene.near, far=scene.far, device=device)
-    return QuadrupletBatch(images, camera)
+    return QuadrupletBatch(images, scene.view_cameras(batch, (h, w), device=device))
 

@@ -35,7 +35,6 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from cerberus_core.atomic import atomic_write_text
-from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
@@ -199,7 +198,7 @@ class _Trainer:
         self.config, self.run_dir, self.info, self.device = config, run_dir, info, device
         self.dataset = dataset if dataset is not None else build_dataset(config.data.root, config.data.split)
         check_dataset(self.dataset)
-        self.scene = SceneSetup.from_dict(dict(self.dataset.scene))
+        self.scene = self.dataset.scene
         if config.model.depth_offset == "auto":
             config.model.depth_offset = self.scene.distance
         self.image_size = config.data.image_size or int(self.dataset.image_size)

@@ -1,0 +1,271 @@
+"""One configuration mechanism for training recipes and dataset presets.
+
+* **Bundled presets** are YAML files inside the package (:class:`Presets`): training recipes in
+  ``cerberus_core/configs/<name>.yaml`` (``cerberus train --preset``), dataset presets in
+  ``cerberus_core/configs/data/<dataset>_<size>.yaml`` (``cerberus data generate --size``).
+* ``extends: NAME`` (a preset of the same folder) or ``extends: path/to/other.yaml`` (relative to
+  the file) loads that config first and applies this one on top; ``extends: [a, b]`` merges several,
+  left to right, each shared ancestor once (:func:`load_raw`).
+* ``--set key.sub=value`` overrides apply last; values are YAML (:func:`parse_overrides`):
+  ``--set optim.lr=1e-4``, ``--set losses.pose_consistency=false``, ``--set splits.train.pairs=2000``.
+* :func:`build` turns the merged mapping into typed dataclasses and checks every value against its
+  type hint. Errors are :class:`~cerberus_core.errors.ConfigError` (a ``ValueError``) naming the
+  dotted key, what is allowed (the type, the ``Literal`` choices, the valid keys) and, for a typo,
+  the closest valid name ("did you mean").
+"""
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from collections.abc import Iterable, Mapping
+from dataclasses import MISSING, fields, is_dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from cerberus_core.errors import ConfigError
+
+__all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean", "flatten", "load_raw",
+           "parse_overrides"]
+
+
+def did_you_mean(word: Any, options: Iterable[Any]) -> str:
+    """`` (did you mean 'x'?)`` for the option closest to ``word``, or ``""`` if none is close."""
+    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+# ------------------------------------------------------------------ mappings
+def deep_merge(base: Mapping[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
+    """Recursive dict merge: values of ``top`` win; nested mappings merge."""
+    out = dict(base)
+    for k, v in top.items():
+        out[k] = deep_merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` → ``{"a.b": 1}``."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, Mapping):
+            out.update(flatten(v, f"{prefix}{k}."))
+        else:
+            out[prefix + str(k)] = v
+    return out
+
+
+def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> dict[str, Any]:
+    """``["optim.lr=1e-4", "train.steps=10"]`` → nested dict (values parsed as YAML)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item or not item.split("=", 1)[0].strip():
+            raise ConfigError(f"--set {item!r}: expected section.key=value, e.g. --set {example}")
+        key, text = item.split("=", 1)
+        try:
+            value = yaml.safe_load(text) if text.strip() else None
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({exc})") from None
+        node = out
+        parts = key.strip().split(".")
+        for p in parts[:-1]:
+            child = node.setdefault(p, {})
+            if not isinstance(child, dict):
+                raise ConfigError(f"--set {item!r}: {p!r} was already given a value, not a section")
+            node = child
+        node[parts[-1]] = value
+    return out
+
+
+# ------------------------------------------------------------------ preset folders and files
+class Presets:
+    """A folder of bundled YAML presets inside the ``cerberus_core`` package.
+
+    Args:
+        folder: path inside the package, ``/``-separated (``"configs"``, ``"configs/data"``).
+        kind: what a preset is called in messages (``"preset"``).
+    """
+
+    def __init__(self, folder: str, kind: str = "preset") -> None:
+        self.folder, self.kind = folder, kind
+
+    def _dir(self):
+        return resources.files("cerberus_core").joinpath(*self.folder.split("/"))
+
+    def names(self) -> list[str]:
+        """Names of the bundled presets (file stems)."""
+        return sorted(p.name[:-5] for p in self._dir().iterdir() if p.name.endswith(".yaml") and p.is_file())
+
+    def text(self, name: str) -> str:
+        """The YAML text of preset ``name``; a :class:`ConfigError` naming the bundled ones otherwise."""
+        res = self._dir().joinpath(f"{name}.yaml")
+        if not res.is_file():
+            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; bundled "
+                              f"{self.kind}s: {', '.join(self.names())}")
+        return res.read_text()
+
+
+def read_file(path: str | Path) -> str:
+    try:
+        return Path(path).read_text()
+    except FileNotFoundError:
+        raise ConfigError(f"config file {path} does not exist") from None
+
+
+def load_raw(presets: Presets, path: str | Path | None = None, *, preset: str | list[str] | None = None,
+             overrides: Iterable[str] = (), example: str = "optim.lr=0.0001") -> dict[str, Any]:
+    """The merged mapping of a config file or bundled preset(s) (``extends`` resolved), plus ``--set``.
+
+    ``preset`` may be a list, merged left to right like ``extends: [a, b]``. With neither ``path``
+    nor ``preset`` only the overrides are returned.
+    """
+    if path is not None and preset is not None:
+        raise ConfigError("give either a config file or a preset, not both (a file can say 'extends: PRESET')")
+    layers: list[tuple[str, dict[str, Any]]] = []
+    if path is not None:
+        layers = _layers(read_file(path), str(path), Path(path).parent, presets)
+    elif preset is not None:
+        names = [preset] if isinstance(preset, str) else list(preset)
+        layers = _layers(yaml.safe_dump({"extends": names}), "--preset " + " --preset ".join(names), None, presets)
+    raw: dict[str, Any] = {}
+    for _, layer in layers:
+        raw = deep_merge(raw, layer)
+    return deep_merge(raw, parse_overrides(overrides, example))
+
+
+def _layers(text: str, source: str, base_dir: Path | None, presets: Presets,
+            depth: int = 0) -> list[tuple[str, dict[str, Any]]]:
+    """The config and its ancestors as ``(source, mapping)`` layers, most basic first.
+
+    ``extends: [a, b]`` lists a's layers, then b's layers not already listed, then this file's own:
+    ``[cpu, nmrr]`` (both extending ``paper``) gives paper, cpu, nmrr, so the variant lands on the CPU
+    schedule instead of bringing the paper's settings back.
+    """
+    if depth > 8:
+        raise ConfigError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
+    try:
+        raw = yaml.safe_load(text) or {}
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{source} is not valid YAML: {exc}") from exc
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{source} must hold a YAML mapping of config sections")
+    parents = raw.pop("extends", None)
+    parents = [] if parents is None else parents if isinstance(parents, list) else [parents]
+    layers: list[tuple[str, dict[str, Any]]] = []
+    for parent in parents:
+        parent = str(parent)
+        if parent.endswith((".yaml", ".yml")):
+            path = Path(parent) if base_dir is None or Path(parent).is_absolute() else base_dir / parent
+            parent_layers = _layers(read_file(path), str(path.resolve()), path.parent, presets, depth + 1)
+        else:
+            parent_layers = _layers(presets.text(parent), f"{presets.kind} {parent}", None, presets, depth + 1)
+        for layer in parent_layers:
+            if layer[0] not in {name for name, _ in layers}:
+                layers.append(layer)
+    return [*layers, (source, raw)]
+
+
+# ------------------------------------------------------------------ typed building
+_EXACT = {bool: "true/false", str: "a string", type(None): "null"}
+"""Types taken as they are (no conversion), with how an error message names them."""
+
+
+def _hint_name(hint: Any) -> str:
+    if hint in _EXACT:
+        return _EXACT[hint]
+    if typing.get_origin(hint) is typing.Literal:
+        return "one of " + ", ".join(repr(o) for o in typing.get_args(hint))
+    return {int: "an integer", float: "a number"}.get(hint, getattr(hint, "__name__", str(hint)))
+
+
+def coerce(value: Any, hint: Any, key: str) -> Any:
+    """Check/convert one value against a type hint; :class:`ConfigError` names the key on mismatch."""
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        options = typing.get_args(hint)
+        for option in options:
+            try:
+                return coerce(value, option, key)
+            except ConfigError:
+                pass
+        raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {value!r}")
+    if origin is typing.Literal:
+        allowed = typing.get_args(hint)
+        if any(value == a and type(value) is type(a) for a in allowed):
+            return value
+        raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
+                          f"{did_you_mean(value, allowed)}")
+    if hint is Any:
+        return value
+    if hint in _EXACT:
+        if isinstance(value, hint):
+            return value
+        raise ConfigError(f"{key}: expected {_EXACT[hint]}, got {value!r}")
+    if hint is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if isinstance(value, float) and value.is_integer():
+            return int(value)
+        raise ConfigError(f"{key}: expected an integer, got {value!r}")
+    if hint is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        if isinstance(value, str):
+            try:
+                return float(value)  # YAML reads "5e-4" as a string
+            except ValueError:
+                pass
+        raise ConfigError(f"{key}: expected a number, got {value!r}")
+    if origin in (list, tuple):
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{key}: expected a list, got {value!r}")
+        args = typing.get_args(hint)
+        if origin is tuple and args and args[-1] is not Ellipsis:
+            if len(value) != len(args):
+                raise ConfigError(f"{key}: expected a list of {len(args)} values, got {value!r}")
+            return tuple(coerce(v, a, f"{key}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True)))
+        item = args[0] if args else Any
+        out = [coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
+        return tuple(out) if origin is tuple else out
+    if origin is dict:
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{key}: expected a mapping, got {value!r}")
+        _, item = typing.get_args(hint) or (str, Any)
+        return {str(k): coerce(v, item, f"{key}.{k}") for k, v in value.items()}
+    if is_dataclass(hint):
+        return build(hint, value, key + ".")
+    return value
+
+
+def build(cls: type, d: Any, prefix: str = "") -> Any:
+    """The dataclass ``cls`` from a plain mapping, every value checked against its type hint.
+
+    Raises:
+        ConfigError: an unknown key (with the closest valid one and the list of valid keys), a
+            missing required key, a value of the wrong type or outside a ``Literal``, or a
+            ``ValueError`` of the dataclass's own checks (prefixed with the section's key).
+    """
+    section = prefix[:-1] if prefix else "config"
+    if not isinstance(d, Mapping):
+        raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {d!r}")
+    hints = typing.get_type_hints(cls)
+    known = [f.name for f in fields(cls) if f.init]
+    unknown = sorted(set(d) - set(known))
+    if unknown:
+        raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
+                          f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
+                          f"valid keys here: {sorted(prefix + k for k in known)}")
+    missing = [f.name for f in fields(cls)
+               if f.init and f.name not in d and f.default is MISSING and f.default_factory is MISSING]
+    if missing:
+        raise ConfigError(f"{prefix}{missing[0]}: required, no default")
+    kwargs = {k: coerce(v, hints[k], prefix + k) for k, v in d.items()}
+    try:
+        return cls(**kwargs)
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{section}: {exc}" if prefix else str(exc)) from exc
