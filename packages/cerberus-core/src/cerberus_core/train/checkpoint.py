@@ -22,6 +22,7 @@ import torch
 from safetensors.torch import load_file, save
 
 from cerberus_core.atomic import atomic_write
+from cerberus_core.errors import CerberusError
 from cerberus_core.model.cerberus import Cerberus
 
 if TYPE_CHECKING:
@@ -29,6 +30,30 @@ if TYPE_CHECKING:
 
 FORMAT_VERSION = 1
 LAST = "last.pt"
+_USE = "point at a run folder, its model.safetensors or checkpoints/last.pt"
+
+
+class CheckpointError(CerberusError, ValueError):
+    """A model file or run folder cannot be loaded; the message names the file and what to pass instead."""
+
+
+def _reason(exc: BaseException) -> str:
+    """A short, safe description of why torch / safetensors could not read a file (never torch's advice
+    to retry with ``weights_only=False``, which would run arbitrary code from the file)."""
+    import re
+
+    text = str(exc)
+    found = re.search(r"Unsupported global: GLOBAL (\S+)", text)
+    if found:
+        return (f"it holds a pickled Python object ({found.group(1)}), not only tensors; Cerberus loads only plain "
+                "checkpoints, as arbitrary pickles can run code")
+    if "Weights only load failed" in text:
+        after = text.split("WeightsUnpickler error:", 1)[-1]
+        detail = next((line.strip() for line in after.splitlines() if line.strip()), "unreadable")
+        return f"not a torch checkpoint: {detail[:80]}"
+    first = next((line.strip() for line in text.splitlines() if line.strip()), "")
+    first = first.split(". ", 1)[0].rstrip(".")  # the first sentence
+    return f"{type(exc).__name__}: {first[:120]}" if first else type(exc).__name__
 
 
 def checkpoint_dir(run_dir: str | Path) -> Path:
@@ -98,20 +123,27 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
     """Load a checkpoint written by :func:`save_checkpoint` (safe: ``weights_only=True``)."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"no checkpoint at {path}")
+        raise CheckpointError(f"no checkpoint at {path}; {_USE}")
     try:
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:
-        raise ValueError(f"{path} is not a readable Cerberus checkpoint ({type(exc).__name__}: {exc})") from exc
+        raise CheckpointError(f"{path} is not a readable Cerberus checkpoint ({_reason(exc)}); it may be "
+                              f"truncated or another kind of file: {_USE}") from None
     if not isinstance(payload, dict) or payload.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{path} is not a Cerberus checkpoint of format {FORMAT_VERSION}")
+        raise CheckpointError(f"{path} is not a Cerberus checkpoint of format {FORMAT_VERSION}; {_USE}")
     return payload
 
 
-def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: int) -> Path:
-    """Write the model weights as safetensors, with the config and step in the metadata."""
+def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: int,
+                   scene: dict[str, Any] | None = None) -> Path:
+    """Write the model weights as safetensors, with the config, step and (optionally) the training
+    data's scene set-up (:class:`~cerberus_core.datasets.scene.SceneSetup` as a dict) in the metadata."""
+    import json
+
     tensors = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     meta = {"config": config_yaml, "step": str(step), "format": "cerberus-model"}
+    if scene is not None:
+        meta["scene"] = json.dumps(scene)
     path = Path(path)
     atomic_write(path, lambda fh: fh.write(save(tensors, metadata=meta)))
     return path
@@ -127,31 +159,64 @@ def load_model(path: str | Path, device: str | torch.device = "cpu") -> tuple[Ce
     Returns:
         ``(model, config)`` with the model in eval mode.
     """
+    model, config, _ = load_run(path, device)
+    return model, config
+
+
+def load_run(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerberus, TrainConfig, dict | None]:
+    """:func:`load_model`, plus the training data's scene set-up when the file records it (else ``None``).
+
+    Raises:
+        CheckpointError: a missing path, a folder that is not a run (a dataset folder says so), a
+            truncated, foreign or pickled file, or weights that do not fit the saved config.
+    """
+    import json
+
     import yaml
     from safetensors import safe_open
 
     from cerberus_core.train.config import TrainConfig
 
     path = Path(path)
+    if not path.exists():
+        raise CheckpointError(f"{path} does not exist; {_USE}")
     if path.is_dir():
         for candidate in (path / "model.safetensors", checkpoint_dir(path) / LAST):
             if candidate.is_file():
                 path = candidate
                 break
         else:
-            raise FileNotFoundError(f"{path} holds neither model.safetensors nor checkpoints/{LAST}; "
-                                    "is it a training run folder?")
+            if (path / "manifest.json").is_file():
+                raise CheckpointError(f"{path} is a dataset folder, not a training run; pass the run folder "
+                                      f"first and the dataset with --data {path}")
+            raise CheckpointError(f"{path} holds neither model.safetensors nor checkpoints/{LAST}, so it is not a "
+                                  "training run folder; train one with `cerberus train --out RUN`")
+    scene = None
     if path.suffix == ".safetensors":
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
+        try:
+            with safe_open(str(path), framework="pt") as f:
+                meta = f.metadata() or {}
+            state = load_file(str(path))
+        except Exception as exc:
+            raise CheckpointError(f"{path} is not a readable safetensors file ({_reason(exc)}); it may be "
+                                  f"truncated: {_USE}") from None
         if "config" not in meta:
-            raise ValueError(f"{path} has no Cerberus config in its metadata; export it with export_weights")
-        config_yaml, state = meta["config"], load_file(str(path))
+            raise CheckpointError(f"{path} has no Cerberus config in its metadata; export it with export_weights")
+        config_yaml = meta["config"]
+        if "scene" in meta:
+            scene = json.loads(meta["scene"])
     else:
         payload = load_checkpoint(path)
         config_yaml, state = payload["config"], payload["model"]
-    config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
-    model = Cerberus(config.model)
-    model.load_state_dict(state)
-    return model.to(device).eval(), config
+        scene = payload.get("extra", {}).get("scene")
+        if isinstance(scene, str):
+            scene = json.loads(scene)
+    try:
+        config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
+        model = Cerberus(config.model)
+        model.load_state_dict(state)
+    except (ValueError, TypeError, KeyError, RuntimeError, yaml.YAMLError) as exc:
+        raise CheckpointError(f"{path}: the saved config and weights do not form a Cerberus model "
+                              f"({_reason(exc)}); it was written by another version or is damaged") from None
+    return model.to(device).eval(), config, scene
 
