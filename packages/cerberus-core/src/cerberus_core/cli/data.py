@@ -76,10 +76,10 @@ def _fail(exc: Exception) -> int:
 
 
 def run_generate(args: argparse.Namespace) -> int:
+    from cerberus_core.bodies.sources import make_source
     from cerberus_core.datasets.generate import generate
     from cerberus_core.datasets.plan import default_preset, make_plan, preset_config
     from cerberus_core.datasets.scene import SceneSetup
-    from cerberus_core.bodies.sources import make_source
 
     if (args.dataset == "folder") != (args.source is not None):
         return _fail(ValueError("--source DIR is required with --dataset folder (and only then)"))
