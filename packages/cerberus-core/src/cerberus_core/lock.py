@@ -173,6 +173,34 @@ def acquire(folder: str | Path, command: str | None = None) -> FolderLock:
     raise LockedError(f"{folder}: could not take the lock file {path} (contended); retry")
 
 
+def live_holder(folder: str | Path) -> dict | None:
+    """The record of the live process holding ``folder``'s lock, or ``None`` (no lock, or a stale one).
+    Creates nothing: for checks before a command decides to write."""
+    path = Path(folder) / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        info = read_lock(folder)
+        got = _try_flock(fd)
+        if got is False:
+            return info or {}
+        if got is None and info and (info.get("host") != socket.gethostname() or _pid_alive(int(info["pid"]))):
+            return info
+        return None
+    finally:
+        os.close(fd)  # also drops a flock taken on a stale file
+
+
+def check_unlocked(folder: str | Path) -> None:
+    """:class:`LockedError` if a live process holds ``folder``'s lock (see :func:`live_holder`)."""
+    info = live_holder(folder)
+    if info is not None:
+        raise LockedError(f"{folder} is in use by {_describe(info)}; wait for it to finish or stop it "
+                          "(one writer per folder)")
+
+
 @contextlib.contextmanager
 def folder_lock(folder: str | Path, command: str | None = None) -> Iterator[FolderLock]:
     """Hold ``folder``'s lock for the ``with`` block (see the module docstring)."""

@@ -158,8 +158,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
 
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.signals import interrupt_for
-    from cerberus_core.train.checkpoint import checkpoint_dir
-    from cerberus_core.train.trainer import NoCheckpointError, train
+    from cerberus_core.train.trainer import check_run_folder, train
 
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
     out = output_folder(args.out or Path("runs") / name)
@@ -167,8 +166,7 @@ def run(args: argparse.Namespace) -> int:
     if args.print_config:
         print(config.to_yaml(), end="")
         return 0
-    if args.resume and not (checkpoint_dir(out) / "last.pt").is_file():
-        raise NoCheckpointError(f"--resume: no checkpoint in {checkpoint_dir(out)}; run without --resume to start")
+    check_run_folder(out, args.resume)  # before anything is built or written (train() checks again, locked)
     result = train(config, out, resume=args.resume)
     if result.rank != 0:
         if result.interrupted:

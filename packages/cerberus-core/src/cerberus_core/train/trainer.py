@@ -47,7 +47,7 @@ from tqdm import tqdm
 from cerberus_core.atomic import atomic_write_text
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import CerberusError, ConfigError
-from cerberus_core.lock import LockedError, acquire, is_lock_file
+from cerberus_core.lock import LockedError, acquire, check_unlocked, is_lock_file
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
@@ -175,11 +175,14 @@ class _StopRequest:
             signal.signal(sig, handler)
 
 
-def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[str, Any] | None:
-    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``)."""
+def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False) -> None:
+    """A fresh run needs a new or empty folder; a resumed one a checkpoint (checked before the lock is
+    taken, so a refused run does not even touch the folder, and again under the lock)."""
     last = checkpoint_dir(run_dir) / LAST
     if run_dir.exists() and not run_dir.is_dir():
         raise RunExistsError(f"{run_dir} is a file, not a folder; pass --out a folder path")
+    if not holding_lock:
+        check_unlocked(run_dir)  # a live writer is the first thing to name
     if not resume:
         if last.exists():
             raise RunExistsError(f"{run_dir} already holds a training run ({last}); pass --resume to continue it "
@@ -189,15 +192,23 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[st
             shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
             raise RunExistsError(f"{run_dir} is not empty (it holds {shown}) and is not a resumable run; training "
                                  "starts only in a new or empty folder: pass another --out")
-        return None
+        return
     if not last.exists():
         raise NoCheckpointError(f"--resume: no checkpoint at {last}; run without --resume to start training")
+
+
+def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[str, Any] | None:
+    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``)."""
+    check_run_folder(run_dir, resume, holding_lock=True)
+    if not resume:
+        return None
+    last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
     saved = TrainConfig.from_dict(yaml.safe_load(payload["config"]))
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
         raise ConfigError(f"--resume: the config differs from the run's saved config in {changed}; only "
-                         f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
+                          f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
     return payload
 
 
@@ -300,6 +311,7 @@ class _Trainer:
 
     def run(self, resume: bool) -> TrainResult:
         """Hold the run folder's lock (main process) around :meth:`_run`; every rank learns of a refusal."""
+        check_run_folder(self.run_dir, resume)
         lock, refused = None, None
         if self.info.is_main:
             try:
