@@ -139,3 +139,27 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(place, capsys, case, ar
     assert "Traceback" not in err and "weights_only" not in err
     assert out == ""
     assert snapshot(place["root"]) == before, "the failed command wrote or changed files"
+
+
+def test_same_named_inputs_get_distinct_outputs(place, tmp_path, capsys):
+    from PIL import Image
+
+    for folder, colour in (("a", (200, 10, 10)), ("b", (10, 10, 200))):
+        (tmp_path / folder).mkdir()
+        Image.new("RGB", (32, 32), colour).save(tmp_path / folder / "x.png")
+    out = tmp_path / "rec"
+    assert main(["reconstruct", str(place["run"]), str(tmp_path / "a" / "x.png"), str(tmp_path / "b" / "x.png"),
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    files = [p for p in out.rglob("*") if p.is_file()]
+    assert f"wrote {len(files)} files for 2 image(s)" in printed and "a_x" in printed and "b_x" in printed
+    assert (out / "a_x.glb").is_file() and (out / "b_x.glb").is_file()
+    assert len(files) == 2 * len([p for p in files if str(p.relative_to(out)).startswith("a_x")]) == 26
+
+
+def test_a_run_is_usable_from_another_directory(place, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # the run's data.root is stored absolute; its scene set-up is in the run
+    assert main(["eval", str(place["run"]), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
+                 "--out", "ev"]) == 0
+    assert (tmp_path / "ev" / "results.json").is_file()
+    capsys.readouterr()
