@@ -57,7 +57,7 @@ def test_reconstruct_exports_parts_and_pictures(trained) -> None:
 def test_reconstruct_refuses_missing_image(trained, capsys) -> None:
     assert main(["reconstruct", str(trained["run"]), str(trained["root"] / "nope.png"),
                  "--out", str(trained["root"] / "rec2")]) == 2
-    assert "no such file" in capsys.readouterr().out
+    assert "no such file" in capsys.readouterr().err
 
 
 def test_eval_on_a_missing_split_is_a_message_not_a_traceback(trained, capsys) -> None:

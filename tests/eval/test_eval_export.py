@@ -36,8 +36,12 @@ def test_obj_files_per_part_and_combined(tmp_path, primitive_bodies):
     recon = body_parts(primitive_bodies[0])
     export_reconstruction(recon, tmp_path, ["a"], formats=["obj"])
     assert not (tmp_path / "a.glb").exists()
-    combined = trimesh.load(tmp_path / "a.obj", process=False)
+    combined = trimesh.load(tmp_path / "a.obj", process=False, force="mesh")
     assert len(combined.vertices) == recon.num_parts * recon.num_vertices
+    text = (tmp_path / "a.obj").read_text()
+    for k in range(recon.num_parts):  # every part is its own object and group in the combined file
+        assert f"\no part_{k:02d}\ng part_{k:02d}\n" in text
+    assert text.count("\nf ") == recon.num_parts * recon.faces.shape[0]
     for k in range(recon.num_parts):
         part = trimesh.load(tmp_path / "a_parts" / f"part_{k:02d}.obj", process=False)
         np.testing.assert_allclose(part.vertices, recon.posed()[0, k].numpy(), atol=1e-6)

@@ -7,7 +7,7 @@ import yaml
 
 from cerberus_core import zoo
 from cerberus_core.model import Cerberus, ModelConfig
-from cerberus_core.train.checkpoint import export_weights, load_model, model_scene
+from cerberus_core.train.checkpoint import export_weights, load_model, load_run
 from cerberus_core.train.config import TrainConfig
 
 
@@ -33,11 +33,11 @@ def _fake_zoo(tmp_path, monkeypatch, tamper=False):
 def test_a_shipped_name_loads_verified_weights_and_its_scene(tmp_path, monkeypatch):
     ref = _fake_zoo(tmp_path, monkeypatch)
     assert list(zoo.available()) == ["tiny"]
-    model, config = load_model("tiny")
+    model, config, scene = load_run("tiny")
     for (k, a), (_, b) in zip(model.state_dict().items(), ref.state_dict().items(), strict=True):
         assert torch.equal(a, b), k
-    scene = model_scene("tiny", config)
-    assert (scene.elevation, scene.fov_y, scene.distance) == (20.0, 30.0, 2.5)
+    assert (scene["elevation"], scene["fov_y"], scene["distance"]) == (20.0, 30.0, 2.5)
+    assert load_model("tiny")[1].model.width == config.model.width == 8
 
 
 def test_unknown_names_and_damaged_files_are_refused_with_the_fix(tmp_path, monkeypatch):

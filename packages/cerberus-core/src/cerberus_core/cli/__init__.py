@@ -1,13 +1,28 @@
 """The ``cerberus`` command. Each sub-command lives beside the code it drives and contributes an
-``add_parser(subparsers)`` function; this module only assembles them."""
+``add_parser(subparsers)`` function; this module only assembles them and owns the one error path:
+
+* a typed error (:class:`cerberus_core.errors.CerberusError`, a plugin error) → one line
+  ``cerberus COMMAND: message`` on standard error, exit status 2 (or the error's ``exit_code``);
+* Ctrl-C (SIGINT) → exit 130; SIGTERM → exit 143 (a training writes its checkpoint first);
+* warnings → one line ``cerberus COMMAND: warning: message``, without Python source lines.
+
+Sub-commands validate every argument before they write anything, and raise typed errors instead of
+printing and returning a status.
+"""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import warnings
+from collections.abc import Iterator
 
-from cerberus_core.datasets.format import DatasetError
+from cerberus_core.cli.checks import OneLineParser
+from cerberus_core.errors import CerberusError
 from cerberus_core.plugins import PluginError
+from cerberus_core.signals import Terminated
 
 #: Modules that contribute sub-commands, in the order ``--help`` lists them.
 COMMAND_MODULES = [
@@ -20,9 +35,22 @@ COMMAND_MODULES = [
     "cerberus_core.cli.models",
 ]
 
+EXIT_ERROR = 2
+EXIT_SIGINT = 128 + signal.SIGINT  # 130
+EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
+
+
+def _typed_errors() -> tuple[type[BaseException], ...]:
+    errors: list[type[BaseException]] = [CerberusError, PluginError]
+    with contextlib.suppress(ImportError):  # the dataset error class until it derives from CerberusError
+        from cerberus_core.datasets.format import DatasetError
+
+        errors.append(DatasetError)
+    return tuple(errors)
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="cerberus",
         description="Cerberus: a multi-headed derenderer. Learn 3D part-based models of articulated bodies "
         "from images alone: generate data, train, evaluate, reconstruct.",
@@ -35,17 +63,46 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line(text: object) -> str:
+    """A message on one line: inner newlines become '; '."""
+    return "; ".join(part.strip() for part in str(text).strip().splitlines() if part.strip())
+
+
+@contextlib.contextmanager
+def _cli_environment(command: str) -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated`; warnings print as one line. Both restored on exit."""
+    def on_term(signum, frame):  # noqa: ARG001
+        raise Terminated()
+
+    previous = None
+    with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
+        previous = signal.signal(signal.SIGTERM, on_term)
+    saved_format = warnings.formatwarning
+    warnings.formatwarning = lambda message, *a, **k: f"cerberus {command}: warning: {one_line(message)}\n"
+    try:
+        yield
+    finally:
+        warnings.formatwarning = saved_format
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    command = args.command
     try:
-        return int(args.func(args) or 0)
-    except (PluginError, DatasetError) as exc:
-        print(f"cerberus {args.command}: {exc}", file=sys.stderr)
-        return 2
+        with _cli_environment(command):
+            return int(args.func(args) or 0)
+    except _typed_errors() as exc:
+        print(f"cerberus {command}: {one_line(exc)}", file=sys.stderr)
+        return int(getattr(exc, "exit_code", EXIT_ERROR))
+    except Terminated:
+        print(f"cerberus {command}: terminated (SIGTERM)", file=sys.stderr)
+        return EXIT_SIGTERM
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+        print(f"cerberus {command}: interrupted", file=sys.stderr)
+        return EXIT_SIGINT
 
 
 if __name__ == "__main__":

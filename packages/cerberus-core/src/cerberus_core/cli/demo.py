@@ -7,11 +7,16 @@ from pathlib import Path
 
 import torch
 
+from cerberus_core.cli.checks import output_folder, positive_int
+from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import available_renderers, make_renderer
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.demo import demo_scene
 from cerberus_core.render.interface import Light
 from cerberus_core.viz import part_colors, save_image_grid
+
+#: Largest --image-size (4 views of it are rendered per backend).
+MAX_IMAGE_SIZE = 2048
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,26 +25,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        "installed renderer backend (or the one named) and write shaded and part-coloured PNGs.")
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default: out/demo)")
     p.add_argument("--renderer", action="append", help="backend(s) to use (default: all installed)")
-    p.add_argument("--image-size", type=int, default=128, help="image size in pixels (default: 128)")
+    p.add_argument("--image-size", type=positive_int, default=128,
+                   help=f"image size in pixels, 1..{MAX_IMAGE_SIZE} (default: 128)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.image_size > MAX_IMAGE_SIZE:
+        raise ConfigError(f"--image-size {args.image_size}: at most {MAX_IMAGE_SIZE}")
+    out = output_folder(args.out)
     names = args.renderer or available_renderers()
     if not names:
-        print("no renderer backend is installed: pip install cerberus-render-torch (or cerberus-render-warp)")
-        return 1
-    args.out.mkdir(parents=True, exist_ok=True)
+        raise ConfigError("no renderer backend is installed: pip install cerberus-render-torch "
+                          "(or cerberus-render-warp)")
+    renderers = {name: make_renderer(name) for name in names}  # every backend found before anything is written
     parts, faces, camera = demo_scene(image_size=args.image_size)
     light = Light.following(camera)
     colours = part_colors(parts.shape[1])
-    for name in names:
-        renderer = make_renderer(name)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, renderer in renderers.items():
         t0 = time.perf_counter()
         shaded = render_parts(renderer, parts, faces, camera, light, background=(1.0, 1.0, 1.0))
         coloured = render_parts(renderer, parts, faces, camera, light, albedo=colours, background=(1.0, 1.0, 1.0))
         ms = (time.perf_counter() - t0) * 1000
-        path = args.out / f"demo_{name}.png"
+        path = out / f"demo_{name}.png"
         save_image_grid([shaded.image, coloured.image], path, titles=["shaded", "parts"])
         print(f"{name:<8} {ms:8.1f} ms  -> {path}")
     return 0

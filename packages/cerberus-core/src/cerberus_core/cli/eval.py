@@ -6,7 +6,12 @@ from pathlib import Path
 
 import torch
 
+from cerberus_core.cli.checks import check_device, is_dataset, output_folder, positive_int
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plugins import get_metric, make_renderer
+
+#: Largest voxel grid accepted (memory grows with its cube).
+MAX_RESOLUTION = 256
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -16,46 +21,72 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
         "entry point, 'kato' protocol), per image and per subject; the Hard Human test (parts from each subject's "
         "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
-        "training never saw. Writes results.json, results.md, a Table-2-like figure (table2.png) and, for the same images, the pictures "
-        "of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose).")
+        "training never saw. Writes results.json, results.md, a Table-2-like figure (table2.png) and, for the same "
+        "images, the pictures of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, "
+        "new pose).")
     p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
     p.add_argument("--out", type=Path, help="output folder (default: RUN/eval)")
     p.add_argument("--protocol", default="kato", help="voxel-IoU protocol (default: kato, the paper's)")
-    p.add_argument("--resolution", type=int, default=32, help="voxel grid resolution (default: 32)")
+    p.add_argument("--resolution", type=positive_int, default=32,
+                   help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
     p.add_argument("--no-hard", action="store_true", help="skip the Hard Human test")
     p.add_argument("--no-part-quality", action="store_true", help="skip part quality (the slowest part)")
-    p.add_argument("--limit", type=int, help="evaluate only the first N images (quick look)")
+    p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
-    p.add_argument("--figure-images", type=int, default=5, help="test images in the figure (default: 5)")
+    p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure (default: 5)")
     p.add_argument("--renderer", help="renderer backend for the figure (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     p.set_defaults(func=run)
 
 
-def _figure(args, model, config, dataset, out: Path) -> Path:
+def check_protocol(name: str) -> str:
+    """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
+    anything runs)."""
+    from cerberus_core.eval.standard import SCORER_ENTRY_POINT
+
+    try:
+        get_metric(SCORER_ENTRY_POINT)(protocol=name, resolution=32)
+    except (ValueError, KeyError) as exc:
+        raise ConfigError(f"--protocol {name!r}: {exc}") from None
+    return name
+
+
+def load_baselines(specs: list[str], device: str) -> dict:
+    """``NAME=RUN`` specs → ``{name: model}``, every one loaded before the evaluation starts."""
+    from cerberus_core.train.checkpoint import load_model
+
+    out = {}
+    for spec in specs:
+        name, _, path = spec.partition("=")
+        if not name or not path:
+            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}")
+        if name in out:
+            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
+        try:
+            out[name] = load_model(path, device)[0]
+        except CerberusError as exc:
+            raise ConfigError(f"--baseline {name}={path}: {exc}") from None
+    return out
+
+
+def _figure(args, model, renderer, baseline_models: dict, dataset, out: Path) -> Path:
     from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
     from cerberus_core.eval.runner import collate
-    from cerberus_core.train.checkpoint import load_model
 
     n = min(args.figure_images, len(dataset))
     idx = torch.linspace(0, len(dataset) - 1, n).round().long().unique().tolist()
     batch = collate([dataset[i] for i in idx])
     camera = dataset.cameras(batch)
     images = batch["images"]
+    dev_images, dev_camera = images.to(args.device), camera.to(args.device)
     with torch.no_grad():
-        ours = model.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
-        baselines = {}
-        for spec in args.baseline:
-            name, _, path = spec.partition("=")
-            if not path:
-                raise SystemExit(f"cerberus eval: --baseline takes NAME=RUN, got {spec!r}")
-            other, _ = load_model(path, args.device)
-            baselines[name] = other.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
-    renderer = make_renderer(args.renderer or config.renderer)
-    background = dataset.scene.background
+        ours = model.reconstruct(dev_images, dev_camera).to("cpu")
+        baselines = {name: other.reconstruct(dev_images, dev_camera).to("cpu")
+                     for name, other in baseline_models.items()}
+    background = tuple(dataset.scene.background)
     fig = comparison_figure(renderer, images, camera, ours, baselines, background=background)
     for k, i in enumerate(idx):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
         donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
@@ -68,22 +99,36 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.eval.report import markdown_report, write_json, write_text
     from cerberus_core.eval.runner import evaluate_dataset
+    from cerberus_core.lock import folder_lock
     from cerberus_core.train.checkpoint import load_model
 
+    # Every argument is checked, and every model and the dataset opened, before anything is written.
+    if args.resolution > MAX_RESOLUTION:
+        raise ConfigError(f"--resolution {args.resolution}: at most {MAX_RESOLUTION} (the paper uses 32)")
+    check_protocol(args.protocol)
+    check_device(args.device)
+    if args.data is not None and not is_dataset(args.data):
+        raise ConfigError(f"--data {args.data}: not a Cerberus dataset folder (no manifest.json)")
     get_metric("voxel_iou")  # fail early, naming the package, if cerberus-metrics is missing
     model, config = load_model(args.run, args.device)
+    out = output_folder(args.out or ((args.run if args.run.is_dir() else args.run.parent) / "eval"))
+    baselines = load_baselines(args.baseline, args.device)
     data_root = args.data or Path(config.data.root)
+    if args.data is None and not is_dataset(data_root):
+        raise ConfigError(f"the run's training data {data_root} is not a dataset folder from here; "
+                          "pass --data DATASET")
     dataset = ViewDataset(data_root, args.split)
-    out = args.out or ((args.run if args.run.is_dir() else args.run.parent) / "eval")
-    out.mkdir(parents=True, exist_ok=True)
+    renderer = make_renderer(args.renderer or config.renderer)
     indices = range(min(args.limit, len(dataset))) if args.limit else None
-    result = evaluate_dataset(dataset, model.reconstruct, protocol=args.protocol, resolution=args.resolution,
-                              hard=not args.no_hard, part_quality=not args.no_part_quality, indices=indices,
-                              device=args.device)
-    write_json(result, out / "results.json")
-    write_text(markdown_report(result, title=f"Evaluation of {args.run}"), out / "results.md")
-    fig = _figure(args, model, config, dataset, out)
-    line = f"voxel IoU ({args.protocol}, {args.resolution}^3) over {result.standard.count} images: {result.standard.mean:.4f}"
+    with folder_lock(out, "cerberus eval"):
+        result = evaluate_dataset(dataset, model.reconstruct, protocol=args.protocol, resolution=args.resolution,
+                                  hard=not args.no_hard, part_quality=not args.no_part_quality, indices=indices,
+                                  device=args.device)
+        write_json(result, out / "results.json")
+        write_text(markdown_report(result, title=f"Evaluation of {args.run}"), out / "results.md")
+        fig = _figure(args, model, renderer, baselines, dataset, out)
+    line = (f"voxel IoU ({args.protocol}, {args.resolution}^3) over {result.standard.count} images: "
+            f"{result.standard.mean:.4f}")
     if result.hard is not None:
         line += f"; Hard Human: {result.hard.mean:.4f}"
     print(line)

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import torch
 
+from cerberus_core.cli.checks import check_device, finite_float, output_folder
+from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import make_renderer
 
 
@@ -21,48 +23,79 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("images", type=Path, nargs="+", help="input image files (PNG, JPEG, ...)")
     p.add_argument("--out", type=Path, default=Path("out/reconstruct"), help="output folder (default: out/reconstruct)")
     p.add_argument("--data", type=Path, help="dataset whose scene set-up (camera elevation, distance, fov, light) "
-                   "the images follow (default: the run's training data, else the toolkit's default scene)")
-    p.add_argument("--azimuth", type=float, default=0.0,
+                   "the images follow (default: the set-up the run recorded, else the run's training data)")
+    p.add_argument("--azimuth", type=finite_float, default=0.0,
                    help="camera azimuth assumed for the inputs, degrees (default 0; it only fixes the world frame)")
     p.add_argument("--renderer", help="renderer backend for the pictures (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     p.set_defaults(func=run)
 
 
-def scene_for(config, data: Path | None):
-    """The scene set-up the model was trained with: from ``data`` (which must be a dataset), else from
-    the run's training data if it is still there, else the toolkit's default scene."""
+def scene_for(config, data: Path | None, saved: dict | None = None):
+    """The scene set-up the model was trained with: from ``--data`` (which must be a dataset), else the
+    one the run recorded, else from the run's training data if it is still there. Never a silent
+    default: without any of them the user is asked for ``--data``."""
     from cerberus_core.datasets.format import MANIFEST, read_manifest
     from cerberus_core.datasets.scene import SceneSetup
 
-    if data is None and (Path(config.data.root) / MANIFEST).is_file():
-        data = Path(config.data.root)
-    return SceneSetup.from_dict(read_manifest(data)["scene"]) if data is not None else SceneSetup()
+    if data is not None:
+        if not (Path(data) / MANIFEST).is_file():
+            raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
+        return SceneSetup.from_dict(read_manifest(Path(data))["scene"])
+    if saved is not None:
+        return SceneSetup.from_dict(saved)
+    root = Path(config.data.root)
+    if (root / MANIFEST).is_file():
+        return SceneSetup.from_dict(read_manifest(root)["scene"])
+    raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
+                      "--data DATASET (the dataset it was trained on, or one rendered the same way)")
+
+
+def output_names(paths: list[Path]) -> list[str]:
+    """One distinct output name per input: the file stem, made unique with the parent folder's name and
+    then a counter when stems repeat (``a/x.png b/x.png`` → ``a_x``, ``b_x``)."""
+    stems = [p.stem or "image" for p in paths]
+    counts = {s: stems.count(s) for s in stems}
+    names = [s if counts[s] == 1 else f"{p.resolve().parent.name or 'root'}_{s}" for p, s in zip(paths, stems,
+                                                                                                      strict=True)]
+    seen: set[str] = set()
+    out = []
+    for name in names:
+        unique, k = name, 2
+        while unique in seen:
+            unique, k = f"{name}_{k}", k + 1
+        seen.add(unique)
+        out.append(unique)
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.export import export_reconstruction
     from cerberus_core.eval.figures import save_image_pictures
-    from cerberus_core.eval.images import ImageInputError, load_images
-    from cerberus_core.train.checkpoint import load_model
+    from cerberus_core.eval.images import load_images
+    from cerberus_core.lock import folder_lock
+    from cerberus_core.train.checkpoint import load_run
 
-    model, config = load_model(args.run, args.device)
-    scene = scene_for(config, args.data)
+    # Every argument checked, the model, scene and images loaded, before anything is written.
+    check_device(args.device)
+    out = output_folder(args.out)
+    model, config, saved_scene = load_run(args.run, args.device)
+    scene = scene_for(config, args.data, saved_scene)
     size = int(config.data.image_size or 64)
-    try:
-        images, loaded = load_images(args.images, size, scene.background)
-    except ImageInputError as exc:
-        print(f"cerberus reconstruct: {exc}")
-        return 2
+    images, _ = load_images(args.images, size, scene.background)
+    renderer = make_renderer(args.renderer or config.renderer)
+    stems = output_names(list(args.images))
     camera = scene.cameras([args.azimuth] * len(images), size)
     with torch.no_grad():
         recon = model.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
-    renderer = make_renderer(args.renderer or config.renderer)
-    stems = [p.stem for p in args.images]
-    written = export_reconstruction(recon, args.out, stems)
-    for i, stem in enumerate(stems):
-        donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
-        written += save_image_pictures(renderer, images[i], recon.index([i]), camera.index([i]),
-                                       args.out, stem, pose_donor=donor, background=scene.background)
-    print(f"wrote {len(written)} files for {len(stems)} image(s) to {args.out}")
+    with folder_lock(out, "cerberus reconstruct"):
+        written = export_reconstruction(recon, out, stems)
+        for i, stem in enumerate(stems):
+            donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
+            written += save_image_pictures(renderer, images[i], recon.index([i]), camera.index([i]),
+                                           out, stem, pose_donor=donor, background=scene.background)
+    renamed = [f"{p} -> {s}" for p, s in zip(args.images, stems, strict=True) if p.stem != s]
+    if renamed:
+        print("same-named inputs written under distinct names: " + ", ".join(renamed))
+    print(f"wrote {len(set(written))} files for {len(stems)} image(s) to {out}")
     return 0

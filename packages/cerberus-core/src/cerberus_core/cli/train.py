@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
+
+from cerberus_core.cli.checks import check_device, output_folder
+from cerberus_core.errors import ConfigError
 
 EPILOG = """\
 examples:
@@ -18,6 +20,10 @@ A config file may start with 'extends: PRESET' and override any key. The resolve
 as RUN/config.yaml; checkpoints go to RUN/checkpoints/, logs to RUN/metrics.csv (and TensorBoard
 events to RUN/tensorboard/), pictures to RUN/images/, final weights to RUN/model.safetensors.
 See docs/training.md.
+
+A fresh run needs a new or empty RUN_DIR; one process writes into a run folder at a time (a second
+is refused with the first one's pid). Ctrl-C or SIGTERM checkpoint and exit 130 / 143; continue
+with --resume. Errors print one line and exit 2 (3: stopped on a non-finite loss).
 """
 
 
@@ -45,45 +51,131 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def _yaml_problem(exc: BaseException, source: object) -> str:
+    """``FILE:LINE: problem`` for a YAML syntax error (one line)."""
     import yaml
 
-    from cerberus_core.train.checkpoint import checkpoint_dir
-    from cerberus_core.train.config import TrainConfig, deep_merge, load_config, parse_overrides
-    from cerberus_core.train.trainer import NonFiniteError, train
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
+    where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
+    return f"{where}: not valid YAML ({problem})"
 
-    name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
-    out = args.out or Path("runs") / name
+
+def _check_config_file(path: Path) -> None:
+    """A --config file must exist, parse and hold at least one setting (an empty file is refused, not the
+    100,000-step paper preset)."""
+    import yaml
+
+    if not path.is_file():
+        raise ConfigError(f"--config {path}: no such file" + (" (it is a folder)" if path.is_dir() else "") +
+                          "; pass a YAML config, or --preset NAME")
     try:
-        saved = out / "config.yaml"
+        raw = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(_yaml_problem(exc, path) + "; fix the file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"--config {path}: cannot be read ({exc})") from None
+    if not raw:
+        raise ConfigError(f"--config {path} is empty; write at least 'extends: tiny' (or another preset) "
+                          "in it, or pass --preset paper to train with the paper's settings")
+
+
+def _check_overrides(items: list[str]) -> None:
+    """Every --set is ``section.key=VALUE`` with a YAML value (quote strings, close brackets)."""
+    import yaml
+
+    for item in items:
+        key, eq, text = item.partition("=")
+        if not eq or not key.strip() or any(not p for p in key.strip().split(".")):
+            raise ConfigError(f"--set {item!r}: expected section.key=value, e.g. --set optim.lr=0.0001")
+        try:
+            yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({problem}); close brackets and "
+                              "quotes, e.g. --set train.steps=200 or --set optim.betas=[0.9,0.99]") from None
+
+
+def _config_error(exc: ValueError) -> ConfigError:
+    """A config loader's ValueError as one line (a YAML error in an 'extends' file names file and line)."""
+    import yaml
+
+    cause = exc.__cause__
+    if isinstance(cause, yaml.YAMLError):
+        source = str(exc).split(" is not valid YAML", 1)[0]
+        return ConfigError(_yaml_problem(cause, source) + "; fix the file")
+    return exc if isinstance(exc, ConfigError) else ConfigError(str(exc))
+
+
+def check_finite(config) -> None:
+    """Every number in the config is finite: ``.nan`` / ``.inf`` are YAML numbers, never sensible settings."""
+    import math
+
+    def walk(node, prefix: str) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                walk(v, f"{prefix}{k}.")
+        elif isinstance(node, list | tuple):
+            for i, v in enumerate(node):
+                walk(v, f"{prefix[:-1]}[{i}].")
+        elif isinstance(node, float) and not math.isfinite(node):
+            raise ConfigError(f"{prefix[:-1]} = {node}: must be a finite number (--set {prefix[:-1]}=VALUE)")
+
+    walk(config.to_dict(), "")
+
+
+def resolve_config(args: argparse.Namespace, out: Path):
+    """The run's config from --config / --preset / the run's saved config, plus --set; validated."""
+    import yaml
+
+    from cerberus_core.train.config import TrainConfig, deep_merge, load_config, parse_overrides
+
+    _check_overrides(args.overrides)
+    saved = out / "config.yaml"
+    try:
         if args.resume and args.config is None and args.preset is None and saved.is_file():
             # Resume from the run's own config plus --set overrides.
-            raw = deep_merge(yaml.safe_load(saved.read_text()), parse_overrides(args.overrides))
-            config = TrainConfig.from_dict(raw)
+            try:
+                raw = yaml.safe_load(saved.read_text())
+            except yaml.YAMLError as exc:
+                raise ConfigError(_yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
+            config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(args.overrides)))
+            root = Path(config.data.root)
+            if not root.is_absolute() and not root.exists():
+                raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and "
+                                  f"does not exist from {Path.cwd()}; pass --set data.root=/absolute/path")
         else:
+            if args.config is not None:
+                _check_config_file(args.config)
             config = load_config(args.config, preset=None if args.config else (args.preset or ["paper"]),
                                  overrides=args.overrides)
     except ValueError as exc:
-        print(f"cerberus train: {exc}", file=sys.stderr)
-        return 2
+        raise _config_error(exc) from None
+    check_finite(config)
+    check_device(config.device, option="device")
+    return config
+
+
+def run(args: argparse.Namespace) -> int:
+    from cerberus_core.signals import interrupt_for
+    from cerberus_core.train.trainer import check_run_folder, train
+
+    name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
+    out = output_folder(args.out or Path("runs") / name)
+    config = resolve_config(args, out)
     if args.print_config:
         print(config.to_yaml(), end="")
         return 0
-    if args.resume and not (checkpoint_dir(out) / "last.pt").is_file():
-        print(f"cerberus train: --resume: no checkpoint in {checkpoint_dir(out)}; run without --resume to start",
-              file=sys.stderr)
-        return 2
-    try:
-        result = train(config, out, resume=args.resume)
-    except NonFiniteError as exc:
-        print(f"cerberus train: stopped: {exc}", file=sys.stderr)
-        return 3
-    except (FileExistsError, FileNotFoundError, ValueError) as exc:
-        print(f"cerberus train: {exc}", file=sys.stderr)
-        return 2
+    check_run_folder(out, args.resume)  # before anything is built or written (train() checks again, locked)
+    result = train(config, out, resume=args.resume)
     if result.rank != 0:
+        if result.interrupted:
+            raise interrupt_for(result.stop_signal)
         return 0
-    state = "interrupted at" if result.interrupted else "finished"
     terms = ", ".join(f"{k} {v:.4g}" for k, v in sorted(result.terms.items()))
-    print(f"{state} step {result.step} -> {result.run_dir}" + (f"  ({terms})" if terms else ""))
+    if result.interrupted:  # the checkpoint is written; exit 130 / 143 so scripts know it did not finish
+        print(f"interrupted at step {result.step} -> {result.run_dir}; continue with: cerberus train --out "
+              f"{result.run_dir} --resume")
+        raise interrupt_for(result.stop_signal)
+    print(f"finished step {result.step} -> {result.run_dir}" + (f"  ({terms})" if terms else ""))
     return 0

@@ -4,7 +4,8 @@ Layout for an image exported under ``stem`` into ``out_dir``::
 
     out_dir/stem.glb                 every part as a node "part_00", "part_01", ... with its own
                                      material colour (cerberus_core.viz.part_colors)
-    out_dir/stem.obj                 all parts in one OBJ, vertex-coloured by part
+    out_dir/stem.obj                 all parts in one OBJ, vertex-coloured by part, each part its own
+                                     object and group (``o part_00`` / ``g part_00``)
     out_dir/stem_parts/part_00.obj   each part alone, vertex-coloured
 
 Coordinates are the world frame of the dataset (+Y up, normalised units). Every file is written to a
@@ -79,6 +80,19 @@ def _obj_text(mesh: trimesh.Trimesh) -> bytes:
     return trimesh.exchange.obj.export_obj(mesh, include_normals=False, include_color=True).encode()
 
 
+def _grouped_obj_text(meshes: Sequence[trimesh.Trimesh], rgba: np.ndarray) -> bytes:
+    """All parts in one OBJ, each under ``o part_NN`` / ``g part_NN``, vertex colours as ``v x y z r g b``."""
+    lines = ["# Cerberus part meshes: one object and group per part"]
+    offset = 1
+    for k, mesh in enumerate(meshes):
+        rgb = rgba[k, :3] / 255.0
+        lines += [f"o {part_name(k)}", f"g {part_name(k)}"]
+        lines += [f"v {x:.8g} {y:.8g} {z:.8g} {rgb[0]:.4g} {rgb[1]:.4g} {rgb[2]:.4g}" for x, y, z in mesh.vertices]
+        lines += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in np.asarray(mesh.faces)]
+        offset += len(mesh.vertices)
+    return ("\n".join(lines) + "\n").encode()
+
+
 def _write(path: Path, data: bytes) -> Path:
     atomic_write(path, lambda fh: fh.write(data))
     return path
@@ -112,7 +126,7 @@ def export_parts(part_vertices: np.ndarray, faces: np.ndarray, out_dir: str | Pa
         written.append(_write(out_dir / f"{stem}.glb", glb))
     if "obj" in formats:
         coloured = [_coloured(m, rgba[k]) for k, m in enumerate(meshes)]
-        written.append(_write(out_dir / f"{stem}.obj", _obj_text(trimesh.util.concatenate(coloured))))
+        written.append(_write(out_dir / f"{stem}.obj", _grouped_obj_text(meshes, rgba)))
         for k, mesh in enumerate(coloured):
             written.append(_write(out_dir / f"{stem}_parts" / f"{part_name(k)}.obj", _obj_text(mesh)))
     return written

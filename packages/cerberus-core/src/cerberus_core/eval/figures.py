@@ -127,6 +127,28 @@ def _font(size: int = 12) -> ImageFont.ImageFont:
         return ImageFont.load_default()
 
 
+def _fit_title(draw: ImageDraw.ImageDraw, text: str, width: float, height: float) -> tuple[str, ImageFont.ImageFont]:
+    """``text`` fitted into a ``width x height`` box: a smaller font, else two lines, else cut with '…'
+    (column titles of small cells would otherwise run into each other)."""
+    for size in range(12, 6, -1):
+        font = _font(size)
+        if draw.textlength(text, font=font) <= width:
+            return text, font
+    words = text.split()
+    for size in range(10, 6, -1):
+        font = _font(size)
+        if 2 * (size + 1) > height:
+            continue
+        for cut in range(len(words) - 1, 0, -1):
+            lines = [" ".join(words[:cut]), " ".join(words[cut:])]
+            if all(draw.textlength(line, font=font) <= width for line in lines):
+                return "\n".join(lines), font
+    font = _font(7)
+    while len(text) > 1 and draw.textlength(text + "…", font=font) > width:
+        text = text[:-1]
+    return text + "…", font
+
+
 def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequence[str] | None = None,
                   row_titles: Sequence[str] | None = None, scale: int = 1) -> Image.Image:
     """A table of images with optional column and row titles.
@@ -159,7 +181,9 @@ def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequen
     font = _font()
     for c, title in enumerate(column_titles or []):
         x = left + PAD + c * (cw + PAD)
-        draw.text((x + cw / 2, top / 2 + 1), title, fill=(0, 0, 0), font=font, anchor="mm")
+        text, title_font = _fit_title(draw, title, cw + PAD - 2, top - 2)
+        draw.multiline_text((x + cw / 2, top / 2 + 1), text, fill=(0, 0, 0), font=title_font, anchor="mm",
+                            align="center", spacing=1)
     for r, row in enumerate(rows):
         y = top + PAD + r * (ch + PAD)
         if row_titles:

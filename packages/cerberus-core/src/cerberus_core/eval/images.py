@@ -14,6 +14,8 @@ grayscale (L, 1-bit)               repeated into RGB
 32-bit float (F)                   refused: no defined range (save it as 8-bit PNG)
 CMYK, YCbCr, LAB, HSV              converted to RGB
 EXIF orientation                   applied
+more than MAX_INPUT_PIXELS pixels  refused before decoding (downscale it first)
+much larger than the model's size  reduced (box filter) while still 8-bit, before the float conversion
 animated / multi-frame             first frame used
 not square                         centre-cropped to a square
 other size                         resized (Lanczos) to the model's image size
@@ -30,10 +32,16 @@ import numpy as np
 import torch
 from PIL import Image, ImageOps, UnidentifiedImageError
 
+from cerberus_core.errors import CerberusError
+
 Tensor = torch.Tensor
 
 
-class ImageInputError(ValueError):
+#: Largest input accepted, in pixels (8000 x 5000): the header is checked before anything is decoded.
+MAX_INPUT_PIXELS = 40_000_000
+
+
+class ImageInputError(CerberusError, ValueError):
     """An input image cannot be used; the message names the file and what to do."""
 
 
@@ -64,8 +72,16 @@ def _open(path: Path) -> Image.Image:
     if path.is_dir():
         raise ImageInputError(f"{path}: is a folder, not an image file")
     try:
-        img = Image.open(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own bound applies below
+            img = Image.open(path)
+        if img.width * img.height > MAX_INPUT_PIXELS:
+            raise ImageInputError(f"{path}: {img.width}x{img.height} pixels is too large (the limit is "
+                                  f"{MAX_INPUT_PIXELS:,} pixels); downscale it first, e.g. to 1024x1024")
         img.load()
+    except Image.DecompressionBombError as exc:
+        raise ImageInputError(f"{path}: too large to decode safely ({exc}); downscale it first, e.g. to "
+                              "1024x1024") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
         raise ImageInputError(f"{path}: cannot be read as an image ({type(exc).__name__}: {exc}); "
                               "pass a PNG or JPEG file") from exc
@@ -154,6 +170,14 @@ def load_image(path: str | Path, image_size: int, background: Sequence[float] = 
     if orientation not in (0, 1):
         notes.append(f"EXIF orientation {orientation} applied")
     original = oriented.size
+    short = min(oriented.size)
+    if short >= 4 * int(image_size):  # shrink while still 8-bit: a float64 copy of a huge image is gigabytes
+        factor = short // (2 * int(image_size))
+        try:
+            oriented = oriented.reduce(factor)
+            notes.append(f"downscaled {factor}x (box filter) from {original[0]}x{original[1]} before conversion")
+        except (ValueError, NotImplementedError):  # a mode reduce() does not support: convert at full size
+            pass
     arr = _to_rgb_float(oriented, bg, path, notes)
     arr = _square_resize(arr, int(image_size), notes)
     if warn:

@@ -13,7 +13,6 @@ every RNG state (Python, NumPy, torch CPU and CUDA) and the config as YAML — s
 """
 from __future__ import annotations
 
-import json
 import random
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,6 +22,7 @@ import torch
 from safetensors.torch import load_file, save
 
 from cerberus_core.atomic import atomic_write
+from cerberus_core.errors import CerberusError
 from cerberus_core.model.cerberus import Cerberus
 
 if TYPE_CHECKING:
@@ -30,6 +30,30 @@ if TYPE_CHECKING:
 
 FORMAT_VERSION = 1
 LAST = "last.pt"
+_USE = "point at a run folder, its model.safetensors or checkpoints/last.pt"
+
+
+class CheckpointError(CerberusError, ValueError):
+    """A model file or run folder cannot be loaded; the message names the file and what to pass instead."""
+
+
+def _reason(exc: BaseException) -> str:
+    """A short, safe description of why torch / safetensors could not read a file (never torch's advice
+    to retry with ``weights_only=False``, which would run arbitrary code from the file)."""
+    import re
+
+    text = str(exc)
+    found = re.search(r"Unsupported global: GLOBAL (\S+)", text)
+    if found:
+        return (f"it holds a pickled Python object ({found.group(1)}), not only tensors; Cerberus loads only plain "
+                "checkpoints, as arbitrary pickles can run code")
+    if "Weights only load failed" in text:
+        after = text.split("WeightsUnpickler error:", 1)[-1]
+        detail = next((line.strip() for line in after.splitlines() if line.strip()), "unreadable")
+        return f"not a torch checkpoint: {detail[:80]}"
+    first = next((line.strip() for line in text.splitlines() if line.strip()), "")
+    first = first.split(". ", 1)[0].rstrip(".")  # the first sentence
+    return f"{type(exc).__name__}: {first[:120]}" if first else type(exc).__name__
 
 
 def checkpoint_dir(run_dir: str | Path) -> Path:
@@ -99,43 +123,30 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
     """Load a checkpoint written by :func:`save_checkpoint` (safe: ``weights_only=True``)."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"no checkpoint at {path}")
+        raise CheckpointError(f"no checkpoint at {path}; {_USE}")
     try:
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:
-        raise ValueError(f"{path} is not a readable Cerberus checkpoint ({type(exc).__name__}: {exc})") from exc
+        raise CheckpointError(f"{path} is not a readable Cerberus checkpoint ({_reason(exc)}); it may be "
+                              f"truncated or another kind of file: {_USE}") from None
     if not isinstance(payload, dict) or payload.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{path} is not a Cerberus checkpoint of format {FORMAT_VERSION}")
+        raise CheckpointError(f"{path} is not a Cerberus checkpoint of format {FORMAT_VERSION}; {_USE}")
     return payload
 
 
 def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: int,
                    scene: dict[str, Any] | None = None) -> Path:
-    """Write the model weights as safetensors, with the config, the step and (``scene``) the scene
-    set-up the model was trained with in the metadata, so the file alone can reconstruct images."""
+    """Write the model weights as safetensors, with the config, step and (optionally) the training
+    data's scene set-up (:class:`~cerberus_core.datasets.scene.SceneSetup` as a dict) in the metadata."""
+    import json
+
     tensors = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     meta = {"config": config_yaml, "step": str(step), "format": "cerberus-model"}
     if scene is not None:
-        meta["scene"] = json.dumps(scene, sort_keys=True)
+        meta["scene"] = json.dumps(scene)
     path = Path(path)
     atomic_write(path, lambda fh: fh.write(save(tensors, metadata=meta)))
     return path
-
-
-def _resolve(path: str | Path) -> Path:
-    """A run folder, weights file, or the name of a shipped model (:mod:`cerberus_core.zoo`) → the file."""
-    p = Path(path)
-    if not p.exists() and isinstance(path, str) and "/" not in path and not p.suffix:
-        from cerberus_core.zoo import model_path
-
-        return model_path(path)
-    if p.is_dir():
-        for candidate in (p / "model.safetensors", checkpoint_dir(p) / LAST):
-            if candidate.is_file():
-                return candidate
-        raise FileNotFoundError(f"{p} holds neither model.safetensors nor checkpoints/{LAST}; "
-                                "is it a training run folder?")
-    return p
 
 
 def load_model(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerberus, TrainConfig]:
@@ -143,65 +154,74 @@ def load_model(path: str | Path, device: str | torch.device = "cpu") -> tuple[Ce
 
     Args:
         path: a run folder (uses ``model.safetensors``, else ``checkpoints/last.pt``), a
-            ``.safetensors`` export, a ``.pt`` checkpoint, or the name of a shipped pretrained
-            model (``"human"``, ``"animal"``: ``cerberus models`` lists them).
+            ``.safetensors`` export, a ``.pt`` checkpoint, or the name of a shipped pretrained model
+            (``cerberus models`` lists them).
         device: where to put the model.
     Returns:
         ``(model, config)`` with the model in eval mode.
     """
+    model, config, _ = load_run(path, device)
+    return model, config
+
+
+def load_run(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerberus, TrainConfig, dict | None]:
+    """:func:`load_model`, plus the training data's scene set-up when the file records it (else ``None``).
+
+    Raises:
+        CheckpointError: a missing path, a folder that is not a run (a dataset folder says so), a
+            truncated, foreign or pickled file, or weights that do not fit the saved config.
+    """
+    import json
+
     import yaml
+    from safetensors import safe_open
 
     from cerberus_core.train.config import TrainConfig
 
-    path = _resolve(path)
+    if isinstance(path, str) and not Path(path).exists() and "/" not in path and not Path(path).suffix:
+        from cerberus_core.zoo import model_path
+
+        path = model_path(path)  # a shipped model's name ("human"): its checksum-verified weights
+    path = Path(path)
+    if not path.exists():
+        raise CheckpointError(f"{path} does not exist; {_USE}")
+    if path.is_dir():
+        for candidate in (path / "model.safetensors", checkpoint_dir(path) / LAST):
+            if candidate.is_file():
+                path = candidate
+                break
+        else:
+            if (path / "manifest.json").is_file():
+                raise CheckpointError(f"{path} is a dataset folder, not a training run; pass the run folder "
+                                      f"first and the dataset with --data {path}")
+            raise CheckpointError(f"{path} holds neither model.safetensors nor checkpoints/{LAST}, so it is not a "
+                                  "training run folder; train one with `cerberus train --out RUN`")
+    scene = None
     if path.suffix == ".safetensors":
-        config_yaml, state = _read_safetensors(path)
+        try:
+            with safe_open(str(path), framework="pt") as f:
+                meta = f.metadata() or {}
+            state = load_file(str(path))
+        except Exception as exc:
+            raise CheckpointError(f"{path} is not a readable safetensors file ({_reason(exc)}); it may be "
+                                  f"truncated: {_USE}") from None
+        if "config" not in meta:
+            raise CheckpointError(f"{path} has no Cerberus config in its metadata; export it with export_weights")
+        config_yaml = meta["config"]
+        if "scene" in meta:
+            scene = json.loads(meta["scene"])
     else:
         payload = load_checkpoint(path)
         config_yaml, state = payload["config"], payload["model"]
-    config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
-    model = Cerberus(config.model)
-    model.load_state_dict(state)
-    return model.to(device).eval(), config
+        scene = payload.get("extra", {}).get("scene")
+        if isinstance(scene, str):
+            scene = json.loads(scene)
+    try:
+        config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
+        model = Cerberus(config.model)
+        model.load_state_dict(state)
+    except (ValueError, TypeError, KeyError, RuntimeError, yaml.YAMLError) as exc:
+        raise CheckpointError(f"{path}: the saved config and weights do not form a Cerberus model "
+                              f"({_reason(exc)}); it was written by another version or is damaged") from None
+    return model.to(device).eval(), config, scene
 
-
-def _metadata(path: Path) -> dict[str, str]:
-    from safetensors import safe_open
-
-    with safe_open(str(path), framework="pt") as f:
-        return f.metadata() or {}
-
-
-def _read_safetensors(path: Path) -> tuple[str, dict[str, torch.Tensor]]:
-    meta = _metadata(path)
-    if "config" not in meta:
-        raise ValueError(f"{path} has no Cerberus config in its metadata; export it with export_weights")
-    return meta["config"], load_file(str(path))
-
-
-def model_scene(path: str | Path, config: TrainConfig, data: str | Path | None = None):
-    """The scene set-up (camera elevation, distance, field of view, light, background) a model was
-    trained with, as a :class:`~cerberus_core.datasets.scene.SceneSetup`.
-
-    In order: the dataset ``data`` if given (its manifest); the scene stored with the weights
-    (:func:`export_weights`); the run's training dataset if it is still there. Raises
-    ``FileNotFoundError`` when none is available rather than guessing a scene the model never saw.
-    ``path`` as in :func:`load_model`.
-    """
-    from cerberus_core.datasets.format import MANIFEST, read_manifest
-    from cerberus_core.datasets.scene import SceneSetup
-
-    if data is not None:
-        return SceneSetup.from_dict(read_manifest(Path(data))["scene"])
-    weights = _resolve(path)
-    if weights.suffix != ".safetensors" and weights.parent.name == "checkpoints":
-        weights = weights.parent.parent / "model.safetensors"
-    if weights.is_file() and weights.suffix == ".safetensors":
-        meta = _metadata(weights)
-        if "scene" in meta:
-            return SceneSetup.from_dict(json.loads(meta["scene"]))
-    root = Path(config.data.root)
-    if (root / MANIFEST).is_file():
-        return SceneSetup.from_dict(read_manifest(root)["scene"])
-    raise FileNotFoundError(f"the scene set-up of {path} is unknown: its weights predate stored scenes and its "
-                            f"training data {root} is gone; pass the dataset it was trained on with --data")

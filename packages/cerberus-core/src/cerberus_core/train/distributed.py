@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import torch
 import torch.distributed as dist
 
+from cerberus_core.errors import ConfigError
+
 
 @dataclass(frozen=True)
 class DistInfo:
@@ -38,7 +40,8 @@ def resolve_device(name: str, local_rank: int = 0) -> torch.device:
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name.startswith("cuda"):
         if not torch.cuda.is_available():
-            raise RuntimeError(f"device {name!r} was asked for but CUDA is not available; use device: cpu or auto")
+            raise ConfigError(f"device {name!r} was asked for but CUDA is not available; use device: cpu or auto "
+                              "(--set device=cpu)")
         return torch.device(name if ":" in name else f"cuda:{local_rank}")
     return torch.device(name)
 

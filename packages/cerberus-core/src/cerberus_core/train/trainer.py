@@ -11,11 +11,21 @@
   ``train.on_nonfinite: stop`` the run raises :class:`NonFiniteError` and the last checkpoint stays
   as it was; with ``skip`` the update is dropped (and the run stops after
   ``train.max_consecutive_skips`` in a row).
-* **Interrupts are clean.** SIGINT/SIGTERM finish the current step, write a checkpoint and return.
+* **Interrupts are clean.** SIGINT/SIGTERM finish the current step, write a checkpoint and return
+  a result with ``interrupted`` set and ``stop_signal`` the signal (``cerberus train`` then exits
+  130 or 143, so scripts know the run did not finish).
+* **One writer per run folder.** The main process holds ``RUN/.cerberus.lock``
+  (:mod:`cerberus_core.lock`) for the whole run; a second training into the same folder is refused
+  with the holder's pid. A fresh run starts only in a new or empty folder.
+* **A run is usable from anywhere.** ``data.root`` is stored as an absolute path, and the training
+  data's scene set-up is stored in every checkpoint and in ``model.safetensors``.
+* **The data is checked once at start:** every shard of the training split against its sha256 in the
+  manifest (a corrupt shard would otherwise train silently on garbage).
 """
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import random
@@ -35,6 +45,8 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from cerberus_core.atomic import atomic_write_text
+from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.lock import LockedError, acquire, check_unlocked, is_lock_file
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
@@ -72,8 +84,18 @@ RESUMABLE_CHANGES = frozenset({
 """Config keys a resumed run may change; any other difference is refused (it would not be the same run)."""
 
 
-class NonFiniteError(RuntimeError):
-    """The loss or gradient became NaN or infinite and the run was stopped."""
+class NonFiniteError(CerberusError, RuntimeError):
+    """The loss or gradient became NaN or infinite and the run was stopped (``cerberus train``: exit 3)."""
+
+    exit_code = 3
+
+
+class RunExistsError(CerberusError, FileExistsError):
+    """A fresh training was pointed at a folder that already holds files."""
+
+
+class NoCheckpointError(CerberusError, FileNotFoundError):
+    """``resume=True`` but the run folder has no checkpoint."""
 
 
 @dataclass
@@ -86,6 +108,7 @@ class TrainResult:
         skipped: steps whose update was dropped as non-finite.
         interrupted: stopped early by SIGINT/SIGTERM (a checkpoint was written).
         rank: this process's data-parallel rank (0 when not distributed).
+        stop_signal: the signal that stopped it (``signal.SIGINT`` / ``SIGTERM``), 0 if none.
     """
 
     run_dir: Path
@@ -95,6 +118,7 @@ class TrainResult:
     skipped: int
     interrupted: bool = False
     rank: int = 0
+    stop_signal: int = 0
 
 
 def lr_factor(optim: OptimConfig, total_steps: int) -> Callable[[int], float]:
@@ -127,6 +151,7 @@ class _StopRequest:
 
     def __init__(self) -> None:
         self.requested = False
+        self.signum = 0
         self._previous: dict[int, Any] = {}
 
     def __enter__(self) -> _StopRequest:
@@ -139,30 +164,50 @@ class _StopRequest:
 
     def _handle(self, signum, frame) -> None:  # noqa: ARG002
         if self.requested:  # second signal: give up immediately
-            raise KeyboardInterrupt
-        self.requested = True
+            from cerberus_core.signals import interrupt_for
+
+            raise interrupt_for(signum)
+        self.requested, self.signum = True, signum
 
     def __exit__(self, *exc) -> None:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
 
 
-def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[str, Any] | None:
-    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``)."""
+def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False) -> None:
+    """A fresh run needs a new or empty folder; a resumed one a checkpoint (checked before the lock is
+    taken, so a refused run does not even touch the folder, and again under the lock)."""
     last = checkpoint_dir(run_dir) / LAST
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunExistsError(f"{run_dir} is a file, not a folder; pass --out a folder path")
+    if not holding_lock:
+        check_unlocked(run_dir)  # a live writer is the first thing to name
     if not resume:
         if last.exists():
-            raise FileExistsError(f"{run_dir} already holds a training run ({last}); pass --resume to continue it "
-                                  "or --out to start a new run elsewhere")
-        return None
+            raise RunExistsError(f"{run_dir} already holds a training run ({last}); pass --resume to continue it "
+                                 "or --out to start a new run elsewhere")
+        held = sorted(p.name for p in run_dir.iterdir() if not is_lock_file(p)) if run_dir.is_dir() else []
+        if held:
+            shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
+            raise RunExistsError(f"{run_dir} is not empty (it holds {shown}) and is not a resumable run; training "
+                                 "starts only in a new or empty folder: pass another --out")
+        return
     if not last.exists():
-        raise FileNotFoundError(f"--resume: no checkpoint at {last}; run without --resume to start training")
+        raise NoCheckpointError(f"--resume: no checkpoint at {last}; run without --resume to start training")
+
+
+def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[str, Any] | None:
+    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``)."""
+    check_run_folder(run_dir, resume, holding_lock=True)
+    if not resume:
+        return None
+    last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
     saved = TrainConfig.from_dict(yaml.safe_load(payload["config"]))
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
-        raise ValueError(f"--resume: the config differs from the run's saved config in {changed}; only "
-                         f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
+        raise ConfigError(f"--resume: the config differs from the run's saved config in {changed}; only "
+                          f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
     return payload
 
 
@@ -183,6 +228,8 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
     config = dataclasses.replace(config)  # shallow copy: the caller's object is not mutated below
     config.model = dataclasses.replace(config.model)
     config.validate()
+    if dataset is None:  # stored absolute: eval, reconstruct and --resume work from any directory
+        config.data = dataclasses.replace(config.data, root=str(Path(config.data.root).expanduser().resolve()))
     device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
     if config.threads is not None:
         torch.set_num_threads(config.threads)
@@ -193,11 +240,21 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
         shutdown(info)
 
 
+def verify_split(root: str | Path, split: str) -> None:
+    """Check every shard file of ``split`` against the sha256 the manifest records (once, at the start
+    of a run: the reader only checks sizes on every open). :class:`DatasetError` names the bad file."""
+    from cerberus_core.datasets.readers import QuadrupletDataset
+
+    QuadrupletDataset(root, split=split, verify=True)
+
+
 class _Trainer:
     def __init__(self, config: TrainConfig, run_dir: Path, info: DistInfo, device: torch.device, dataset: Any) -> None:
         self.config, self.run_dir, self.info, self.device = config, run_dir, info, device
         self.dataset = dataset if dataset is not None else build_dataset(config.data.root, config.data.split)
         check_dataset(self.dataset)
+        if dataset is None and info.is_main:
+            verify_split(config.data.root, config.data.split)
         self.scene = self.dataset.scene
         if config.model.depth_offset == "auto":
             config.model.depth_offset = self.scene.distance
@@ -232,7 +289,8 @@ class _Trainer:
         if self.info.is_main:
             ckdir = checkpoint_dir(self.run_dir)
             path = save_checkpoint(ckdir / LAST, model=self.model, optimizer=self.optimizer, scheduler=self.scheduler,
-                                   step=step, config_yaml=self.config_yaml, extra={"skipped": self.skipped})
+                                   step=step, config_yaml=self.config_yaml,
+                                   extra={"skipped": self.skipped, "scene": json.dumps(self.scene.to_dict())})
             keep = self.config.train.keep_every
             if keep and step % keep == 0:
                 shutil.copyfile(path, ckdir / f"step_{step:07d}.pt")
@@ -251,8 +309,27 @@ class _Trainer:
                           pin_memory=self.device.type == "cuda")
 
     def run(self, resume: bool) -> TrainResult:
+        """Hold the run folder's lock (main process) around :meth:`_run`; every rank learns of a refusal."""
+        check_run_folder(self.run_dir, resume)
+        lock, refused = None, None
+        if self.info.is_main:
+            try:
+                lock = acquire(self.run_dir, "cerberus train")
+            except LockedError as exc:
+                refused = exc
+        if any_true(refused is not None, self.info, self.device):
+            raise refused or LockedError(f"{self.run_dir} is in use by another process (see rank 0)")
+        try:
+            return self._run(resume)
+        finally:
+            if lock is not None:
+                lock.release()
+
+    def _run(self, resume: bool) -> TrainResult:
         cfg, info, loop = self.config, self.info, self.config.train
-        start = self._build(prepare_run_dir(self.run_dir, resume, cfg))
+        payload = prepare_run_dir(self.run_dir, resume, cfg)
+        barrier(info)  # every rank has checked the folder before rank 0 writes into it
+        start = self._build(payload)
         self.config_yaml = cfg.to_yaml()
         log = None
         if info.is_main:
@@ -262,13 +339,13 @@ class _Trainer:
         bar = tqdm(total=loop.steps, initial=start, desc="train", unit="step", dynamic_ncols=True, mininterval=1.0,
                    disable=not (info.is_main and loop.progress))
         terms: dict[str, float] = {}
-        consecutive, done, interrupted = 0, start, False
+        consecutive, done, interrupted, stop_signal = 0, start, False, 0
         window = [time.perf_counter(), 0]  # start time and steps of the current logging window
         t0 = window[0]
         poison = set(cfg.debug.poison_steps)
         try:
             with _StopRequest() as stop:
-                for step, raw in zip(range(start, loop.steps), self._loader(start)):
+                for step, raw in zip(range(start, loop.steps), self._loader(start), strict=False):
                     batch = quadruplet_batch(raw, self.device, self.scene, self.image_size)
                     if step in poison:
                         batch.images = torch.full_like(batch.images, float("nan"))
@@ -301,7 +378,7 @@ class _Trainer:
                         if not self._due(done, loop.checkpoint_every):
                             self._checkpoint(done)
                         bar.write(f"interrupted: checkpoint written at step {done}; continue with --resume")
-                        interrupted = True
+                        interrupted, stop_signal = True, stop.signum or signal.SIGINT
                         break
         finally:
             bar.close()
@@ -312,7 +389,7 @@ class _Trainer:
                            scene=self.scene.to_dict())
             plot_loss_curves(self.run_dir / "metrics.csv", self.run_dir / "loss_curves.png")
         barrier(info)
-        return TrainResult(self.run_dir, done, self.model, terms, self.skipped, interrupted, info.rank)
+        return TrainResult(self.run_dir, done, self.model, terms, self.skipped, interrupted, info.rank, stop_signal)
 
     def _step(self, batch, step: int):
         """One optimisation step; returns ``(ok, objective output, gradient norm)``."""
@@ -333,7 +410,7 @@ class _Trainer:
         if not ok:
             self.optimizer.zero_grad(set_to_none=True)
             with torch.no_grad():
-                for b, saved in zip(self.model.buffers(), buffers):
+                for b, saved in zip(self.model.buffers(), buffers, strict=True):
                     b.copy_(saved)
             return False, out, grad_norm
         if self.config.optim.grad_clip is not None:

@@ -1,0 +1,165 @@
+"""Every command with bad input: one line on stderr naming the problem, exit 2, nothing written or changed.
+
+The table drives ``cerberus_core.cli.main`` in-process against one tiny dataset and one 2-step run;
+each case snapshots the whole working folder (names, sizes, modification times) before and after.
+"""
+from __future__ import annotations
+
+import struct
+import zlib
+from pathlib import Path
+
+import pytest
+import torch
+
+from cerberus_core.cli import main
+from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.plan import preset_config
+
+
+def fake_png(path: Path, width: int, height: int) -> Path:
+    """A PNG whose header claims ``width x height`` (no pixel data: only the header is ever read)."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+                     + chunk(b"IEND", b""))
+    return path
+
+
+@pytest.fixture(scope="module")
+def place(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("cli_errors")
+    data, run = root / "data", root / "run"
+    generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
+    torch_threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        assert main(["train", "--preset", "tiny", "--set", f"data.root={data}", "--set", "train.steps=2",
+                     "--set", "train.tensorboard=false", "--set", "train.progress=false", "--out", str(run)]) == 0
+    finally:
+        torch.set_num_threads(torch_threads)
+    (root / "notes").mkdir()
+    (root / "notes" / "todo.txt").write_text("my notes\n")
+    (root / "afile").write_text("a file\n")
+    (root / "empty.yaml").write_text("# nothing here\n")
+    (root / "bad.yaml").write_text("train:\n  steps: [1\n")
+    last = (run / "checkpoints" / "last.pt").read_bytes()
+    (root / "trunc.pt").write_bytes(last[: len(last) // 3])
+    (root / "random.pt").write_bytes(bytes(range(256)) * 8)
+    torch.save({"x": torch.nn.Linear(1, 1)}, root / "pickled.pt")  # a pickled module, not plain tensors
+    (root / "trunc.safetensors").write_bytes((run / "model.safetensors").read_bytes()[:100])
+    from PIL import Image
+    Image.new("RGB", (40, 40), (200, 10, 10)).save(root / "img.png")
+    fake_png(root / "huge.png", 20000, 20000)
+    fake_png(root / "big.png", 9000, 5000)
+    return {"root": root, "data": data, "run": run}
+
+
+NO_CUDA = pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA is available here")
+
+# (id, argv with {placeholders}, text the one-line error must contain)
+CASES = [
+    ("train-set-yaml", "train --preset tiny --set train.steps=[1 --out {root}/new", "not valid YAML"),
+    ("train-set-key", "train --preset tiny --set =3 --out {root}/new", "section.key=value"),
+    ("train-set-type", "train --preset tiny --set optim.lr=fast --out {root}/new", "optim.lr: expected a number"),
+    ("train-set-unknown", "train --preset tiny --set optim.lrr=1 --out {root}/new", "unknown config key"),
+    ("train-set-nan", "train --preset tiny --set data.root={data} --set losses.smoothness=.nan --out {root}/new",
+     "losses.smoothness = nan: must be a finite number"),
+    ("train-set-inf", "train --preset tiny --set data.root={data} --set optim.lr=.inf --out {root}/new", "finite"),
+    ("train-config-empty", "train --config {root}/empty.yaml --out {root}/new", "is empty"),
+    ("train-config-yaml", "train --config {root}/bad.yaml --out {root}/new", "bad.yaml:3: not valid YAML"),
+    ("train-config-missing", "train --config {root}/nope.yaml --out {root}/new", "no such file"),
+    pytest.param("train-cuda", "train --preset tiny --set data.root={data} --set device=cuda --out {root}/new",
+                 "CUDA is not available", marks=NO_CUDA),
+    ("train-out-dataset", "train --preset tiny --set data.root={data} --out {data}", "not empty"),
+    ("train-out-notes", "train --preset tiny --set data.root={data} --out {root}/notes", "not empty"),
+    ("train-out-file", "train --preset tiny --set data.root={data} --out {root}/afile", "is a file"),
+    ("train-out-run", "train --preset tiny --set data.root={data} --out {run}", "--resume"),
+    ("train-resume-none", "train --preset tiny --set data.root={data} --out {root}/new --resume", "no checkpoint"),
+    ("train-data-missing", "train --preset tiny --set data.root={root}/nodata --out {root}/new", "does not exist"),
+    ("train-steps-0", "train --preset tiny --set data.root={data} --set train.steps=0 --out {root}/new",
+     "must be positive"),
+    pytest.param("eval-cuda", "eval {run} --device cuda", "CUDA is not available", marks=NO_CUDA),
+    ("eval-truncated", "eval {root}/trunc.pt", "not a readable Cerberus checkpoint"),
+    ("eval-random", "eval {root}/random.pt", "not a readable Cerberus checkpoint"),
+    ("eval-pickled", "eval {root}/pickled.pt", "pickled Python object"),
+    ("eval-truncated-safetensors", "eval {root}/trunc.safetensors", "not a readable safetensors file"),
+    ("eval-missing", "eval {root}/nothing", "does not exist"),
+    ("eval-dataset", "eval {data}", "is a dataset folder, not a training run"),
+    ("eval-notes", "eval {root}/notes", "not a training run folder"),
+    ("eval-resolution-0", "eval {run} --resolution 0", "--resolution: must be >= 1"),
+    ("eval-resolution-huge", "eval {run} --resolution 100000", "at most"),
+    ("eval-protocol", "eval {run} --protocol foo", "--protocol 'foo': unknown"),
+    ("eval-limit-negative", "eval {run} --limit -3", "--limit: must be >= 1"),
+    ("eval-limit-0", "eval {run} --limit 0", "--limit: must be >= 1"),
+    ("eval-figure-images-0", "eval {run} --figure-images 0", "--figure-images: must be >= 1"),
+    ("eval-baseline-missing", "eval {run} --baseline X={root}/missing", "--baseline X="),
+    ("eval-baseline-form", "eval {run} --baseline justaname", "NAME=RUN"),
+    ("eval-out-file", "eval {run} --out {root}/afile", "is a file"),
+    ("eval-data-notes", "eval {run} --data {root}/notes", "not a Cerberus dataset"),
+    ("eval-split", "eval {run} --split nosuch", "no split 'nosuch'"),
+    ("eval-renderer", "eval {run} --renderer nope", "unknown renderer 'nope'"),
+    pytest.param("reconstruct-cuda", "reconstruct {run} {root}/img.png --device cuda --out {root}/rec",
+                 "CUDA is not available", marks=NO_CUDA),
+    ("reconstruct-azimuth-nan", "reconstruct {run} {root}/img.png --azimuth nan --out {root}/rec", "finite"),
+    ("reconstruct-truncated", "reconstruct {root}/trunc.pt {root}/img.png --out {root}/rec", "not a readable"),
+    ("reconstruct-pickled", "reconstruct {root}/pickled.pt {root}/img.png --out {root}/rec", "pickled"),
+    ("reconstruct-missing-image", "reconstruct {run} {root}/nope.png --out {root}/rec", "no such file"),
+    ("reconstruct-not-image", "reconstruct {run} {root}/bad.yaml --out {root}/rec", "cannot be read as an image"),
+    ("reconstruct-huge", "reconstruct {run} {root}/huge.png --out {root}/rec", "downscale it first"),
+    ("reconstruct-big", "reconstruct {run} {root}/big.png --out {root}/rec", "9000x5000 pixels is too large"),
+    ("reconstruct-out-file", "reconstruct {run} {root}/img.png --out {root}/afile", "is a file"),
+    ("reconstruct-data-notes", "reconstruct {run} {root}/img.png --data {root}/notes --out {root}/rec",
+     "not a Cerberus dataset"),
+    ("demo-size-0", "demo --image-size 0 --out {root}/demo", "--image-size: must be >= 1"),
+    ("demo-size-huge", "demo --image-size 100000 --out {root}/demo", "at most"),
+    ("demo-out-file", "demo --out {root}/afile", "is a file"),
+    ("demo-renderer", "demo --renderer nope --out {root}/demo", "unknown renderer 'nope'"),
+]
+
+
+def snapshot(root: Path) -> dict[str, tuple[int, int]]:
+    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(root.rglob("*"))}
+
+
+@pytest.mark.parametrize(("case", "argv", "expected"), CASES,
+                         ids=[c.values[0] if hasattr(c, "marks") else c[0] for c in CASES])
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(place, capsys, case, argv, expected):
+    args = [a.format(**{k: str(v) for k, v in place.items()}) for a in argv.split()]
+    before = snapshot(place["root"])
+    try:
+        code = main(args)
+    except SystemExit as exc:  # argparse usage errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    assert code == 2, (case, out, err)
+    assert err.endswith("\n") and err.count("\n") == 1, f"not one line: {err!r}"
+    assert err.startswith(f"cerberus {args[0]}: "), err
+    assert expected in err, err
+    assert "Traceback" not in err and "weights_only" not in err
+    assert out == ""
+    assert snapshot(place["root"]) == before, "the failed command wrote or changed files"
+
+
+def test_same_named_inputs_get_distinct_outputs(place, tmp_path, capsys):
+    from PIL import Image
+
+    for folder, colour in (("a", (200, 10, 10)), ("b", (10, 10, 200))):
+        (tmp_path / folder).mkdir()
+        Image.new("RGB", (32, 32), colour).save(tmp_path / folder / "x.png")
+    out = tmp_path / "rec"
+    assert main(["reconstruct", str(place["run"]), str(tmp_path / "a" / "x.png"), str(tmp_path / "b" / "x.png"),
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    files = [p for p in out.rglob("*") if p.is_file()]
+    assert f"wrote {len(files)} files for 2 image(s)" in printed and "a_x" in printed and "b_x" in printed
+    assert (out / "a_x.glb").is_file() and (out / "b_x.glb").is_file()
+    assert len(files) == 2 * len([p for p in files if str(p.relative_to(out)).startswith("a_x")]) == 26
+
+
+def test_a_run_is_usable_from_another_directory(place, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # the run's data.root is stored absolute; its scene set-up is in the run
+    assert main(["eval", str(place["run"]), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
+                 "--out", "ev"]) == 0
+    assert (tmp_path / "ev" / "results.json").is_file()
+    capsys.readouterr()
