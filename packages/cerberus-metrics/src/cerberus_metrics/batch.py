@@ -19,10 +19,12 @@ truth, is a failed pair.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import multiprocessing as mp
 import os
+import tempfile
 import time
 import warnings
 from collections.abc import Iterable, Sequence
@@ -36,7 +38,15 @@ from .api import METRICS, evaluate_pair
 from .cache import GridCache
 from .io import MeshInputError, iter_mesh_files
 
-__all__ = ["PairSpec", "pairs_from_file", "pairs_from_folders", "run_batch", "summarize", "write_results"]
+__all__ = [
+    "PairSpec",
+    "check_output_path",
+    "pairs_from_file",
+    "pairs_from_folders",
+    "run_batch",
+    "summarize",
+    "write_results",
+]
 
 
 @dataclass(frozen=True)
@@ -62,50 +72,72 @@ class BatchResult:
 
 
 def _resolve(base: Path, p: str) -> str:
+    """Absolute path of ``p`` (relative ones against ``base``), so no later change of the working
+    directory can redirect it."""
     q = Path(p.strip())
-    return str(q if q.is_absolute() else base / q)
+    return os.path.abspath(q if q.is_absolute() else base / q)
+
+
+def _read_text(path: Path, what: str) -> str:
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise MeshInputError(f"{what} '{path}' is not UTF-8 text ({exc.reason} at byte {exc.start}); "
+                             "pass a CSV or JSON text file") from None
+    except OSError as exc:
+        raise MeshInputError(f"cannot read {what} '{path}' ({exc.strerror}); check its permissions") from None
 
 
 def pairs_from_file(path: str | os.PathLike) -> list[PairSpec]:
-    """Read pairs from a ``.csv`` or ``.json`` file (see module docstring)."""
+    """Read pairs from a ``.csv`` or ``.json`` file (see module docstring); all paths come back absolute."""
     path = Path(path)
     if not path.is_file():
-        raise MeshInputError(f"pairs file '{path}' does not exist; pass a CSV or JSON file of pairs")
-    base = path.parent
-    if path.suffix.lower() == ".json":
+        what = "is a directory" if path.is_dir() else "does not exist"
+        raise MeshInputError(f"pairs file '{path}' {what}; pass a CSV or JSON file of pairs")
+    base = path.parent.absolute()
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".json"):
+        raise MeshInputError(f"pairs file '{path}': unknown type '{path.suffix}'; use .csv or .json")
+    text = _read_text(path, "pairs file")
+    if suffix == ".json":
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise MeshInputError(f"pairs file '{path}' is not valid JSON ({exc})") from exc
+            raise MeshInputError(f"pairs file '{path}' is not valid JSON ({exc}); fix the file") from None
         items = data.get("pairs") if isinstance(data, dict) else data
         if not isinstance(items, list):
             raise MeshInputError(f"pairs file '{path}': expected a list of {{'pred', 'gt'}} objects")
         rows = items
-    elif path.suffix.lower() == ".csv":
-        with open(path, newline="") as fh:
-            reader = csv.DictReader(fh)
-            missing = {"pred", "gt"} - set(reader.fieldnames or [])
+    else:
+        try:
+            reader = csv.DictReader(io.StringIO(text, newline=""))
+            fields = [(f or "").strip().lower() for f in (reader.fieldnames or [])]
+            missing = {"pred", "gt"} - set(fields)
             if missing:
                 raise MeshInputError(
-                    f"pairs file '{path}': missing column(s) {sorted(missing)}; the header needs pred,gt (and id)"
+                    f"pairs file '{path}': missing column(s) {sorted(missing)} (found {fields or 'no header'}); "
+                    "the first line must be a header naming the columns pred,gt (and optionally id)"
                 )
-            rows = [dict(r, pred=r["pred"].split(";")) for r in reader]
-    else:
-        raise MeshInputError(f"pairs file '{path}': unknown type '{path.suffix}'; use .csv or .json")
+            reader.fieldnames = fields
+            rows = [dict(r, pred=(r["pred"] or "").split(";")) for r in reader]
+        except csv.Error as exc:
+            raise MeshInputError(f"pairs file '{path}' is not a valid CSV file ({exc}); fix the file") from None
     out = []
     for i, r in enumerate(rows):
         if not isinstance(r, dict) or "pred" not in r or "gt" not in r:
             raise MeshInputError(f"pairs file '{path}': entry {i} lacks 'pred' or 'gt': {r!r}")
         preds = r["pred"] if isinstance(r["pred"], list) else [r["pred"]]
-        preds = [_resolve(base, str(p)) for p in preds if str(p).strip()]
-        pair_id = str(r.get("id") or Path(str(r["gt"])).stem or i)
-        out.append(PairSpec(pair_id, tuple(preds), _resolve(base, str(r["gt"]))))
+        preds = [_resolve(base, str(p)) for p in preds if p is not None and str(p).strip()]
+        gt = "" if r["gt"] is None else str(r["gt"]).strip()
+        pair_id = str(r.get("id") or Path(gt).stem or i)
+        error = None if preds and gt else f"entry {i} of '{path}' has an empty {'pred' if not preds else 'gt'} field"
+        out.append(PairSpec(pair_id, tuple(preds), _resolve(base, gt) if gt else "", error))
     return out
 
 
 def pairs_from_folders(pred_dir: str | os.PathLike, gt_dir: str | os.PathLike) -> list[PairSpec]:
     """Match ground-truth files to predictions by stem (see module docstring)."""
-    pred_dir, gt_dir = Path(pred_dir), Path(gt_dir)
+    pred_dir, gt_dir = Path(os.path.abspath(pred_dir)), Path(os.path.abspath(gt_dir))
     for d, what in ((pred_dir, "prediction"), (gt_dir, "ground-truth")):
         if not d.is_dir():
             raise MeshInputError(f"{what} folder '{d}' does not exist or is not a folder")
@@ -128,12 +160,14 @@ def pairs_from_folders(pred_dir: str | os.PathLike, gt_dir: str | os.PathLike) -
 
 _CACHE: GridCache | None = None
 _OPTIONS: dict[str, Any] = {}
+_CWD: str = ""
 
 
 def _init_worker(options: dict[str, Any], cache_dir: str | None, use_cache: bool = True) -> None:
-    global _CACHE, _OPTIONS
+    global _CACHE, _OPTIONS, _CWD
     _CACHE = GridCache(cache_dir) if use_cache else None
     _OPTIONS = options
+    _CWD = os.getcwd()
 
 
 def _evaluate(spec: PairSpec) -> dict[str, Any]:
@@ -150,6 +184,9 @@ def _evaluate(spec: PairSpec) -> dict[str, Any]:
             row["status"] = "ok"
         except Exception as exc:  # noqa: BLE001 - a failing pair is recorded, never fatal
             row.update(status="error", error=f"{type(exc).__name__}: {exc}")
+        finally:
+            if _CWD and os.getcwd() != _CWD:  # no pair may change where the next one looks for files
+                os.chdir(_CWD)
     row["warnings"] = sorted({str(w.message) for w in caught})
     row["seconds"] = round(time.perf_counter() - t0, 4)
     return row
@@ -177,9 +214,11 @@ def run_batch(
     unknown = sorted(set(metrics) - set(METRICS))
     if unknown:
         raise MeshInputError(f"unknown metric(s) {unknown}; choose from {list(METRICS)}")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise MeshInputError(f"jobs must be a positive number of processes, got {jobs!r}; omit it for all cores")
     options = dict(options, metrics=metrics)
     jobs = max(1, min(int(jobs or os.cpu_count() or 1), max(1, len(pairs))))
-    cache = None if cache_dir is None else str(cache_dir)
+    cache = None if cache_dir is None else os.path.abspath(cache_dir)
     # Same-GT pairs next to each other so a worker's in-memory cache serves them.
     order = sorted(range(len(pairs)), key=lambda i: pairs[i].gt)
     ordered = [pairs[i] for i in order]
@@ -247,16 +286,55 @@ def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[st
     return out
 
 
+def check_output_path(path: str | os.PathLike, flag: str) -> str:
+    """Absolute form of an output path, after checking it can be written (before any work is done).
+
+    Raises :class:`MeshInputError` naming ``flag`` when the path is a folder, its folder does
+    not exist or is not writable.
+    """
+    p = Path(os.path.abspath(path))
+    if p.is_dir():
+        raise MeshInputError(f"{flag} '{path}' is a folder; pass a file name, e.g. {flag} {Path(path) / 'results'}")
+    if not p.parent.is_dir():
+        raise MeshInputError(f"{flag} '{path}': folder '{p.parent}' does not exist; create it first")
+    if not os.access(p.parent, os.W_OK):
+        raise MeshInputError(f"{flag} '{path}': folder '{p.parent}' is not writable; choose another place")
+    return str(p)
+
+
+def _csv_text(rows: Sequence[dict[str, Any]]) -> str:
+    keys: list[str] = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=keys)
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: " | ".join(v) if isinstance(v, list) else v for k, v in r.items()})
+    return buf.getvalue()
+
+
 def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_path: str | os.PathLike | None) -> None:
-    """Write ``{"summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ')."""
+    """Write ``{"summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ').
+
+    Atomic: each file is written to a temporary file in its folder and moved into place only
+    when all requested files are complete, so a failure leaves no partial output.
+    """
+    todo = []
     if json_path:
-        Path(json_path).write_text(json.dumps({"summary": result.summary, "pairs": result.rows}, indent=2))
+        todo.append((Path(json_path), json.dumps({"summary": result.summary, "pairs": result.rows}, indent=2)))
     if csv_path:
-        keys: list[str] = []
-        for r in result.rows:
-            keys += [k for k in r if k not in keys]
-        with open(csv_path, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=keys)
-            w.writeheader()
-            for r in result.rows:
-                w.writerow({k: " | ".join(v) if isinstance(v, list) else v for k, v in r.items()})
+        todo.append((Path(csv_path), _csv_text(result.rows)))
+    temps: list[str] = []
+    try:
+        for target, text in todo:
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+            temps.append(tmp)
+            with os.fdopen(fd, "w", newline="") as fh:
+                fh.write(text)
+        for (target, _), tmp in zip(todo, temps, strict=True):
+            os.replace(tmp, target)
+    finally:
+        for tmp in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)

@@ -1,21 +1,24 @@
 """Command line: ``cerberus-metrics {iou,chamfer,fscore,check,batch,protocols}``.
 
 Exit codes: 0 success; 1 a batch finished but some pairs failed (see the summary);
-2 bad input (the message names the file or argument, the problem and the fix).
+2 bad input (the message names the file or argument, the problem and the fix);
+3 internal error. Every error is one line on stderr; outputs are written atomically.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
 import warnings
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, NoReturn
 
 from . import __version__
 from .api import METRICS, evaluate_pair, inspect_mesh
-from .batch import pairs_from_file, pairs_from_folders, run_batch, write_results
+from .batch import check_output_path, pairs_from_file, pairs_from_folders, run_batch, write_results
 from .io import MeshInputError, MeshQualityWarning
 from .protocols import PROTOCOLS
 
@@ -34,7 +37,46 @@ Examples:
   cerberus-metrics fscore pred.obj gt.obj --threshold 0.01 --normalize
   cerberus-metrics batch --pred-dir preds/ --gt-dir gts/ --out results.json --csv results.csv
   cerberus-metrics batch --pairs pairs.csv --metrics voxel_iou,chamfer_l2,fscore
+  cerberus-metrics check gt.obj                     (validate and clean; report defects)
+
+Run 'cerberus-metrics COMMAND --help' for a command's description, options and examples.
+Exit codes: 0 success, 1 a batch finished with failed pairs, 2 bad input, 3 internal error.
 """
+
+
+class UsageError(Exception):
+    """Bad command-line arguments; the message names the argument and the fix."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but an argument error is raised (one line on stderr, exit code 2, from main)."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{self.prog}: {message}; see '{self.prog} --help'")
+
+
+def _int_in(lo: int, hi: int | None, what: str) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer ({what})") from None
+        if value < lo or (hi is not None and value > hi):
+            rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+            raise argparse.ArgumentTypeError(f"{value} is out of range: {what} must be {rng}")
+        return value
+
+    return parse
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} must be a positive finite number (mesh units)")
+    return value
 
 
 def _add_mesh_options(p: argparse.ArgumentParser) -> None:
@@ -54,33 +96,99 @@ def _add_mesh_options(p: argparse.ArgumentParser) -> None:
 
 def _add_voxel_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--protocol", choices=list(PROTOCOLS), default="kato", help="voxel protocol (default: kato)")
-    p.add_argument("--resolution", type=int, default=32, help="voxels per grid side (default: 32, the paper's)")
+    p.add_argument(
+        "--resolution",
+        type=_int_in(2, 1024, "voxels per grid side"),
+        default=32,
+        help="voxels per grid side, 2..1024 (default: 32, the paper's)",
+    )
 
 
 def _add_sampling_options(p: argparse.ArgumentParser, threshold: bool) -> None:
-    p.add_argument("--samples", type=int, default=100_000, help="points sampled per surface (default: 100000)")
-    p.add_argument("--seed", type=int, default=0, help="sampling seed; the GT uses seed+1 (default: 0)")
+    p.add_argument(
+        "--samples",
+        type=_int_in(1, None, "points per surface"),
+        default=100_000,
+        help="points sampled per surface (default: 100000)",
+    )
+    p.add_argument("--seed", type=_int_in(0, None, "sampling seed"), default=0,
+                   help="sampling seed; the GT uses seed+1 (default: 0)")
     p.add_argument(
         "--normalize", action="store_true", help="scale both shapes by the GT bounding box (longest side 1) first"
     )
     if threshold:
-        p.add_argument("--threshold", type=float, default=0.01, help="F-score distance threshold (default: 0.01)")
+        p.add_argument("--threshold", type=_positive_float, default=0.01,
+                       help="F-score distance threshold in mesh units (default: 0.01)")
+
+
+_PAIR_TEXT = {
+    "iou": (
+        "voxel IoU of one pair",
+        "Voxel IoU |P & G| / |P | G| between a prediction (one mesh, or several files that are the parts of\n"
+        "one prediction, united) and a ground truth (the last file). Default: the paper's kato protocol at 32^3\n"
+        "(meshes in [-0.5, 0.5]^3); use --protocol gt_bbox for meshes in other coordinates. Prints the IoU.",
+        "  cerberus-metrics iou pred.obj gt.obj\n"
+        "  cerberus-metrics iou head.ply torso.ply legs.ply gt.ply --json      (3 parts)\n"
+        "  cerberus-metrics iou pred.obj gt.obj --protocol gt_bbox --resolution 64",
+    ),
+    "chamfer": (
+        "Chamfer-L2 of one pair",
+        "Chamfer-L2 = mean squared nearest distance prediction->GT plus GT->prediction, on points sampled\n"
+        "uniformly by area (--samples per surface), in mesh units squared (GT-relative with --normalize).",
+        "  cerberus-metrics chamfer pred.obj gt.obj\n"
+        "  cerberus-metrics chamfer pred.obj gt.obj --normalize --samples 20000 --json",
+    ),
+    "fscore": (
+        "F-score at a distance threshold of one pair",
+        "F-score = 2PR/(P+R): P = share of prediction points within --threshold of the GT points, R the other\n"
+        "way (sampled surfaces; threshold in mesh units, or relative to the GT size with --normalize).",
+        "  cerberus-metrics fscore pred.obj gt.obj --threshold 0.01 --normalize\n"
+        "  cerberus-metrics fscore part1.obj part2.obj gt.obj --json",
+    ),
+}
+
+_CHECK_DESCRIPTION = """\
+Read each mesh with pymeshlab, validate it and clean it (duplicate vertices, duplicate faces,
+zero-area faces, unreferenced vertices), then report what cleaning removed and what is still
+wrong: watertightness (boundary edges), non-manifold edges and vertices, self-intersecting
+faces. A file that cannot be evaluated (unreadable, empty, NaN coordinates, face indices out
+of range, all vertices equal) is an error (exit code 2) naming the file and the fix.
+A file holding several meshes (e.g. a GLB scene) gives one report per mesh."""
+
+_BATCH_DESCRIPTION = """\
+Evaluate many pairs in parallel. Pairs come from --pairs (a CSV with a header pred,gt[,id],
+parts of one prediction separated by ';'; or a JSON list of {"id"?, "pred": path | [paths],
+"gt": path}); relative paths are relative to the pairs file's folder. Or from --pred-dir and
+--gt-dir, matched by file stem (a sub-folder of --pred-dir named like a ground truth holds the
+parts of its prediction). A pair that fails is reported and counted, never aborts the batch;
+the exit code is then 1. --out and --csv are written only when the batch is complete."""
+
+_BATCH_EXAMPLES = """\
+  cerberus-metrics batch --pred-dir preds/ --gt-dir gts/ --out results.json --csv results.csv
+  cerberus-metrics batch --pairs pairs.csv --metrics voxel_iou,chamfer_l2,fscore --jobs 4
+  cerberus-metrics batch --pairs pairs.json --cache-dir grid-cache/ --json"""
+
+
+def _sub(sub: Any, name: str, help: str, description: str, examples: str) -> argparse.ArgumentParser:
+    return sub.add_parser(
+        name,
+        help=help,
+        description=description,
+        epilog="Examples:\n" + examples,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="cerberus-metrics", description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     pair_help = "PRED [PRED ...] GT: one or more prediction files (parts, united) then the ground-truth file"
-    for name, helptext in (
-        ("iou", "voxel IoU of one pair"),
-        ("chamfer", "Chamfer-L2 of one pair (mean squared nearest distance, both ways, summed)"),
-        ("fscore", "F-score at a distance threshold of one pair"),
-    ):
-        p = sub.add_parser(name, help=helptext, description=helptext + ". " + pair_help)
+    for name, (helptext, description, examples) in _PAIR_TEXT.items():
+        p = _sub(sub, name, helptext, description + "\n\n" + pair_help + ".", examples)
         p.add_argument("meshes", nargs="+", metavar="MESH", help=pair_help)
         if name == "iou":
             _add_voxel_options(p)
@@ -89,16 +197,17 @@ def build_parser() -> argparse.ArgumentParser:
         _add_mesh_options(p)
         p.add_argument("--json", action="store_true", help="print the result as JSON")
 
-    p = sub.add_parser("check", help="clean meshes with pymeshlab and report watertightness / manifoldness")
-    p.add_argument("meshes", nargs="+", metavar="MESH")
+    p = _sub(
+        sub,
+        "check",
+        "validate and clean meshes with pymeshlab; report watertightness, manifoldness, self-intersections",
+        _CHECK_DESCRIPTION,
+        "  cerberus-metrics check gt.obj\n  cerberus-metrics check preds/*.ply --json",
+    )
+    p.add_argument("meshes", nargs="+", metavar="MESH", help="mesh files to check")
     p.add_argument("--json", action="store_true", help="print the reports as JSON")
 
-    p = sub.add_parser(
-        "batch",
-        help="evaluate many pairs on all cores",
-        description="Evaluate many pairs (from --pairs CSV/JSON, or --pred-dir/--gt-dir matched by file stem) "
-        "in parallel. Failing pairs are reported and counted; exit code 1 if any pair failed.",
-    )
+    p = _sub(sub, "batch", "evaluate many pairs on all cores", _BATCH_DESCRIPTION, _BATCH_EXAMPLES)
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--pairs", help="CSV (columns id,pred,gt; parts separated by ';') or JSON list of pairs")
     src.add_argument("--pred-dir", help="folder of predictions (a file, or a sub-folder of parts, per GT stem)")
@@ -109,7 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_voxel_options(p)
     _add_sampling_options(p, threshold=True)
     _add_mesh_options(p)
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--jobs", type=_int_in(1, None, "worker processes"), default=None,
+                   help="worker processes, >= 1 (default: all cores)")
     p.add_argument("--cache-dir", default=None, help="folder for cached ground-truth grids (content-hashed)")
     p.add_argument("--no-cache", action="store_true", help="voxelize every ground truth anew (no grid cache)")
     p.add_argument("--out", default=None, help="write summary and per-pair results as JSON here")
@@ -117,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--json", action="store_true", help="print summary and pairs as JSON on stdout")
 
-    sub.add_parser("protocols", help="list the voxel protocols")
+    _sub(sub, "protocols", "list the voxel protocols", "List the voxel-IoU protocols and what each does.",
+         "  cerberus-metrics protocols")
     return parser
 
 
@@ -177,7 +288,25 @@ def _run_check(args: argparse.Namespace) -> int:
 
 
 def _run_batch(args: argparse.Namespace) -> int:
+    # Everything is made absolute and checked before any work, so nothing (not even a library
+    # changing the working directory) can redirect an input or an output, and bad arguments
+    # fail before a single pair runs or a file is created.
+    metrics = [m.strip() for m in args.metrics.split(",") if m.strip()]
+    unknown = sorted(set(metrics) - set(METRICS)) or ([] if metrics else ["(none)"])
+    if unknown:
+        raise MeshInputError(f"--metrics: unknown metric(s) {unknown}; choose from {','.join(METRICS)}")
+    out = check_output_path(args.out, "--out") if args.out else None
+    csv_out = check_output_path(args.csv, "--csv") if args.csv else None
+    if out and csv_out and out == csv_out:
+        raise MeshInputError(f"--out and --csv are the same file '{args.out}'; give them different names")
+    cache_dir = None
+    if args.cache_dir:
+        cache_dir = os.path.abspath(args.cache_dir)
+        if os.path.exists(cache_dir) and not os.path.isdir(cache_dir):
+            raise MeshInputError(f"--cache-dir '{args.cache_dir}' is a file; pass a folder (it is created if missing)")
     if args.pairs:
+        if args.gt_dir:
+            raise MeshInputError("--gt-dir goes with --pred-dir, not with --pairs; drop one of them")
         pairs = pairs_from_file(args.pairs)
     else:
         if not args.gt_dir:
@@ -185,12 +314,11 @@ def _run_batch(args: argparse.Namespace) -> int:
         pairs = pairs_from_folders(args.pred_dir, args.gt_dir)
     if not pairs:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
-    metrics = [m.strip() for m in args.metrics.split(",") if m.strip()]
     result = run_batch(
         pairs,
         metrics,
         jobs=args.jobs,
-        cache_dir=args.cache_dir,
+        cache_dir=cache_dir,
         use_cache=not args.no_cache,
         progress=not args.no_progress,
         protocol=args.protocol,
@@ -201,7 +329,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         normalize=args.normalize,
         **_mesh_kwargs(args),
     )
-    write_results(result, args.out, args.csv)
+    write_results(result, out, csv_out)
     s = result.summary
     if args.json:
         print(json.dumps({"summary": s, "pairs": result.rows}, indent=2))
@@ -216,9 +344,19 @@ def _run_batch(args: argparse.Namespace) -> int:
     return 1 if s["failed"] else 0
 
 
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run the CLI; returns the exit code (0 ok, 1 a batch had failed pairs, 2 bad input, 3 internal error).
+
+    Every error is one line on stderr. Set ``CERBERUS_METRICS_DEBUG=1`` to get the traceback of
+    an internal error instead.
+    """
+    cwd = os.getcwd()
     try:
+        args = build_parser().parse_args(argv)
         if args.command == "protocols":
             for p in PROTOCOLS.values():
                 print(f"{p.name}: {p.summary}")
@@ -228,9 +366,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "batch":
             return _run_batch(args)
         return _run_pair(args)
-    except MeshInputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except UsageError as exc:
+        print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except MeshInputError as exc:
+        print(f"error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = f" '{exc.filename}'" if exc.filename else ""
+        print(f"error: cannot access{where} ({_one_line(exc.strerror or exc)}); check the path and its permissions",
+              file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 - one line instead of a traceback; see CERBERUS_METRICS_DEBUG
+        if os.environ.get("CERBERUS_METRICS_DEBUG"):
+            raise
+        print(f"error: internal error {type(exc).__name__}: {_one_line(exc)}; please report it (rerun with "
+              "CERBERUS_METRICS_DEBUG=1 for the traceback)", file=sys.stderr)
+        return 3
+    finally:
+        if os.getcwd() != cwd:
+            os.chdir(cwd)
 
 
 if __name__ == "__main__":

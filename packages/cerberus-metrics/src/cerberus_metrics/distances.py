@@ -70,6 +70,34 @@ def nearest_distances(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return np.linalg.norm(a - b, axis=1)
 
 
+#: Largest ratio between the diagonal of the box holding both point sets and the smaller set's
+#: own diagonal that Chamfer/F-score accept (see :func:`_check_scales`).
+MAX_SCALE_RATIO = 1e3
+
+
+def _diag(p: np.ndarray) -> float:
+    return float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
+
+
+def _check_scales(a: np.ndarray, b: np.ndarray, pred_name: str, gt_name: str) -> None:
+    """Reject point sets (N, 3), (M, 3) whose sizes or positions differ by more than MAX_SCALE_RATIO.
+
+    Then the distances measure only the scale or placement mismatch (different units, an
+    unnormalised prediction), and pymeshlab's grid search, sized on the target set, slows down
+    without bound (minutes at a ratio of 1e5, no answer at 1e6).
+    """
+    da, db = _diag(a), _diag(b)
+    both = _diag(np.stack([a.min(axis=0), a.max(axis=0), b.min(axis=0), b.max(axis=0)]))
+    small = min(da, db)
+    if not np.isfinite(both) or not both <= MAX_SCALE_RATIO * small:
+        ratio = "inf" if small == 0 or not np.isfinite(both) else f"{both / small:.3g}"
+        raise MeshInputError(
+            f"{pred_name} (size {da:.3g}) and {gt_name} (size {db:.3g}) are {ratio} times apart in scale or "
+            f"position (together they span {both:.3g}; limit {MAX_SCALE_RATIO:g}x), so Chamfer/F-score would "
+            "measure only that mismatch: check that both meshes use the same units and placement"
+        )
+
+
 @dataclass(frozen=True)
 class PointDistances:
     """Nearest-neighbour distances between two sampled surfaces (mesh units).
@@ -110,4 +138,5 @@ def point_distances(pred: list[Mesh], gt: list[Mesh], n_samples: int, seed: int,
             raise MeshInputError("normalize=True: the ground truth has a zero-size bounding box")
         centre = (lo + hi) / 2
         a, b = (a - centre) / size, (b - centre) / size
+    _check_scales(a, b, pred[0].name, gt[0].name)
     return PointDistances(nearest_distances(a, b), nearest_distances(b, a))

@@ -29,6 +29,8 @@ from typing import Any, Union
 import numpy as np
 import pymeshlab
 
+from .filecheck import FileDefect, scan_mesh_file
+
 __all__ = [
     "MeshInputError",
     "MeshQualityWarning",
@@ -265,6 +267,8 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
     """Clean ms.current_mesh() in place and return it as a Mesh with its report."""
     m = ms.current_mesh()
     nv0, nf0 = m.vertex_number(), m.face_number()
+    box0 = m.bounding_box()  # before cleaning, for the message about a degenerate mesh
+    size0, point0 = box0.diagonal(), box0.min().tolist()
     ms.meshing_remove_duplicate_vertices()
     nv1 = ms.current_mesh().vertex_number()
     ms.meshing_remove_duplicate_faces()
@@ -274,6 +278,12 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
     ms.meshing_remove_unreferenced_vertices()
     nv2 = ms.current_mesh().vertex_number()
     if nf2 == 0 or nv2 == 0:
+        if nv0 and size0 == 0:
+            raise MeshInputError(
+                f"{name}: degenerate mesh: all {nv0} vertices are the same point {point0}, so it has no "
+                "size, area or volume (no metric and no normalisation is defined); check the file or the export "
+                "that produced it"
+            )
         raise MeshInputError(
             f"{name}: empty mesh after cleaning ({nf0} faces before, all of them zero-area or duplicated); "
             "a metric needs a triangle surface with area: check the file or the export that produced it"
@@ -326,13 +336,37 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
     return Mesh(v, f, name, report)
 
 
+def _read_with_pymeshlab(ms: pymeshlab.MeshSet, path: Path) -> None:
+    """``ms.load_new_mesh(path)`` without side effects on the process.
+
+    pymeshlab changes the working directory to the file's folder while it reads (for
+    textures and materials) and leaves it there when the read fails, which broke every
+    later relative path of a batch. The path is made absolute first and the working
+    directory is always restored.
+    """
+    cwd = os.getcwd()
+    try:
+        ms.load_new_mesh(str(path.absolute()))
+    finally:
+        if os.getcwd() != cwd:
+            os.chdir(cwd)
+
+
 def _load_file(path: Path, name: str, check_self_intersections: bool | str, open_mesh: str) -> list[Mesh]:
     if not path.is_file():
         what = "is a directory" if path.is_dir() else "does not exist"
         raise MeshInputError(f"{name}: mesh file '{path}' {what}; pass the path of a mesh file")
+    if path.stat().st_size == 0:
+        raise MeshInputError(f"{name}: mesh file '{path}' is empty (0 bytes); check the export that produced it")
+    try:
+        scan_mesh_file(path)
+    except FileDefect as exc:
+        raise MeshInputError(f"{name}: {exc}; {exc.fix}") from None
+    except OSError as exc:
+        raise MeshInputError(f"{name}: cannot read mesh file '{path}' ({exc.strerror}); check its permissions") from exc
     ms = pymeshlab.MeshSet()
     try:
-        ms.load_new_mesh(str(path))
+        _read_with_pymeshlab(ms, path)
     except pymeshlab.PyMeshLabException as exc:
         detail = " ".join(str(exc).split())
         raise MeshInputError(
@@ -347,8 +381,13 @@ def _load_file(path: Path, name: str, check_self_intersections: bool | str, open
         label = name if len(ids) == 1 else f"{name} layer {k}"
         m = ms.current_mesh()
         if m.face_number() == 0:
+            hint = (
+                "; if the file lists vertices, their coordinates may be NaN or non-finite (pymeshlab drops those)"
+                if m.vertex_number() == 0
+                else ""
+            )
             raise MeshInputError(
-                f"{label}: empty mesh in '{path}' ({m.vertex_number()} vertices, 0 faces); "
+                f"{label}: empty mesh in '{path}' ({m.vertex_number()} vertices, 0 faces){hint}; "
                 "a metric needs a triangle surface (point clouds are not supported)"
             )
         validate_arrays(m.vertex_matrix(), m.face_matrix(), label)  # NaN/inf coordinates in the file

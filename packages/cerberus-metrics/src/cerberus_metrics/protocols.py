@@ -38,6 +38,11 @@ from .io import MeshInputError
 
 __all__ = ["Protocol", "Frame", "PROTOCOLS", "get_protocol", "make_frame", "lattice_box"]
 
+#: Largest lattice (voxels) a ``gt_bbox`` frame may grow to for a prediction larger than the
+#: ground truth (2^28 voxels = 256 MiB per bool grid). A prediction that needs more differs from
+#: the ground truth in scale or placement by an order of magnitude or more (at R = 32: >= 20x).
+MAX_GRID_VOXELS = 2**28
+
 Rule = Literal["surface", "center"]
 FrameKind = Literal["unit", "gt_bbox"]
 
@@ -143,6 +148,12 @@ def make_frame(protocol: Protocol, resolution: int, gt_vertices: np.ndarray | No
         )
     scale = (r - 1) / extent
     centre = (lo + hi) / 2.0
+    if not np.isfinite(scale) or extent < 1e-12 * float(np.abs(centre).max()):
+        raise MeshInputError(
+            f"protocol {protocol.name!r}: the ground truth's size ({extent:.3g}) is too small to normalise "
+            f"{'(the scale overflows)' if not np.isfinite(scale) else f'relative to its position {centre.tolist()}'}"
+            ": its coordinates cannot resolve a voxel; check the ground-truth mesh's units"
+        )
     shift = r / 2.0 - centre * scale
     return Frame(scale, tuple(float(s) for s in shift), r, False)
 
@@ -169,6 +180,21 @@ def lattice_box(frame: Frame, bounds: np.ndarray, names: Sequence[str]) -> tuple
             f"min {np.round(vmin, 4).tolist()} max {np.round(vmax, 4).tolist()}; normalise the mesh "
             "to [-0.5, 0.5]^3, or use protocol='gt_bbox' for meshes in other coordinates"
         )
-    lo = np.minimum(np.floor(bounds[:, 0].min(axis=0)).astype(np.int64) - 1, 0)
-    hi = np.maximum(np.floor(bounds[:, 1].max(axis=0)).astype(np.int64) + 2, r)
-    return lo, hi
+    if not np.isfinite(bounds).all():
+        raise MeshInputError(
+            f"{names[int(np.flatnonzero(outside)[0])]}: lattice coordinates overflow in the ground-truth frame; "
+            "the mesh's scale is absurd compared with the ground truth's: check the units of both meshes"
+        )
+    lo = np.minimum(np.floor(bounds[:, 0].min(axis=0)) - 1, 0)
+    hi = np.maximum(np.floor(bounds[:, 1].max(axis=0)) + 2, r)
+    voxels = float(np.prod(hi - lo))
+    if voxels > MAX_GRID_VOXELS:
+        k = int(np.argmax(np.maximum(-bounds[:, 0].min(axis=1), bounds[:, 1].max(axis=1))))
+        reach = float(np.abs(bounds[k] - r / 2).max()) / (r - 1)
+        raise MeshInputError(
+            f"{names[k]}: mesh reaches {reach:.3g} ground-truth sizes from the ground truth's centre, so the "
+            f"lattice holding both would need {voxels:.3g} voxels (limit {MAX_GRID_VOXELS:.3g}); at such a scale "
+            "mismatch the IoU is about 0 and says nothing: check that prediction and ground truth use the same "
+            "units and placement (or lower the resolution)"
+        )
+    return lo.astype(np.int64), hi.astype(np.int64)

@@ -424,8 +424,17 @@ def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fil
     # Each part gets its own box: its bounding voxels plus one empty voxel of margin, within [lo, hi).
     s_lo = np.maximum(np.floor(bounds[:, 0]).astype(np.int64) - 1, lo)
     s_hi = np.minimum(np.floor(bounds[:, 1]).astype(np.int64) + 2, hi)
-    for mesh in parts:
+    for mesh, b in zip(parts, bounds, strict=True):
         _warn_quality(mesh, protocol.rule)
+        span = float((b[1] - b[0]).max())
+        if span < 1.0:
+            warnings.warn(
+                f"{mesh.name}: mesh spans only {span:.3g} voxels (grid {frame.resolution}^3, protocol "
+                f"{protocol.name!r}), so its voxels are set by rounding alone and the IoU says little about its "
+                "shape: check that its scale matches the ground truth's (units), or raise the resolution",
+                MeshQualityWarning,
+                stacklevel=3,
+            )
     if protocol.rule == "surface":
         subs = kato_surface_parts(tris, s_lo, s_hi - s_lo)
         if fill:
