@@ -10,5 +10,6 @@ from cerberus_render_warp.rasterize import rasterize
 from cerberus_render_warp.renderer import WarpRenderer
 from cerberus_render_warp.shade import WarpShade, shade
 
-__all__ = ["WarpAntialias", "WarpRenderer", "WarpShade", "WarpVertexNormals", "antialias", "rasterize", "shade", "vertex_normals"]
+__all__ = ["WarpAntialias", "WarpRenderer", "WarpShade", "WarpVertexNormals", "antialias", "rasterize", "shade",
+           "vertex_normals"]
 __version__ = "0.1.0"

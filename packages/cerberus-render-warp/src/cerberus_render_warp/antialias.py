@@ -1,9 +1,9 @@
 """Fused analytic silhouette anti-aliasing as Warp kernels, wrapped in a :class:`torch.autograd.Function`.
 
 Computes what :func:`cerberus_core.render.antialias.antialias` computes (that module's docstring is
-the contract): per pair of adjacent pixels with different face ids, the front face, the edge the
-segment between the pixel centres leaves it through, the silhouette test against the face across
-that edge, and the blend by the crossing position. The backward kernel recomputes each pair and
+the contract): per pair of adjacent pixels with different face ids, the front face, the walk along
+the segment between the pixel centres across non-silhouette edges up to the first silhouette edge,
+and the blend by the crossing position. The backward kernel recomputes each pair and
 applies the hand-written adjoint of ``t = e_i / (e_i - e_o)`` with ``e = p . (v_a x v_b)``,
 accumulating into the colour and clip-space gradients with atomics.
 
@@ -17,6 +17,7 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
+from cerberus_core.render.antialias import MAX_WALK as _MAX_WALK
 from cerberus_core.render.antialias import check_antialias_inputs, edge_neighbors
 from cerberus_render_warp._runtime import (
     as_warp,
@@ -34,6 +35,7 @@ from cerberus_render_warp.shade import _barycentrics, _overloads, _pixel_centres
 wp.set_module_options({"fuse_fp": False, "enable_backward": False})
 
 Tensor = torch.Tensor
+MAX_WALK = wp.constant(_MAX_WALK)
 
 
 @wp.func
@@ -76,7 +78,7 @@ def _pair(clip: wp.array2d(dtype=Any), faces: wp.array(dtype=wp.vec3i), nbrs: wp
     py0 = py_of_row[r0]
     px1 = px_of_col[c1]
     py1 = py_of_row[r1]
-    first = int(1)
+    first = wp.int32(1)
     if f0 < 0:
         first = 0
     elif f1 >= 0:
@@ -97,48 +99,68 @@ def _pair(clip: wp.array2d(dtype=Any), faces: wp.array(dtype=wp.vec3i), nbrs: wp
     piy = py_of_row[r_in]
     pox = px_of_col[c_out]
     poy = py_of_row[r_out]
-    tri = faces[tri_id]
-    v0 = _xyw(clip[b, tri[0]])
-    v1 = _xyw(clip[b, tri[1]])
-    v2 = _xyw(clip[b, tri[2]])
-    det = _det(clip, b, tri, fused)
-    sign = zero
-    if det > zero:
-        sign = px_of_col.dtype(1.0)
-    elif det < zero:
-        sign = px_of_col.dtype(-1.0)
-    best = int(-1)
+    one = px_of_col.dtype(1.0)
+    keep = wp.int32(0)
+    ia = wp.int32(0)
+    ib = wp.int32(0)
     t_best = zero
-    for k in range(3):
-        va = v1
-        vb = v2
-        if k == 1:
-            va = v2
-            vb = v0
-        elif k == 2:
-            va = v0
-            vb = v1
-        line = cross(va, vb, fused)
-        e_in = _dot_p(pix, piy, line)
-        e_out = _dot_p(pox, poy, line)
-        if sign * e_out < zero and sign * e_in >= zero:
-            t = e_in / (e_in - e_out)
-            if best < 0 or t < t_best:
-                best = k
-                t_best = t
-    keep = int(0)
-    ia = int(0)
-    ib = int(0)
-    if best >= 0 and det != zero:
-        nb = nbrs[tri_id][best]
-        silhouette = int(1)
+    face = wp.int32(tri_id)
+    step = wp.int32(0)
+    while step < MAX_WALK:
+        step += 1
+        tri = faces[face]
+        v0 = _xyw(clip[b, tri[0]])
+        v1 = _xyw(clip[b, tri[1]])
+        v2 = _xyw(clip[b, tri[2]])
+        det = _det(clip, b, tri, fused)
+        sign = zero
+        if det > zero:
+            sign = one
+        elif det < zero:
+            sign = -one
+        best = wp.int32(-1)
+        t_best = zero
+        best_line = v0
+        for k in range(3):
+            va = v1
+            vb = v2
+            if k == 1:
+                va = v2
+                vb = v0
+            elif k == 2:
+                va = v0
+                vb = v1
+            line = cross(va, vb, fused)
+            e_in = _dot_p(pix, piy, line)
+            e_out = _dot_p(pox, poy, line)
+            if sign * (e_out - e_in) < zero:
+                t = e_in / (e_in - e_out)
+                if best < 0 or t < t_best:
+                    best = k
+                    t_best = t
+                    best_line = line
+        if best < 0 or not (t_best < one) or det == zero:
+            break  # the segment ends inside this face: no silhouette between the pixels
+        nb = nbrs[face][best]
+        ia = tri[(best + 1) % 3]
+        ib = tri[(best + 2) % 3]
+        silhouette = wp.int32(1)
         if nb >= 0:
-            if _det(clip, b, faces[nb], fused) * det > zero:
+            tn = faces[nb]
+            o = _xyw(clip[b, tn[0] + tn[1] + tn[2] - ia - ib])
+            if (o[0] * best_line[0] + o[1] * best_line[1] + o[2] * best_line[2]) * det < zero:
                 silhouette = 0
         if silhouette != 0:
-            keep = 1
-            ia = tri[(best + 1) % 3]
-            ib = tri[(best + 2) % 3]
+            # each edge is counted across the pixel pairs it runs most nearly perpendicular to
+            across_x = wp.abs(best_line[0]) / px_of_col.dtype(float(face_id.shape[2]))
+            across_y = wp.abs(best_line[1]) / px_of_col.dtype(float(face_id.shape[1]))
+            if r0 == r1:
+                if across_x >= across_y:
+                    keep = 1
+            elif across_y > across_x:
+                keep = 1
+            break
+        face = nb
     return keep, r_in, c_in, r_out, c_out, ia, ib, t_best
 
 

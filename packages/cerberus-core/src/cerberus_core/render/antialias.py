@@ -14,12 +14,20 @@ For every pair of horizontally or vertically adjacent pixels ``(p, q)`` whose fa
    ``p``, the left / upper pixel). Its face is ``T``, the other pixel is ``o``.
 2. The segment from ``i``'s centre to ``o``'s centre leaves ``T`` through the edge ``(a, b)`` whose
    homogeneous edge function ``e(x) = x . (v_a x v_b)`` (``v = (x, y, w)`` in clip space) changes sign
-   first along it; the crossing is at ``t = e(i) / (e(i) - e(o))`` in ``[0, 1)`` (exact for the
-   projected edge, as ``e`` is affine in the pixel position).
-3. Only *silhouette* edges count: the face across ``(a, b)`` (:func:`edge_neighbors`) is missing or
-   faces the other way in screen space (``D`` of opposite sign, or 0). Interior edges of a surface
-   and pairs whose segment does not leave ``T`` are left alone.
-4. If ``t > 1/2`` the edge is inside ``o``'s pixel, which gets ``o += (t - 1/2) (i - o)``; otherwise
+   first along it; the crossing is at ``t = e(i) / (e(i) - e(o))`` (exact for the projected edge, as
+   ``e`` is affine in the pixel position).
+3. If that edge is a *silhouette* edge, i.e. no face lies across it (:func:`edge_neighbors`) or the
+   face across folds back over ``T`` in screen space (its third vertex lies on ``T``'s side of the
+   edge, or on it; independent of the winding), the pair blends across it. Otherwise the segment is
+   followed into the face across and step 2 repeats there (at most :data:`MAX_WALK` faces), until it
+   crosses a silhouette edge or ends inside a face (then the pair is left alone: e.g. an interior
+   edge of one surface). Unlike nvdiffrast, which tests only ``T``'s own edges, this finds the
+   silhouette behind the thin, foreshortened faces that line the outline of a coarse closed mesh,
+   whose pixel centres are mostly covered by faces one or two rows further in.
+4. A crossing is used only by the pairs its edge runs most nearly perpendicular to, in pixels
+   (horizontal pairs for ``|l_x| / W >= |l_y| / H`` with ``l = v_a x v_b``, vertical pairs otherwise),
+   so a diagonal edge is not blended twice.
+5. If ``t > 1/2`` the edge is inside ``o``'s pixel, which gets ``o += (t - 1/2) (i - o)``; otherwise
    it is inside ``i``'s pixel, which gets ``i += (1/2 - t) (o - i)``. The deltas of all pairs are
    computed from the input colours and summed, so the result does not depend on the order.
 
@@ -95,6 +103,59 @@ def _det(v: Tensor) -> Tensor:
     return (v[:, 0] * torch.linalg.cross(v[:, 1], v[:, 2], dim=-1)).sum(-1)
 
 
+MAX_WALK = 8
+"""Most faces a pair's segment is followed through before it is given up (see :func:`antialias`)."""
+
+
+def _walk_to_silhouette(clip: Tensor, faces: Tensor, nbrs: Tensor, b: Tensor, face: Tensor, p_in: Tensor,
+                        p_out: Tensor) -> tuple[Tensor, Tensor]:
+    """Follow the segments ``p_in -> p_out`` from ``face`` across non-silhouette edges.
+
+    Args:
+        clip: ``(B, V, 4)``; faces, nbrs: ``(F, 3)``; b, face: ``(N,)``; p_in, p_out: ``(N, 3)``.
+    Returns:
+        ``(face, k)`` each ``(N,)`` int64: the face and local edge index of the silhouette edge each
+        segment crosses first, or ``-1`` where it crosses none (it ends inside the surface, or the
+        walk takes more than :data:`MAX_WALK` faces).
+    """
+    count = b.shape[0]
+    out_face = torch.full((count,), -1, dtype=torch.int64, device=b.device)
+    out_k = torch.full_like(out_face, -1)
+    live = torch.arange(count, device=b.device)
+    for _ in range(MAX_WALK):
+        if live.numel() == 0:
+            break
+        bl, fl = b[live], face[live]
+        tri = faces[fl]
+        v = clip[bl.unsqueeze(-1), tri][..., (0, 1, 3)]  # (M, 3, 3)
+        det = _det(v)
+        lines = torch.stack([torch.linalg.cross(v[:, 1], v[:, 2], dim=-1),
+                             torch.linalg.cross(v[:, 2], v[:, 0], dim=-1),
+                             torch.linalg.cross(v[:, 0], v[:, 1], dim=-1)], dim=1)  # (M, 3 edges, 3)
+        e_in = (lines * p_in[live].unsqueeze(1)).sum(-1)
+        e_out = (lines * p_out[live].unsqueeze(1)).sum(-1)
+        leaving = torch.sign(det).unsqueeze(-1) * (e_out - e_in) < 0  # the edge function falls along the segment
+        t_all = torch.where(leaving, e_in / torch.where(leaving, e_in - e_out, 1.0), float("inf"))
+        t_exit, k = t_all.min(-1)
+        exits = (t_exit < 1) & (det != 0)  # else the segment ends inside this face
+        nb = nbrs[fl, k]
+        # silhouette: no face across, or the face across folds back over this one (its third vertex
+        # lies on this face's side of the edge, or on the edge), whatever the winding
+        line = lines[torch.arange(k.shape[0], device=k.device), k]
+        opposite = faces[nb.clamp_min(0)].sum(-1) - tri.gather(1, ((k + 1) % 3).unsqueeze(-1)).squeeze(-1) \
+            - tri.gather(1, ((k + 2) % 3).unsqueeze(-1)).squeeze(-1)
+        o_side = (clip[bl, opposite][:, (0, 1, 3)] * line).sum(-1)
+        silhouette = (nb < 0) | (o_side * det >= 0)
+        hit = exits & silhouette
+        out_face[live[hit]] = fl[hit]
+        out_k[live[hit]] = k[hit]
+        go = exits & ~silhouette
+        face = face.clone()
+        face[live[go]] = nb[go]
+        live = live[go]
+    return out_face, out_k
+
+
 def check_antialias_inputs(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor, who: str) -> None:
     """Shape checks shared by the reference and the backends' kernels."""
     if color.ndim != 4:
@@ -110,21 +171,23 @@ def check_antialias_inputs(color: Tensor, clip: Tensor, faces: Tensor, face_id: 
         raise ValueError(f"{who}: color, clip, faces and face_id must be on one device")
 
 
-def differing_pairs(face_id: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+def differing_pairs(face_id: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
     """Adjacent pixel pairs with different face ids.
 
     Args:
         face_id: ``(B, H, W)`` int64.
     Returns:
-        ``(b, n0, n1)`` each ``(N,)`` int64: scene and flat pixel indices ``(b H + row) W + col`` of the
-        left/upper and the right/lower pixel of each pair (horizontal pairs first).
+        ``(b, n0, n1, horizontal)`` each ``(N,)``: scene and flat pixel indices ``(b H + row) W + col``
+        (int64) of the left/upper and the right/lower pixel of each pair, and whether the pair is a
+        horizontal one (bool; horizontal pairs come first).
     """
     bsz, height, width = face_id.shape
     bh, rh, ch = torch.nonzero(face_id[:, :, :-1] != face_id[:, :, 1:], as_tuple=True)
     bv, rv, cv = torch.nonzero(face_id[:, :-1, :] != face_id[:, 1:, :], as_tuple=True)
     nh = (bh * height + rh) * width + ch
     nv = (bv * height + rv) * width + cv
-    return torch.cat([bh, bv]), torch.cat([nh, nv]), torch.cat([nh + 1, nv + width])
+    horizontal = torch.arange(nh.shape[0] + nv.shape[0], device=face_id.device) < nh.shape[0]
+    return torch.cat([bh, bv]), torch.cat([nh, nv]), torch.cat([nh + 1, nv + width]), horizontal
 
 
 def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
@@ -145,7 +208,7 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
     bsz, height, width, nch = color.shape
     faces = faces.to(torch.int64)
     fid = face_id.reshape(-1)
-    b, n0, n1 = differing_pairs(face_id)
+    b, n0, n1, horizontal = differing_pairs(face_id)
     if b.numel() == 0:
         return color + 0.0 * color  # a new tensor either way (as when pairs exist)
 
@@ -162,25 +225,17 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
         first = d0 <= d1
         n_in, n_out = torch.where(first, n0, n1), torch.where(first, n1, n0)
         p_in, p_out = torch.where(first.unsqueeze(-1), p0, p1), torch.where(first.unsqueeze(-1), p1, p0)
-        tri = torch.where(first, f0, f1)
-        v = clip[b.unsqueeze(-1), faces[tri]][..., (0, 1, 3)]  # (N, 3, 3)
-        det = _det(v)
-        sign = torch.sign(det).unsqueeze(-1)
-        lines = torch.stack([torch.linalg.cross(v[:, 1], v[:, 2], dim=-1),
-                             torch.linalg.cross(v[:, 2], v[:, 0], dim=-1),
-                             torch.linalg.cross(v[:, 0], v[:, 1], dim=-1)], dim=1)  # (N, 3 edges, 3)
-        e_in = (lines * p_in.unsqueeze(1)).sum(-1)
-        e_out = (lines * p_out.unsqueeze(1)).sum(-1)
-        leaves = (sign * e_out < 0) & (sign * e_in >= 0)
-        t_all = torch.where(leaves, e_in / torch.where(leaves, e_in - e_out, 1.0), float("inf"))
-        t_min, k = t_all.min(-1)
-        nb = edge_neighbors(faces)[tri, k]
-        det_nb = _det(clip[b.unsqueeze(-1), faces[nb.clamp_min(0)]][..., (0, 1, 3)])
-        silhouette = (nb < 0) | (det_nb * det <= 0)
-        keep = torch.nonzero(torch.isfinite(t_min) & silhouette & (det != 0)).squeeze(-1)
-        b, tri, k, n_in, n_out, p_in, p_out = (t[keep] for t in (b, tri, k, n_in, n_out, p_in, p_out))
-        ia = faces[tri, (k + 1) % 3]
-        ib = faces[tri, (k + 2) % 3]
+        face, k = _walk_to_silhouette(clip, faces, edge_neighbors(faces), b, torch.where(first, f0, f1), p_in, p_out)
+        found = torch.nonzero(face >= 0).squeeze(-1)
+        b, face, k, n_in, n_out, p_in, p_out, horizontal = (
+            x[found] for x in (b, face, k, n_in, n_out, p_in, p_out, horizontal))
+        ia = faces[face, (k + 1) % 3]
+        ib = faces[face, (k + 2) % 3]
+        line = torch.linalg.cross(clip[b, ia][:, (0, 1, 3)], clip[b, ib][:, (0, 1, 3)], dim=-1)
+        # each edge is counted across the pixel pairs it runs most nearly perpendicular to (in pixels)
+        across_x, across_y = line[:, 0].abs() / width, line[:, 1].abs() / height
+        keep = torch.nonzero(torch.where(horizontal, across_x >= across_y, across_y > across_x)).squeeze(-1)
+        b, ia, ib, n_in, n_out, p_in, p_out = (x[keep] for x in (b, ia, ib, n_in, n_out, p_in, p_out))
     va = clip[b, ia][:, (0, 1, 3)]
     vb = clip[b, ib][:, (0, 1, 3)]
     line = torch.linalg.cross(va, vb, dim=-1)
