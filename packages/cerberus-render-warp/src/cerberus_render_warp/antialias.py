@@ -78,6 +78,22 @@ def _pair(clip: wp.array2d(dtype=Any), faces: wp.array(dtype=wp.vec3i), nbrs: wp
     py0 = py_of_row[r0]
     px1 = px_of_col[c1]
     py1 = py_of_row[r1]
+    if f0 >= 0 and f1 >= 0:
+        # fast path (as the reference): the faces share an edge that is not a silhouette
+        nb0 = nbrs[f0]
+        ka = wp.int32(-1)
+        for k in range(3):
+            if nb0[2 - k] == f1:
+                ka = 2 - k
+        if ka >= 0:
+            tri0 = faces[f0]
+            ja = tri0[(ka + 1) % 3]
+            jb = tri0[(ka + 2) % 3]
+            line_a = cross(_xyw(clip[b, ja]), _xyw(clip[b, jb]), fused)
+            t1 = faces[f1]
+            o1 = _xyw(clip[b, t1[0] + t1[1] + t1[2] - ja - jb])
+            if (o1[0] * line_a[0] + o1[1] * line_a[1] + o1[2] * line_a[2]) * _det(clip, b, tri0, fused) < zero:
+                return wp.int32(0), r0, c0, r1, c1, wp.int32(0), wp.int32(0), zero
     first = wp.int32(1)
     if f0 < 0:
         first = 0

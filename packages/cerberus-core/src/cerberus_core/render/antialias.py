@@ -27,6 +27,9 @@ For every pair of horizontally or vertically adjacent pixels ``(p, q)`` whose fa
 4. A crossing is used only by the pairs its edge runs most nearly perpendicular to, in pixels
    (horizontal pairs for ``|l_x| / W >= |l_y| / H`` with ``l = v_a x v_b``, vertical pairs otherwise),
    so a diagonal edge is not blended twice.
+
+(A pair whose two faces share a non-silhouette edge is skipped up front: the walk would end in the
+other face. This is most pairs inside a part, and only a shortcut.)
 5. If ``t > 1/2`` the edge is inside ``o``'s pixel, which gets ``o += (t - 1/2) (i - o)``; otherwise
    it is inside ``i``'s pixel, which gets ``i += (1/2 - t) (o - i)``. The deltas of all pairs are
    computed from the input colours and summed, so the result does not depend on the order.
@@ -216,8 +219,25 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
         rc = n % (height * width)
         return pixel_ndc(height, width, rc // width, rc % width).to(clip.dtype)
 
+    nbrs = edge_neighbors(faces)
     with torch.no_grad():
         f0, f1 = fid[n0], fid[n1]
+        # fast path: the two faces share an edge that is not a silhouette (an interior edge of one
+        # surface, most pairs inside parts); the walk would end in the other face anyway
+        shared = (nbrs[f0.clamp_min(0)] == f1.unsqueeze(-1)) & ((f0 >= 0) & (f1 >= 0)).unsqueeze(-1)
+        adjacent = torch.nonzero(shared.any(-1)).squeeze(-1)
+        ka = shared[adjacent].to(torch.int8).argmax(-1)
+        tri_a = faces[f0[adjacent]]
+        ia = tri_a.gather(1, ((ka + 1) % 3).unsqueeze(-1)).squeeze(-1)
+        ib = tri_a.gather(1, ((ka + 2) % 3).unsqueeze(-1)).squeeze(-1)
+        ba = b[adjacent]
+        line = torch.linalg.cross(clip[ba, ia][:, (0, 1, 3)], clip[ba, ib][:, (0, 1, 3)], dim=-1)
+        opposite = faces[f1[adjacent]].sum(-1) - ia - ib
+        folds = (clip[ba, opposite][:, (0, 1, 3)] * line).sum(-1) * _det(clip[ba.unsqueeze(-1), tri_a][..., (0, 1, 3)])
+        interior = torch.zeros_like(f0, dtype=torch.bool)
+        interior[adjacent] = folds < 0
+        rest = torch.nonzero(~interior).squeeze(-1)
+        b, n0, n1, horizontal, f0, f1 = (x[rest] for x in (b, n0, n1, horizontal, f0, f1))
         p0, p1 = ndc(n0), ndc(n1)
         inf = torch.full_like(p0[:, 0], float("inf"))
         d0 = torch.where(f0 >= 0, homogeneous_barycentrics(p0, clip[b.unsqueeze(-1), faces[f0.clamp_min(0)]])[1], inf)
@@ -225,7 +245,7 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
         first = d0 <= d1
         n_in, n_out = torch.where(first, n0, n1), torch.where(first, n1, n0)
         p_in, p_out = torch.where(first.unsqueeze(-1), p0, p1), torch.where(first.unsqueeze(-1), p1, p0)
-        face, k = _walk_to_silhouette(clip, faces, edge_neighbors(faces), b, torch.where(first, f0, f1), p_in, p_out)
+        face, k = _walk_to_silhouette(clip, faces, nbrs, b, torch.where(first, f0, f1), p_in, p_out)
         found = torch.nonzero(face >= 0).squeeze(-1)
         b, face, k, n_in, n_out, p_in, p_out, horizontal = (
             x[found] for x in (b, face, k, n_in, n_out, p_in, p_out, horizontal))
