@@ -4,10 +4,12 @@ Rasterization and the differentiable shading (forward and backward) run as Warp 
 tensors' device (CPU, or the matching CUDA device), zero-copy with torch. Importing this package
 needs ``warp-lang``; the error names the package to install if it is missing.
 """
+from cerberus_render_warp.antialias import WarpAntialias, antialias
 from cerberus_render_warp.normals import WarpVertexNormals, vertex_normals
 from cerberus_render_warp.rasterize import rasterize
 from cerberus_render_warp.renderer import WarpRenderer
 from cerberus_render_warp.shade import WarpShade, shade
 
-__all__ = ["WarpRenderer", "WarpShade", "WarpVertexNormals", "rasterize", "shade", "vertex_normals"]
+__all__ = ["WarpAntialias", "WarpRenderer", "WarpShade", "WarpVertexNormals", "antialias", "rasterize", "shade",
+           "vertex_normals"]
 __version__ = "0.1.0"

@@ -4,6 +4,7 @@ from __future__ import annotations
 import torch
 
 from cerberus_core.render.interface import Light, Renderer
+from cerberus_render_warp.antialias import antialias
 from cerberus_render_warp.normals import vertex_normals
 from cerberus_render_warp.rasterize import rasterize
 from cerberus_render_warp.shade import shade
@@ -44,3 +45,11 @@ class WarpRenderer(Renderer):
         backward); the same maths as :func:`cerberus_core.render.templates.vertex_normals`, about 10x faster
         on the CPU."""
         return vertex_normals(vertices, faces)
+
+    def antialias(self, color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
+        """Analytic silhouette anti-aliasing ``(B, H, W, C)`` as fused Warp kernels (forward and
+        backward); the contract of :func:`cerberus_core.render.antialias.antialias`. Follows
+        ``fused_shading`` (``False`` uses core's torch reference)."""
+        if not self.fused_shading:
+            return super().antialias(color, clip, faces, face_id)
+        return antialias(color, clip, faces, face_id)

@@ -61,7 +61,7 @@ def _per_vertex(value: Tensor | Sequence[float], bsz: int, nverts: int, like: Te
 
 def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, light: Light | None = None, *,
            albedo: Tensor | Sequence[float] = (0.8, 0.8, 0.8), face_part: Tensor | None = None,
-           background: Sequence[float] | Tensor = (0.0, 0.0, 0.0)) -> RenderOutput:
+           background: Sequence[float] | Tensor = (0.0, 0.0, 0.0), antialias: bool = False) -> RenderOutput:
     """Render a batch of triangle meshes.
 
     Args:
@@ -73,6 +73,9 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
         albedo: ``(3,)``, ``(B, 3)`` or ``(B, V, 3)`` RGB albedo in [0, 1].
         face_part: ``(F,)`` part index of each face (default all 0).
         background: ``(3,)`` RGB background colour.
+        antialias: blend image and alpha across silhouette edges with :meth:`Renderer.antialias`,
+            which makes both differentiable w.r.t. the silhouette vertices (visibility gradients).
+            Off (default), the alpha is a hard 0/1 mask without gradient.
     Returns:
         :class:`RenderOutput`.
     """
@@ -91,6 +94,9 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
     bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
     image = rgb + (1 - alpha) * bg
+    if antialias:
+        blended = renderer.antialias(torch.cat([image, alpha], dim=-1), clip, faces, face_id)
+        image, alpha = blended[..., :3], blended[..., 3:]
     if face_part is None:
         part_id = torch.where(face_id >= 0, torch.zeros_like(face_id), face_id)
     else:
@@ -124,7 +130,7 @@ def pack_parts(part_vertices: Tensor, faces: Tensor) -> tuple[Tensor, Tensor, Te
 
 def render_parts(renderer: Renderer, part_vertices: Tensor, faces: Tensor, camera: Camera,
                  light: Light | None = None, *, albedo: Tensor | Sequence[float] = (0.8, 0.8, 0.8),
-                 background: Sequence[float] | Tensor = (0.0, 0.0, 0.0)) -> RenderOutput:
+                 background: Sequence[float] | Tensor = (0.0, 0.0, 0.0), antialias: bool = False) -> RenderOutput:
     """Render scenes made of ``P`` parts that share one face template (the Cerberus case).
 
     Args:
@@ -145,4 +151,4 @@ def render_parts(renderer: Renderer, part_vertices: Tensor, faces: Tensor, camer
     if alb.ndim == 4:
         alb = alb.reshape(bsz, nparts * nverts, 3)
     return render(renderer, vertices, packed_faces, camera, light, albedo=alb, face_part=face_part,
-                  background=background)
+                  background=background, antialias=antialias)

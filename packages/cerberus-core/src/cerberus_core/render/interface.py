@@ -5,8 +5,8 @@ step, :meth:`Renderer.rasterize` (clip-space triangles → visible face id per p
 differentiable (vertex normals, perspective-correct barycentrics recomputed from the face ids,
 interpolation of normals and albedo, Lambertian shading, depth) is done by
 :func:`cerberus_core.render.templates.vertex_normals` and :func:`cerberus_core.render.shading.shade` in plain
-torch, shared by all backends. A backend may override :meth:`Renderer.vertex_normals` and
-:meth:`Renderer.shade` with fused kernels (forward and backward) when that is faster; the conformance suite in ``tests/conformance``
+torch, shared by all backends. A backend may override :meth:`Renderer.vertex_normals`,
+:meth:`Renderer.shade` and :meth:`Renderer.antialias` with fused kernels (forward and backward) when that is faster; the conformance suite in ``tests/conformance``
 holds both paths to the same numbers.
 
 Rasterization rule (all backends, so that face ids agree):
@@ -90,6 +90,10 @@ class RenderOutput:
     Attributes:
         image: ``(B, 3, H, W)`` shaded RGB composited over the background colour (differentiable).
         alpha: ``(B, 1, H, W)`` 1 where a face is visible, 0 on background (not differentiable).
+            With ``render(..., antialias=True)`` image and alpha are blended across silhouette edges
+            (:mod:`cerberus_core.render.antialias`): alpha takes values in ``[0, 1]`` at silhouette
+            pixels and both become differentiable w.r.t. the vertices of the silhouette edges (the
+            visibility gradients); depth, face_id and part_id are never antialiased.
         depth: ``(B, 1, H, W)`` depth ``d = -z_cam`` in world units, 0 on background (differentiable).
         face_id: ``(B, H, W)`` int64 index into the packed faces, -1 on background.
         part_id: ``(B, H, W)`` int64 part index, -1 on background.
@@ -161,6 +165,22 @@ class Renderer(ABC):
         from cerberus_core.render.shading import shade
 
         return shade(clip, faces, face_id, normals, albedo, light)
+
+    def antialias(self, color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
+        """Differentiable analytic anti-aliasing of silhouette edges (default: the shared torch
+        reference :func:`cerberus_core.render.antialias.antialias`, whose docstring is the contract).
+
+        Args:
+            color: ``(B, H, W, C)`` channels-last colours (e.g. RGB and alpha concatenated).
+            clip: ``(B, V, 4)`` clip-space vertices the image was rasterized from.
+            faces: ``(F, 3)`` int64.
+            face_id: ``(B, H, W)`` int64 from :meth:`rasterize`.
+        Returns:
+            ``(B, H, W, C)`` blended colours, differentiable w.r.t. ``color`` and ``clip``.
+        """
+        from cerberus_core.render.antialias import antialias
+
+        return antialias(color, clip, faces, face_id)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r})"
