@@ -23,6 +23,7 @@ import yaml
 
 from cerberus_core.losses import LossConfig
 from cerberus_core.model.cerberus import ModelConfig
+from cerberus_core.train.speed import SpeedConfig
 
 
 @dataclass
@@ -114,6 +115,7 @@ class TrainConfig:
             times faster than an oversubscribed default.
         renderer: renderer backend by entry-point name (``torch``, ``warp``), or ``auto`` (Warp if it
             works, else torch; the run's saved config names the one used).
+        speed: speed switches of the network (:mod:`cerberus_core.train.speed`), all off by default.
     """
 
     seed: int = 0
@@ -126,11 +128,13 @@ class TrainConfig:
     optim: OptimConfig = field(default_factory=OptimConfig)
     train: LoopConfig = field(default_factory=LoopConfig)
     debug: DebugConfig = field(default_factory=DebugConfig)
+    speed: SpeedConfig = field(default_factory=SpeedConfig)
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the bad key and what is allowed."""
         self.model.validate()
         self.losses.validate()
+        self.speed.validate()
         t, o = self.train, self.optim
         if t.steps < 1 or t.batch_size < 1:
             raise ValueError(f"train.steps and train.batch_size must be positive, got {t.steps}, {t.batch_size}")
