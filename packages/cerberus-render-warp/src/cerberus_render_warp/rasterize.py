@@ -282,16 +282,19 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
     per_thread = items_per_thread(nverts, device)
     launch_scenes(_BOUNDS[clip.dtype], bsz, -(-nverts // per_thread), lambda b0, b1: [
         vec_view(clip[b0:b1]), near_t, width, height, per_thread, as_warp(bounds[b0:b1], wp.vec4i)], device, stream)
+
+    def geometry(b0: int, b1: int) -> list[Any]:
+        return [vec_view(clip[b0:b1]), as_warp(bounds[b0:b1], wp.vec4i)]
     if serial:
         # Warp runs the threads of a CPU launch one after another: one thread per scene, one pass.
         launch_scenes(kernel, bsz, 1, lambda b0, b1: [
-            vec_view(clip[b0:b1]), as_warp(bounds[b0:b1], wp.vec4i), *shared, MODE_SERIAL, nfaces, as_warp(zbuf[b0:b1]), None, as_warp(out[b0:b1])],
+            *geometry(b0, b1), *shared, MODE_SERIAL, nfaces, as_warp(zbuf[b0:b1]), None, as_warp(out[b0:b1])],
             device)
         return out
     winner = torch.full((bsz, height, width), NO_FACE, dtype=torch.int32, device=clip.device)
     for mode in (MODE_DEPTH, MODE_FACE):
         launch_scenes(kernel, bsz, nfaces, lambda b0, b1, mode=mode: [
-            vec_view(clip[b0:b1]), as_warp(bounds[b0:b1], wp.vec4i), *shared, mode, 1, as_warp(zbuf[b0:b1]), as_warp(winner[b0:b1]), None],
+            *geometry(b0, b1), *shared, mode, 1, as_warp(zbuf[b0:b1]), as_warp(winner[b0:b1]), None],
             device, stream)
     wp.launch(_finalize_kernel, dim=(bsz, height, width), inputs=[as_warp(winner), as_warp(out)],
               device=device, stream=stream)
