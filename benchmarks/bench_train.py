@@ -12,9 +12,10 @@ temporary folder, or ``--data ROOT``), runs a few warm-up steps, then times full
     python benchmarks/bench_train.py --switches --presets cpu --renderers warp --threads 1 --steps 20
 
 ``--switches [NAME ...]`` times the training speed switches instead (``speed.autocast: bf16``,
-``speed.channels_last``, ``speed.compile``; all three without NAMEs): one model per variant (off,
-each switch alone, all together), steps interleaved round by round, medians and the speed-up over
-``off``, with each variant's first-step loss (same weights, same batch: they differ by rounding).
+``speed.channels_last``, ``speed.compile``, ``speed.smoothness_once``; all of them without NAMEs):
+one model per variant (off, each switch alone, all together), steps interleaved round by round,
+medians and the speed-up over ``off``, with each variant's first-step loss (same weights, same
+batch: they differ by rounding only).
 
 Timings on a shared machine are noisy: the load average is printed with the results.
 """
@@ -69,12 +70,14 @@ def stepper(cfg, scene, batch, renderer, speed=None):
     from cerberus_core.train.objective import quadruplet_objective
     from cerberus_core.train.speed import SpeedConfig, apply_speed
 
+    speed = speed or SpeedConfig()
     torch.manual_seed(0)
-    model = apply_speed(Cerberus(cfg.model), speed or SpeedConfig())
+    model = apply_speed(Cerberus(cfg.model), speed)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
 
     def step(i: int) -> float:
-        out = quadruplet_objective(model, renderer, batch, scene, cfg.losses, torch.Generator().manual_seed(i))
+        out = quadruplet_objective(model, renderer, batch, scene, cfg.losses, torch.Generator().manual_seed(i),
+                                   smoothness_once=speed.smoothness_once)
         opt.zero_grad(set_to_none=True)
         out.total.backward()
         opt.step()
@@ -129,7 +132,8 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
             "render_share": render_s / step_s}
 
 
-SWITCHES = {"autocast": {"autocast": "bf16"}, "channels_last": {"channels_last": True}, "compile": {"compile": True}}
+SWITCHES = {"autocast": {"autocast": "bf16"}, "channels_last": {"channels_last": True}, "compile": {"compile": True},
+            "smoothness_once": {"smoothness_once": True}}
 """``--switches`` names and the ``speed:`` settings (:mod:`cerberus_core.train.speed`) each one turns on."""
 
 

@@ -5,8 +5,10 @@ import torch
 
 from cerberus_core.model import Cerberus
 from cerberus_core.model.cerberus import ModelConfig
+from cerberus_core.templates import icosphere
 from cerberus_core.train import NonFiniteError, load_checkpoint, load_config, train
 from cerberus_core.train.checkpoint import checkpoint_dir
+from cerberus_core.train.objective import smoothness_term
 from cerberus_core.train.speed import SpeedConfig, apply_speed, release_speed
 
 FAST = ["speed.autocast=bf16", "speed.channels_last=true"]
@@ -49,7 +51,8 @@ def test_autocast_runs_the_trunk_in_bf16_and_keeps_heads_and_geometry_float32():
     torch.testing.assert_close(fast(images).local_vertices, a.local_vertices)  # float32 again
 
 
-@pytest.mark.parametrize("switches", [[], FAST], ids=["off", "autocast+channels_last"])
+@pytest.mark.parametrize("switches", [[], FAST, ["speed.smoothness_once=true"]],
+                         ids=["off", "autocast+channels_last", "smoothness_once"])
 def test_resume_is_exact_with_the_speed_switches(tiny_config, tmp_path, switches):
     straight = train(tiny_config(*switches), tmp_path / "straight")
     with pytest.raises(NonFiniteError):
@@ -68,3 +71,14 @@ def test_a_run_trained_with_switches_resumes_without_them(tiny_config, tmp_path)
     resumed = train(tiny_config(), tmp_path / "run", resume=True)
     assert resumed.step == 4 and resumed.model.cnn_autocast is None
 
+
+
+def test_smoothness_once_gives_the_same_loss_when_a_quadruplets_meshes_are_equal():
+    sphere = icosphere(1)
+    shapes = sphere.vertices * (0.5 + torch.rand(3, 1, 2, 1, 3))  # 3 quadruplets, 2 parts
+    local = shapes.expand(3, 4, 2, -1, 3).reshape(12, 2, -1, 3)
+    full = smoothness_term(local, sphere.dihedral, 3, once=False)
+    once = smoothness_term(local, sphere.dihedral, 3, once=True)
+    assert once.shape == full.shape == (12,) and torch.equal(once.mean(), full.mean())
+    config = load_config(preset="tiny", overrides=["speed.smoothness_once=true"])
+    assert config.speed.smoothness_once

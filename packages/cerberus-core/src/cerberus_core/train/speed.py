@@ -5,7 +5,8 @@ convolutional trunk (the ResNet encoder and the up-sampling decoder) in bfloat16
 the poses, the renderer and every loss stay in float32; ``channels_last`` stores the trunk's
 activations and weights NHWC (faster convolutions on CPUs with oneDNN, and what bfloat16 kernels
 prefer); ``compile`` runs the trunk through ``torch.compile`` (a one-off compilation of tens of
-seconds; needs a C++ compiler on the CPU). Checkpoints are unchanged by every switch (the same state
+seconds; needs a C++ compiler on the CPU); ``smoothness_once`` computes the smoothness loss once per
+quadruplet (applied by the objective, not the model). Checkpoints are unchanged by every switch (the same state
 dict keys and float32 weights), so a run can be resumed, evaluated or exported with any setting; a
 resumed run is exact when its switches match the interrupted run's.
 
@@ -31,19 +32,20 @@ class SpeedConfig:
         channels_last: convert the encoder and decoder to the channels-last memory format.
         compile: ``torch.compile`` the encoder and decoder (``nn.Module.compile``, in place: the
             state dict keeps its keys).
+        smoothness_once: with pose consistency, compute the smoothness loss once per quadruplet
+            instead of once per image (the four images decode one mixed shape latent, so their
+            meshes are equal): a quarter of its cost, the same loss value, gradients equal up to
+            float rounding (:func:`cerberus_core.train.objective.smoothness_term`).
     """
 
     autocast: str | None = None
     channels_last: bool = False
     compile: bool = False
+    smoothness_once: bool = False
 
     def validate(self) -> None:
         if self.autocast is not None and self.autocast not in AUTOCAST_DTYPES:
             raise ValueError(f"speed.autocast must be null or one of {sorted(AUTOCAST_DTYPES)}, got {self.autocast!r}")
-
-    @property
-    def any(self) -> bool:
-        return self.autocast is not None or self.channels_last or self.compile
 
 
 def apply_speed(model: Cerberus, speed: SpeedConfig) -> Cerberus:

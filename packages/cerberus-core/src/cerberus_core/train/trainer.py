@@ -70,6 +70,7 @@ RESUMABLE_CHANGES = frozenset({
     "threads", "train.steps", "train.log_every", "train.image_every", "train.checkpoint_every", "train.keep_every",
     "train.progress", "train.tensorboard", "data.num_workers", "data.root", "device", "renderer",
     "debug.poison_steps", "speed.autocast", "speed.channels_last", "speed.compile",
+    "speed.smoothness_once",
 })
 """Config keys a resumed run may change; any other difference is refused (it would not be the same run)."""
 
@@ -321,7 +322,8 @@ class _Trainer:
         # Batch-norm statistics change in the forward pass: keep them to undo a non-finite step.
         buffers = [b.detach().clone() for b in self.model.buffers()]
         gen = step_generator(self.config.seed, step, self.info.rank)
-        out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen)
+        out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen,
+                                   smoothness_once=self.config.speed.smoothness_once)
         self.optimizer.zero_grad(set_to_none=True)
         grad_norm = float("nan")
         ok = not any_true(not out.finite, self.info, self.device)
