@@ -177,12 +177,13 @@ def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int,
 
 
 def print_switches(rows: list[dict]) -> None:
-    head = f"{'preset':<8}{'renderer':>9}  {'switches':<30}{'s/step':>8}{'steps/s':>9}{'x off':>7}" \
+    w = max(10, *(len(r["switches"]) + 2 for r in rows))
+    head = f"{'preset':<8}{'renderer':>9}  {'switches':<{w}}{'s/step':>8}{'steps/s':>9}{'x off':>7}" \
            f"{'loss 1st step':>15}{'warm-up s':>11}"
     print(head)
     print("-" * len(head))
     for r in rows:
-        print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<30}{r['step_s']:>8.3f}{r['steps_per_s']:>9.2f}"
+        print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['step_s']:>8.3f}{r['steps_per_s']:>9.2f}"
               f"{r['speedup']:>7.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
 
 
