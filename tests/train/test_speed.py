@@ -51,8 +51,12 @@ def test_autocast_runs_the_trunk_in_bf16_and_keeps_heads_and_geometry_float32():
     torch.testing.assert_close(fast(images).local_vertices, a.local_vertices)  # float32 again
 
 
-@pytest.mark.parametrize("switches", [[], FAST, ["speed.smoothness_once=true"]],
-                         ids=["off", "autocast+channels_last", "smoothness_once"])
+@pytest.mark.parametrize("switches", [
+    pytest.param([], id="off"),
+    pytest.param(FAST, id="autocast+channels_last"),
+    pytest.param(["speed.smoothness_once=true"], id="smoothness_once"),
+    pytest.param([*FAST, "speed.compile=true"], id="compile", marks=pytest.mark.slow),  # compiles for ~30 s
+])
 def test_resume_is_exact_with_the_speed_switches(tiny_config, tmp_path, switches):
     straight = train(tiny_config(*switches), tmp_path / "straight")
     with pytest.raises(NonFiniteError):
