@@ -9,6 +9,13 @@ temporary folder, or ``--data ROOT``), runs a few warm-up steps, then times full
 
     python benchmarks/bench_train.py                 # 2 threads, both presets, both backends
     python benchmarks/bench_train.py --threads 1 --steps 5 --renderers warp
+    python benchmarks/bench_train.py --switches --presets cpu --renderers warp --threads 1 --steps 20
+
+``--switches [NAME ...]`` times the training speed switches instead (``speed.autocast: bf16``,
+``speed.channels_last``, ``speed.compile``, ``speed.smoothness_once``; all of them without NAMEs):
+one model per variant (off, each switch alone, all together), steps interleaved round by round,
+medians and the speed-up over ``off``, with each variant's first-step loss (same weights, same
+batch: they differ by rounding only).
 
 Timings on a shared machine are noisy: the load average is printed with the results.
 """
@@ -16,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import tempfile
 import time
 from pathlib import Path
@@ -35,16 +43,12 @@ def make_data(root: Path, image_size: int) -> Path:
     return root
 
 
-def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
+def setup(preset: str, renderer_name: str, data_root: Path, batch_size: int | None):
+    """The preset's config (depth offset resolved), the scene, one batch and the renderer."""
     from cerberus_core.datasets.readers import QuadrupletDataset
-    from cerberus_core.losses import viewpoint_scenes
-    from cerberus_core.model import Cerberus
     from cerberus_core.plugins import make_renderer, resolve_renderer
-    from cerberus_core.render.api import render_parts
-    from cerberus_core.render.camera import Camera
     from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
-    from cerberus_core.train.objective import partner_cameras, quadruplet_objective, unwrap
 
     cfg = load_config(preset=preset)
     data = QuadrupletDataset(data_root)
@@ -52,19 +56,43 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
     cfg.model.depth_offset = scene.distance
     bsz = batch_size or cfg.train.batch_size
     size = cfg.data.image_size or data.image_size
-    torch.manual_seed(0)
-    model = Cerberus(cfg.model)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
     renderer_name = resolve_renderer(renderer_name)
-    renderer = make_renderer(renderer_name)
     raw = torch.utils.data.default_collate([data[i % len(data)] for i in range(bsz)])
     batch = quadruplet_batch(raw, torch.device("cpu"), scene, size)
+    return cfg, scene, batch, renderer_name, make_renderer(renderer_name)
 
-    def step(i: int):
-        out = quadruplet_objective(model, renderer, batch, scene, cfg.losses, torch.Generator().manual_seed(i))
+
+def stepper(cfg, scene, batch, renderer, speed=None):
+    """A fresh model (seed 0, with the speed switches ``speed`` applied), its Adam, and a function
+    running one full optimisation step ``i`` that returns the step's loss."""
+    from cerberus_core.model import Cerberus
+    from cerberus_core.train.objective import quadruplet_objective
+    from cerberus_core.train.speed import SpeedConfig, apply_speed
+
+    speed = speed or SpeedConfig()
+    torch.manual_seed(0)
+    model = apply_speed(Cerberus(cfg.model), speed)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
+
+    def step(i: int) -> float:
+        out = quadruplet_objective(model, renderer, batch, scene, cfg.losses, torch.Generator().manual_seed(i),
+                                   smoothness_once=speed.smoothness_once)
         opt.zero_grad(set_to_none=True)
         out.total.backward()
         opt.step()
+        return float(out.total.detach())
+    return model, step
+
+
+def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
+    from cerberus_core.render.camera import Camera
+    from cerberus_core.losses import viewpoint_scenes
+    from cerberus_core.render.api import render_parts
+    from cerberus_core.train.objective import partner_cameras, unwrap
+
+    cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)
+    bsz, size = batch.num_quadruplets, batch.images.shape[-1]
+    model, step = stepper(cfg, scene, batch, renderer)
 
     for i in range(warmup):
         step(i)
@@ -103,6 +131,61 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
             "render_share": render_s / step_s}
 
 
+SWITCHES = {"autocast": {"autocast": "bf16"}, "channels_last": {"channels_last": True}, "compile": {"compile": True},
+            "smoothness_once": {"smoothness_once": True}}
+"""``--switches`` names and the ``speed:`` settings (:mod:`cerberus_core.train.speed`) each one turns on."""
+
+
+def switch_variants(names: list[str]) -> list[tuple[str, dict]]:
+    """``off``, each named switch alone, and (with two or more) all of them together."""
+    variants = [("off", {})] + [(n, SWITCHES[n]) for n in names]
+    if len(names) > 1:
+        variants.append(("+".join(names), {k: v for n in names for k, v in SWITCHES[n].items()}))
+    return variants
+
+
+def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int,
+                   batch_size: int | None, names: list[str]) -> list[dict]:
+    """Full steps of one model per switch variant, interleaved: each round times one step of every
+    variant in turn (so load changes hit all alike); the median over rounds is reported."""
+    from cerberus_core.train.speed import SpeedConfig
+
+    cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)
+    variants = []
+    for label, speed in switch_variants(names):
+        _, step = stepper(cfg, scene, batch, renderer, SpeedConfig(**speed))
+        t0 = time.perf_counter()
+        first = step(0)  # the first step's loss (same weights and batch for every variant)
+        for i in range(1, warmup):
+            step(i)
+        variants.append({"label": label, "step": step, "first_loss": first, "warmup_s": time.perf_counter() - t0,
+                         "times": []})
+    for i in range(steps):
+        for v in variants:
+            t0 = time.perf_counter()
+            v["step"](warmup + i)
+            v["times"].append(time.perf_counter() - t0)
+    rows = []
+    for v in variants:
+        step_s = statistics.median(v["times"])
+        rows.append({"preset": preset, "renderer": renderer_name, "switches": v["label"], "step_s": step_s,
+                     "steps_per_s": 1 / step_s, "first_loss": v["first_loss"], "warmup_s": v["warmup_s"]})
+    for r in rows:
+        r["speedup"] = rows[0]["step_s"] / r["step_s"]
+    return rows
+
+
+def print_switches(rows: list[dict]) -> None:
+    w = max(10, *(len(r["switches"]) + 2 for r in rows))
+    head = f"{'preset':<8}{'renderer':>9}  {'switches':<{w}}{'s/step':>8}{'steps/s':>9}{'x off':>7}" \
+           f"{'loss 1st step':>15}{'warm-up s':>11}"
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['step_s']:>8.3f}{r['steps_per_s']:>9.2f}"
+              f"{r['speedup']:>7.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -114,10 +197,29 @@ def main() -> None:
     p.add_argument("--warmup", type=int, default=2, help="untimed steps first")
     p.add_argument("--batch-size", type=int, default=None, help="override the presets' batch sizes")
     p.add_argument("--data", type=Path, default=None, help="a quadruplet dataset (default: generate primitives)")
+    p.add_argument("--switches", nargs="*", default=None, choices=sorted(SWITCHES), metavar="NAME",
+                   help="instead: time the speed switches (speed.* of the config) side by side, interleaved: "
+                        "off, each NAME alone and all NAMEs together (default with no NAME: "
+                        f"{' '.join(SWITCHES)}); the median of --steps rounds")
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     from cerberus_core.train.config import load_config
 
+    if args.switches is not None:
+        names = args.switches or list(SWITCHES)
+        if "compile" in names:
+            args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
+        rows = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for preset in args.presets:
+                root = args.data or make_data(Path(tmp) / preset, load_config(preset=preset).data.image_size or 64)
+                for name in args.renderers:
+                    rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names)
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+        print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
+              f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps")
+        print_switches(rows)
+        return
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for preset in args.presets:

@@ -76,7 +76,7 @@ def test_scorer_clamps_escaping_predictions_and_zeroes_rejected_ones(primitive_b
     assert s.clipped and s.error is None and 0.0 < s.iou < 0.9
     flat = [(np.zeros_like(v), f) for v, f in parts]
     s = scorer(flat, gt)
-    assert s.iou == 0.0 and "empty" in s.error
+    assert s.iou == 0.0 and "degenerate mesh" in s.error
     with pytest.raises(Exception, match="gt"):  # a broken ground truth is a data error, not a score
         scorer(flat, (np.zeros_like(body.vertices), body.faces))
 

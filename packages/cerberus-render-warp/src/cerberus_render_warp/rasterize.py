@@ -1,7 +1,8 @@
 """Z-buffered rasterization as Warp kernels (the rule of :mod:`cerberus_core.render.interface`).
 
-A Warp thread sets a triangle up (homogeneous edge cross products, determinant, pixel bounding box)
-and walks the pixel centres in its box. On parallel devices (CUDA: one thread per (scene, triangle))
+A first kernel projects every vertex once to its pixel bounds; then a Warp thread sets a triangle up
+(homogeneous edge cross products, determinant, and its pixel bounding box: the union of its
+vertices' bounds) and walks the pixel centres in its box. On parallel devices (CUDA: one thread per (scene, triangle))
 two launches of the same kernel make the result deterministic: pass 0 keeps the nearest depth per
 pixel with ``atomic_min`` on a float z-buffer; pass 1 repeats the exact same arithmetic and, where a
 triangle's depth equals the z-buffer, keeps the smallest face id with an integer ``atomic_min``; a
@@ -20,7 +21,15 @@ import torch
 
 from cerberus_core.render.interface import pixel_centres
 
-from cerberus_render_warp._runtime import as_warp, launch_scenes, launch_stream, vec_view, warp_device, wp
+from cerberus_render_warp._runtime import (
+    as_warp,
+    items_per_thread,
+    launch_scenes,
+    launch_stream,
+    vec_view,
+    warp_device,
+    wp,
+)
 from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
 
 wp.set_module_options({"fuse_fp": False, "enable_backward": False})
@@ -55,8 +64,45 @@ of (depth, face id) directly in the output."""
 
 
 @wp.kernel
+def _vertex_bounds_kernel(
+    clip: wp.array2d(dtype=Any),
+    near: Any,
+    width: int,
+    height: int,
+    vertices_per_thread: int,
+    bounds: wp.array2d(dtype=wp.vec4i),
+):
+    """Thread ``t``: vertices ``k * vertices_per_thread ..`` of scene ``b``. Each vertex's pixel
+    bounds ``(first col, last col, first row, last row)`` as :func:`_pixel_bound` gives them for the
+    degenerate box ``[u, u] x [v, v]`` of its projection (vertices with ``w <= near`` get an empty
+    range; their triangles are not drawn)."""
+    tid = wp.tid()
+    nverts = clip.shape[1]
+    chunks = (nverts + vertices_per_thread - 1) / vertices_per_thread
+    b = tid / chunks
+    v_first = (tid - b * chunks) * vertices_per_thread
+    v_last = wp.min(v_first + vertices_per_thread, nverts)
+    one = type(near)(1.0)
+    half_w = type(near)(0.5) * type(near)(width)
+    half_h = type(near)(0.5) * type(near)(height)
+    for i in range(v_first, v_last):
+        p = clip[b, i]
+        w = p[3]
+        if w > near:
+            r = one / w
+            u = (p[0] * r + one) * half_w
+            v = (one - p[1] * r) * half_h
+            col0, col1 = _pixel_bound(u, u, width)
+            row0, row1 = _pixel_bound(v, v, height)
+            bounds[b, i] = wp.vec4i(col0, col1, row0, row1)
+        else:
+            bounds[b, i] = wp.vec4i(width, -1, height, -1)
+
+
+@wp.kernel
 def _raster_kernel(
     clip: wp.array2d(dtype=Any),
+    bounds: wp.array2d(dtype=wp.vec4i),
     faces: wp.array(dtype=wp.vec3i),
     px_of_col: wp.array(dtype=Any),
     py_of_row: wp.array(dtype=Any),
@@ -75,13 +121,9 @@ def _raster_kernel(
     b = tid / chunks
     f_first = (tid - b * chunks) * faces_per_thread
     f_last = wp.min(f_first + faces_per_thread, nfaces)
-    height = py_of_row.shape[0]
-    width = px_of_col.shape[0]
     zero = type(near)(0.0)
     one = type(near)(1.0)
     inf = type(near)(wp.inf)
-    half_w = type(near)(0.5) * type(near)(width)
-    half_h = type(near)(0.5) * type(near)(height)
     for f in range(f_first, f_last):
         tri = faces[f]
         p0 = clip[b, tri[0]]
@@ -97,18 +139,15 @@ def _raster_kernel(
             y1 = p1[1]
             x2 = p2[0]
             y2 = p2[1]
-            # Screen bounding box (pixels) of the projected vertices.
-            r0 = one / w0
-            r1 = one / w1
-            r2 = one / w2
-            u0 = (x0 * r0 + one) * half_w
-            u1 = (x1 * r1 + one) * half_w
-            u2 = (x2 * r2 + one) * half_w
-            v0 = (one - y0 * r0) * half_h
-            v1 = (one - y1 * r1) * half_h
-            v2 = (one - y2 * r2) * half_h
-            col0, col1 = _pixel_bound(wp.min(wp.min(u0, u1), u2), wp.max(wp.max(u0, u1), u2), width)
-            row0, row1 = _pixel_bound(wp.min(wp.min(v0, v1), v2), wp.max(wp.max(v0, v1), v2), height)
+            # Pixel bounding box: _pixel_bound is monotone in both ends, so the box of the
+            # triangle's projected extent is the union of its vertices' (precomputed) boxes.
+            q0 = bounds[b, tri[0]]
+            q1 = bounds[b, tri[1]]
+            q2 = bounds[b, tri[2]]
+            col0 = wp.min(wp.min(q0[0], q1[0]), q2[0])
+            col1 = wp.max(wp.max(q0[1], q1[1]), q2[1])
+            row0 = wp.min(wp.min(q0[2], q1[2]), q2[2])
+            row1 = wp.max(wp.max(q0[3], q1[3]), q2[3])
             if col0 <= col1 and row0 <= row1:
                 # Edge cross products e_k = v_{k+1} x v_{k+2} with v = (x, y, w): c_k = p . e_k.
                 e0x = cross_term(y1, w2, w1, y2, fused)
@@ -161,6 +200,11 @@ def _finalize_kernel(winner: wp.array3d(dtype=wp.int32), out: wp.array3d(dtype=w
     else:
         out[b, r, c] = wp.int64(f)
 
+
+_BOUNDS = {
+    dtype: wp.overload(_vertex_bounds_kernel, {"clip": wp.array2d(dtype=wp.types.vector(4, T)), "near": T})
+    for dtype, T in ((torch.float32, wp.float32), (torch.float64, wp.float64))
+}
 
 _RASTER = {
     dtype: wp.overload(_raster_kernel, {"clip": wp.array2d(dtype=wp.types.vector(4, T)), "px_of_col": wp.array(dtype=T),
@@ -222,16 +266,25 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
         serial = device.is_cpu
     elif serial and not device.is_cpu:
         raise ValueError("warp renderer: serial rasterization is only exact on the CPU; use serial=False on CUDA")
+    # Each vertex's pixel bounds once, instead of re-projecting it for every triangle it is in.
+    nverts = clip.shape[1]
+    bounds = torch.empty((bsz, nverts, 4), dtype=torch.int32, device=clip.device)
+    per_thread = items_per_thread(nverts, device)
+    launch_scenes(_BOUNDS[clip.dtype], bsz, -(-nverts // per_thread), lambda b0, b1: [
+        vec_view(clip[b0:b1]), near_t, width, height, per_thread, as_warp(bounds[b0:b1], wp.vec4i)], device, stream)
+
+    def geometry(b0: int, b1: int) -> list[Any]:
+        return [vec_view(clip[b0:b1]), as_warp(bounds[b0:b1], wp.vec4i)]
     if serial:
         # Warp runs the threads of a CPU launch one after another: one thread per scene, one pass.
         launch_scenes(kernel, bsz, 1, lambda b0, b1: [
-            vec_view(clip[b0:b1]), *shared, MODE_SERIAL, nfaces, as_warp(zbuf[b0:b1]), None, as_warp(out[b0:b1])],
+            *geometry(b0, b1), *shared, MODE_SERIAL, nfaces, as_warp(zbuf[b0:b1]), None, as_warp(out[b0:b1])],
             device)
         return out
     winner = torch.full((bsz, height, width), NO_FACE, dtype=torch.int32, device=clip.device)
     for mode in (MODE_DEPTH, MODE_FACE):
         launch_scenes(kernel, bsz, nfaces, lambda b0, b1, mode=mode: [
-            vec_view(clip[b0:b1]), *shared, mode, 1, as_warp(zbuf[b0:b1]), as_warp(winner[b0:b1]), None],
+            *geometry(b0, b1), *shared, mode, 1, as_warp(zbuf[b0:b1]), as_warp(winner[b0:b1]), None],
             device, stream)
     wp.launch(_finalize_kernel, dim=(bsz, height, width), inputs=[as_warp(winner), as_warp(out)],
               device=device, stream=stream)

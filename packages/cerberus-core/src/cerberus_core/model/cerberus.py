@@ -11,6 +11,7 @@ Frames: a part's local vertices ``x`` (deformed sphere) map to the camera frame 
 """
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -139,6 +140,10 @@ class Cerberus(nn.Module):
         self.rotation = RotationHead(latent, config.num_parts)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
                                            config.anchor_spread)
+        self.cnn_autocast: torch.dtype | None = None
+        """Run the convolutional trunk (encoder and decoder) under ``torch.autocast`` to this dtype
+        (``None``: off). The heads, and so all geometry, stay in the input dtype; set by the
+        training switch ``speed.autocast`` (:mod:`cerberus_core.train.speed`), not saved."""
 
     @property
     def num_parts(self) -> int:
@@ -154,14 +159,24 @@ class Cerberus(nn.Module):
         """
         if images.ndim != 4 or images.shape[1] != 3:
             raise ValueError(f"Cerberus expects (B, 3, H, W) images, got {tuple(images.shape)}")
-        pyramid = self.encoder(images)
-        object_latent = pyramid.c4.mean(dim=(-2, -1))
+        c4, features = self._cnn(images)
+        object_latent = c4.mean(dim=(-2, -1))
         shape_latent = self.shape.latent(object_latent)
         render_latent = shape_latent if mix is None else mix(shape_latent)
         local = self.shape.deform(render_latent)
         quats, rot_cam = self.rotation(object_latent)
-        maps = self.translation(self.decoder(pyramid), tuple(images.shape[-2:]))
+        maps = self.translation(features, tuple(images.shape[-2:]))
         return Predictions(object_latent, shape_latent, render_latent, local, quats, rot_cam, maps)
+
+    def _cnn(self, images: Tensor) -> tuple[Tensor, Tensor]:
+        """The convolutional trunk: the lowest-resolution features ``c4`` and the decoder's output,
+        both dense and in the input dtype (no-ops unless :attr:`cnn_autocast` or a channels-last
+        trunk changed them)."""
+        amp = self.cnn_autocast
+        with torch.autocast(images.device.type, dtype=amp) if amp is not None else contextlib.nullcontext():
+            pyramid = self.encoder(images)
+            features = self.decoder(pyramid)
+        return (pyramid.c4.to(images.dtype).contiguous(), features.to(images.dtype).contiguous())
 
     def world_pose(self, pred: Predictions, camera: Camera) -> tuple[Tensor, Tensor, Tensor, Tensor]:
         """Part rotations and translations in both frames.

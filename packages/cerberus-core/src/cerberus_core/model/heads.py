@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import torch
 from kornia.geometry.conversions import quaternion_to_rotation_matrix
-from kornia.geometry.subpix import spatial_expectation2d, spatial_softmax2d
+from kornia.geometry.subpix import spatial_expectation2d
 from torch import nn
 
 from cerberus_core.render.camera import Camera
@@ -188,8 +188,16 @@ class TranslationHead(nn.Module):
             logits = nn.functional.interpolate(logits, size=size, mode="bilinear", align_corners=False)
             depth = nn.functional.interpolate(depth, size=size, mode="bilinear", align_corners=False)
         depth_map = depth + self.depth_offset
-        prob = spatial_softmax2d(logits)
+        prob = spatial_softmax(logits)
         return expectation(prob, depth_map)
+
+
+def spatial_softmax(logits: Tensor) -> Tensor:
+    """Softmax over each ``(H, W)`` map of ``(B, N, H, W)`` logits: the values of kornia's
+    ``spatial_softmax2d`` bit for bit, without its division by a temperature of 1 (two passes over
+    the maps, forward and backward)."""
+    b, n, h, w = logits.shape
+    return nn.functional.softmax(logits.reshape(b, n, h * w), dim=-1).view(b, n, h, w)
 
 
 def expectation(prob: Tensor, depth_map: Tensor) -> KeypointMaps:

@@ -25,6 +25,7 @@ from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, 
 from cerberus_core.errors import ConfigError
 from cerberus_core.losses import LossConfig
 from cerberus_core.model.cerberus import ModelConfig
+from cerberus_core.train.speed import SpeedConfig
 
 __all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "TrainConfig", "config_diff",
            "deep_merge", "load_config", "parse_overrides", "preset_names"]
@@ -119,6 +120,7 @@ class TrainConfig:
             times faster than an oversubscribed default.
         renderer: renderer backend by entry-point name (``torch``, ``warp``), or ``auto`` (Warp if it
             works, else torch; the run's saved config names the one used).
+        speed: speed switches of the network (:mod:`cerberus_core.train.speed`), all off by default.
     """
 
     seed: int = 0
@@ -131,11 +133,13 @@ class TrainConfig:
     optim: OptimConfig = field(default_factory=OptimConfig)
     train: LoopConfig = field(default_factory=LoopConfig)
     debug: DebugConfig = field(default_factory=DebugConfig)
+    speed: SpeedConfig = field(default_factory=SpeedConfig)
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` (a ``ValueError``) naming the bad key and what is allowed."""
         self.model.validate()
         self.losses.validate()
+        self.speed.validate()
         t, o = self.train, self.optim
         if t.steps < 1 or t.batch_size < 1:
             raise ConfigError(f"train.steps and train.batch_size must be positive, got {t.steps}, {t.batch_size}")

@@ -84,8 +84,19 @@ def partner_cameras(camera: Camera, num_quadruplets: int) -> Camera:
     return camera.index(idx.to(camera.device))
 
 
+def smoothness_term(local_vertices: Tensor, dihedral: Tensor, num_quadruplets: int, once: bool) -> Tensor:
+    """``(4 B,)`` smoothness loss per image; ``once``: computed for the first image of each quadruplet
+    and repeated (valid when the four share their meshes: pose consistency), a quarter of the work.
+    Its mean equals the full computation's bit for bit when the meshes are equal."""
+    if not once:
+        return smoothness_loss(local_vertices, dihedral)
+    first = local_vertices.view(num_quadruplets, 4, *local_vertices.shape[1:])[:, 0]
+    return smoothness_loss(first, dihedral).unsqueeze(1).expand(num_quadruplets, 4).reshape(-1)
+
+
 def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: QuadrupletBatch, scene: SceneSetup,
-                         losses: LossConfig, generator: torch.Generator | None = None) -> ObjectiveOutput:
+                         losses: LossConfig, generator: torch.Generator | None = None, *,
+                         smoothness_once: bool = False) -> ObjectiveOutput:
     """Evaluate the training objective on a batch of quadruplets.
 
     Args:
@@ -96,6 +107,9 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
         scene: albedo, light and background used to render like the dataset.
         losses: weights and switches.
         generator: random source of the pose-consistency draws.
+        smoothness_once: with pose consistency, compute the smoothness loss on one image per
+            quadruplet (its four images decode the same mixed latent, so their meshes are equal);
+            the loss value is the same, gradients equal up to rounding (``speed.smoothness_once``).
     """
     core = unwrap(model)
     bsz = batch.num_quadruplets
@@ -136,7 +150,8 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
         "recon": viewpoint_reconstruction(loss_own, loss_cross).mean(),
         "translation": translation_loss(trans).mean(),
         "background": background_loss(pred.maps.prob, mask).mean(),
-        "smoothness": smoothness_loss(pred.local_vertices, core.dihedral).mean(),
+        "smoothness": smoothness_term(pred.local_vertices, core.dihedral, bsz,
+                                      smoothness_once and losses.pose_consistency).mean(),
     }
     total = sum(getattr(losses, k) * values[k] for k in TERMS if getattr(losses, k) != 0)
     total = total if isinstance(total, Tensor) else images.new_zeros(())

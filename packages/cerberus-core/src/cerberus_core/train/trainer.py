@@ -75,11 +75,13 @@ from cerberus_core.train.distributed import (
 )
 from cerberus_core.train.logs import MetricsLog, plot_loss_curves, save_progress_grid
 from cerberus_core.train.objective import quadruplet_objective
+from cerberus_core.train.speed import apply_speed, release_speed
 
 RESUMABLE_CHANGES = frozenset({
     "threads", "train.steps", "train.log_every", "train.image_every", "train.checkpoint_every", "train.keep_every",
     "train.progress", "train.tensorboard", "data.num_workers", "data.root", "device", "renderer",
-    "debug.poison_steps",
+    "debug.poison_steps", "speed.autocast", "speed.channels_last", "speed.compile",
+    "speed.smoothness_once",
 })
 """Config keys a resumed run may change; any other difference is refused (it would not be the same run)."""
 
@@ -266,7 +268,7 @@ class _Trainer:
     def _build(self, payload: dict[str, Any] | None) -> int:
         cfg = self.config
         seed_everything(cfg.seed)
-        self.model = Cerberus(cfg.model).to(self.device)
+        self.model = apply_speed(Cerberus(cfg.model).to(self.device), cfg.speed)
         o = cfg.optim
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=o.lr, betas=tuple(o.betas), eps=o.eps,
                                           weight_decay=o.weight_decay)
@@ -389,7 +391,8 @@ class _Trainer:
                            scene=self.scene.to_dict())
             plot_loss_curves(self.run_dir / "metrics.csv", self.run_dir / "loss_curves.png")
         barrier(info)
-        return TrainResult(self.run_dir, done, self.model, terms, self.skipped, interrupted, info.rank, stop_signal)
+        return TrainResult(self.run_dir, done, release_speed(self.model), terms, self.skipped, interrupted, info.rank,
+                           stop_signal)
 
     def _step(self, batch, step: int):
         """One optimisation step; returns ``(ok, objective output, gradient norm)``."""
@@ -397,7 +400,8 @@ class _Trainer:
         # Batch-norm statistics change in the forward pass: keep them to undo a non-finite step.
         buffers = [b.detach().clone() for b in self.model.buffers()]
         gen = step_generator(self.config.seed, step, self.info.rank)
-        out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen)
+        out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen,
+                                   smoothness_once=self.config.speed.smoothness_once)
         self.optimizer.zero_grad(set_to_none=True)
         grad_norm = float("nan")
         ok = not any_true(not out.finite, self.info, self.device)
