@@ -17,7 +17,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "entry point, 'kato' protocol), per image and per subject; the Hard Human test (parts from each subject's "
         "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
         "training never saw. Writes results.json, results.md, a Table-2-like figure (table2.png) and, for the same images, the pictures "
-        "of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose).")
+        "of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose), with their "
+        "meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an interactive 3D viewer.")
     p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
@@ -30,6 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
     p.add_argument("--figure-images", type=int, default=5, help="test images in the figure (default: 5)")
+    p.add_argument("--viewer-images", type=int, default=12, metavar="N",
+                   help="figure images in the interactive 3D viewer pictures/index.html (default: up to 12; 0: none)")
     p.add_argument("--renderer", help="renderer backend for the figure (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     p.set_defaults(func=run)
@@ -39,6 +42,7 @@ def _figure(args, model, config, dataset, out: Path) -> Path:
     from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
     from cerberus_core.eval.reconstruction import as_part_reconstruction
     from cerberus_core.eval.runner import collate
+    from cerberus_core.eval.viewer import write_reconstruction_viewer
     from cerberus_core.train.checkpoint import load_model
 
     n = min(args.figure_images, len(dataset))
@@ -62,6 +66,10 @@ def _figure(args, model, config, dataset, out: Path) -> Path:
         donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
         save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
                             f"test_{i:05d}", pose_donor=donor, background=background)
+    write_reconstruction_viewer(out / "pictures", images, ours, camera, [f"test_{i:05d}" for i in idx],
+                                bodies=[dataset.gt_mesh(i) for i in idx], limit=args.viewer_images,
+                                limit_hint="--viewer-images", background=background,
+                                title=f"cerberus eval: {args.run} ({args.split} split)")
     return save_png(fig, out / "table2.png")
 
 
@@ -89,4 +97,6 @@ def run(args: argparse.Namespace) -> int:
         line += f"; Hard Human: {result.hard.mean:.4f}"
     print(line)
     print(f"results: {out / 'results.json'}, {out / 'results.md'}; figures: {fig}, {out / 'pictures'}")
+    if args.viewer_images > 0:
+        print(f"3D viewer: {out / 'pictures' / 'index.html'}")
     return 0

@@ -15,7 +15,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Run a trained model on images. For each image writes the posed part meshes as one GLB (parts "
         "as named nodes, each a distinct colour) and OBJ files, and PNGs: the input, the reconstruction, the parts "
         "in colours, a turntable, a new lighting direction, and a new pose (this image's parts posed with the "
-        "rotations and translations predicted from the next image). Images of another size are centre-cropped and "
+        "rotations and translations predicted from the next image), and index.html, an interactive 3D viewer of "
+        "them that works offline. Images of another size are centre-cropped and "
         "resized (with a warning); an alpha channel is composited over the training background.")
     p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
     p.add_argument("images", type=Path, nargs="+", help="input image files (PNG, JPEG, ...)")
@@ -26,6 +27,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="camera azimuth assumed for the inputs, degrees (default 0; it only fixes the world frame)")
     p.add_argument("--renderer", help="renderer backend for the pictures (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
+    p.add_argument("--viewer-images", type=int, default=12, metavar="N",
+                   help="images in the interactive 3D viewer OUT/index.html (default: the first 12; 0: no viewer)")
     p.set_defaults(func=run)
 
 
@@ -45,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.figures import save_image_pictures
     from cerberus_core.eval.images import ImageInputError, load_images
     from cerberus_core.eval.reconstruction import as_part_reconstruction
+    from cerberus_core.eval.viewer import write_reconstruction_viewer
     from cerberus_core.train.checkpoint import load_model
 
     model, config = load_model(args.run, args.device)
@@ -65,5 +69,10 @@ def run(args: argparse.Namespace) -> int:
         donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
         written += save_image_pictures(renderer, images[i], recon.index([i]), camera.index([i]),
                                        args.out, stem, pose_donor=donor, background=scene.background)
+    written += write_reconstruction_viewer(args.out, images, recon, camera, stems, limit=args.viewer_images,
+                                           limit_hint="--viewer-images", title=f"cerberus reconstruct: {args.run}",
+                                           background=scene.background)
     print(f"wrote {len(written)} files for {len(stems)} image(s) to {args.out}")
+    if args.viewer_images > 0:
+        print(f"3D viewer: {args.out / 'index.html'}")
     return 0
