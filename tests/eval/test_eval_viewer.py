@@ -152,13 +152,17 @@ def test_page_loads_over_http(page, chromium) -> None:
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     try:
-        dom, console = chromium.dump_dom(f"http://127.0.0.1:{server.server_address[1]}/index.html")
+        # the hash picks the model and light every card opens with
+        dom, console = chromium.dump_dom(f"http://127.0.0.1:{server.server_address[1]}/index.html"
+                                         "#model=ground_truth&light=new")
     finally:
         server.shutdown()
         server.server_close()
     assert console == [], f"console messages: {console}"
     st = status(dom)
     assert st["ready"] and st["errors"] == [] and st["meshCount"] == 20, st
+    assert [(c["shown"], c["light"]) for c in st["cards"]] == [("ground_truth", "new")] * 2
+    assert dom.count('type="checkbox"') == sum(c["meshCounts"]["ground_truth"] for c in st["cards"])
 
 
 def test_screenshot_shows_the_parts(page, chromium, tmp_path) -> None:

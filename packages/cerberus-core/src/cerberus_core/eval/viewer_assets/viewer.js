@@ -9,6 +9,7 @@ import { GLTFLoader } from 'cerberus-three/examples/jsm/loaders/GLTFLoader.js';
 const DATA = JSON.parse(document.getElementById('cerberus-viewer-data').textContent);
 const SIZE = DATA.canvas_size;  // CSS pixels of each 3D view
 const DPR = Math.min(window.devicePixelRatio || 1, 2);
+const HASH = new URLSearchParams(window.location.hash.slice(1));  // e.g. #model=ground_truth&light=new
 const viewer = window.cerberusViewer;  // created by the page's first script (it also collects errors)
 viewer.cards = [];
 
@@ -17,7 +18,7 @@ function publish() {  // a machine-readable summary in the DOM (tests read it wi
   const out = { ready: viewer.ready, errors: viewer.errors, meshCount: viewer.meshCount,
                 cards: viewer.cards.map((c) => {
                   const r = c.canvas.getBoundingClientRect();
-                  return { name: c.entry.name, meshCounts: c.meshCounts,
+                  return { name: c.entry.name, meshCounts: c.meshCounts, shown: c.current, light: c.lightSelect.value,
                            canvas: { x: r.left + window.scrollX, y: r.top + window.scrollY, width: r.width, height: r.height } };
                 }) };
   document.getElementById('viewer-status').textContent = JSON.stringify(out);
@@ -76,8 +77,10 @@ class Card {
     this.controls.addEventListener('change', () => this.draw());
     this.resetView();
 
-    const models = entry.models.map((m, i) => el('label', {},
-      el('input', { type: 'radio', name: `model-${entry.index}`, value: m.key, checked: i === 0,
+    const wanted = entry.models.find((m) => m.key === HASH.get('model'));
+    this.first = (wanted || entry.models[0]).key;
+    const models = entry.models.map((m) => el('label', {},
+      el('input', { type: 'radio', name: `model-${entry.index}`, value: m.key, checked: m.key === this.first,
                     onchange: () => this.show(m.key) }), ` ${m.label}`));
     const presets = Object.entries(DATA.lights).map(([key, l]) =>
       el('option', { value: key, textContent: l.label }));
@@ -98,7 +101,8 @@ class Card {
           el('button', { type: 'button', textContent: 'All parts', onclick: () => this.setAll(true) }),
           el('button', { type: 'button', textContent: 'No parts', onclick: () => this.setAll(false) })),
         this.parts, this.message));
-    this.setLight(Object.keys(DATA.lights)[0]);
+    this.lightSelect.value = HASH.get('light') in DATA.lights ? HASH.get('light') : Object.keys(DATA.lights)[0];
+    this.setLight(this.lightSelect.value);
   }
 
   async load() {
@@ -108,7 +112,10 @@ class Card {
       const meshes = [];
       gltf.scene.traverse((o) => { if (o.isMesh) meshes.push(o); });
       for (const mesh of meshes) {
+        if (!mesh.geometry.attributes.normal) mesh.geometry.computeVertexNormals();  // smooth shading
         for (const mat of [mesh.material].flat()) {
+          mat.flatShading = false;
+          mat.needsUpdate = true;
           // Part colours are display (sRGB) values, as in the PNG pictures: treat the glTF factor so.
           mat.color.convertSRGBToLinear();
           mat.side = THREE.DoubleSide;
@@ -119,7 +126,7 @@ class Card {
       this.models[m.key] = gltf.scene;
       this.scene.add(gltf.scene);
     }
-    this.show(this.entry.models[0].key);
+    this.show(this.first);
   }
 
   show(key) {
