@@ -54,13 +54,17 @@ class HeadlessChromium:
 
 @pytest.fixture(scope="session")
 def chromium(tmp_path_factory) -> HeadlessChromium:
-    """Headless Chromium, or a skip saying how to get it (``.ci/run`` installs Debian's ``chromium``);
-    ``CERBERUS_CHROMIUM`` names another executable."""
+    """Headless Chromium, or a skip saying how to get it (``.ci/run`` installs Debian's ``chromium`` and sets
+    ``CERBERUS_REQUIRE_CHROMIUM``, which turns the skip into a failure); ``CERBERUS_CHROMIUM`` names another
+    executable."""
     import os
     import shutil
 
     names = [os.environ.get("CERBERUS_CHROMIUM", ""), "chromium", "chromium-browser", "google-chrome"]
     exe = next((shutil.which(n) for n in names if n and shutil.which(n)), None)
+    if exe is None and os.environ.get("CERBERUS_REQUIRE_CHROMIUM"):
+        pytest.fail("headless Chromium not found but CERBERUS_REQUIRE_CHROMIUM is set (as .ci/run does): "
+                    "install it with `apt-get install chromium`")
     if exe is None:
         pytest.skip("headless Chromium not found, so the 3D viewer's browser tests are skipped: "
                     "install it with `apt-get install chromium` (CI does) or set CERBERUS_CHROMIUM")
