@@ -23,9 +23,15 @@ def trained(tmp_path_factory) -> dict[str, Path]:
     return {"root": root, "data": data, "run": run}
 
 
-def test_eval_writes_scores_and_figure(trained) -> None:
+@pytest.fixture(scope="module")
+def evaluated(trained) -> Path:
     out = trained["root"] / "eval"
     assert main(["eval", str(trained["run"]), "--out", str(out)]) == 0
+    return out
+
+
+def test_eval_writes_scores_and_figure(evaluated) -> None:
+    out = evaluated
     result = json.loads((out / "results.json").read_text())
     assert result["protocol"] == "kato" and result["resolution"] == 32
     assert result["standard"]["count"] > 0
@@ -33,6 +39,25 @@ def test_eval_writes_scores_and_figure(trained) -> None:
     assert result["hard"] is not None and 0.0 <= result["hard"]["mean"] <= 1.0
     assert "Voxel IoU" in (out / "results.md").read_text()
     assert Image.open(out / "table2.png").size[0] > 0
+    for stem in {p.name.split("_")[0] + "_" + p.name.split("_")[1] for p in (out / "pictures").glob("test_*.png")}:
+        for glb in (f"{stem}.glb", f"{stem}_gt.glb", f"{stem}_new_pose.glb"):  # what the 3D viewer shows
+            assert (out / "pictures" / glb).is_file(), glb
+    assert (out / "pictures" / "index.html").is_file()
+
+
+def test_eval_viewer_shows_reconstruction_and_ground_truth(evaluated, chromium) -> None:
+    import html
+    import re
+
+    pictures = evaluated / "pictures"
+    dom, console = chromium.dump_dom((pictures / "index.html").as_uri())
+    assert console == [], f"console messages: {console}"
+    status = json.loads(html.unescape(re.search(r'<pre id="viewer-status"[^>]*>(.*?)</pre>', dom, re.S).group(1)))
+    assert status["ready"] and status["errors"] == [] and status["cards"], status
+    for card in status["cards"]:
+        for key, suffix in (("reconstruction", ""), ("ground_truth", "_gt"), ("new_pose", "_new_pose")):
+            scene = trimesh.load(pictures / f"{card['name']}{suffix}.glb", force="scene")
+            assert card["meshCounts"][key] == len(scene.geometry), (card, key)
 
 
 def test_reconstruct_exports_parts_and_pictures(trained) -> None:
@@ -52,6 +77,7 @@ def test_reconstruct_exports_parts_and_pictures(trained) -> None:
     assert isinstance(scene, trimesh.Scene) and len(scene.geometry) >= 1
     for what in ("input", "reconstruction", "parts", "turntable", "new_lighting", "new_pose", "figure1"):
         assert (out / f"input0_{what}.png").is_file(), what
+    assert (out / "input0_new_pose.glb").is_file() and (out / "index.html").is_file()  # the 3D viewer
 
 
 def test_reconstruct_refuses_missing_image(trained, capsys) -> None:

@@ -8,6 +8,7 @@ import torch
 
 from cerberus_core.cli.checks import check_device, is_dataset, output_folder, positive_int
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.plugins import get_metric, make_renderer
 
 #: Largest voxel grid accepted (memory grows with its cube).
@@ -23,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
         "training never saw. Writes results.json, results.md, a Table-2-like figure (table2.png) and, for the same "
         "images, the pictures of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, "
-        "new pose).")
+        "new pose), with their meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an "
+        "interactive 3D viewer that works offline.")
     p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
@@ -37,6 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
     p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure (default: 5)")
+    p.add_argument("--viewer-images", type=int, default=12, metavar="N",
+                   help="figure images in the interactive 3D viewer pictures/index.html (default: up to 12; 0: none)")
     p.add_argument("--renderer", help="renderer backend for the figure (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     p.set_defaults(func=run)
@@ -45,8 +49,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def check_protocol(name: str) -> str:
     """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
     anything runs)."""
-    from cerberus_core.eval.standard import SCORER_ENTRY_POINT
-
     try:
         get_metric(SCORER_ENTRY_POINT)(protocol=name, resolution=32)
     except (ValueError, KeyError) as exc:
@@ -72,31 +74,9 @@ def load_baselines(specs: list[str], device: str) -> dict:
     return out
 
 
-def _figure(args, model, renderer, baseline_models: dict, dataset, out: Path) -> Path:
-    from cerberus_core.eval.figures import comparison_figure, save_image_pictures, save_png
-    from cerberus_core.eval.runner import collate
-
-    n = min(args.figure_images, len(dataset))
-    idx = torch.linspace(0, len(dataset) - 1, n).round().long().unique().tolist()
-    batch = collate([dataset[i] for i in idx])
-    camera = dataset.cameras(batch)
-    images = batch["images"]
-    dev_images, dev_camera = images.to(args.device), camera.to(args.device)
-    with torch.no_grad():
-        ours = model.reconstruct(dev_images, dev_camera).to("cpu")
-        baselines = {name: other.reconstruct(dev_images, dev_camera).to("cpu")
-                     for name, other in baseline_models.items()}
-    background = tuple(dataset.scene.background)
-    fig = comparison_figure(renderer, images, camera, ours, baselines, background=background)
-    for k, i in enumerate(idx):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
-        donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
-        save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
-                            f"test_{i:05d}", pose_donor=donor, background=background)
-    return save_png(fig, out / "table2.png")
-
-
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.datasets.readers import ViewDataset
+    from cerberus_core.eval.figures import evaluation_figures
     from cerberus_core.eval.report import markdown_report, write_json, write_text
     from cerberus_core.eval.runner import evaluate_dataset
     from cerberus_core.lock import folder_lock
@@ -106,10 +86,12 @@ def run(args: argparse.Namespace) -> int:
     if args.resolution > MAX_RESOLUTION:
         raise ConfigError(f"--resolution {args.resolution}: at most {MAX_RESOLUTION} (the paper uses 32)")
     check_protocol(args.protocol)
+    if args.viewer_images < 0:
+        raise ConfigError(f"--viewer-images {args.viewer_images}: must be >= 0 (0: no viewer)")
     check_device(args.device)
     if args.data is not None and not is_dataset(args.data):
         raise ConfigError(f"--data {args.data}: not a Cerberus dataset folder (no manifest.json)")
-    get_metric("voxel_iou")  # fail early, naming the package, if cerberus-metrics is missing
+    get_metric(SCORER_ENTRY_POINT)  # fail early, naming the package, if cerberus-metrics is missing
     model, config = load_model(args.run, args.device)
     out = output_folder(args.out or ((args.run if args.run.is_dir() else args.run.parent) / "eval"))
     baselines = load_baselines(args.baseline, args.device)
@@ -126,11 +108,15 @@ def run(args: argparse.Namespace) -> int:
                                   device=args.device)
         write_json(result, out / "results.json")
         write_text(markdown_report(result, title=f"Evaluation of {args.run}"), out / "results.md")
-        fig = _figure(args, model, renderer, baselines, dataset, out)
+        fig = evaluation_figures(renderer, dataset, model, out, n_images=args.figure_images, baselines=baselines,
+                                 device=args.device, viewer_images=args.viewer_images,
+                                 title=f"cerberus eval: {args.run} ({args.split} split)")
     line = (f"voxel IoU ({args.protocol}, {args.resolution}^3) over {result.standard.count} images: "
             f"{result.standard.mean:.4f}")
     if result.hard is not None:
         line += f"; Hard Human: {result.hard.mean:.4f}"
     print(line)
     print(f"results: {out / 'results.json'}, {out / 'results.md'}; figures: {fig}, {out / 'pictures'}")
+    if args.viewer_images > 0:
+        print(f"3D viewer: {out / 'pictures' / 'index.html'}")
     return 0

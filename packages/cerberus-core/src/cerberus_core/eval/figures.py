@@ -319,3 +319,42 @@ def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camer
     written.append(save_png(figure_one(panels, scale=scale), out_dir / f"{stem}_figure1.png"))
     return written
 
+
+
+def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_images: int = 5,
+                       baselines: Mapping[str, object] | None = None, device: str = "cpu", viewer_images: int = 12,
+                       title: str = "cerberus eval") -> Path:
+    """The pictures ``cerberus eval`` writes for ``n_images`` test images spread over ``dataset``: the
+    Table-2 figure ``out/table2.png``, Figure 1's panels per image in ``out/pictures/``, and the
+    interactive viewer ``out/pictures/index.html`` with the reconstruction, ground-truth and new-pose
+    meshes of the first ``viewer_images`` (0: none).
+
+    Args:
+        model, baselines: objects with ``reconstruct(images, camera) -> PartSet`` (baselines by name).
+    Returns:
+        The path of the Table-2 figure.
+    """
+    from cerberus_core.eval.runner import collate
+    from cerberus_core.eval.viewer import write_reconstruction_viewer
+
+    out = Path(out)
+    n = min(n_images, len(dataset))
+    idx = torch.linspace(0, len(dataset) - 1, n).round().long().unique().tolist()
+    batch = collate([dataset[i] for i in idx])
+    camera = dataset.cameras(batch)
+    images = batch["images"]
+    dev_images, dev_camera = images.to(device), camera.to(device)
+    with torch.no_grad():
+        ours = model.reconstruct(dev_images, dev_camera).to("cpu")
+        others = {name: other.reconstruct(dev_images, dev_camera).to("cpu") for name, other in (baselines or {}).items()}
+    background = tuple(dataset.scene.background)
+    fig = comparison_figure(renderer, images, camera, ours, others, background=background)
+    stems = [f"test_{i:05d}" for i in idx]
+    for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
+        donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
+        save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
+                            stem, pose_donor=donor, background=background)
+    write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,
+                                bodies=[dataset.gt_mesh(i) for i in idx], limit=viewer_images,
+                                limit_hint="--viewer-images", background=background, title=title)
+    return save_png(fig, out / "table2.png")

@@ -178,7 +178,7 @@ def load_run(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerb
 
     from cerberus_core.train.config import TrainConfig
 
-    if isinstance(path, str) and not Path(path).exists() and "/" not in path and not Path(path).suffix:
+    if not Path(path).exists() and "/" not in str(path) and not Path(path).suffix:
         from cerberus_core.zoo import model_path
 
         path = model_path(path)  # a shipped model's name ("human"): its checksum-verified weights

@@ -1,0 +1,311 @@
+"""An interactive 3D viewer of reconstructions: one self-contained ``index.html`` beside the GLBs.
+
+The page shows one card per image: the input picture, a 3D view (orbit with the mouse, wheel to zoom,
+right-drag to pan; it opens at the input camera's view), a switch between the models of that image
+(the reconstruction; the ground truth, where there is one; the new pose of Figure 1 (f)), one
+visibility toggle per part in its colour, and a light control (the training light, which follows the
+camera, or Figure 1 (d)'s new light, and its direction).
+
+It uses three.js, vendored at a pinned version in ``viewer_assets/three-<version>/`` (MIT; see the
+README there). Everything is inlined, so the page works offline from ``file://`` (where Chromium blocks
+module files and ``fetch``) as well as over HTTP: the GLBs and pictures are base64 strings in the page,
+and the three.js modules are ``data:`` URLs of an import map. That costs about 1.3 MB for three.js
+plus the meshes, so the number of cards is bounded (``limit``, default :data:`DEFAULT_LIMIT`) and the
+page says how many of how many images it shows.
+
+API: :func:`write_viewer` writes a page from :class:`ViewerEntry` items (files already on disk);
+:func:`write_reconstruction_viewer` exports what the page needs for a batch of reconstructions
+(``<stem>.glb``, ``<stem>_new_pose.glb``, ``<stem>_gt.glb``) and writes the page, as ``cerberus
+reconstruct`` and ``cerberus eval`` do.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import posixpath
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+from PIL import Image
+
+from cerberus_core.atomic import atomic_write, atomic_write_text
+from cerberus_core.render.camera import Camera
+from cerberus_core.eval.export import export_parts
+from cerberus_core.eval.figures import NEW_LIGHT_CAMERA_DIRECTION, camera_spherical
+from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.viz import part_colors, to_uint8
+
+THREE_VERSION = "0.184.0"
+ASSETS = Path(__file__).with_name("viewer_assets")
+THREE_DIR = ASSETS / f"three-{THREE_VERSION}"
+#: The vendored files the page needs (paths inside the three.js package); the first is ``three``.
+THREE_FILES = ("build/three.module.min.js", "build/three.core.min.js", "examples/jsm/controls/OrbitControls.js",
+               "examples/jsm/loaders/GLTFLoader.js", "examples/jsm/utils/BufferGeometryUtils.js",
+               "examples/jsm/utils/SkeletonUtils.js")
+MODULE_PREFIX = "cerberus-three/"
+#: Cards on one page unless told otherwise.
+DEFAULT_LIMIT = 12
+CANVAS_SIZE = 360
+#: Shown when an entry has no camera: the datasets' usual view.
+DEFAULT_CAMERA = {"azimuth": 0.0, "elevation": 10.0, "distance": 2.7, "fov_y": 30.0}
+#: The light presets, in the camera's frame (+x right, +y up, +z towards the viewer): the datasets'
+#: light following the camera (:meth:`cerberus_core.render.interface.Light.following`) and Figure 1
+#: (d)'s new light (:func:`cerberus_core.eval.figures.camera_relative_light`).
+LIGHTS = {
+    "training": {"label": "training (from the camera)", "direction": [0.0, 0.0, 1.0], "ambient": 0.4, "diffuse": 0.6},
+    "new": {"label": "new light (Figure 1 d)", "direction": list(NEW_LIGHT_CAMERA_DIRECTION),
+            "ambient": 0.25, "diffuse": 0.75},
+}
+MODEL_LABELS = {"reconstruction": "Reconstruction", "ground_truth": "Ground truth", "new_pose": "New pose"}
+
+
+@dataclass
+class ViewerEntry:
+    """One card of the page.
+
+    Attributes:
+        name: its title (e.g. the input's file stem).
+        image: the input picture: a PNG/JPEG file, its bytes, or a ``(3, H, W)`` tensor in [0, 1].
+        reconstruction: GLB of the posed parts (:func:`cerberus_core.eval.export.export_parts`).
+        ground_truth: GLB of the ground-truth body, if there is one (:func:`export_body_glb`).
+        new_pose: GLB of the parts in another image's pose (Figure 1 (f)), if any.
+        camera: the input camera as ``{"azimuth", "elevation", "distance", "fov_y"}`` (degrees; look-at
+            the origin, +Y up): the view the page opens at (:func:`camera_view`). Default
+            :data:`DEFAULT_CAMERA`.
+        note: a line under the title.
+    """
+
+    name: str
+    image: Path | str | bytes | torch.Tensor
+    reconstruction: Path | str
+    ground_truth: Path | str | None = None
+    new_pose: Path | str | None = None
+    camera: dict | None = None
+    note: str = ""
+
+
+# ------------------------------------------------------------------ three.js as an import map
+_RELATIVE_IMPORT = re.compile(r"""(\bfrom\s*|\bimport\s*\(?\s*)(["'])(\.\.?/[^"'\s]+)\2""")
+
+
+def _specifier(path: str) -> str:
+    return "three" if path == THREE_FILES[0] else MODULE_PREFIX + path
+
+
+def vendored_modules() -> dict[str, str]:
+    """``{module specifier: source}`` of the vendored three.js files, each relative import rewritten to
+    the specifier of the vendored file it names (``data:`` modules have no base URL to resolve against).
+
+    Raises:
+        FileNotFoundError: if a vendored file is missing (a broken install).
+    """
+    sources = {p: (THREE_DIR / p).read_text(encoding="utf-8") for p in THREE_FILES}
+
+    def rewrite(path: str, text: str) -> str:
+        def sub(m: re.Match) -> str:
+            target = posixpath.normpath(posixpath.join(posixpath.dirname(path), m.group(3)))
+            if target not in sources:  # e.g. a path in a comment: leave it
+                return m.group(0)
+            return f"{m.group(1)}{m.group(2)}{_specifier(target)}{m.group(2)}"
+        return _RELATIVE_IMPORT.sub(sub, text)
+
+    return {_specifier(p): rewrite(p, text) for p, text in sources.items()}
+
+
+def import_map() -> dict:
+    """The page's import map: every vendored module as a base64 ``data:`` URL."""
+    return {"imports": {spec: "data:text/javascript;base64," + base64.b64encode(src.encode()).decode()
+                        for spec, src in vendored_modules().items()}}
+
+
+# ------------------------------------------------------------------ meshes for the page
+def camera_view(camera: Camera) -> dict:
+    """``{"azimuth", "elevation", "distance", "fov_y"}`` of a batch-1 look-at camera aimed at the origin."""
+    if camera.batch_size != 1:
+        raise ValueError(f"camera_view: expected one camera, got {camera.batch_size}")
+    az, el, dist = camera_spherical(camera)
+    return {"azimuth": float(az[0]), "elevation": float(el[0]), "distance": float(dist[0]),
+            "fov_y": float(camera.fov_y_deg.reshape(-1)[0])}
+
+
+def body_scene(body) -> trimesh.Scene:
+    """A ground-truth body (:class:`cerberus_core.bodies.body.PosedBody`) as one node per semantic part
+    (a face belongs to the part of its first vertex), named by the part, each in its own colour."""
+    vertices = np.asarray(body.vertices, dtype=np.float64)
+    faces = np.asarray(body.faces, dtype=np.int64)
+    labels = np.asarray(body.vertex_parts, dtype=np.int64)[faces[:, 0]]
+    names = list(body.part_names)
+    colors = np.round(part_colors(len(names)).numpy() * 255).astype(np.uint8)
+    scene = trimesh.Scene()
+    for k, name in enumerate(names):
+        sel = faces[labels == k]
+        if not len(sel):
+            continue
+        used, inverse = np.unique(sel, return_inverse=True)
+        mesh = trimesh.Trimesh(vertices[used], inverse.reshape(-1, 3), process=False)
+        material = trimesh.visual.material.PBRMaterial(name=name, baseColorFactor=[*colors[k], 255],
+                                                       metallicFactor=0.0, roughnessFactor=0.9)
+        mesh.visual = trimesh.visual.TextureVisuals(material=material)
+        scene.add_geometry(mesh, node_name=name, geom_name=name)
+    return scene
+
+
+def export_body_glb(body, path: str | Path) -> Path:
+    """Write a ground-truth body as a GLB (:func:`body_scene`), atomically."""
+    data = body_scene(body).export(file_type="glb")
+    atomic_write(Path(path), lambda fh: fh.write(data))
+    return Path(path)
+
+
+def _image_png(image: Path | str | bytes | torch.Tensor) -> tuple[str, bytes]:
+    if isinstance(image, torch.Tensor):
+        buf = io.BytesIO()
+        Image.fromarray(to_uint8(image.reshape(1, *image.shape[-3:]))[0]).save(buf, format="PNG")
+        return "image/png", buf.getvalue()
+    data = image if isinstance(image, bytes) else Path(image).read_bytes()
+    return ("image/jpeg" if data[:3] == b"\xff\xd8\xff" else "image/png"), data
+
+
+def _b64(path: Path | str) -> str:
+    return base64.b64encode(Path(path).read_bytes()).decode()
+
+
+# ------------------------------------------------------------------ the page
+def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: str = "Cerberus reconstructions",
+                 limit: int = DEFAULT_LIMIT, total: int | None = None, limit_hint: str = "",
+                 background: Sequence[float] = (1.0, 1.0, 1.0), filename: str = "index.html") -> Path:
+    """Write the viewer page ``out_dir/filename`` for the first ``limit`` entries.
+
+    Args:
+        entries: the cards, in order; their files are read and inlined now.
+        title: the page's heading.
+        limit: at most this many cards (the page says how many it left out).
+        total: how many images there were in all (default ``len(entries)``), for that sentence.
+        limit_hint: how a user shows more, e.g. ``"--viewer-images"``.
+        background: the 3D views' background colour, RGB in [0, 1].
+    Returns:
+        The page's path.
+    """
+    if limit < 1:
+        raise ValueError(f"write_viewer: limit must be >= 1, got {limit}")
+    entries = list(entries)
+    total = len(entries) if total is None else total
+    shown = entries[:limit]
+    if not shown:
+        raise ValueError("write_viewer: no entries")
+    data_entries, cards = [], []
+    for i, e in enumerate(shown):
+        models = [(k, getattr(e, k)) for k in ("reconstruction", "ground_truth", "new_pose") if getattr(e, k)]
+        data_entries.append({"index": i, "name": e.name, "camera": e.camera,
+                             "models": [{"key": k, "label": MODEL_LABELS[k], "glb": _b64(p)} for k, p in models]})
+        mime, png = _image_png(e.image)
+        note = f'<p class="meta">{html.escape(e.note)}</p>' if e.note else ""
+        cards.append(f'<section class="card" data-index="{i}"><h2>{html.escape(e.name)}</h2>{note}'
+                     f'<div class="row"><figure><img alt="input picture of {html.escape(e.name)}" '
+                     f'src="data:{mime};base64,{base64.b64encode(png).decode()}"><figcaption>Input</figcaption>'
+                     f'</figure><div class="view"></div></div></section>')
+    data = {"canvas_size": CANVAS_SIZE, "background": [float(c) for c in background], "lights": LIGHTS,
+            "default_camera": DEFAULT_CAMERA, "entries": data_entries}
+    count = (f"All {total} image(s)." if len(shown) == total else
+             f"The first {len(shown)} of {total} images" + (f" ({limit_hint} sets how many)." if limit_hint else "."))
+    page = _PAGE.format(
+        title=html.escape(title), count=html.escape(count), version=THREE_VERSION,
+        css=(ASSETS / "viewer.css").read_text(encoding="utf-8"),
+        importmap=_script_json(import_map()), data=_script_json(data), cards="\n".join(cards),
+        js=(ASSETS / "viewer.js").read_text(encoding="utf-8"))
+    path = Path(out_dir) / filename
+    atomic_write_text(path, page)
+    return path
+
+
+def _script_json(obj) -> str:
+    """JSON safe inside a ``<script>`` element."""
+    return json.dumps(obj, separators=(",", ":")).replace("</", "<\\/")
+
+
+_PAGE = """<!doctype html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{title}</title>
+<style>
+{css}</style>
+<script>
+window.cerberusViewer = {{ ready: false, errors: [], meshCount: 0, cards: [] }};
+window.addEventListener('error', (e) => window.cerberusViewer.errors.push(String(e.message || e)));
+window.addEventListener('unhandledrejection', (e) => window.cerberusViewer.errors.push(String(e.reason)));
+</script>
+<script type="importmap">{importmap}</script>
+</head>
+<body data-viewer="loading">
+<header>
+<h1>{title}</h1>
+<p>{count} Drag to orbit, wheel to zoom, right-drag to pan; the view opens at the input camera's.</p>
+</header>
+<main>
+{cards}
+</main>
+<footer>Rendered with three.js {version} (MIT licence), vendored in the page: works offline.</footer>
+<pre id="viewer-status" hidden></pre>
+<script type="application/json" id="cerberus-viewer-data">{data}</script>
+<script type="module">
+{js}</script>
+</body>
+</html>
+"""
+
+
+# ------------------------------------------------------------------ one call for the commands
+def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon: PartSet,
+                                camera: Camera, stems: Sequence[str], *, bodies: Sequence | None = None,
+                                limit: int = DEFAULT_LIMIT, limit_hint: str = "",
+                                title: str = "Cerberus reconstructions",
+                                background: Sequence[float] = (1.0, 1.0, 1.0)) -> list[Path]:
+    """Export the meshes of the first ``limit`` images and write ``out_dir/index.html``.
+
+    For image ``i`` named ``stems[i]`` writes ``<stem>.glb`` (the reconstruction), ``<stem>_new_pose.glb``
+    (its parts with the rotations and translations predicted from the next image, as the ``new_pose``
+    picture of :func:`cerberus_core.eval.figures.save_image_pictures`; only with two or more images) and,
+    with ``bodies`` (``bodies[i]`` the ground-truth :class:`PosedBody` of image ``i``), ``<stem>_gt.glb``.
+
+    Args:
+        images: ``(N, 3, H, W)`` the inputs in [0, 1]; camera: their ``N`` cameras; recon: batch ``N``.
+        limit: cards on the page (``0``: write nothing).
+    Returns:
+        The files written, the page last.
+    """
+    n = recon.batch_size
+    if len(stems) != n or images.shape[0] != n or camera.batch_size != n or (bodies is not None and len(bodies) != n):
+        raise ValueError(f"write_reconstruction_viewer: {n} reconstructions but {images.shape[0]} images, "
+                         f"{camera.batch_size} cameras, {len(stems)} names"
+                         + ("" if bodies is None else f", {len(bodies)} bodies"))
+    if limit <= 0:
+        return []
+    out_dir = Path(out_dir)
+    faces = recon.faces.detach().cpu().numpy()
+    written, entries = [], []
+    for i in range(min(limit, n)):
+        stem, one = stems[i], recon.index([i])
+        written += export_parts(one.posed()[0].detach().cpu().numpy(), faces, out_dir, stem, formats=("glb",))
+        entry = ViewerEntry(stems[i], images[i], out_dir / f"{stem}.glb", camera=camera_view(camera.index([i])))
+        if bodies is not None:
+            entry.ground_truth = export_body_glb(bodies[i], out_dir / f"{stem}_gt.glb")
+            written.append(entry.ground_truth)
+        if n > 1:
+            j = (i + 1) % n
+            posed = transfer_pose(one, recon.index([j])).posed()[0].detach().cpu().numpy()
+            written += export_parts(posed, faces, out_dir, f"{stem}_new_pose", formats=("glb",))
+            entry.new_pose = out_dir / f"{stem}_new_pose.glb"
+            entry.note = f"New pose: these parts with the rotations and translations predicted from {stems[j]}."
+        entries.append(entry)
+    written.append(write_viewer(out_dir, entries, title=title, limit=limit, total=n, limit_hint=limit_hint,
+                                background=background))
+    return written
