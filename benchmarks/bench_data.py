@@ -73,7 +73,7 @@ def main() -> None:
     for name in backends:
         r = make_renderer(name)
         render_views(r, bodies[:4], np.arange(4), az[:4], scene, args.image_size)  # warm-up (kernel compile)
-        t = _time(lambda: render_views(r, bodies, np.arange(len(bodies)), az, scene, args.image_size,
+        t = _time(lambda r=r: render_views(r, bodies, np.arange(len(bodies)), az, scene, args.image_size,
                                        batch_size=args.batch), repeat=2)
         render_rate[name] = len(bodies) / t
     print(f"model load + first subject scale: {t_load:6.2f} s")
@@ -90,11 +90,11 @@ def main() -> None:
     for name in backends:
         with tempfile.TemporaryDirectory() as tmp:
             c = replace(cfg, renderer=name)
-            t = _time(lambda: generate(c, Path(tmp) / "ds", source=source, progress=False, log=lambda s: None,
+            t = _time(lambda c=c, tmp=tmp: generate(c, Path(tmp) / "ds", source=source, progress=False, log=lambda s: None,
                                        batch_size=args.batch))
             if name == backends[0]:
                 ds = QuadrupletDataset(Path(tmp) / "ds")
-                t_read = _time(lambda: [ds[i] for i in range(len(ds))])
+                t_read = _time(lambda ds=ds: [ds[i] for i in range(len(ds))])
                 read_rate = len(ds) / t_read
         e2e[name] = 4 * args.pairs / t
         print(f"end-to-end {name:<8} {4 * args.pairs} images in {t:6.2f} s = {e2e[name]:6.1f} images/s "

@@ -35,10 +35,10 @@ import numpy as np
 import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
-from cerberus_core.render.camera import Camera
-from cerberus_core.render.demo import demo_scene
 from cerberus_core.plugins import available_renderers, make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
+from cerberus_core.render.demo import demo_scene
 from cerberus_core.render.interface import Light
 from cerberus_core.viz import part_colors
 
@@ -130,7 +130,7 @@ def time_split(step: Callable[[], tuple[float, float]], repeats: int, warmup: in
         f, b = step()
         fwd.append(f * 1e3)
         bwd.append(b * 1e3)
-    tot = [f + b for f, b in zip(fwd, bwd)]
+    tot = [f + b for f, b in zip(fwd, bwd, strict=False)]
     return Timing(statistics.median(tot), statistics.median(fwd), statistics.median(bwd), tot)
 
 

@@ -85,9 +85,9 @@ def stepper(cfg, scene, batch, renderer, speed=None):
 
 
 def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
-    from cerberus_core.render.camera import Camera
     from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.render.api import render_parts
+    from cerberus_core.render.camera import Camera
     from cerberus_core.train.objective import partner_cameras, unwrap
 
     cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)

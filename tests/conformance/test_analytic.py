@@ -6,8 +6,8 @@ import math
 import pytest
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.render.api import render
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 from cerberus_core.render.templates import icosphere
 

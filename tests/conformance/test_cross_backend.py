@@ -29,7 +29,7 @@ def _agreement(a, b, parts: torch.Tensor, faces: torch.Tensor, camera) -> torch.
         rows, cols = np.nonzero(differ[s].numpy())
         ia, ib = a.face_id[s].numpy()[rows, cols], b.face_id[s].numpy()[rows, cols]
         ok = explain_mismatches(clip[s], packed.numpy(), h, w, camera.near, rows, cols, ia, ib)
-        bad = [(int(r), int(c), int(x), int(y)) for r, c, x, y, k in zip(rows, cols, ia, ib, ok) if not k]
+        bad = [(int(r), int(c), int(x), int(y)) for r, c, x, y, k in zip(rows, cols, ia, ib, ok, strict=False) if not k]
         assert not bad, f"scene {s}: face ids differ at (row, col, backend, reference) {bad[:5]}"
     assert differ.sum() <= max(1, 0.005 * differ.numel()), f"{int(differ.sum())} edge/tie disagreements"
     return ~differ

@@ -4,8 +4,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.render.api import render, render_parts
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.templates import icosphere
 
 BACKGROUND = (0.1, 0.2, 0.3)

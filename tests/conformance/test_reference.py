@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
 from cerberus_core.viz import part_colors
 
 from .reference import PinholeCamera, explain_mismatches, render_reference
@@ -67,7 +67,7 @@ def test_matches_numpy_reference(renderer, scene: str) -> None:
         rows, cols = np.nonzero(differ)
         explained = explain_mismatches(clips[b], packed, h, w, 0.05, rows, cols, fid[differ], ref.face_id[differ])
         bad = [(int(r), int(c), int(fid[r, c]), int(ref.face_id[r, c]))
-               for r, c, e in zip(rows, cols, explained) if not e]
+               for r, c, e in zip(rows, cols, explained, strict=False) if not e]
         assert not bad, f"{scene} view {b}: face ids differ at (row, col, backend, reference) {bad[:5]}"
         assert differ.sum() <= max(1, 0.01 * h * w), f"{scene} view {b}: {differ.sum()} edge/tie disagreements"
         same = ~differ

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import pack_parts, render, render_parts
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 from cerberus_core.render.shading import lambert
 from cerberus_core.render.templates import icosphere

@@ -7,10 +7,10 @@ import torch
 from conftest import body_parts
 from PIL import Image
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.eval import figures
 from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
 from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import Camera
 
 H = 40
 

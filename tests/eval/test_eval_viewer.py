@@ -18,10 +18,10 @@ import trimesh
 from conftest import body_parts
 from PIL import Image
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.eval import viewer
 from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.render.camera import Camera
 
 STEMS = ["alpha", "beta", "gamma"]
 

@@ -2,11 +2,11 @@
 import pytest
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.model import Cerberus, ModelConfig
 from cerberus_core.parts import PartSet, pose_parts
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
 
 
 def small_model(**kw) -> Cerberus:

@@ -4,7 +4,6 @@ import math
 import pytest
 import torch
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.model.heads import (
     RotationHead,
     ShapeHead,
@@ -13,6 +12,7 @@ from cerberus_core.model.heads import (
     expectation,
     unproject_expectation,
 )
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.templates import icosphere
 
 

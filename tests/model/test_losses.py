@@ -170,7 +170,7 @@ def test_objective_cross_renders_own_rotated_mesh_with_partner_translation_from_
         own.append(reconstruction_loss(draw(rotated[x] + trans[x].unsqueeze(-2), x), targets[0, x]))
         cross.append(reconstruction_loss(draw(rotated[x] + trans[partner].unsqueeze(-2), partner),
                                          targets[0, partner]))
-    expected = sum(0.5 * (o + c) for o, c in zip(own, cross)) / 4
+    expected = sum(0.5 * (o + c) for o, c in zip(own, cross, strict=False)) / 4
     assert out.terms["recon"].item() == pytest.approx(expected.item(), rel=1e-5)
     renders = out.renders[0]
     assert renders.shape == (4, 3, 32, 32)

@@ -50,7 +50,7 @@ def test_thread_split_gives_identical_results() -> None:
             results.append((out.face_id, out.image.detach(), p.grad, vertex_normals(vertices.detach(), packed)))
     finally:
         torch.set_num_threads(threads)
-    for a, b in zip(*results):
+    for a, b in zip(*results, strict=False):
         assert torch.equal(a, b)
 
 
@@ -75,5 +75,5 @@ def test_cuda_thread_layout_gives_identical_results(monkeypatch) -> None:
     per_scene = run()
     monkeypatch.setattr(runtime, "ONE_ITEM_PER_THREAD", True)
     per_item = run()
-    for a, b in zip(per_scene, per_item):
+    for a, b in zip(per_scene, per_item, strict=False):
         assert torch.equal(a, b)

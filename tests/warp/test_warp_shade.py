@@ -49,7 +49,7 @@ def test_values_and_gradients_match_reference(dtype: torch.dtype, rtol: float) -
     assert torch.allclose(rgb, ref_rgb, rtol=0, atol=1e-5) and torch.allclose(depth, ref_depth, rtol=0, atol=1e-5)
     assert (rgb[face_id < 0] == 0).all() and (depth[face_id < 0] == 0).all()
     names = ["clip", "normals", "albedo", "direction", "ambient", "diffuse"]
-    for name, ours, ref in zip(names, grads, ref_grads):
+    for name, ours, ref in zip(names, grads, ref_grads, strict=False):
         scale = ref.abs().max()
         assert scale > 0, name
         assert ((ours - ref).abs().max() / scale) < rtol, name
@@ -84,7 +84,7 @@ def test_backlit_pixels_have_zero_diffuse_gradient() -> None:
     g_rgb, _ = _cotangents(face_id, torch.float64)
     _, _, grads = _run(shade, inputs, g_rgb, None)
     _, _, ref = _run(reference_shade, inputs, g_rgb, None)
-    for ours, theirs in zip(grads, ref):
+    for ours, theirs in zip(grads, ref, strict=False):
         assert torch.allclose(ours, theirs, rtol=1e-9, atol=1e-12)
     assert grads[5].abs().max() < 0.05 * grads[4].abs().max(), "diffuse barely matters when back-lit"
 
@@ -109,7 +109,7 @@ def test_one_output_used(which: str) -> None:
     args = (g_rgb, None) if which == "rgb" else (None, g_depth)
     _, _, grads = _run(shade, inputs, *args)
     _, _, ref = _run(reference_shade, inputs, *args)
-    for ours, theirs in zip(grads, ref):
+    for ours, theirs in zip(grads, ref, strict=False):
         if theirs is None:
             continue
         assert ((ours - theirs).abs().max() / theirs.abs().max().clamp_min(1e-30)) < 1e-4

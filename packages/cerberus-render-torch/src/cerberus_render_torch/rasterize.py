@@ -85,7 +85,7 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
         bounds.append(max(nxt, bounds[-1] + 1))
     px_of_col, py_of_row = pixel_centres(height, width, clip.dtype, device)
     passes = []
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=False):
         sel = slice(lo, hi)
         cnt = counts[sel]
         tri = torch.repeat_interleave(torch.arange(hi - lo, device=device), cnt)

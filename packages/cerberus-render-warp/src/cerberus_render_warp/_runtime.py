@@ -12,7 +12,6 @@ from typing import Any
 
 import torch
 
-
 WARP_REQUIREMENT = "warp-lang>=1.19"
 
 try:
@@ -142,7 +141,7 @@ def launch_scenes(kernel, batch: int, threads_per_scene: int, make_inputs: Calla
     futures = [
         _cpu_pool(threads).submit(wp.launch, kernel, dim=(b1 - b0) * threads_per_scene, inputs=make_inputs(b0, b1),
                                   device=device)
-        for b0, b1 in zip(bounds[:-1], bounds[1:])
+        for b0, b1 in zip(bounds[:-1], bounds[1:], strict=False)
     ]
     for fut in futures:
         fut.result()

@@ -26,7 +26,6 @@ from dataclasses import asdict
 from functools import lru_cache
 
 import numpy as np
-from scipy.sparse import coo_matrix
 
 from cerberus_core.bodies.animal_mesh import decimate, marching_cubes
 from cerberus_core.bodies.animal_pose import (
@@ -147,6 +146,10 @@ def smooth_labels(
     """
     n = len(labels)
     edges = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    try:
+        from scipy.sparse import coo_matrix
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("the animal bodies need scipy: pip install 'cerberus-core[animal]'") from exc
     adj = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
     adj = ((adj + adj.T) > 0).astype(np.float64)
     eye = np.eye(n_parts)

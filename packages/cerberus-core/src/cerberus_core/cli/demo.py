@@ -5,8 +5,6 @@ import argparse
 import time
 from pathlib import Path
 
-import torch
-
 from cerberus_core.cli.checks import output_folder, positive_int
 from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import available_renderers, make_renderer

@@ -4,8 +4,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import torch
-
 from cerberus_core.cli.checks import check_device, is_dataset, output_folder, positive_int
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT

@@ -81,10 +81,9 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.export import export_reconstruction
     from cerberus_core.eval.figures import save_image_pictures
     from cerberus_core.eval.images import load_images
+    from cerberus_core.eval.viewer import write_reconstruction_viewer
     from cerberus_core.lock import folder_lock
     from cerberus_core.train.checkpoint import load_run
-
-    from cerberus_core.eval.viewer import write_reconstruction_viewer
 
     # Every argument checked, the model, scene and images loaded, before anything is written.
     if args.model is not None:

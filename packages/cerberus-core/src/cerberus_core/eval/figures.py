@@ -17,9 +17,9 @@ from pathlib import Path
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer
 from cerberus_core.viz import atomic_save_png, part_colors, to_uint8
 

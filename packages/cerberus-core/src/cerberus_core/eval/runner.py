@@ -23,11 +23,11 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
-from cerberus_core.parts import PartSet
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, Score, VoxelScorer, summarize
+from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
 Reconstructor = Callable[[Tensor, Camera], PartSet]

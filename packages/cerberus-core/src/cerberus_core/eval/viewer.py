@@ -36,10 +36,10 @@ import trimesh
 from PIL import Image
 
 from cerberus_core.atomic import atomic_write, atomic_write_text
-from cerberus_core.render.camera import Camera
 from cerberus_core.eval.export import export_parts
 from cerberus_core.eval.figures import NEW_LIGHT_CAMERA_DIRECTION, camera_spherical
 from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.render.camera import Camera
 from cerberus_core.viz import part_colors, to_uint8
 
 THREE_VERSION = "0.184.0"

@@ -18,10 +18,10 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.model.encoder import ResNet10, UpDecoder
 from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
 from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.templates import MeshTemplate, icosphere
 
 Tensor = torch.Tensor

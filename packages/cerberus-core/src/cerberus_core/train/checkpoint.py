@@ -181,7 +181,7 @@ def load_run(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerb
     if not Path(path).exists() and "/" not in str(path) and not Path(path).suffix:
         from cerberus_core.zoo import model_path
 
-        path = model_path(path)  # a shipped model's name ("human"): its checksum-verified weights
+        path = model_path(str(path))  # a shipped model's name ("human"): its checksum-verified weights
     path = Path(path)
     if not path.exists():
         raise CheckpointError(f"{path} does not exist; {_USE}")

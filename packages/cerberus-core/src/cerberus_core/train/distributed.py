@@ -77,7 +77,7 @@ def mean_over_ranks(values: dict[str, torch.Tensor], info: DistInfo) -> dict[str
     if info.enabled:
         dist.all_reduce(t, op=dist.ReduceOp.SUM)
         t = t / info.world_size
-    return {k: float(x) for k, x in zip(keys, t.cpu().tolist())}
+    return {k: float(x) for k, x in zip(keys, t.cpu().tolist(), strict=False)}
 
 
 def barrier(info: DistInfo) -> None:

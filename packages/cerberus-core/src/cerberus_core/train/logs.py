@@ -19,9 +19,9 @@ import torch
 from PIL import Image, ImageDraw
 
 from cerberus_core.atomic import atomic_write_text
-from cerberus_core.render.camera import Camera
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.viz import atomic_save_png, part_colors, save_image_grid
 

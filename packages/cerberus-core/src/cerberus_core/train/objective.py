@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from cerberus_core.render.camera import Camera
 from cerberus_core.datasets.readers import background_mask
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.losses import (
@@ -33,6 +32,7 @@ from cerberus_core.losses import (
 )
 from cerberus_core.model.cerberus import Cerberus, Predictions
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.data import QuadrupletBatch
 
