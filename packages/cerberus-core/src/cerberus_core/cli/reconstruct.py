@@ -39,26 +39,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def scene_for(config, data: Path | None, saved: dict | None = None):
-    """The scene set-up the model was trained with: from ``--data`` (which must be a dataset), else the
-    one the run recorded, else from the run's training data if it is still there. Never a silent
-    default: without any of them the user is asked for ``--data``."""
-    from cerberus_core.datasets.format import MANIFEST, read_manifest
-    from cerberus_core.datasets.scene import SceneSetup
-
-    if data is not None:
-        if not (Path(data) / MANIFEST).is_file():
-            raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
-        return SceneSetup.from_dict(read_manifest(Path(data))["scene"])
-    if saved is not None:
-        return SceneSetup.from_dict(saved)
-    root = Path(config.data.root)
-    if (root / MANIFEST).is_file():
-        return SceneSetup.from_dict(read_manifest(root)["scene"])
-    raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
-                      "--data DATASET (the dataset it was trained on, or one rendered the same way)")
-
-
 def output_names(paths: list[Path]) -> list[str]:
     """One distinct output name per input: the file stem, made unique with the parent folder's name and
     then a counter when stems repeat (``a/x.png b/x.png`` → ``a_x``, ``b_x``)."""
@@ -83,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.images import load_images
     from cerberus_core.eval.viewer import write_reconstruction_viewer
     from cerberus_core.lock import folder_lock
-    from cerberus_core.train.checkpoint import load_run
+    from cerberus_core.train.checkpoint import load_run, model_scene
 
     # Every argument checked, the model, scene and images loaded, before anything is written.
     if args.model is not None:
@@ -98,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     check_device(args.device)
     out = output_folder(args.out)
     model, config, saved_scene = load_run(args.run, args.device)
-    scene = scene_for(config, args.data, saved_scene)
+    scene = model_scene(config, args.data, saved_scene)
     size = int(config.data.image_size or 64)
     images, _ = load_images(args.images, size, scene.background)
     renderer = make_renderer(args.renderer or config.renderer)

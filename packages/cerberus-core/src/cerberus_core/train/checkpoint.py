@@ -225,3 +225,31 @@ def load_run(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerb
                               f"({_reason(exc)}); it was written by another version or is damaged") from None
     return model.to(device).eval(), config, scene
 
+
+def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict | None = None):
+    """The scene set-up the model was trained with: from ``--data`` (which must be a dataset), else the
+    one the run recorded, else from the run's training data if it is still there. Never a silent
+    default: without any of them the user is asked for ``--data``.
+
+    Args:
+        config: the run's config (from :func:`load_run`).
+        data: a dataset folder whose scene the images follow.
+        saved: the scene :func:`load_run` returned with the weights.
+    Returns:
+        A :class:`~cerberus_core.datasets.scene.SceneSetup`.
+    """
+    from cerberus_core.datasets.format import MANIFEST, read_manifest
+    from cerberus_core.datasets.scene import SceneSetup
+    from cerberus_core.errors import ConfigError
+
+    if data is not None:
+        if not (Path(data) / MANIFEST).is_file():
+            raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
+        return SceneSetup.from_dict(read_manifest(Path(data))["scene"])
+    if saved is not None:
+        return SceneSetup.from_dict(saved)
+    root = Path(config.data.root)
+    if (root / MANIFEST).is_file():
+        return SceneSetup.from_dict(read_manifest(root)["scene"])
+    raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
+                      "--data DATASET (the dataset it was trained on, or one rendered the same way)")
