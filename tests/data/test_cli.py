@@ -89,3 +89,19 @@ def test_generate_tiny_real_sources(tmp_path, dataset):
     if dataset == "human":
         assert len(views.canonical_indices()) == 1
     assert main(["data", "show", str(out), "--out", str(tmp_path / "s.png"), "--parts"]) == 0
+
+
+def test_a_second_writer_of_a_dataset_folder_is_refused_with_the_holders_pid(tmp_path, capsys):
+    import os
+
+    from cerberus_core.lock import folder_lock
+
+    out = tmp_path / "ds"
+    with folder_lock(out, "another cerberus data generate"):
+        rc = main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(out), "--quiet"])
+        assert rc == 2
+        err = capsys.readouterr().err
+        assert f"pid {os.getpid()}" in err and len(err.strip().splitlines()) == 1
+        assert [p.name for p in out.iterdir()] == [".cerberus.lock"], "nothing written beside the lock"
+    assert main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(out), "--quiet"]) == 0
+    assert (out / "manifest.json").is_file() and not (out / ".cerberus.lock").exists()

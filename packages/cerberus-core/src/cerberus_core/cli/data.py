@@ -131,8 +131,11 @@ def run_generate(args: argparse.Namespace) -> int:
                 print(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} quadruplets "
                       f"{t['meshes']:>7} meshes")
             return 0
-        manifest = generate(config, args.out, source=source, source_options=options, overwrite=args.overwrite,
-                            device=args.device, batch_size=args.batch_size, progress=not args.quiet)
+        from cerberus_core.lock import folder_lock
+
+        with folder_lock(args.out, "cerberus data generate"):  # one writer per dataset folder
+            manifest = generate(config, args.out, source=source, source_options=options, overwrite=args.overwrite,
+                                device=args.device, batch_size=args.batch_size, progress=not args.quiet)
     except (DatasetError, ValueError, ImportError) as exc:
         return _fail(exc)
     for split, info in manifest["splits"].items():

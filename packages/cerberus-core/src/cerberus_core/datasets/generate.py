@@ -166,7 +166,9 @@ def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None
         log(f"overwriting the dataset in {out} (different config)")
         _remove_dataset(out, old_splits + list(old.get("splits", {})))
         return None
-    entries = [p for p in out.iterdir() if not (p.name.startswith(".") and p.name.endswith(".tmp"))]
+    from cerberus_core.lock import is_lock_file
+
+    entries = [p for p in out.iterdir() if not (p.name.startswith(".") and p.name.endswith(".tmp")) and not is_lock_file(p)]
     if entries:
         if not overwrite:
             raise DatasetError(f"{out} is not empty and holds no Cerberus dataset ({len(entries)} entries, e.g. "
