@@ -13,12 +13,12 @@ Each model is three files in this folder, all package data:
 """
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cerberus_core.datasets.format import sha256_file  # the project's one file checksum
 from cerberus_core.errors import CerberusError
 
 ZOO_DIR = Path(__file__).resolve().parent
@@ -66,15 +66,6 @@ def available() -> dict[str, PretrainedModel]:
         model = PretrainedModel(**data)
         out[model.name] = model
     return out
-
-
-def sha256_file(path: str | Path) -> str:
-    """Hex SHA-256 of a file, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def model_path(name: str) -> Path:
