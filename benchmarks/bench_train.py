@@ -5,7 +5,8 @@ For each preset and each renderer backend (``--renderers``, default torch and wa
 from a small ``primitives`` dataset rendered at the preset's training resolution (generated into a
 temporary folder, or ``--data ROOT``), runs a few warm-up steps, then times full optimisation steps
 (objective, backward, Adam). The rendering share is the time of the step's render call alone
-(forward and backward of ``render_parts`` on the same scenes, all 8 B of them) over the step time.
+(forward and backward of ``render_parts`` on the same scenes, all 8 B of them, anti-aliased when the
+preset's ``render.antialias`` is on) over the step time.
 
     python benchmarks/bench_train.py                 # 2 threads, both presets, both backends
     python benchmarks/bench_train.py --threads 1 --steps 5 --renderers warp
@@ -76,7 +77,7 @@ def stepper(cfg, scene, batch, renderer, speed=None):
 
     def step(i: int) -> float:
         out = quadruplet_objective(model, renderer, batch, scene, cfg.losses, torch.Generator().manual_seed(i),
-                                   smoothness_once=speed.smoothness_once)
+                                   smoothness_once=speed.smoothness_once, antialias=cfg.render.antialias)
         opt.zero_grad(set_to_none=True)
         out.total.backward()
         opt.step()
@@ -118,7 +119,7 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
 
     def render_once():
         img = render_parts(renderer, verts, model.faces, cams, scene.light(cams), albedo=scene.albedo,
-                           background=scene.background).image
+                           background=scene.background, antialias=cfg.render.antialias).image
         img.backward(grad)
 
     render_once()

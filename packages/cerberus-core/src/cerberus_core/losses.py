@@ -46,6 +46,11 @@ class LossConfig:
         recon, translation, background, smoothness: the weights ``lambda_r, lambda_t, lambda_b,
             lambda_s`` (paper: 1, 1, 1, 0.0001). A weight of 0 switches the term off (it is still
             computed and logged).
+        silhouette: weight of :func:`silhouette_loss` (rendered coverage vs the input's foreground,
+            own and partner viewpoint like the reconstruction loss); beyond the paper, 0 there. It
+            has a gradient only with ``render.antialias: true``.
+        chamfer: weight of :func:`silhouette_chamfer` (projected part vertices vs the input's
+            foreground pixels, every vertex visible or not); beyond the paper, 0 there.
         pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses
             its own shape latent — "Free Cerberus").
         viewpoint_consistency: also render each image's rotated mesh from the other viewpoint with
@@ -67,15 +72,17 @@ class LossConfig:
     translation: float = 1.0
     background: float = 1.0
     smoothness: float = 0.0001
+    silhouette: float = 0.0
+    chamfer: float = 0.0
     pose_consistency: bool = True
     viewpoint_consistency: bool = True
     render_background: str = "black"
     background_tolerance: float = 0.02
 
     def validate(self) -> None:
-        for name in ("recon", "translation", "background", "smoothness"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"losses.{name} is a loss weight and must be >= 0, got {getattr(self, name)}")
+        for name in ("recon", "translation", "background", "smoothness", "silhouette", "chamfer"):
+            if not getattr(self, name) >= 0:  # also refuses NaN
+                raise ValueError(f"losses.{name} is a loss weight and must be a number >= 0, got {getattr(self, name)}")
         if self.render_background not in ("black", "dataset"):
             raise ValueError(f"losses.render_background must be 'black' or 'dataset', got {self.render_background!r}")
         if not 0 <= self.background_tolerance < 1:

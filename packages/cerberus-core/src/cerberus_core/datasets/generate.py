@@ -43,7 +43,7 @@ ShardCallback = Callable[[str, dict], None]
 # ------------------------------------------------------------------------------------ rendering
 def render_views(renderer: Renderer, bodies: list[PosedBody], mesh_index: np.ndarray, azimuth: np.ndarray,
                  scene: SceneSetup, image_size: int, *, batch_size: int = 64, device: str | torch.device = "cpu",
-                 on_batch: Callable[[int], None] | None = None) -> np.ndarray:
+                 on_batch: Callable[[int], None] | None = None, supersample: int = 1) -> np.ndarray:
     """Render views of posed bodies with the scene set-up, in batches.
 
     Views of bodies that share a topology (faces) are batched together; each batch is one
@@ -55,6 +55,8 @@ def render_views(renderer: Renderer, bodies: list[PosedBody], mesh_index: np.nda
         azimuth: ``(N,)`` degrees.
         batch_size: views per render call.
         on_batch: called with the number of views rendered after each batch.
+        supersample: render at ``supersample * image_size`` and average each ``supersample`` x
+            ``supersample`` block (a box filter in linear float, before quantisation).
 
     Returns:
         ``(N, 3, H, W)`` uint8 images (``round(255 * rgb)``).
@@ -79,10 +81,13 @@ def render_views(renderer: Renderer, bodies: list[PosedBody], mesh_index: np.nda
         for idx in groups:
             faces = torch.as_tensor(bodies[mesh_index[idx[0]]].faces, device=device)
             verts = torch.as_tensor(np.stack([bodies[mesh_index[i]].vertices for i in idx]), device=device)
-            camera = scene.cameras(azimuth[idx], image_size, device=device)
+            camera = scene.cameras(azimuth[idx], image_size * supersample, device=device)
             res = render(renderer, verts, faces, camera, scene.light(camera), albedo=scene.albedo,
                          background=scene.background)
-            out[idx] = (res.image.clamp(0, 1) * 255 + 0.5).to(torch.uint8).cpu().numpy()
+            image = res.image.clamp(0, 1)
+            if supersample > 1:
+                image = torch.nn.functional.avg_pool2d(image, supersample)
+            out[idx] = (image * 255 + 0.5).to(torch.uint8).cpu().numpy()
             if on_batch is not None:
                 on_batch(len(idx))
     return out
@@ -287,7 +292,8 @@ def _build_shard(out: Path, config: GenerationConfig, source: BodySource, plan: 
                  renderer: Renderer, device: str, batch_size: int, on_batch: Callable[[int], None]) -> dict:
     bodies = build_bodies(source, plan.subjects, shard.meshes, len(source.part_names))
     images = render_views(renderer, bodies, shard.views["mesh"], shard.views["azimuth"], config.scene,
-                          config.image_size, batch_size=batch_size, device=device, on_batch=on_batch)
+                          config.image_size, batch_size=batch_size, device=device, on_batch=on_batch,
+                          supersample=config.supersample)
     views = shard.views.copy()
     meshes = None
     if config.splits[shard.split].meshes:

@@ -34,23 +34,40 @@ from cerberus_core.render.interface import Light
 Tensor = torch.Tensor
 
 
-@lru_cache(maxsize=64)
-def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, margin: float = 0.04) -> float:
-    """Smallest camera distance at which the cube ``[-extent/2, extent/2]^3`` fits the frame.
+def _frame_points(extent: float, radius: float | None) -> np.ndarray:
+    """Points whose projections must stay in the frame: the corners of the cube of side ``extent``,
+    or (``radius`` given) a vertical cylinder of that radius and height ``extent`` (its rims, every
+    5 degrees)."""
+    if radius is None:
+        return np.array(list(itertools.product((-0.5, 0.5), repeat=3))) * extent  # (8, 3)
+    th = np.deg2rad(np.arange(0.0, 360.0, 5.0))
+    rim = np.stack([radius * np.cos(th), np.zeros_like(th), radius * np.sin(th)], -1)
+    return np.concatenate([rim + [0.0, -extent / 2, 0.0], rim + [0.0, extent / 2, 0.0]])
 
-    The cube is seen from azimuths every 2.5 degrees at ``elevation_deg``; every corner must project
-    inside the square image shrunk by ``margin`` (a fraction of the half-width) on each side.
+
+@lru_cache(maxsize=64)
+def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, margin: float = 0.04,
+                 radius: float | None = None) -> float:
+    """Smallest camera distance at which a body-sized volume fits the frame from every azimuth.
+
+    The volume is the cube ``[-extent/2, extent/2]^3`` (the paper-faithful set-up: any body in the
+    normalised cube fits, however it is oriented) or, with ``radius``, the vertical cylinder of that
+    radius and height ``extent`` (framed to upright bodies: a standing human of height ``extent``
+    fills more of the frame). It is seen from azimuths every 2.5 degrees at ``elevation_deg``; every
+    point must project inside the square image shrunk by ``margin`` (a fraction of the half-width)
+    on each side.
 
     Args:
         fov_y_deg: vertical (= horizontal, square images) field of view in degrees.
         elevation_deg: camera elevation in degrees.
-        extent: side of the cube (normalised units).
-        margin: fraction of the half image kept free around the cube.
+        extent: side of the cube / height of the cylinder (normalised units).
+        margin: fraction of the half image kept free around the volume.
+        radius: the cylinder's radius (normalised units); ``None``: the cube.
 
     Returns:
         The distance in normalised units, rounded up to 1e-3.
     """
-    corners = np.array(list(itertools.product((-0.5, 0.5), repeat=3))) * extent  # (8, 3)
+    corners = _frame_points(extent, radius)
     az = np.deg2rad(np.arange(0.0, 360.0, 2.5))
     el = math.radians(elevation_deg)
     # Camera axes for each azimuth (look-at the origin, +Y up): forward f points to the origin.
@@ -60,7 +77,7 @@ def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, m
     limit = math.tan(math.radians(fov_y_deg) / 2) * (1 - margin)
 
     def fits(dist: float) -> bool:
-        rel = corners[None] - dist * eye_dir[:, None]  # (A, 8, 3) camera-centred
+        rel = corners[None] - dist * eye_dir[:, None]  # (A, P, 3) camera-centred
         depth = -(rel * eye_dir[:, None]).sum(-1)
         x = (rel * right[:, None]).sum(-1) / depth
         y = (rel * up[:, None]).sum(-1) / depth
@@ -91,6 +108,13 @@ class SceneSetup:
             most ``albedo * (ambient + diffuse) = 0.8`` so background pixels (exactly 255 in uint8)
             separate from the body exactly.
         near, far: camera clipping distances.
+        fitted_extent: side of the cube (or height of the cylinder) the distance is fitted to.
+        fitted_radius: ``None`` (default, the paper-faithful set-up): fit the distance to the cube
+            ``[-fitted_extent/2, fitted_extent/2]^3``, which any normalised body fits; a radius
+            (normalised units): fit it to the vertical cylinder of that radius, *framed to the
+            body* (a standing human fills most of the frame's height; a body reaching further
+            out than the cylinder from the axis may touch the frame's edge). Omitted from
+            :meth:`to_dict` when ``None``, so older manifests keep their hash.
     """
 
     elevation: float = 15.0
@@ -103,14 +127,18 @@ class SceneSetup:
     near: float = 0.05
     far: float = 100.0
     fitted_extent: float = field(default=FILL)
+    fitted_radius: float | None = None
 
     def __post_init__(self) -> None:
         if not 0 < self.fov_y < 180:
             raise ValueError(f"SceneSetup.fov_y must lie in (0, 180) degrees, got {self.fov_y}")
         if not -90 < self.elevation < 90:
             raise ValueError(f"SceneSetup.elevation must lie in (-90, 90) degrees, got {self.elevation}")
+        if self.fitted_radius is not None and not self.fitted_radius > 0:
+            raise ValueError(f"SceneSetup.fitted_radius must be positive or null, got {self.fitted_radius}")
         if self.distance is None:
-            object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent))
+            object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent,
+                                                               radius=self.fitted_radius))
         if self.distance <= self.near:
             raise ValueError(f"SceneSetup.distance {self.distance} must exceed the near plane {self.near}")
         object.__setattr__(self, "albedo", tuple(float(a) for a in self.albedo))
@@ -124,6 +152,8 @@ class SceneSetup:
         """JSON-ready dict (as stored in the manifest's ``scene`` and ``config.scene``)."""
         d = asdict(self)
         d["albedo"], d["background"] = list(self.albedo), list(self.background)
+        if d["fitted_radius"] is None:
+            del d["fitted_radius"]
         d["light"] = dict(self.LIGHT)
         return d
 

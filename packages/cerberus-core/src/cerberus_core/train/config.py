@@ -27,7 +27,7 @@ from cerberus_core.losses import LossConfig
 from cerberus_core.model.cerberus import ModelConfig
 from cerberus_core.train.speed import SpeedConfig
 
-__all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "TrainConfig", "config_diff",
+__all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "RenderConfig", "TrainConfig", "config_diff",
            "deep_merge", "load_config", "parse_overrides", "preset_names"]
 
 
@@ -101,6 +101,20 @@ class LoopConfig:
 
 
 @dataclass
+class RenderConfig:
+    """How training renders (the ``render:`` section).
+
+    Attributes:
+        antialias: blend across silhouette and occlusion edges with the analytic anti-aliasing op
+            (:meth:`cerberus_core.render.interface.Renderer.antialias`, ``docs/antialias.md``), so
+            the rendering is differentiable w.r.t. where edges lie: a part over the background can
+            grow as well as shrink. Off: the paper's renderer (no visibility gradient).
+    """
+
+    antialias: bool = False
+
+
+@dataclass
 class DebugConfig:
     """Test hooks. ``poison_steps``: steps whose input images are replaced by NaN (to exercise the
     non-finite handling)."""
@@ -121,6 +135,7 @@ class TrainConfig:
         renderer: renderer backend by entry-point name (``torch``, ``warp``), or ``auto`` (Warp if it
             works, else torch; the run's saved config names the one used).
         speed: speed switches of the network (:mod:`cerberus_core.train.speed`), all off by default.
+        render: how training renders (:class:`RenderConfig`).
     """
 
     seed: int = 0
@@ -129,6 +144,7 @@ class TrainConfig:
     renderer: str = "auto"
     data: DataConfig = field(default_factory=DataConfig)
     model: ModelConfig = field(default_factory=ModelConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
     losses: LossConfig = field(default_factory=LossConfig)
     optim: OptimConfig = field(default_factory=OptimConfig)
     train: LoopConfig = field(default_factory=LoopConfig)
@@ -141,6 +157,9 @@ class TrainConfig:
         self.losses.validate()
         self.speed.validate()
         t, o = self.train, self.optim
+        if self.losses.silhouette > 0 and not self.render.antialias:
+            raise ConfigError("losses.silhouette needs render.antialias: true (the paper's renderer gives the coverage "
+                              "no gradient); add --set render.antialias=true, or --set losses.silhouette=0")
         if t.steps < 1 or t.batch_size < 1:
             raise ConfigError(f"train.steps and train.batch_size must be positive, got {t.steps}, {t.batch_size}")
         if t.on_nonfinite not in ("stop", "skip"):

@@ -7,7 +7,11 @@ its own viewpoint, and with its viewpoint partner's translation from the partner
 
 ``lambda_r L_r' + lambda_t L_t' + lambda_b L_b + lambda_s L_s``
 
-averaged over the batch (:mod:`cerberus_core.losses` defines every term).
+averaged over the batch (:mod:`cerberus_core.losses` defines every term). Beyond the paper (off in
+its settings): ``antialias`` renders with the analytic anti-aliasing op, which gives the image and
+the coverage visibility gradients; ``lambda_sil L_sil`` compares the rendered coverage with the
+input's foreground (own and partner viewpoint, averaged like equation 4) and ``lambda_c L_c`` pulls
+the projected part vertices onto the foreground (``losses.silhouette``, ``losses.chamfer``).
 """
 from __future__ import annotations
 
@@ -25,6 +29,8 @@ from cerberus_core.losses import (
     background_loss,
     mix_shape_latents,
     reconstruction_loss,
+    silhouette_chamfer,
+    silhouette_loss,
     smoothness_loss,
     translation_loss,
     viewpoint_reconstruction,
@@ -38,7 +44,7 @@ from cerberus_core.train.data import QuadrupletBatch
 
 Tensor = torch.Tensor
 
-TERMS = ("recon", "translation", "background", "smoothness")
+TERMS = ("recon", "translation", "background", "smoothness", "silhouette", "chamfer")
 """Loss terms in logging order (their weights are the fields of the same name in LossConfig)."""
 
 
@@ -47,7 +53,7 @@ class ObjectiveOutput:
     """Attributes:
         total: scalar loss to minimise (NaN if the predicted geometry was not finite; then nothing
             was rendered).
-        terms: detached scalars ``recon, translation, background, smoothness, total``.
+        terms: detached scalars of every term of :data:`TERMS` and ``total``.
         finite: whether ``total`` is finite.
         renders: ``(B, 4, 3, H, W)`` each image's own-viewpoint rendering (detached), or ``None``.
         parts: ``(B, 4, N, V, 3)`` the world-space parts rendered for each own viewpoint (detached).
@@ -96,7 +102,7 @@ def smoothness_term(local_vertices: Tensor, dihedral: Tensor, num_quadruplets: i
 
 def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: QuadrupletBatch, scene: SceneSetup,
                          losses: LossConfig, generator: torch.Generator | None = None, *,
-                         smoothness_once: bool = False) -> ObjectiveOutput:
+                         smoothness_once: bool = False, antialias: bool = False) -> ObjectiveOutput:
     """Evaluate the training objective on a batch of quadruplets.
 
     Args:
@@ -110,6 +116,8 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
         smoothness_once: with pose consistency, compute the smoothness loss on one image per
             quadruplet (its four images decode the same mixed latent, so their meshes are equal);
             the loss value is the same, gradients equal up to rounding (``speed.smoothness_once``).
+        antialias: render with :meth:`Renderer.antialias` (``render.antialias``): visibility
+            gradients for the reconstruction and silhouette terms.
     """
     core = unwrap(model)
     bsz = batch.num_quadruplets
@@ -134,17 +142,27 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
         bg_colour = (0.0, 0.0, 0.0)
 
     own, cross = viewpoint_scenes(local, rot, trans)
-    style = dict(albedo=scene.albedo, background=bg_colour)
+    style = dict(albedo=scene.albedo, background=bg_colour, antialias=antialias)
     if losses.viewpoint_consistency:
         cameras = Camera.cat([batch.camera, partner_cameras(batch.camera, bsz)])
         verts = torch.cat([own.flatten(0, 1), cross.flatten(0, 1)])
         out = render_parts(renderer, verts, core.faces, cameras, scene.light(cameras), **style)
         rendered_own, rendered_cross = out.image.view(2, bsz, 4, *out.image.shape[1:]).unbind(0)
+        alpha_own, alpha_cross = out.alpha.view(2, bsz, 4, *out.alpha.shape[1:]).unbind(0)
         loss_cross = reconstruction_loss(rendered_cross, targets[:, list(VIEW_PARTNER)])
     else:
         out = render_parts(renderer, own.flatten(0, 1), core.faces, batch.camera, scene.light(batch.camera), **style)
         rendered_own, loss_cross = out.image.view(bsz, 4, *out.image.shape[1:]), None
+        alpha_own, alpha_cross = out.alpha.view(bsz, 4, *out.alpha.shape[1:]), None
     loss_own = reconstruction_loss(rendered_own, targets)
+    foreground = (1 - mask).view(bsz, 4, *mask.shape[1:])  # (B, 4, 1, H, W)
+    sil_own = silhouette_loss(alpha_own, foreground)
+    sil_cross = None if alpha_cross is None else silhouette_loss(alpha_cross, foreground[:, list(VIEW_PARTNER)])
+    if losses.chamfer != 0:
+        uv, _ = batch.camera.project(own.flatten(0, 1).flatten(1, 2))  # (4B, N V, 2) pixels
+        chamfer = silhouette_chamfer(uv, foreground.flatten(0, 1))
+    else:  # a Python loop over images: not computed when off
+        chamfer = images.new_zeros(4 * bsz)
 
     values = {
         "recon": viewpoint_reconstruction(loss_own, loss_cross).mean(),
@@ -152,6 +170,8 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
         "background": background_loss(pred.maps.prob, mask).mean(),
         "smoothness": smoothness_term(pred.local_vertices, core.dihedral, bsz,
                                       smoothness_once and losses.pose_consistency).mean(),
+        "silhouette": viewpoint_reconstruction(sil_own, sil_cross).mean(),
+        "chamfer": chamfer.mean(),
     }
     total = sum(getattr(losses, k) * values[k] for k in TERMS if getattr(losses, k) != 0)
     total = total if isinstance(total, Tensor) else images.new_zeros(())

@@ -401,7 +401,8 @@ class _Trainer:
         buffers = [b.detach().clone() for b in self.model.buffers()]
         gen = step_generator(self.config.seed, step, self.info.rank)
         out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen,
-                                   smoothness_once=self.config.speed.smoothness_once)
+                                   smoothness_once=self.config.speed.smoothness_once,
+                                   antialias=self.config.render.antialias)
         self.optimizer.zero_grad(set_to_none=True)
         grad_norm = float("nan")
         ok = not any_true(not out.finite, self.info, self.device)
