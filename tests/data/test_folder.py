@@ -119,3 +119,160 @@ def test_bad_labels_and_layouts_are_named(mesh_folder, tmp_path):
         FolderSource(mesh_folder, test_subjects=["dave"])
     with pytest.raises(DatasetError, match="no subject folders"):
         FolderSource(tmp_path)
+
+
+# ------------------------------------------------------------------ up axis, units, degenerate meshes, test-only
+def _figures(root, transform=lambda v: v, ext="ply", poses=(1, 2), subjects=2):
+    """``subjects`` capsule-figure subjects (``alice``, ``bob``, ...) in +Y-up 'metres', each vertex
+    array passed through ``transform`` (float64) before it is written."""
+    src = PrimitiveBodySource()
+    for name, subject in zip(["alice", "bob", "carol"][:subjects], sample_subjects(subjects, 7, "train"), strict=True):
+        (root / name).mkdir(parents=True)
+        for b in src.posed_bodies(subject, list(poses)):
+            _export(root / name / f"pose{b.pose_id}.{ext}", transform(b.vertices.astype(np.float64) * 1.7), b.faces)
+    return root
+
+
+def _all_bodies(source):
+    return [b for split in ("train", "test") for s in source.subjects(split, None, 0)
+            for b in source.bodies(s, source.pose_pool(s, split, None))]
+
+
+@pytest.mark.parametrize("axis", ["+y", "-y", "+z", "-z", "+x", "-x"])
+def test_up_axis_rotation_is_proper_and_lifts_the_axis(axis):
+    from cerberus_core.bodies.folder import up_axis_rotation
+
+    r = up_axis_rotation(axis)
+    unit = np.zeros(3)
+    unit["xyz".index(axis[1])] = 1.0 if axis[0] == "+" else -1.0
+    np.testing.assert_array_equal(r @ unit, [0.0, 1.0, 0.0])
+    assert np.linalg.det(r) == pytest.approx(1.0)  # no mirroring: faces keep their orientation
+
+
+def test_z_up_meshes_give_the_y_up_bodies_with_up_axis_z(tmp_path):
+    # Blender's convention: +Y up becomes +Z up, the front (+Z) becomes -Y: (x, y, z) -> (x, -z, y)
+    y_up = FolderSource(_figures(tmp_path / "y"), test_fraction=0.5)
+    z_root = _figures(tmp_path / "z", transform=lambda v: np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1))
+    z_up = FolderSource(z_root, test_fraction=0.5, up_axis="+z")
+    for a, b in zip(_all_bodies(y_up), _all_bodies(z_up), strict=True):
+        np.testing.assert_allclose(a.vertices, b.vertices, atol=1e-6)
+        np.testing.assert_array_equal(a.faces, b.faces)
+    lying = FolderSource(z_root, test_fraction=0.5)  # read as +Y up, the bodies lie on their backs
+    assert not np.allclose(_all_bodies(lying)[0].vertices, _all_bodies(y_up)[0].vertices, atol=1e-2)
+    assert y_up.describe()["up_axis"] == "+y" and z_up.describe()["up_axis"] == "+z"  # part of the config hash
+    assert y_up.up_axis_warning() is None and z_up.up_axis_warning() is None
+    hint = lying.up_axis_warning()
+    assert "--up-axis +z" in hint and "4 of 4 meshes" in hint
+    with pytest.raises(ValueError, match="up axis 'z'"):
+        FolderSource(z_root, up_axis="z")
+
+
+def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsys):
+    import json
+    import warnings
+
+    from cerberus_core.cli import main
+
+    y_root = _figures(tmp_path / "y")
+    z_root = _figures(tmp_path / "z", transform=lambda v: np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1))
+    base = ["data", "generate", "--dataset", "folder", "--image-size", "32", "--quiet", "--test-fraction", "0.5"]
+    with pytest.warns(UserWarning, match=r"tallest along z.*pass --up-axis \+z"):
+        assert main([*base, "--source", str(z_root), "--out", str(tmp_path / "d0"), "--dry-run"]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any warning fails
+        assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "d1"), "--dry-run"]) == 0
+        assert main([*base, "--source", str(z_root), "--out", str(tmp_path / "dz"), "--up-axis", "+z"]) == 0
+        assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "dy")]) == 0
+    manifest = json.loads((tmp_path / "dz" / "manifest.json").read_text())
+    assert manifest["source"]["options"]["up_axis"] == "+z" and manifest["config"]["source"]["up_axis"] == "+z"
+    z_test, y_test = ViewDataset(tmp_path / "dz"), ViewDataset(tmp_path / "dy")
+    np.testing.assert_allclose(z_test.gt_mesh(0).vertices, y_test.gt_mesh(0).vertices, atol=1e-6)
+    capsys.readouterr()
+    assert main([*base[:3], "primitives", "--out", str(tmp_path / "p"), "--up-axis", "+z", "--dry-run"]) == 2
+    assert "--dataset folder only" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("scale", [1e6, 1e-6])
+def test_meshes_in_huge_or_tiny_units_render_like_metres(tmp_path, scale):
+    options = {"test_fraction": 0.5}
+    cfg = preset_config("folder", "pairs", image_size=32)
+    metres = _figures(tmp_path / "m")
+    scaled = _figures(tmp_path / "s", transform=lambda v: v * scale + 3.0 * scale)
+    for b, ref in zip(_all_bodies(FolderSource(scaled, **options)), _all_bodies(FolderSource(metres, **options)),
+                      strict=True):
+        np.testing.assert_allclose(b.vertices, ref.vertices, atol=1e-6)
+    for root, out in ((metres, "dm"), (scaled, "ds")):
+        generate(cfg, tmp_path / out, source_options={"root": str(root), **options}, progress=False,
+                 log=lambda s: None)
+    a, b = ViewDataset(tmp_path / "dm"), ViewDataset(tmp_path / "ds")
+    for i in range(len(a)):
+        body_pixels = float((a[i]["images"] < 0.99).float().mean())
+        assert body_pixels > 0.03  # not blank
+        assert float((a[i]["images"] - b[i]["images"]).abs().mean()) < 1e-3
+
+
+def _one_mesh_folder(tmp_path, ext):
+    """A folder of one subject with a good pose (``pose1.ply``); returns the path of a second pose to write."""
+    (tmp_path / "m" / "alice").mkdir(parents=True)
+    good = _figures(tmp_path / "g", poses=(1,), subjects=1)
+    path = tmp_path / "m" / "alice" / f"pose9.{ext}"
+    (tmp_path / "m" / "alice" / "pose1.ply").write_bytes((good / "alice" / "pose1.ply").read_bytes())
+    return path
+
+
+@pytest.mark.parametrize(("case", "problem"), [
+    ("one point", r"pose9\.obj: degenerate mesh: all 4 vertices of its 2 triangles are at one point"),
+    ("line", r"pose9\.obj: degenerate mesh: all 2 triangles have zero area"),
+    ("no faces", r"pose9\.obj: no triangles found"),
+    ("collapsed by float32", r"pose9\.ply: degenerate mesh: all \d+ vertices of its \d+ triangles are at one point"),
+])
+def test_degenerate_meshes_are_refused_naming_the_file(tmp_path, case, problem):
+    path = _one_mesh_folder(tmp_path, ext="ply" if case == "collapsed by float32" else "obj")
+    if case == "one point":
+        path.write_text("v 1 2 3\nv 1 2 3\nv 1 2 3\nv 1 2 3\nf 1 2 3\nf 2 3 4\n")
+    elif case == "line":
+        path.write_text("v 0 0 0\nv 1 1 1\nv 2 2 2\nv 3 3 3\nf 1 2 3\nf 2 3 4\n")
+    elif case == "no faces":
+        path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    else:  # a small body 1e8 units from the origin, in a file that stores float32: every vertex rounds together
+        body = PrimitiveBodySource().posed_bodies(sample_subjects(1, 7, "train")[0], [1])[0]
+        _export(path, body.vertices.astype(np.float64) + 1e8, body.faces)
+    with pytest.raises(DatasetError, match=problem) as err:
+        FolderSource(tmp_path / "m")
+    assert "\n" not in str(err.value)  # one line: the file, the problem, the fix
+
+
+def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp_path, capsys):
+    from cerberus_core.cli import main
+
+    root = _figures(tmp_path / "m", poses=(0, 1, 2))
+    for subject in ("alice", "bob"):
+        (root / subject / "pose0.ply").rename(root / subject / "rest.ply")
+    with pytest.raises(DatasetError, match=r"alice: no pose file 'still'.*\['pose1', 'pose2', 'rest'\]"):
+        FolderSource(root, test_fraction=1.0, canonical="still")
+    source = FolderSource(root, test_fraction=1.0, canonical="rest")
+    assert source.subjects("train", None, 0) == [] and len(source.subjects("test", None, 0)) == 2
+    assert source.describe()["canonical"] == "rest"
+    logs = []
+    manifest = generate(preset_config("folder", "pairs", image_size=32), tmp_path / "ds",
+                        source_options={"root": str(root), "test_fraction": 1.0, "canonical": "rest"},
+                        progress=False, log=logs.append)
+    assert logs == ["split 'train' has no subject and is left empty"]
+    assert manifest["splits"]["train"]["planned_shards"] == 0 and verify_dataset(tmp_path / "ds")[1] == []
+    test = ViewDataset(tmp_path / "ds")
+    assert len(test) == 2 * 3 * 4  # 2 poses + the canonical one, 4 views each
+    canon = test.canonical_indices()
+    assert sorted(len(v) for v in canon.values()) == [4, 4]
+    assert all(int(test.records["pose"][i]) == 2 for v in canon.values() for i in v)  # 'rest' sorts last
+    with pytest.raises(DatasetError, match=r"split 'train' is empty: the dataset has no train subjects.*cerberus eval"):
+        QuadrupletDataset(tmp_path / "ds")
+    capsys.readouterr()
+    run = tmp_path / "run"
+    assert main(["train", "--preset", "tiny", "--set", f"data.root={tmp_path / 'ds'}", "--out", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "split 'train' is empty" in err
+    assert not run.exists()  # nothing written
+    with pytest.raises(ValueError, match="no split has a subject"):
+        generate(preset_config("folder", "pairs", image_size=32, splits={"train": preset_config(
+            "folder", "pairs").splits["train"]}), tmp_path / "ds2",
+            source_options={"root": str(root), "test_fraction": 1.0}, progress=False, log=lambda s: None)

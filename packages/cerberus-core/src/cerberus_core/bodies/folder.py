@@ -6,17 +6,25 @@ Layout (any format trimesh reads: .obj .ply .stl .off .glb .gltf)::
     DIR/<subject>/<pose>.<ext>     one posed mesh per file; poses sort naturally by file name
     DIR/<subject>/<pose>.parts.npy optional (V,) integer part label per vertex of that pose
     DIR/<subject>/parts.npy        optional (V,) labels shared by all poses of the subject
-    DIR/<subject>/canonical.<ext>  optional canonical pose (flagged in test splits: Hard Human test)
+    DIR/<subject>/canonical.<ext>  optional canonical pose (flagged in test splits: Hard Human test);
+                                   ``canonical=POSE`` names another pose file stem instead
 
-Every subject is normalised with :func:`~cerberus_core.bodies.body.normalise_subject` (one scale per
-subject, each pose centred on its bounding box). Meshes are read with ``process=False`` so vertex
-order, hence sidecar labels, is kept. Subjects are split by name: ``test_subjects`` explicitly, or
-the last ``round(test_fraction * n)`` subjects in sorted order (at least one when there are two or
-more). Someone with SMPL or SMAL meshes reproduces the paper's setting this way (presets ``pairs``
-for the Human protocol, ``grid`` for the Animal protocol).
+Every mesh is first turned so that its ``up_axis`` (``+y``, the toolkit's world convention, or
+``-y``, ``+z``, ``-z``, ``+x``, ``-x``) becomes +Y, by a proper rotation (no mirroring: faces keep
+their orientation), in float64. Every subject is then normalised with
+:func:`~cerberus_core.bodies.body.normalise_subject` (one scale per subject, each pose centred on its
+bounding box), still in float64, and only the result is cast to float32: meshes in any unit (metres,
+millimetres, 1e6 or 1e-6 of them) give the same bodies. Meshes are read with ``process=False`` so
+vertex order, hence sidecar labels, is kept. Subjects are split by name: ``test_subjects``
+explicitly, or the last ``round(test_fraction * n)`` subjects in sorted order (at least one when
+there are two or more); ``test_fraction=1`` makes every subject a test subject (a test-only dataset,
+to evaluate a trained model on your meshes). Someone with SMPL or SMAL meshes reproduces the
+paper's setting this way (presets ``pairs`` for the Human protocol, ``grid`` for the Animal protocol).
 
-Every file is opened and checked when the source is built, so an unreadable mesh or label file is
-reported (by name) before anything is written.
+Every file is opened and checked when the source is built, so an unreadable, empty or degenerate
+mesh (no triangles, all vertices at one point, every triangle of zero area) or a bad label file is
+reported (by name) before anything is written. :meth:`FolderSource.up_axis_warning` says when the
+meshes' extents suggest another up axis (``cerberus data generate`` prints it).
 """
 from __future__ import annotations
 
@@ -34,6 +42,33 @@ from cerberus_core.errors import DatasetError
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
+"""The file stem of a subject's canonical pose unless ``canonical=`` names another."""
+
+DEFAULT_UP_AXIS = "+y"
+"""The toolkit's world convention (:mod:`cerberus_core.bodies.body`): +Y up."""
+
+_UP_ROTATIONS: dict[str, tuple[tuple[int, int, int], ...]] = {
+    "+y": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
+    "-y": ((1, 0, 0), (0, -1, 0), (0, 0, -1)),  # half a turn about x
+    "+z": ((1, 0, 0), (0, 0, 1), (0, -1, 0)),  # a quarter turn about x: Blender's -Y (front) becomes +Z
+    "-z": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
+    "+x": ((0, -1, 0), (1, 0, 0), (0, 0, 1)),  # a quarter turn about z
+    "-x": ((0, 1, 0), (-1, 0, 0), (0, 0, 1)),
+}
+UP_AXES: tuple[str, ...] = tuple(_UP_ROTATIONS)
+"""The accepted ``up_axis`` values (``cerberus data generate --up-axis``)."""
+
+
+def up_axis_rotation(up_axis: str) -> np.ndarray:
+    """The ``(3, 3)`` float64 rotation (determinant +1) that turns ``up_axis`` into +Y: a mesh's
+    vertices become ``vertices @ R.T``.
+
+    Raises:
+        ValueError: an unknown axis (the message lists :data:`UP_AXES`).
+    """
+    if up_axis not in _UP_ROTATIONS:
+        raise ValueError(f"up axis {up_axis!r} is not one of {', '.join(UP_AXES)}")
+    return np.asarray(_UP_ROTATIONS[up_axis], dtype=np.float64)
 
 
 def _natural_key(text: str) -> list:
@@ -44,7 +79,8 @@ def load_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Read one mesh file: ``(vertices (V, 3) float64, faces (F, 3) int64)``, vertex order kept.
 
     Raises:
-        DatasetError: naming the file, if it cannot be read, holds no triangles or has NaN/inf.
+        DatasetError: naming the file and the problem, if it cannot be read, holds no triangles, has
+            NaN/inf or face indices out of range, or is degenerate (:func:`check_mesh`).
     """
     import trimesh
 
@@ -59,7 +95,38 @@ def load_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise DatasetError(f"{path}: no triangles found; a pose file must hold one triangle mesh")
     if not np.isfinite(vertices).all():
         raise DatasetError(f"{path}: vertices contain NaN or inf")
+    check_mesh(vertices, faces, path)
     return vertices, faces
+
+
+def check_mesh(vertices: np.ndarray, faces: np.ndarray, path: Path | str) -> None:
+    """Refuse a mesh that would render blank, naming the file and the problem.
+
+    Args:
+        vertices: ``(V, 3)`` float64, finite, any unit.
+        faces: ``(F, 3)`` int64, ``F >= 1``.
+
+    Raises:
+        DatasetError: face indices outside ``0..V-1``; all vertices the faces use at one point (zero
+            extent); or every triangle of zero area (collinear vertices: a line, or a file whose
+            coordinates were written with too few digits for their unit).
+    """
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise DatasetError(f"{path}: faces index vertices outside 0..{len(vertices) - 1}; fix the file")
+    used = vertices[np.unique(faces)]
+    lo, hi = used.min(0), used.max(0)
+    extent = float((hi - lo).max())
+    if not np.isfinite(extent):
+        raise DatasetError(f"{path}: coordinates too large for float64 arithmetic; rescale the mesh")
+    if extent == 0.0:
+        raise DatasetError(f"{path}: degenerate mesh: all {len(used)} vertices of its {len(faces)} triangles are at "
+                           "one point (zero extent); fix or remove the file")
+    v = (vertices - lo) / extent  # unit-free: the test below does not depend on the mesh's unit
+    tri = v[faces]
+    doubled = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    if not (doubled > 1e-12).any():
+        raise DatasetError(f"{path}: degenerate mesh: all {len(faces)} triangles have zero area (its vertices lie on "
+                           "a line, or were written with too few digits for their unit); fix or remove the file")
 
 
 def _load_labels(path: Path, n_vertices: int, mesh: Path) -> np.ndarray:
@@ -82,18 +149,26 @@ class FolderSource(BodySource):
     Args:
         root: the folder.
         test_subjects: names of the test subjects (default: ``test_fraction``).
-        test_fraction: fraction of subjects (last in sorted order) held out for testing.
+        test_fraction: fraction of subjects (last in sorted order) held out for testing; ``1``:
+            every subject (a test-only dataset).
+        up_axis: the meshes' up axis (:data:`UP_AXES`), turned into +Y before normalisation.
+        canonical: file stem of each subject's canonical pose; every test subject must have it.
+            Default: the stem ``canonical``, where a subject has one.
     """
 
     name = "folder"
 
     def __init__(self, root: str | Path, test_subjects: Sequence[str] | None = None,
-                 test_fraction: float = 0.3) -> None:
+                 test_fraction: float = 0.3, up_axis: str = DEFAULT_UP_AXIS, canonical: str | None = None) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
             raise DatasetError(f"mesh folder {self.root} does not exist")
-        if not 0.0 <= test_fraction < 1.0:
-            raise ValueError(f"test_fraction must lie in [0, 1), got {test_fraction}")
+        if not 0.0 <= test_fraction <= 1.0:
+            raise ValueError(f"test_fraction must lie in [0, 1], got {test_fraction}")
+        self.up_axis = up_axis
+        self._rotation = up_axis_rotation(up_axis)
+        self.canonical = canonical
+        self._canonical_stem = CANONICAL_STEM if canonical is None else canonical
         self._files: dict[str, list[Path]] = {}
         for sub in sorted((p for p in self.root.iterdir() if p.is_dir() and not p.name.startswith(".")),
                           key=lambda p: _natural_key(p.name)):
@@ -120,6 +195,12 @@ class FolderSource(BodySource):
                 k = max(1, k)
             test = names[len(names) - k:] if k else []
         self._split = {"train": [n for n in names if n not in test], "test": test}
+        if canonical is not None:
+            for subject in test:
+                stems = [f.stem for f in self._files[subject]]
+                if canonical not in stems:
+                    raise DatasetError(f"{self.root / subject}: no pose file {canonical!r} (the canonical pose named by "
+                                       f"--canonical); its poses are {stems}; add it or name another pose")
         self.part_names = self._read_part_names()
         self._scan()  # opens every file: errors surface before anything is written
 
@@ -142,18 +223,26 @@ class FolderSource(BodySource):
     def _digest_file(self, digest: Any, path: Path) -> None:
         digest.update(path.relative_to(self.root).as_posix().encode() + hashlib.sha256(path.read_bytes()).digest())
 
+    def _load(self, path: Path) -> tuple[np.ndarray, np.ndarray]:
+        """A mesh file turned +Y up: ``(vertices (V, 3) float64, faces (F, 3) int64)``."""
+        v, faces = load_mesh(path)
+        return v @ self._rotation.T, faces
+
     def _scan(self) -> None:
-        """Open every mesh and label file; record bounding boxes, the subject scales and a fingerprint."""
+        """Open every mesh and label file; record bounding boxes, the subject scales, the meshes'
+        tallest axes and a fingerprint."""
         digest = hashlib.sha256()
         self._bbox: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
         self._scale: dict[str, float] = {}
+        self._tallest: list[int] = []  # per mesh: the file axis (0 x, 1 y, 2 z) of its largest extent
         labelled, unlabelled = [], []
         max_label = -1
         for subject, files in self._files.items():
             boxes = []
             for f in files:
-                v, _ = load_mesh(f)
+                v, _ = self._load(f)
                 boxes.append((v.min(0), v.max(0)))
+                self._tallest.append(int(np.argmax(np.abs(self._rotation.T @ (v.max(0) - v.min(0))))))
                 lab = self._label_file(f)
                 if lab is None:
                     unlabelled.append(f)
@@ -199,7 +288,7 @@ class FolderSource(BodySource):
 
     def canonical_pose(self, subject: Subject) -> int | None:
         stems = [f.stem for f in self._subject_files(subject)]
-        return stems.index(CANONICAL_STEM) if CANONICAL_STEM in stems else None
+        return stems.index(self._canonical_stem) if self._canonical_stem in stems else None
 
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
         files = self._subject_files(subject)
@@ -207,14 +296,31 @@ class FolderSource(BodySource):
         out = []
         for pid in pose_ids:
             f = files[pid]
-            v, faces = load_mesh(f)
+            v, faces = self._load(f)
             lo, hi = self._bbox[subject.name][pid]
-            vn = ((v - 0.5 * (lo + hi)) * scale).astype(np.float32)
+            vn = ((v - 0.5 * (lo + hi)) * scale).astype(np.float32)  # float64 until here: any unit works
             lab = self._label_file(f)
             parts = np.zeros(len(v), np.int16) if lab is None else _load_labels(lab, len(v), f)
             out.append(PosedBody(vn, faces, parts, self.part_names, subject.name, int(pid), meta={"file": f.name}))
         return out
 
+    def up_axis_warning(self) -> str | None:
+        """A one-line warning when most meshes are tallest along a file axis other than the up axis
+        (e.g. z-up meshes read as +Y up would lie on their backs), naming ``--up-axis`` and the likely
+        value; ``None`` when the extents agree with the up axis. Long bodies (quadrupeds) can be
+        longest along a horizontal axis: hence a warning, not an error."""
+        up = int(np.argmax(np.abs(self._rotation[1])))  # the file axis that becomes +Y
+        counts = np.bincount(self._tallest, minlength=3)
+        tallest = int(np.argmax(counts))
+        if tallest == up or 2 * counts[tallest] <= len(self._tallest):
+            return None
+        axis = "xyz"[tallest]
+        return (f"{self.root}: {counts[tallest]} of {len(self._tallest)} meshes are tallest along {axis}, not along "
+                f"the up axis {self.up_axis}; if they are {axis}-up (Blender, anny and many scans are z-up), pass "
+                f"--up-axis +{axis} (or -{axis} if they come out upside down); if they are long bodies "
+                f"(quadrupeds) already {self.up_axis} up, pass --up-axis {self.up_axis} to silence this")
+
     def describe(self) -> dict[str, Any]:
         return {"fingerprint": self.fingerprint, "test_subjects": list(self._split["test"]),
-                "train_subjects": list(self._split["train"])}
+                "train_subjects": list(self._split["train"]), "up_axis": self.up_axis,
+                "canonical": self._canonical_stem}

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
-from cerberus_core.errors import DatasetError
+from cerberus_core.bodies.folder import DEFAULT_UP_AXIS, UP_AXES
+from cerberus_core.errors import ConfigError, DatasetError
 
 _DATASETS = ("human", "animal", "folder", "primitives")  # the order --help lists them
 
@@ -44,7 +46,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(--dataset folder only)")
     g.add_argument("--test-subjects", help="folder: comma-separated test subject names (default: --test-fraction)")
     g.add_argument("--test-fraction", type=float, default=0.3,
-                   help="folder: fraction of subjects (last in sorted order) held out for testing (default 0.3)")
+                   help="folder: fraction of subjects (last in sorted order) held out for testing (default 0.3; "
+                   "1: a test-only dataset, to evaluate a trained model on your meshes)")
+    g.add_argument("--up-axis", choices=UP_AXES, default=None,
+                   help="folder: the meshes' up axis, turned into +Y (default +y, the toolkit's world; Blender, "
+                   "anny and many scans are +z); recorded in the manifest")
+    g.add_argument("--canonical", metavar="POSE",
+                   help="folder: the pose file stem that is each subject's canonical pose, rendered and flagged in "
+                   "the test split for the Hard Human test of cerberus eval (default: a pose named 'canonical')")
     g.add_argument("--renderer", default=None,
                    help="renderer backend: warp, torch or auto (default: auto, warp if it works, else torch); "
                    "same as --set renderer=...")
@@ -111,11 +120,16 @@ def run_generate(args: argparse.Namespace) -> int:
 
     if (args.dataset == "folder") != (args.source is not None):
         return _fail(ValueError("--source DIR is required with --dataset folder (and only then)"))
+    if args.dataset != "folder" and (args.up_axis is not None or args.canonical is not None):
+        raise ConfigError("--up-axis and --canonical apply to --dataset folder only; drop them or use --dataset folder")
     options = {}
     if args.dataset == "folder":
-        options = {"root": str(args.source.resolve()), "test_fraction": args.test_fraction}
+        options = {"root": str(args.source.resolve()), "test_fraction": args.test_fraction,
+                   "up_axis": args.up_axis or DEFAULT_UP_AXIS}
         if args.test_subjects:
             options["test_subjects"] = [s.strip() for s in args.test_subjects.split(",") if s.strip()]
+        if args.canonical is not None:
+            options["canonical"] = args.canonical
     try:
         config = _generation_config(args)
         if args.print_config:
@@ -123,6 +137,8 @@ def run_generate(args: argparse.Namespace) -> int:
             return 0
         runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
         source = make_source(args.dataset, **options, **runtime)
+        if args.dataset == "folder" and args.up_axis is None and (hint := source.up_axis_warning()):
+            warnings.warn(hint, UserWarning, stacklevel=1)  # an explicit --up-axis silences it
         if args.dry_run:
             plan = make_plan(config, source)
             print(f"{args.dataset}/{config.preset}: {len(plan.subjects)} subjects, scene {config.scene.to_dict()}")

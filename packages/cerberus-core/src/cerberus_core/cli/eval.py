@@ -113,6 +113,9 @@ def run(args: argparse.Namespace) -> int:
             f"{result.standard.mean:.4f}")
     if result.hard is not None:
         line += f"; Hard Human: {result.hard.mean:.4f}"
+    elif not args.no_hard:
+        line += ("; Hard Human: not run (no canonical-pose images in this split; for your meshes, name the "
+                 "canonical pose with `cerberus data generate --dataset folder --canonical POSE`)")
     print(line)
     print(f"results: {out / 'results.json'}, {out / 'results.md'}; figures: {fig}, {out / 'pictures'}")
     if args.viewer_images > 0:

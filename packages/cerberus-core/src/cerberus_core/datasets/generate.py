@@ -249,6 +249,9 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
     resume = _prepare(out, cfg, overwrite, log)
     clean_temporaries(out)
     plan = make_plan(config, source)
+    for split in config.splits:
+        if not plan.shards[split]:
+            log(f"split {split!r} has no subject and is left empty")
     manifest = _jsonable(_manifest(config, cfg, source, source_options, plan))
     done: dict[str, dict[int, dict]] = {s: {} for s in config.splits}
     if resume is not None:

@@ -356,9 +356,13 @@ def _pack(units: list[_Unit], split: str, cfg: SplitConfig, scene: SceneSetup, s
 def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     """The deterministic plan of a dataset: subject table and shards of every split.
 
+    A split for which the source has no subject (a folder whose subjects are all test subjects) is
+    planned empty, with no shards: a test-only dataset is for evaluation (readers refuse to read an
+    empty split, naming it).
+
     Raises:
-        ValueError: if splits share a subject while the source promises disjoint subjects, or a
-            split has no subject.
+        ValueError: if splits share a subject while the source promises disjoint subjects, no split
+            has a subject, or a split with subjects would hold no image.
     """
     table: list[dict[str, Any]] = []
     index: dict[str, int] = {}
@@ -366,7 +370,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     for split, cfg in config.splits.items():
         infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
         if not infos:
-            raise ValueError(f"split {split!r} has no subject; adjust the preset or the folder's split options")
+            shards[split] = []
+            continue
         for s in infos:
             if s.name in index:
                 entry = table[index[s.name]]
@@ -391,4 +396,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
             raise ValueError(f"split {split!r} would be empty; check the preset's counts")
+    if not table:
+        raise ValueError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset or the folder's "
+                         "split options")
     return DatasetPlan(table, shards)

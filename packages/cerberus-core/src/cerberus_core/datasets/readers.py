@@ -41,6 +41,11 @@ class _SplitReader:
         self.split = split
         self.manifest = read_manifest(self.root)
         self.info = split_info(self.manifest, split, self.root)
+        if self.info.get("planned_shards") == 0:
+            use = (f"; a dataset without {split} subjects is for `cerberus eval RUN --data {self.root}`"
+                   if split == "train" else "")
+            raise DatasetError(f"{self.root}: split {split!r} is empty: the dataset has no {split} subjects (e.g. a "
+                               f"folder dataset made with --test-fraction 1); use a dataset with {split} subjects{use}")
         if not allow_partial and not split_complete(self.info):
             raise DatasetError(f"{self.root}: split {split!r} is incomplete ({len(self.info['shards'])} of "
                                f"{self.info['planned_shards']} shards); finish it with `cerberus data generate` and "
