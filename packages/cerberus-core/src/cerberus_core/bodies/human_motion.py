@@ -26,7 +26,7 @@ drawn per clip; ``psi = (1 - cos t) / 2`` is a raise-and-lower ramp in ``[0, 1]`
 
 Asymmetric primitives pick their side at random. Every clip adds a secondary *sway* with its own
 phase and a period of 0.8-1.6 s (:func:`_sway`: weight shift from leg to leg with the unloaded knee
-bending, a loose swing and twist of both arms, the head looking around by up to 20 degrees, a
+bending, a loose swing and twist of both arms, the head looking around by up to 24 degrees, a
 slight bend of the spine), a static *posture* shared by both frames (normal,
 :data:`POSTURE_SD` degrees per joint: the person's stance, head tilt, knee bend) and to each frame
 an independent jitter of :data:`JITTER_SD` degrees per joint. Both frames are clipped to
