@@ -6,9 +6,13 @@ later runs load it in well under a second.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from cerberus_core.bodies import human_motion
 from cerberus_core.bodies.body import FILL, PosedBody
 from cerberus_core.bodies.human import (
     CANONICAL_POSE_ID,
@@ -19,9 +23,13 @@ from cerberus_core.bodies.human import (
     HumanSubject,
     canonical_pose,
     knee_angle_deg,
+    pose_params,
     sample_poses,
     sample_subjects,
 )
+from cerberus_core.bodies.human_motion import MOTION_POSE_BASE, motion_clip, motion_pose_id
+
+GOLDEN = Path(__file__).parent / "golden_independent_poses.json"
 
 # ---------------------------------------------------------------------------------------------
 # No anny needed
@@ -58,6 +66,76 @@ def test_pose_sampling_deterministic_within_limits_and_varied():
         angle = a[:50, DOF_NAMES.index(joint)]
         assert (angle < 10).sum() >= 5 and (angle > 60).sum() >= 5, joint
     assert a.std(0).min() > 5.0  # every degree of freedom really moves
+
+
+def test_independent_poses_are_those_of_the_code_before_motion_pairs():
+    """Golden check: the ``independent`` mode (ids 1..10^9 - 1) still draws exactly the poses of the
+    commit recorded in the JSON file (computed there, with the old code)."""
+    golden = json.loads(GOLDEN.read_text())
+    subject = sample_subjects(1, 0, "train")[0]
+    assert (subject.subject_id, subject.pose_seed) == (golden["subject"], golden["pose_seed"])
+    assert golden["dof_names"] == DOF_NAMES
+    np.testing.assert_array_equal(pose_params(subject, [0, 1, 2, 3, 4]), golden["pose_params_ids_0_4"])
+    np.testing.assert_array_equal(pose_params(subject, [1, 2], attempt=1), golden["pose_params_ids_1_2_attempt_1"])
+    np.testing.assert_array_equal(sample_poses(np.random.default_rng(7), 3), golden["sample_poses_rng7_n3"])
+
+
+def _motion_clips(n: int, seed: int = 11) -> tuple[list[str], np.ndarray]:
+    names, poses = zip(*(motion_clip(np.random.default_rng([seed, c])) for c in range(n)), strict=True)
+    return list(names), np.stack(poses)  # (n, 2, D)
+
+
+def test_motion_poses_within_limits_plausible_and_every_motion_drawn():
+    names, clips = _motion_clips(600)
+    assert set(names) == set(human_motion.MOTIONS)
+    assert (clips >= DOF_LIMITS[:, 0]).all() and (clips <= DOF_LIMITS[:, 1]).all()
+    wild = sample_poses(np.random.default_rng(3), 600)
+    pose_a = clips[:, 0]
+    # Everyday poses are closer to standing than uniform draws within the joint limits ...
+    assert np.abs(pose_a).mean() < 0.6 * np.abs(wild).mean()
+    # ... and the arms are mostly down (abduction below the A-pose's) or forward, seldom raised sideways
+    # (waving and sideways arm raises do).
+    sides = [DOF_NAMES.index("shoulder_abd.L"), DOF_NAMES.index("shoulder_abd.R")]
+    abd, wild_abd = pose_a[:, sides], wild[:, sides]
+    assert (abd < 0).mean() > 0.7 and (abd > 40).mean() < 0.5 * (wild_abd > 40).mean()
+    assert np.median(abd) < np.median(wild_abd) - 20
+
+
+def test_motion_pairs_are_close_and_correlated_unlike_independent_pairs():
+    names, clips = _motion_clips(600)
+    motion = np.abs(clips[:, 1] - clips[:, 0])
+    wild = sample_poses(np.random.default_rng(3), 1200)
+    independent = np.abs(wild[0::2] - wild[1::2])
+    assert motion.mean() < 0.35 * independent.mean()
+    assert 3.0 < motion.mean() < 12.0  # nearby frames, but the body does move
+    walks = np.array([n == "walk" for n in names])
+    assert (motion[walks] > 5.0).sum(1).mean() >= 8  # a walk moves many joints at once
+    # Correlated, not independent noise: in a walk, the hips swing in anti-phase, each arm opposite its leg.
+    step = clips[walks, 1] - clips[walks, 0]
+    hip_l, hip_r, arm_l = (DOF_NAMES.index(n) for n in ("hip_flex.L", "hip_flex.R", "shoulder_flex.L"))
+    assert np.corrcoef(step[:, hip_l], step[:, hip_r])[0, 1] < -0.8
+    assert np.corrcoef(step[:, hip_l], step[:, arm_l])[0, 1] < -0.5
+    noise = wild[1::2] - wild[0::2]
+    assert abs(np.corrcoef(noise[:, hip_l], noise[:, hip_r])[0, 1]) < 0.2  # (independent pairs: none)
+
+
+def test_motion_pose_ids_are_deterministic_and_chunk_independent():
+    subject = sample_subjects(1, 0, "train")[0]
+    ids = [motion_pose_id(c, f) for c in (0, 1, 7) for f in (0, 1)]
+    assert ids[:2] == [MOTION_POSE_BASE, MOTION_POSE_BASE + 1]
+    all_at_once = pose_params(subject, ids)
+    np.testing.assert_array_equal(all_at_once, pose_params(subject, ids))
+    for i, pid in enumerate(ids):  # one id at a time, in another order: the same angles
+        np.testing.assert_array_equal(pose_params(subject, [pid])[0], all_at_once[i])
+    np.testing.assert_array_equal(all_at_once[0:2], motion_clip(np.random.default_rng([subject.pose_seed,
+                                                                                          MOTION_POSE_BASE]))[1])
+    other = sample_subjects(2, 0, "train")[1]
+    assert not np.allclose(pose_params(other, ids), all_at_once)  # each subject has its own clips
+    redraw = pose_params(subject, ids[:2], attempt=1)
+    assert not np.allclose(redraw, all_at_once[:2]) and np.abs(redraw[0] - redraw[1]).mean() < 15
+    assert human_motion.clip_frame(ids[5]) == (7, 1) and human_motion.clip_key(ids[5]) == ids[4]
+    with pytest.raises(ValueError, match="frames 0 and 1"):
+        motion_pose_id(0, 2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -140,6 +218,7 @@ def test_unit_cube_and_shared_scale(source):
 def test_unit_cube_many_poses_all_subjects(source):
     for subj in sample_subjects(split="train") + sample_subjects(split="test"):
         _check_in_cube(source, subj, list(range(1, 101)))
+        _check_in_cube(source, subj, [motion_pose_id(c, f) for c in range(50) for f in (0, 1)])
 
 
 def test_determinism_and_chunking(source, subject):
@@ -195,6 +274,47 @@ def test_oversized_sampled_poses_are_redrawn_deterministically(source, subject):
         np.testing.assert_allclose(b.vertices, bodies[i].vertices, atol=1e-6)
     with pytest.raises(ValueError, match="reaches"):  # explicit angles are never altered
         source.pose(tight, source.pose_params(tight, redrawn_ids), redrawn_ids)
+
+
+def test_motion_pairs_move_the_body_less_and_chunk_like_sampled_poses(source, subject):
+    ids = [motion_pose_id(c, f) for c in range(8) for f in (0, 1)]
+    motion = source.posed_bodies(subject, ids)
+    independent = source.posed_bodies(subject, list(range(1, 17)))
+
+    def displacement(bodies):  # mean vertex distance within each pair (a, b), normalised units
+        return np.mean([np.linalg.norm(a.vertices - b.vertices, axis=1).mean()
+                        for a, b in zip(bodies[0::2], bodies[1::2], strict=True)])
+
+    assert displacement(motion) < 0.5 * displacement(independent)
+    assert all(np.abs(b.vertices).max() <= 0.5 for b in motion)
+    for pid, b in zip(ids, motion, strict=True):
+        assert b.pose_id == pid
+        np.testing.assert_array_equal(b.meta["pose_params"], pose_params(subject, [pid])[0])
+    alone = source.posed_bodies(subject, [ids[3]])[0]  # frame b without its frame a
+    np.testing.assert_allclose(alone.vertices, motion[3].vertices, atol=1e-6)
+
+
+def test_a_motion_clip_is_redrawn_as_a_whole(source, subject):
+    # Give a copy of the subject a scale at which exactly one frame of the largest clip no longer fits.
+    ids = [motion_pose_id(c, f) for c in range(6) for f in (0, 1)]
+    extents = np.array([np.ptp(b.vertices, 0).max() for b in source.posed_bodies(subject, ids)])
+    largest = int(np.argmax(extents))
+    partner = largest ^ 1  # the other frame of that clip
+    limit = max(np.sort(extents)[-2], extents[partner])
+    assert extents[largest] > limit  # one frame is strictly the largest (for this subject and clip)
+    tight = HumanSubject("tight-motion-" + subject.subject_id, subject.phenotype, subject.split, subject.pose_seed)
+    key = (tight.subject_id, tuple(sorted(tight.phenotype.items())))
+    source._scale_cache[key] = source.subject_scale(subject) / (limit + 1e-6)
+    bodies = source.posed_bodies(tight, ids)
+    redrawn = sorted(i for i, b in enumerate(bodies) if b.meta["redraws"] > 0)
+    assert redrawn == sorted([largest, partner])  # both frames, though only one did not fit
+    assert all(np.abs(b.vertices).max() <= 0.5 for b in bodies)
+    for i in redrawn:
+        attempt = bodies[i].meta["redraws"]
+        np.testing.assert_array_equal(bodies[i].meta["pose_params"], pose_params(tight, [ids[i]], attempt)[0])
+    assert bodies[largest].meta["redraws"] == bodies[partner].meta["redraws"]
+    alone = source.posed_bodies(tight, [ids[partner]])[0]  # the partner alone: the same redraw
+    np.testing.assert_array_equal(alone.meta["pose_params"], bodies[partner].meta["pose_params"])
 
 
 def test_bad_input_is_rejected(source, subject):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -160,7 +161,9 @@ def test_every_bundled_dataset_preset_loads():
         for size in sizes(dataset):
             cfg = load_generation_config(dataset, size)
             assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
-    assert preset_config("primitives", "small").splits == preset_config("human", "small").splits  # extends
+    human, prims = preset_config("human", "small").splits, preset_config("primitives", "small").splits
+    assert human["train"].pose_pairs == "motion" and prims["train"].pose_pairs == "independent"
+    assert prims == {**human, "train": replace(human["train"], pose_pairs="independent")}  # extends
     assert preset_config("animal", "paper").splits["train"] == SplitConfig(
         "grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20)
 
@@ -174,3 +177,48 @@ def test_bad_configs_are_refused():
         preset_config("human", "huge")
     with pytest.raises(ValueError, match="image_size"):
         preset_config("human", "tiny", image_size=4)
+
+
+def _pair_ids(plan, split="train"):
+    """``(subject, pose a, pose b)`` of every quadruplet of a split."""
+    return [(int(sh.views["subject"][q[0]]), int(sh.views["pose"][q[0]]), int(sh.views["pose"][q[2]]))
+            for sh in plan.shards[split] for q in sh.quads]
+
+
+def test_pose_pairs_mode_picks_the_pose_ids_and_only_motion_enters_the_config_hash():
+    from cerberus_core.bodies.human_motion import MOTION_POSE_BASE
+    from cerberus_core.datasets.format import config_hash
+    from cerberus_core.datasets.plan import load_generation_config
+
+    motion = load_generation_config("human", "tiny")  # the human presets' default
+    independent = load_generation_config("human", "tiny", ["splits.train.pose_pairs=independent"])
+    assert motion.splits["train"].pose_pairs == "motion" and independent.splits["train"].pose_pairs == "independent"
+    base = MOTION_POSE_BASE
+    assert _pair_ids(_plan(motion)) == [(0, base, base + 1), (0, base + 2, base + 3), (0, base + 4, base + 5),
+                                        (0, base + 6, base + 7), (1, base, base + 1), (1, base + 2, base + 3),
+                                        (1, base + 4, base + 5), (1, base + 6, base + 7)]
+    assert _pair_ids(_plan(independent)) == [(s, 2 * k + 1, 2 * k + 2) for s in (0, 1) for k in range(4)]
+    for a, b in zip(_plan(motion).shards["test"], _plan(independent).shards["test"], strict=True):
+        np.testing.assert_array_equal(a.views, b.views)  # test grids are unaffected
+    # Azimuths do not depend on the mode (the same draws of the plan's generator).
+    np.testing.assert_array_equal(_plan(motion).shards["train"][0].views["azimuth"],
+                                  _plan(independent).shards["train"][0].views["azimuth"])
+    # `independent` is stored by omission: the config (and its hash) of a dataset from before the key.
+    old_form = independent.to_dict()
+    assert "pose_pairs" not in old_form["splits"]["train"] and "pose_pairs" not in old_form["splits"]["test"]
+    assert motion.to_dict()["splits"]["train"]["pose_pairs"] == "motion"
+    assert config_hash(motion.to_dict()) != config_hash(old_form)
+
+
+def test_motion_pairs_are_refused_where_they_cannot_exist():
+    from cerberus_core.datasets.plan import load_generation_config
+    from cerberus_core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="primitives source has no motion pose pairs.*pose_pairs=independent"):
+        _plan(load_generation_config("primitives", "tiny", ["splits.train.pose_pairs=motion"]))
+    with pytest.raises(ValueError, match="needs layout pairs"):
+        SplitConfig("grid", poses=2, pose_pairs="motion")
+    with pytest.raises(ValueError, match="pose_pairs"):
+        load_generation_config("human", "tiny", ["splits.train.pose_pairs=video"])
+    with pytest.raises(ConfigError, match="unlimited motion pairs"):
+        make_source("human").motion_pairs(make_source("human").subjects("train", 1, 0)[0], "train", None)

@@ -27,6 +27,10 @@ body's left, ``.R`` degrees of freedom mirror their ``.L`` twins.
 Pose ids. For each subject ``pose_id == 0`` is the canonical pose and ``pose_id = k >= 1`` the
 ``k``-th sampled pose, drawn from ``numpy.random.default_rng([subject.pose_seed, k])``, so any chunk
 of pose ids is generated identically whatever the chunking (:meth:`HumanBodySource.posed_bodies`).
+These independent draws are the ``independent`` pose-pair mode. Ids from
+:data:`~cerberus_core.bodies.human_motion.MOTION_POSE_BASE` (10^9) on are frames of *motion clips*
+(:mod:`cerberus_core.bodies.human_motion`: everyday motions, two nearby frames per clip), the
+``motion`` pose-pair mode of training splits.
 
 Scale rule (one scale per subject, :func:`~cerberus_core.bodies.body.normalise_subject`): the
 subject's scale is ``normalise_subject`` applied to a fixed *reference set* of that subject's
@@ -270,6 +274,39 @@ def canonical_pose() -> np.ndarray:
     return np.zeros(len(DOFS), dtype=np.float64)
 
 
+def pose_params(subject: HumanSubject, pose_ids: Sequence[int], attempt: int = 0) -> np.ndarray:
+    """Deterministic joint angles of a subject's poses by id (0 canonical, k >= 1 sampled, ids
+    from :data:`~cerberus_core.bodies.human_motion.MOTION_POSE_BASE` on motion-clip frames).
+
+    Args:
+        subject: the person.
+        pose_ids: non-negative pose ids.
+        attempt: 0 for the first draw; ``a >= 1`` for the ``a``-th redraw (see the module
+            docstring, "Scale rule"; :meth:`HumanBodySource.posed_bodies` redraws on its own).
+
+    Returns:
+        ``(len(pose_ids), D)`` float64 degrees; pose ``k`` comes from
+        ``default_rng([subject.pose_seed, k])`` (``[..., k, attempt]`` for redraws) whatever the
+        other ids requested; a motion frame from its clip's generator
+        (:func:`~cerberus_core.bodies.human_motion.motion_frame`).
+    """
+    from cerberus_core.bodies import human_motion  # imports this module
+
+    out = np.empty((len(pose_ids), len(DOFS)))
+    for row, pid in enumerate(pose_ids):
+        if pid < 0:
+            raise ValueError(f"pose ids must be >= 0, got {pid}")
+        if pid == CANONICAL_POSE_ID:
+            out[row] = canonical_pose()
+            continue
+        if pid >= human_motion.MOTION_POSE_BASE:
+            out[row] = human_motion.motion_frame(subject.pose_seed, int(pid), attempt)
+            continue
+        key = [subject.pose_seed, int(pid)] + ([int(attempt)] if attempt else [])
+        out[row] = sample_poses(np.random.default_rng(key), 1)[0]
+    return out
+
+
 # ----------------------------------------------------------------------------------------------
 # Parts
 # ----------------------------------------------------------------------------------------------
@@ -489,29 +526,8 @@ class HumanBodySource:
         return canonical_pose()
 
     def pose_params(self, subject: HumanSubject, pose_ids: Sequence[int], attempt: int = 0) -> np.ndarray:
-        """Deterministic joint angles of a subject's poses by id (0 canonical, k >= 1 sampled).
-
-        Args:
-            subject: the person.
-            pose_ids: non-negative pose ids.
-            attempt: 0 for the first draw; ``a >= 1`` for the ``a``-th redraw (see the module
-                docstring, "Scale rule"; :meth:`posed_bodies` redraws on its own).
-
-        Returns:
-            ``(len(pose_ids), D)`` float64 degrees; pose ``k`` comes from
-            ``default_rng([subject.pose_seed, k])`` (``[..., k, attempt]`` for redraws) whatever the
-            other ids requested.
-        """
-        out = np.empty((len(pose_ids), len(DOFS)))
-        for row, pid in enumerate(pose_ids):
-            if pid < 0:
-                raise ValueError(f"pose ids must be >= 0, got {pid}")
-            if pid == CANONICAL_POSE_ID:
-                out[row] = canonical_pose()
-                continue
-            key = [subject.pose_seed, int(pid)] + ([int(attempt)] if attempt else [])
-            out[row] = sample_poses(np.random.default_rng(key), 1)[0]
-        return out
+        """Same as the module-level :func:`pose_params`: ``(len(pose_ids), D)`` degrees."""
+        return pose_params(subject, pose_ids, attempt)
 
     def _delta_transforms(self, poses: np.ndarray) -> torch.Tensor:
         """``(B, D)`` degrees → ``(B, n_bones, 4, 4)`` anny local-ref delta transforms."""
@@ -628,27 +644,42 @@ class HumanBodySource:
 
         Equivalent to ``pose(subject, pose_params(subject, pose_ids), pose_ids)`` except that a sampled
         pose leaving ``[-0.5, 0.5]^3`` is redrawn (``pose_params(..., attempt=1, 2, ...)``), so the
-        result depends only on (subject, pose id), never on the chunking.
+        result depends only on (subject, pose id), never on the chunking. A motion clip is redrawn
+        as a whole when either of its frames does not fit (both frames are posed to decide, the
+        missing partner only for that check), so its two frames always come from the same attempt.
         """
+        from cerberus_core.bodies import human_motion
+
         ids = [int(pid) for pid in pose_ids]
-        params = self.pose_params(subject, ids)
+        partners = [
+            human_motion.motion_pose_id(clip, 1 - frame)
+            for clip, frame in (human_motion.clip_frame(p) for p in ids if human_motion.is_motion_id(p))
+        ]
+        posed = ids + sorted(set(partners) - set(ids))  # the requested ids first, then partners
+
+        def group(pid: int) -> int:  # what is redrawn together: a whole motion clip, else one pose
+            return human_motion.clip_key(pid) if human_motion.is_motion_id(pid) else pid
+
+        params = self.pose_params(subject, posed)
         scale = self.subject_scale(subject)
         verts, joints = self.posed_vertices(subject, params)
-        redraws = np.zeros(len(ids), dtype=int)
+        redraws = np.zeros(len(posed), dtype=int)
         while True:
-            bad = [i for i in range(len(ids)) if self._reach(verts[i], scale) > 0.5]
+            bad = {group(posed[i]) for i in range(len(posed)) if self._reach(verts[i], scale) > 0.5}
             if not bad:
                 break
-            for i in bad:
+            redo = [i for i in range(len(posed)) if group(posed[i]) in bad]
+            for i in redo:
                 redraws[i] += 1
-                if ids[i] == CANONICAL_POSE_ID or redraws[i] > MAX_REDRAWS:
+                if posed[i] == CANONICAL_POSE_ID or redraws[i] > MAX_REDRAWS:
                     raise RuntimeError(
-                        f"{subject.subject_id} pose {ids[i]} does not fit the unit cube after {redraws[i] - 1} "
+                        f"{subject.subject_id} pose {posed[i]} does not fit the unit cube after {redraws[i] - 1} "
                         "redraws; the joint limits and the reference set disagree"
                     )
-                params[i] = self.pose_params(subject, [ids[i]], attempt=int(redraws[i]))[0]
-            verts[bad], joints[bad] = self.posed_vertices(subject, params[bad])
-        return self._bodies(subject, params, ids, verts, joints, scale, redraws)
+                params[i] = self.pose_params(subject, [posed[i]], attempt=int(redraws[i]))[0]
+            verts[redo], joints[redo] = self.posed_vertices(subject, params[redo])
+        n = len(ids)
+        return self._bodies(subject, params[:n], ids, verts[:n], joints[:n], scale, redraws[:n])
 
     @staticmethod
     def _reach(vertices: np.ndarray, scale: float) -> float:
@@ -718,6 +749,7 @@ __all__ = [
     "PART_NAMES",
     "canonical_pose",
     "knee_angle_deg",
+    "pose_params",
     "sample_poses",
     "sample_subjects",
 ]

@@ -6,6 +6,8 @@ the files it reads):
 * :meth:`~BodySource.subjects` ``(split, n, seed) -> [Subject]`` — who is in a split;
 * :meth:`~BodySource.pose_pool` ``(subject, split, n) -> [pose id]`` — which poses a split may use;
 * :meth:`~BodySource.canonical_pose` ``(subject) -> pose id | None``;
+* :meth:`~BodySource.motion_pairs` ``(subject, split, n) -> [(pose id, pose id)]`` — pairs of nearby
+  frames of one motion (``human`` only; the others refuse);
 * :meth:`~BodySource.bodies` ``(subject, pose ids) -> [PosedBody]`` — mesh + part labels.
 
 A :class:`Subject` is a small JSON-ready record (its ``name`` and ``info``: phenotype, species
@@ -27,6 +29,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cerberus_core.bodies.body import PosedBody
+from cerberus_core.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,16 @@ class BodySource(ABC):
         """Pose id of the subject's canonical pose, or ``None`` if the source has none."""
         return None
 
+    def motion_pairs(self, subject: Subject, split: str, n: int | None) -> list[tuple[int, int]]:
+        """``n`` pose-id pairs ``(a, b)`` of ``subject``, each two nearby frames of one motion (the
+        ``pose_pairs: motion`` mode of a ``pairs`` split); sources without motions refuse.
+
+        Raises:
+            ConfigError: the source has no motion pairs (or, for ``n=None``, no fixed number of them).
+        """
+        raise ConfigError(f"splits.{split}.pose_pairs: the {self.name} source has no motion pose pairs; set "
+                          f"splits.{split}.pose_pairs=independent")
+
     @abstractmethod
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
         """Normalised posed bodies of one subject, one per pose id, in order; each depends only on
@@ -145,6 +158,15 @@ class HumanSource(_SeededSubjects):
 
     def _info(self, subject: Any) -> dict[str, Any]:
         return {"phenotype": dict(subject.phenotype), "split": subject.split, "pose_seed": int(subject.pose_seed)}
+
+    def motion_pairs(self, subject: Subject, split: str, n: int | None) -> list[tuple[int, int]]:
+        """Motion clips ``0..n-1``: pose ids ``(10^9 + 2c, 10^9 + 2c + 1)``
+        (:mod:`cerberus_core.bodies.human_motion`)."""
+        from cerberus_core.bodies.human_motion import motion_pose_id
+
+        if n is None:
+            raise ConfigError(f"splits.{split}.pairs: the human source has unlimited motion pairs; give a pair count")
+        return [(motion_pose_id(c, 0), motion_pose_id(c, 1)) for c in range(n)]
 
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
         phenotype, split, pose_seed = subject.need(self.name, "phenotype", "split", "pose_seed")

@@ -4,7 +4,8 @@ Two layouts, following the paper's two protocols (section 5):
 
 * ``pairs`` (Human): each training example is a *pair of poses* of one subject, both seen from the
   same two viewpoints whose azimuths are drawn uniformly in [0, 360) for that pair. A pair is stored
-  as 4 images in the order ``(a0, a1, b0, b1)`` and one quadruplet.
+  as 4 images in the order ``(a0, a1, b0, b1)`` and one quadruplet. Its two poses are independent
+  draws or two nearby frames of one motion (:attr:`SplitConfig.pose_pairs`).
 * ``grid`` (Animal, and every test split): each pose of a subject is seen from ``views`` azimuths
   ``offset + k * 360 / views``. With ``azimuths="shared"`` one random offset per subject serves all
   its poses (so two poses share their viewpoints, as quadruplets need); with ``"per_pose"`` each pose
@@ -34,6 +35,8 @@ from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.errors import ConfigError
 
 LAYOUTS = ("pairs", "grid")
+POSE_PAIRS = ("independent", "motion")
+"""How the two poses of a ``pairs`` training example relate (:attr:`SplitConfig.pose_pairs`)."""
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,11 @@ class SplitConfig:
         meshes: store ground-truth meshes and part labels (test splits always should; a training
             split may skip them to save space: the manifest then keeps (subject, pose) references
             that the source regenerates).
+        pose_pairs: ``pairs`` layout: how the two poses of a pair relate. ``"independent"``: two
+            independent poses from the source's pose pool; ``"motion"``: two nearby frames of one
+            everyday motion (:meth:`BodySource.motion_pairs`; human only, the human presets'
+            choice). Omitted from :meth:`GenerationConfig.to_dict` (so from the manifest and the
+            config hash) when ``"independent"``, so configs from before the key hash as they did.
     """
 
     layout: Literal["pairs", "grid"]
@@ -64,10 +72,16 @@ class SplitConfig:
     quadruplets_per_pose: int = 0
     canonical: bool = False
     meshes: bool = True
+    pose_pairs: Literal["independent", "motion"] = "independent"
 
     def __post_init__(self) -> None:
         if self.layout not in LAYOUTS:
             raise ValueError(f"SplitConfig.layout must be one of {LAYOUTS}, got {self.layout!r}")
+        if self.pose_pairs not in POSE_PAIRS:
+            raise ValueError(f"SplitConfig.pose_pairs must be one of {POSE_PAIRS}, got {self.pose_pairs!r}")
+        if self.layout != "pairs" and self.pose_pairs != "independent":
+            raise ValueError(f"SplitConfig.pose_pairs={self.pose_pairs!r} needs layout pairs (a grid has no pose "
+                             "pairs); drop pose_pairs or set layout: pairs")
         if self.azimuths not in ("shared", "per_pose"):
             raise ValueError(f"SplitConfig.azimuths must be 'shared' or 'per_pose', got {self.azimuths!r}")
         if self.layout == "grid" and self.views < 1:
@@ -130,8 +144,16 @@ class GenerationConfig:
         return {
             "dataset": self.dataset, "preset": self.preset, "seed": self.seed, "image_size": self.image_size,
             "renderer": self.renderer, "scene": self.scene.to_dict(), "shard_images": self.shard_images,
-            "splits": {k: asdict(v) for k, v in self.splits.items()}, "source": self.source,
+            "splits": {k: _split_dict(v) for k, v in self.splits.items()}, "source": self.source,
         } | ({"supersample": self.supersample} if self.supersample != 1 else {})
+
+
+def _split_dict(split: SplitConfig) -> dict[str, Any]:
+    """A split's config as the manifest stores it: ``pose_pairs`` only when not ``independent``."""
+    out = asdict(split)
+    if out["pose_pairs"] == "independent":
+        del out["pose_pairs"]
+    return out
 
 
 # ------------------------------------------------------------------------------------ presets
@@ -245,8 +267,11 @@ def _spread(total: int, n: int) -> list[int]:
     return [total // n + (1 if i < total % n else 0) for i in range(n)]
 
 
-def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
-                 split: str, rng: np.random.Generator, chunk: int) -> list[_Unit]:
+def _independent_pairs(who: Subject, n_pairs: int | None, source: BodySource, split: str,
+                       rng: np.random.Generator) -> list[tuple[int, int]]:
+    """``pose_pairs: independent``: consecutive ids of the source's pose pool, ``(pool[2k], pool[2k+1])``;
+    a fixed pose set smaller than needed gives distinct pairs drawn at random (``n_pairs=None``: one
+    pair per pose)."""
     if n_pairs is None:
         pool = source.pose_pool(who, split, None)
         n_pairs = len(pool)
@@ -257,11 +282,21 @@ def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | No
     if len(pool) < 2:
         raise ValueError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
     if len(pool) >= 2 * n_pairs:
-        pairs = [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
-    else:  # a fixed pose set smaller than needed: draw distinct pairs at random
-        a = rng.integers(0, len(pool), n_pairs)
-        b = (a + rng.integers(1, len(pool), n_pairs)) % len(pool)
-        pairs = [(pool[i], pool[j]) for i, j in zip(a, b, strict=True)]
+        return [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
+    a = rng.integers(0, len(pool), n_pairs)
+    b = (a + rng.integers(1, len(pool), n_pairs)) % len(pool)
+    return [(pool[i], pool[j]) for i, j in zip(a, b, strict=True)]
+
+
+def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | None, source: BodySource,
+                 split: str, rng: np.random.Generator, chunk: int) -> list[_Unit]:
+    if cfg.pose_pairs == "motion":
+        pairs = source.motion_pairs(who, split, n_pairs)
+    else:
+        pairs = _independent_pairs(who, n_pairs, source, split, rng)
+    n_pairs = len(pairs)
+    if n_pairs == 0:
+        return []
     azimuths = rng.uniform(0.0, 360.0, (n_pairs, 2))
     units = []
     for start in range(0, n_pairs, chunk):
