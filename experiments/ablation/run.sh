@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# The ablation table of docs/results.md: every change of the default recipe alone against the paper-faithful
+# baseline, on the small human data, in short runs (STEPS, default 3000), then all of them together.
+# Variants are the rows of experiments/ablation/variants.txt (NAME | data arguments | training arguments).
+# Run from the repository root inside the project's environment (scripts/setup.sh). Each training uses one
+# thread; JOBS (default 2) run side by side. Datasets go to DATA (default data/ablation), runs to RUNS.
+#   bash experiments/ablation/run.sh                  # about 2 hours on the 2-core machine
+#   STEPS=1000 RUNS=runs/ablation_quick bash experiments/ablation/run.sh
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+JOBS=${JOBS:-2}; STEPS=${STEPS:-3000}
+RUNS=${RUNS:-runs/ablation}; DATA=${DATA:-data/ablation}
+mkdir -p "$RUNS" "$DATA"
+VARIANTS=experiments/ablation/variants.txt
+
+# One dataset per distinct data-argument string (variants that share data share the folder).
+declare -A folder
+while IFS='|' read -r name data train; do
+  name=$(echo "$name" | xargs); data=$(echo "$data" | xargs)
+  if [ -z "$name" ] || [ "${name:0:1}" = "#" ]; then continue; fi
+  key=$(echo "$data" | sha1sum | cut -c1-8)
+  if [ -z "${folder[$key]:-}" ]; then
+    folder[$key]="$DATA/$name"
+    [ -f "$DATA/$name/manifest.json" ] && grep -q '"complete": true' "$DATA/$name/manifest.json" \
+      || eval cerberus data generate --dataset human $data --renderer warp --out "$DATA/$name" --quiet
+  fi
+  echo "$name|${folder[$key]}|$train"
+done < "$VARIANTS" > "$RUNS/plan.txt"
+
+one() {  # train then evaluate one variant: NAME|DATA|TRAIN ARGS; logs in RUNS/NAME.log
+  IFS='|' read -r name data train <<< "$1"
+  {
+    if [ -f "$RUNS/$name/model.safetensors" ]; then echo "$name: trained already";
+    elif [ -f "$RUNS/$name/checkpoints/last.pt" ]; then cerberus train --out "$RUNS/$name" --resume;
+    else eval cerberus train $train --set renderer=warp --set data.root="$data" --set train.steps="$STEPS" \
+           --set train.progress=false --out "$RUNS/$name"; fi
+    cerberus eval "$RUNS/$name"
+  } > "$RUNS/$name.log" 2>&1 && echo "$name: done" || { echo "$name: FAILED (see $RUNS/$name.log)"; return 1; }
+}
+export -f one; export RUNS STEPS
+xargs -P "$JOBS" -I{} bash -c 'one "$@"' _ {} < "$RUNS/plan.txt"
+python experiments/ablation/table.py "$RUNS" | tee "$RUNS/ablation.md"

@@ -1,0 +1,77 @@
+"""Print the ablation table of docs/results.md from the evaluated runs of ``experiments/ablation/run.sh``.
+
+    python experiments/ablation/table.py runs/ablation > runs/ablation/ablation.md
+
+Reads ``RUNS/plan.txt`` (the variants in order: ``NAME|DATA|TRAIN ARGS``), each run's
+``eval/results.json`` (``cerberus eval``) and ``metrics.csv`` (training speed). Prints one Markdown table:
+voxel IoU and Hard Human with the paired difference to the first variant (the baseline) over the same
+test images, part quality (consistency; the learned parts whose label is the head or a limb, with their
+agreement), how many parts are hidden in most test images (when ``cerberus eval`` measured it), and
+steps per second. A variant that is missing shows ``-``.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import statistics
+import sys
+from pathlib import Path
+
+LIMBS = ("head", "upper_arm", "lower_arm", "thigh", "shin")
+
+
+def load(run: Path) -> tuple[dict | None, list[dict]]:
+    res = run / "eval" / "results.json"
+    log = run / "metrics.csv"
+    return (json.loads(res.read_text()) if res.is_file() else None,
+            list(csv.DictReader(log.open())) if log.is_file() else [])
+
+
+def paired(a: dict | None, b: dict | None, key: str = "iou") -> str:
+    """``mean ± sem (k / n)`` of the per-image difference a - b over the images both scored."""
+    if a is None or b is None or a is b:
+        return "-"
+    rb = {r["index"]: r for r in b.get("records", [])}
+    d = [r[key] - rb[r["index"]][key] for r in a.get("records", [])
+         if r.get(key) is not None and rb.get(r["index"], {}).get(key) is not None]
+    if len(d) < 2:
+        return "-"
+    return f"{statistics.mean(d):+.3f} ± {statistics.stdev(d) / len(d) ** 0.5:.3f} ({sum(x > 0 for x in d)} / {len(d)})"
+
+
+def limb_parts(pq: dict) -> str:
+    rows = [r for r in pq.get("parts", []) if r.get("label") and r["label"].split(".")[0] in LIMBS]
+    return ", ".join(f"{r['label']} ({r['agreement']:.2f})" for r in sorted(rows, key=lambda r: -r["agreement"])) or "none"
+
+
+def fmt(x: float | None, digits: int = 3) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 1:
+        print(__doc__, file=sys.stderr)
+        return 2
+    runs = Path(argv[0])
+    plan = [line.split("|") for line in (runs / "plan.txt").read_text().splitlines() if line.strip()]
+    loaded = {name: load(runs / name) for name, _, _ in plan}
+    base = loaded[plan[0][0]][0]
+    print("| variant | voxel IoU | vs baseline (mean ± s.e., images better) | Hard Human | part consistency | "
+          "head / limb parts (agreement) | parts hidden in most images | steps/s |")
+    print("| :--- | ---: | ---: | ---: | ---: | :--- | ---: | ---: |")
+    for name, _, _ in plan:
+        res, log = loaded[name]
+        std = (res or {}).get("standard") or {}
+        hard = (res or {}).get("hard") or {}
+        pq = (res or {}).get("part_quality") or {}
+        vis = (res or {}).get("part_visibility") or {}
+        hidden = vis.get("parts_hidden_in_most_images")
+        speed = f"{int(log[-1]['step']) / float(log[-1]['elapsed_s']):.2f}" if log else "-"
+        print(f"| {name} | {fmt(std.get('mean'))} | {paired(res, base)} | {fmt(hard.get('mean'))} | "
+              f"{fmt(pq.get('consistency'))} | {limb_parts(pq) if pq else '-'} | "
+              f"{'-' if hidden is None else hidden} | {speed} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
