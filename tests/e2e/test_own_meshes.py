@@ -59,6 +59,11 @@ def test_evaluate_the_shipped_model_on_your_own_test_only_meshes(tmp_path, capsy
     assert set(results["canonical"]) == {"ann", "ben"}
     assert sum("hard_iou" in r for r in results["records"]) == hard["count"]
     assert results["part_quality"]["gt_parts"][:2] == ["head", "torso"]
+    vis = results["part_visibility"]  # the shipped model's 9 parts, seen from the 64 px input cameras
+    assert vis["images"] == 2 * 3 * 4 and vis["image_size"] == [64, 64] and len(vis["hidden_fraction"]) == 9
+    assert all(len(r["visible_pixels"]) == 9 for r in results["records"])
+    assert f"parts hidden in most images: {vis['parts_hidden_in_most_images']} of 9" in printed
+    assert "Hidden in input view" in (out / "results.md").read_text()
     assert "Hard Human" in (out / "results.md").read_text()
     assert (out / "table2.png").is_file() and (out / "pictures" / "index.html").is_file()
     assert len(list((out / "pictures").glob("*_gt.glb"))) == 1

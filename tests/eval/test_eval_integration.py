@@ -32,4 +32,6 @@ def test_untrained_model_on_generated_primitives(tmp_path, iou_scorer):
     pq = res.part_quality
     assert pq["gt_parts"] == ds.part_names and len(pq["parts"]) == model.num_parts
     assert not math.isnan(pq["mean_segmentation_iou"])
+    vis = res.part_visibility  # rendered with make_renderer("auto"): no renderer was passed
+    assert vis["images"] == len(ds) and len(vis["hidden_fraction"]) == model.num_parts
     assert "| all |" in markdown_report(res)

@@ -20,9 +20,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
         "entry point, 'kato' protocol), per image and per subject; the Hard Human test (parts from each subject's "
         "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
-        "training never saw. Writes results.json, results.md, a Table-2-like figure (table2.png) and, for the same "
-        "images, the pictures of the paper's Figure 1 (pictures/: input, output, parts, new lighting, turntable, "
-        "new pose), with their meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an "
+        "training never saw; how often each learned part is wholly hidden in its input view. Writes results.json, "
+        "results.md, a Table-2-like figure (table2.png) and, for the same images, the pictures of the paper's "
+        "Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose), with their meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an "
         "interactive 3D viewer that works offline.")
     p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
@@ -39,7 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure (default: 5)")
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="figure images in the interactive 3D viewer pictures/index.html (default: up to 12; 0: none)")
-    p.add_argument("--renderer", help="renderer backend for the figure (default: the run's)")
+    p.add_argument("--renderer", help="renderer backend for the figure and the part-visibility render "
+                   "(default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     p.set_defaults(func=run)
 
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.figures import evaluation_figures
     from cerberus_core.eval.report import markdown_report, write_json, write_text
     from cerberus_core.eval.runner import evaluate_dataset
+    from cerberus_core.eval.visibility import visibility_line
     from cerberus_core.lock import folder_lock
     from cerberus_core.train.checkpoint import load_model
 
@@ -103,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     with folder_lock(out, "cerberus eval"):
         result = evaluate_dataset(dataset, model.reconstruct, protocol=args.protocol, resolution=args.resolution,
                                   hard=not args.no_hard, part_quality=not args.no_part_quality, indices=indices,
-                                  device=args.device)
+                                  renderer=renderer, device=args.device)
         write_json(result, out / "results.json")
         write_text(markdown_report(result, title=f"Evaluation of {args.run}"), out / "results.md")
         fig = evaluation_figures(renderer, dataset, model, out, n_images=args.figure_images, baselines=baselines,
@@ -117,6 +119,8 @@ def run(args: argparse.Namespace) -> int:
         line += ("; Hard Human: not run (no canonical-pose images in this split; for your meshes, name the "
                  "canonical pose with `cerberus data generate --dataset folder --canonical POSE`)")
     print(line)
+    if result.part_visibility is not None:
+        print(visibility_line(result.part_visibility))
     print(f"results: {out / 'results.json'}, {out / 'results.md'}; figures: {fig}, {out / 'pictures'}")
     if args.viewer_images > 0:
         print(f"3D viewer: {out / 'pictures' / 'index.html'}")

@@ -5,6 +5,7 @@
 * :mod:`.standard` — voxel IoU of the union of parts (metric found through ``cerberus.metrics``).
 * :mod:`.hard` — the identity-conditional "Hard Human" test.
 * :mod:`.part_quality` — consistency of the learned parts with the ground-truth semantic parts.
+* :mod:`.visibility` — how often each learned part is wholly hidden in its own input view.
 * :mod:`.runner` — :func:`evaluate_dataset`: all of the above in one pass over a test set.
 * :mod:`.report` — JSON and Markdown.
 * :mod:`.export` — GLB / OBJ files of posed parts.

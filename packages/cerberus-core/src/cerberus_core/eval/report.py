@@ -14,6 +14,7 @@ from typing import Any
 
 from cerberus_core.atomic import atomic_write_text
 from cerberus_core.eval.runner import EvaluationResult
+from cerberus_core.eval.visibility import visibility_line
 
 
 def _finite(obj: Any) -> Any:
@@ -75,7 +76,8 @@ def comparison_table(results: Mapping[str, Mapping[str, float | None]], columns:
 
 def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "Evaluation") -> str:
     """A readable summary: voxel IoU overall and per subject (standard and Hard Human), then part
-    quality (consistency per learned part and segmentation IoU per ground-truth part)."""
+    quality (consistency per learned part, with its visibility in the input view, and segmentation
+    IoU per ground-truth part); part visibility gets a table of its own when part quality was not run."""
     r = to_jsonable(result)
     std, hard = r["standard"], r.get("hard")
     out = [f"# {title}", "",
@@ -94,15 +96,33 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
         notes.append("Hard Human shapes from images " + ", ".join(f"{s}: #{i}" for s, i in r["canonical"].items())
                      + f"; {hard['count']} images scored.")
     out += [*(f"- {n}" for n in notes), ""] if notes else []
-    pq = r.get("part_quality")
+    pq, vis = r.get("part_quality"), r.get("part_visibility")
+    vis_header = ["Hidden in input view", "Silhouette share"] if vis else []
+
+    def vis_cells(p: int) -> list[Any]:
+        return [vis["hidden_fraction"][p], vis["mean_silhouette_share"][p]] if vis else []
+
     if pq:
         out += ["## Part quality (ground-truth semantic parts, never seen in training)", "",
                 f"Consistency (mean agreement) {_fmt(pq['consistency'])}, mean entropy "
                 f"{_fmt(pq['mean_entropy_bits'], 3)} bits, mean segmentation IoU {_fmt(pq['mean_segmentation_iou'])} "
                 f"over {pq['images']} images.", ""]
+        out += [_visibility_sentence(vis), ""] if vis else []
         prow = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity"),
-                 p["images"]] for p in pq["parts"]]
-        out += [markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity", "Images"],
-                               prow, 3), ""]
+                 p["images"], *vis_cells(p["part"])] for p in pq["parts"]]
+        out += [markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity", "Images",
+                                *vis_header], prow, 3), ""]
         out += [markdown_table(["GT part", "Segmentation IoU"], list(pq["segmentation_iou"].items()), 3), ""]
+    elif vis:
+        vrow = [[p, *vis_cells(p), px] for p, px in enumerate(vis["mean_visible_pixels"])]
+        out += ["## Part visibility", "", _visibility_sentence(vis), "",
+                markdown_table(["Learned part", *vis_header, "Visible pixels"], vrow, 3), ""]
     return "\n".join(out)
+
+
+def _visibility_sentence(vis: Mapping[str, Any]) -> str:
+    h, w = vis["image_size"]
+    return (f"Part visibility in the input view ({h}x{w} renders of the reconstruction, {vis['images']} images): "
+            f"{visibility_line(vis)}. *Hidden*: the fraction of images where no pixel shows the part (it gets no "
+            "gradient from the paper's renderer there); *silhouette share*: its mean share of the rendered "
+            "silhouette.")

@@ -1,4 +1,4 @@
-"""One pass over a test set: standard voxel IoU, Hard Human and part quality together.
+"""One pass over a test set: standard voxel IoU, Hard Human, part quality and part visibility together.
 
 The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartSet``
 (world-frame output; the camera is the one the image was rendered with, which the model needs to
@@ -26,8 +26,11 @@ from tqdm import tqdm
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, Score, VoxelScorer, summarize
+from cerberus_core.eval.visibility import VisibilityAccumulator, visible_pixels
 from cerberus_core.parts import PartSet
+from cerberus_core.plugins import make_renderer
 from cerberus_core.render.camera import Camera
+from cerberus_core.render.interface import Renderer
 
 Tensor = torch.Tensor
 Reconstructor = Callable[[Tensor, Camera], PartSet]
@@ -113,7 +116,9 @@ class EvaluationResult:
         hard: the Hard Human IoU (``None`` if not run or no subject has a canonical image).
         canonical: ``{subject: dataset index}`` of the images the Hard Human shapes came from.
         part_quality: :meth:`PartQualityAccumulator.summary` (``None`` if not run).
-        records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error.
+        part_visibility: :meth:`VisibilityAccumulator.summary` (``None`` if not run).
+        records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error,
+            visible_pixels (per part, in the input view).
         seconds: wall time.
     """
 
@@ -123,6 +128,7 @@ class EvaluationResult:
     hard: IoUSummary | None
     canonical: dict[str, int]
     part_quality: dict[str, Any] | None
+    part_visibility: dict[str, Any] | None = None
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -134,6 +140,7 @@ class EvaluationResult:
             "hard": None if self.hard is None else self.hard.to_dict(),
             "canonical": self.canonical,
             "part_quality": self.part_quality,
+            "part_visibility": self.part_visibility,
             "seconds": round(self.seconds, 3),
             "records": self.records,
         }
@@ -160,6 +167,8 @@ def evaluate_dataset(
     resolution: int = 32,
     hard: bool = True,
     part_quality: bool = True,
+    visibility: bool = True,
+    renderer: Renderer | None = None,
     canonical_view: int | None = None,
     indices: Sequence[int] | None = None,
     batch_size: int = 16,
@@ -178,6 +187,9 @@ def evaluate_dataset(
         protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's).
         hard: also run the Hard Human test (needs ``is_canonical`` images).
         part_quality: also score the parts against the ground-truth semantic parts.
+        visibility: also measure how often each part is wholly hidden in its input view (one
+            render per image, see :mod:`cerberus_core.eval.visibility`).
+        renderer: the backend for that render (default ``make_renderer("auto")``).
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
         indices: evaluate these dataset indices only (default all). Canonical images are looked
             up in the whole dataset.
@@ -204,8 +216,11 @@ def evaluate_dataset(
         if chosen:
             canonical = extract_canonical(dataset, reconstruct, chosen, device, batch_size)
 
+    if visibility and renderer is None:
+        renderer = make_renderer("auto")
     gt_memo = GroundTruthMemo(dataset.gt_mesh)
     pq: PartQualityAccumulator | None = None
+    vis: VisibilityAccumulator | None = None
     scores: list[Score] = []
     hard_scores: list[Score] = []
     groups: list[str] = []
@@ -214,6 +229,11 @@ def evaluate_dataset(
     bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not progress)
     for batch_idx, batch, camera in iterate_batches(dataset, indices, batch_size, num_workers):
         recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
+        shown = None
+        if visibility:
+            shown = visible_pixels(renderer, recon, camera.to(device))
+            vis = vis or VisibilityAccumulator(recon.num_parts, (camera.height, camera.width))
+            vis.add(shown)
         canonical_flags = batch.get("is_canonical", [False] * len(batch_idx))
         for b, idx in enumerate(batch_idx):
             meta = ItemMeta(idx, subject_label(dataset, batch["subject"][b]), int(batch["pose"][b]),
@@ -226,6 +246,8 @@ def evaluate_dataset(
             groups.append(meta.subject)
             rec: dict[str, Any] = {"index": idx, "subject": meta.subject, "pose": meta.pose, "view": meta.view,
                                    "iou": score.iou, "clipped": score.clipped, "error": score.error}
+            if shown is not None:
+                rec["visible_pixels"] = shown[b].tolist()
             if canonical is not None and canonical.applies_to(meta):
                 hs = scorer(canonical.pose(meta.subject, one).part_meshes(0), gt)
                 hard_scores.append(hs)
@@ -251,6 +273,7 @@ def evaluate_dataset(
         hard=summarize(hard_scores, hard_groups) if hard_scores else None,
         canonical={} if canonical is None else dict(canonical.indices),
         part_quality=None if pq is None else pq.summary(),
+        part_visibility=None if vis is None else vis.summary(),
         records=records,
         seconds=time.perf_counter() - t0,
     )

@@ -1,0 +1,108 @@
+"""Part visibility: how often a learned part is wholly hidden in its own input view.
+
+The paper's renderer (no anti-aliasing) sends a part gradient only through the pixels where it is
+the front surface. A part that no pixel of the reconstruction rendered from the input camera shows
+(behind other parts, or off-screen) gets no gradient from that image's reconstruction term: it
+drifts instead of learning. This module measures, per learned part and over a test set:
+
+* ``hidden_fraction``: the fraction of images in which the part covers no pixel;
+* ``mean_visible_pixels``: its mean number of front-surface pixels per image;
+* ``mean_silhouette_share``: its mean share of the rendered silhouette (over the images whose
+  silhouette is not empty);
+* ``parts_hidden_in_most_images``: how many parts are hidden in more than half of the images.
+
+The per-pixel visible part is the ``part_id`` map of :func:`cerberus_core.render.api.render_parts`,
+rendered once per image at the camera's (the dataset's) image size. A one-part model (the NMRr
+baseline) is hidden only where it leaves the picture.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from cerberus_core.parts import PartSet
+from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
+from cerberus_core.render.interface import Renderer
+
+Tensor = torch.Tensor
+
+
+def visible_pixels(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor:
+    """Pixels where each part is the front surface, seen from the given cameras.
+
+    Args:
+        renderer: a backend from :func:`cerberus_core.make_renderer`.
+        recon: ``B`` reconstructions of ``P`` parts (world frame).
+        camera: ``B`` cameras (the input views); the render is ``camera.height x camera.width``.
+    Returns:
+        ``(B, P)`` int64 on the CPU: pixel counts (0: the part is wholly hidden in that image).
+    """
+    if recon.batch_size != camera.batch_size:
+        raise ValueError(f"visible_pixels: {recon.batch_size} reconstructions but {camera.batch_size} cameras")
+    recon = recon.to(camera.device)
+    with torch.no_grad():
+        part_id = render_parts(renderer, recon.posed(), recon.faces, camera).part_id  # (B, H, W), -1 background
+    bsz, nparts = recon.batch_size, recon.num_parts
+    slot = part_id.reshape(bsz, -1) + 1 + torch.arange(bsz, device=part_id.device).unsqueeze(1) * (nparts + 1)
+    counts = torch.bincount(slot.reshape(-1), minlength=bsz * (nparts + 1)).reshape(bsz, nparts + 1)
+    return counts[:, 1:].cpu()
+
+
+@dataclass
+class VisibilityAccumulator:
+    """Collects per-image visible-pixel counts and summarises them per part.
+
+    Args:
+        num_parts: learned parts ``P``.
+        image_size: ``(H, W)`` of the renders, for the record.
+    """
+
+    num_parts: int
+    image_size: tuple[int, int]
+    counts: list[np.ndarray] = field(default_factory=list)
+
+    def add(self, counts: Tensor | np.ndarray) -> None:
+        """Record a batch's ``(B, P)`` visible-pixel counts (:func:`visible_pixels`)."""
+        c = np.asarray(counts.cpu() if isinstance(counts, Tensor) else counts, dtype=np.int64)
+        if c.ndim != 2 or c.shape[1] != self.num_parts:
+            raise ValueError(f"VisibilityAccumulator.add: expected (B, {self.num_parts}) counts, got {c.shape}")
+        self.counts.extend(c)
+
+    def summary(self) -> dict[str, Any]:
+        """Per-part visibility over every image added (see the module docstring)."""
+        if not self.counts:
+            raise ValueError("VisibilityAccumulator.summary: no images were added")
+        stack = np.stack(self.counts).astype(np.float64)  # (N, P)
+        hidden = (stack == 0).mean(0)
+        silhouette = stack.sum(1)
+        drawn = silhouette > 0
+        share = (stack[drawn] / silhouette[drawn, None]).mean(0) if drawn.any() else np.full(self.num_parts, np.nan)
+        most = [p for p in range(self.num_parts) if hidden[p] > 0.5]
+        return {
+            "images": len(self.counts),
+            "image_size": list(self.image_size),
+            "hidden_fraction": hidden.tolist(),
+            "mean_visible_pixels": stack.mean(0).tolist(),
+            "mean_silhouette_share": share.tolist(),
+            "parts_hidden_in_most_images": len(most),
+            "hidden_in_most_images": most,
+        }
+
+
+def visibility_line(summary: dict[str, Any]) -> str:
+    """One line for a console or report, e.g. ``parts hidden in most images: 2 of 9 (part 0: 61%,
+    part 2: 58%)`` (with none, the most often hidden part is named, if any is ever hidden); works on
+    :meth:`VisibilityAccumulator.summary` or its JSON form."""
+    hidden = summary["hidden_fraction"]
+    most = summary["hidden_in_most_images"]
+    line = f"parts hidden in most images: {len(most)} of {len(hidden)}"
+    if most:
+        line += " (" + ", ".join(f"part {p}: {100 * hidden[p]:.0f}%" for p in most) + ")"
+    elif hidden and max(hidden) > 0:
+        worst = int(np.argmax(hidden))
+        line += f" (most often hidden: part {worst}, in {100 * hidden[worst]:.0f}% of images)"
+    return line
