@@ -23,6 +23,7 @@ that give the paper's variants (Free Cerberus: ``pose_consistency: false``).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -81,8 +82,8 @@ class LossConfig:
 
     def validate(self) -> None:
         for name in ("recon", "translation", "background", "smoothness", "silhouette", "chamfer"):
-            if not getattr(self, name) >= 0:  # also refuses NaN
-                raise ValueError(f"losses.{name} is a loss weight and must be a number >= 0, got {getattr(self, name)}")
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"losses.{name} is a loss weight and must be a finite number >= 0, got {getattr(self, name)}")
         if self.render_background not in ("black", "dataset"):
             raise ValueError(f"losses.render_background must be 'black' or 'dataset', got {self.render_background!r}")
         if not 0 <= self.background_tolerance < 1:
