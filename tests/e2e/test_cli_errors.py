@@ -64,7 +64,7 @@ CASES = [
     ("train-set-type", "train --preset tiny --set optim.lr=fast --out {root}/new", "optim.lr: expected a number"),
     ("train-set-unknown", "train --preset tiny --set optim.lrr=1 --out {root}/new", "unknown config key"),
     ("train-set-nan", "train --preset tiny --set data.root={data} --set losses.smoothness=.nan --out {root}/new",
-     "losses.smoothness = nan: must be a finite number"),
+     "losses.smoothness is a loss weight and must be a finite number"),
     ("train-set-inf", "train --preset tiny --set data.root={data} --set optim.lr=.inf --out {root}/new", "finite"),
     ("train-config-empty", "train --config {root}/empty.yaml --out {root}/new", "is empty"),
     ("train-config-yaml", "train --config {root}/bad.yaml --out {root}/new", "bad.yaml:3: not valid YAML"),
