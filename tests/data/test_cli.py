@@ -26,7 +26,7 @@ def test_generate_check_show_primitives(tmp_path, capsys):
 
     # rerunning resumes (nothing to do); other options refuse; a damaged file fails the check
     assert main(args) == 0
-    assert main(args[:-1] + ["--seed", "4", "--quiet"]) == 1
+    assert main(args[:-1] + ["--seed", "4", "--quiet"]) == 2
     assert "different dataset" in capsys.readouterr().err
     victim = next((out / "train").glob("*.images.npy"))
     victim.write_bytes(victim.read_bytes()[:-1] + b"\x01")
@@ -36,12 +36,12 @@ def test_generate_check_show_primitives(tmp_path, capsys):
 
 
 def test_cli_input_errors(tmp_path, capsys):
-    assert main(["data", "generate", "--dataset", "folder", "--out", str(tmp_path / "x")]) == 1
+    assert main(["data", "generate", "--dataset", "folder", "--out", str(tmp_path / "x")]) == 2
     assert "--source" in capsys.readouterr().err
     assert main(["data", "generate", "--dataset", "folder", "--source", str(tmp_path / "none"),
-                 "--out", str(tmp_path / "x")]) == 1
+                 "--out", str(tmp_path / "x")]) == 2
     assert "does not exist" in capsys.readouterr().err
-    assert main(["data", "check", str(tmp_path)]) == 1
+    assert main(["data", "check", str(tmp_path)]) == 2  # not a dataset: bad input (1 is for a damaged dataset)
     assert main(["data", "generate", "--dataset", "human", "--size", "paper", "--out", str(tmp_path / "p"),
                  "--dry-run"]) == 0
     text = capsys.readouterr().out
@@ -63,7 +63,7 @@ def test_generate_takes_set_overrides_with_the_training_configs_validation(tmp_p
                            (["--set", "scene.fov_y=200"], "scene: SceneSetup.fov_y must lie in"),
                            (["--set", "seed"], "section.key=value"),
                            (["--size", "tiniest"], "unknown preset 'tiniest' for dataset 'primitives'.*tiny")):
-        assert main([*base, *flags, "--dry-run"]) == 1
+        assert main([*base, *flags, "--dry-run"]) == 2
         assert re.search(message, capsys.readouterr().err)
     assert not (tmp_path / "x").exists()
     # --preset still names the size, with a deprecation note
