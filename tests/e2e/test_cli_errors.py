@@ -246,3 +246,21 @@ def test_an_unfinished_dataset_names_the_command_that_finishes_it(tmp_path, monk
     assert re.search(r"resuming .*: 1 of 4 shards already done", capsys.readouterr().out)
     assert len(QuadrupletDataset(data)) == 4
     assert main(["data", "check", str(data)]) == 0
+
+
+def test_the_scene_of_a_model_is_never_a_silent_default(place, tmp_path):
+    """Issue 11 (6): reconstruct fell back to a default scene when the run's data was not there."""
+    from dataclasses import replace
+
+    from cerberus_core.errors import ConfigError
+    from cerberus_core.train.checkpoint import load_run, model_scene
+
+    _, config, saved = load_run(place["run"])
+    assert saved is not None, "a run records its scene with its weights"
+    trained_on = model_scene(config, None, None)  # the training data is still there
+    assert model_scene(config, None, saved) == trained_on == model_scene(config, place["data"], None)
+    gone = replace(config, data=replace(config.data, root=str(tmp_path / "moved")))
+    with pytest.raises(ConfigError, match="pass --data DATASET"):
+        model_scene(gone, None, None)
+    with pytest.raises(ConfigError, match="not a Cerberus dataset"):
+        model_scene(config, place["root"] / "notes", saved)

@@ -46,8 +46,8 @@ ShardCallback = Callable[[str, dict], None]
 # ------------------------------------------------------------------------------------ validation
 RENDER_BYTES_PER_PIXEL = 160
 """Memory one view takes per pixel while it is rendered (rasterizer and shading buffers), an upper
-bound: measured 135-137 bytes with the torch backend and 65-83 with Warp (peak RSS growth of one
-:func:`render_views` call of 16 views at 256 and 512 px on a CPU)."""
+bound: measured 133-136 bytes with the torch backend and 65-70 with Warp (peak RSS growth of one
+:func:`render_views` call of 16 views at 256 and 512 px on a CPU: ``benchmarks/bench_render_memory.py``)."""
 
 
 @dataclass(frozen=True)
