@@ -41,14 +41,17 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message}; see {self.prog} --help\n")
 
 
-def output_folder(path: Path, option: str = "--out") -> Path:
-    """``path`` may be created as a folder: not an existing file, nor under one."""
+def output_folder(path: Path, option: str = "--out", *, dataset_ok: bool = False) -> Path:
+    """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
+    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results."""
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
                 what = "is a file" if p == path else f"is under {p}, which is a file"
                 raise ConfigError(f"{option} {path} {what}; pass a folder path")
             break
+    if not dataset_ok and is_dataset(path):
+        raise ConfigError(f"{option} {path} is a dataset folder; write results to another folder")
     return path
 
 

@@ -131,7 +131,7 @@ def run_generate(args: argparse.Namespace) -> int:
     if args.print_config:
         print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
         return 0
-    output_folder(args.out)
+    output_folder(args.out, dataset_ok=True)
     runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
     job = validate_generation(config, source_options=options, source_runtime=runtime, device=args.device,
                               batch_size=args.batch_size, out=args.out, overwrite=args.overwrite)
