@@ -68,14 +68,17 @@ class GenerationJob:
     peak_bytes: int
 
 
-def _memory_limit(device: str) -> tuple[int, str] | None:
-    """(bytes, what) of the memory the render buffers live in: the GPU's, or this machine's RAM."""
-    if device.startswith("cuda"):
-        return torch.cuda.get_device_properties(torch.device(device)).total_memory, f"GPU {device}"
+def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
+    """``(what, bytes or None if unknown, holds the render buffers)`` for each memory a generation uses:
+    this machine's RAM (the shard's images, and the render buffers on a CPU) and the GPU's."""
     try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"), "this machine"
+        ram: int | None = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):  # no sysconf (Windows): nothing to compare with
-        return None
+        ram = None
+    if not device.startswith("cuda"):
+        return [("this machine", ram, True)]
+    gpu = torch.cuda.get_device_properties(torch.device(device)).total_memory
+    return [("this machine", ram, False), (f"GPU {device}", gpu, True)]
 
 
 def validate_generation(config: GenerationConfig, *, source: BodySource | None = None,
@@ -117,15 +120,15 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
     views = max(len(s.views) for shards in plan.shards.values() for s in shards)
     pixels = config.image_size ** 2
     images, buffers = views * 3 * pixels, min(batch_size, views) * pixels * RENDER_BYTES_PER_PIXEL
-    limit = _memory_limit(device)
-    if limit is not None:
-        total, where = limit
-        need = buffers if device.startswith("cuda") else images + buffers
-        if need > total:
-            raise ConfigError(f"image_size {config.image_size} needs about {need / 2**30:.1f} GiB of memory "
-                              f"({images / 2**30:.1f} GiB for a shard of {views} images, {buffers / 2**30:.1f} GiB "
-                              f"to render {min(batch_size, views)} views at once), more than {where} has "
-                              f"({total / 2**30:.1f} GiB); lower --image-size, --batch-size or --shard-images")
+    for where, total, renders in _memory_places(device):
+        need = images + buffers if renders else images
+        if total is not None and need > total:
+            raise ConfigError(f"image_size {config.image_size} needs about {need / 2**30:.1f} GiB of memory on "
+                              f"{where} ({images / 2**30:.1f} GiB for a shard of {views} images"
+                              + (f", {buffers / 2**30:.1f} GiB to render {min(batch_size, views)} views at once"
+                                 if renders else "")
+                              + f"), more than it has ({total / 2**30:.1f} GiB); lower --image-size, --batch-size "
+                              "or --shard-images")
     if out is not None:
         check_folder(Path(out), _jsonable(config.to_dict()), overwrite)
     return GenerationJob(config, source, plan, images + buffers)
