@@ -105,3 +105,32 @@ def test_a_second_writer_of_a_dataset_folder_is_refused_with_the_holders_pid(tmp
         assert [p.name for p in out.iterdir()] == [".cerberus.lock"], "nothing written beside the lock"
     assert main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(out), "--quiet"]) == 0
     assert (out / "manifest.json").is_file() and not (out / ".cerberus.lock").exists()
+
+
+def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, capsys):
+    """plan.generate_command names the mesh folder and its test split: rerunning it resumes (here:
+    nothing left to do) instead of refusing a different dataset."""
+    import shlex
+
+    import trimesh
+
+    from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
+    from cerberus_core.datasets.format import read_manifest
+    from cerberus_core.datasets.plan import generate_command
+
+    meshes = tmp_path / "meshes"
+    source = PrimitiveBodySource()
+    for name, subject in zip(("ann", "ben", "cat"), sample_subjects(3, 1, "train"), strict=True):
+        (meshes / name).mkdir(parents=True)
+        for k, body in enumerate(source.posed_bodies(subject, [1, 2])):
+            trimesh.Trimesh(body.vertices, body.faces, process=False).export(meshes / name / f"p{k}.obj")
+            np.save(meshes / name / f"p{k}.parts.npy", body.vertex_parts.astype(np.int64))
+    out = tmp_path / "ds"
+    assert main(["data", "generate", "--dataset", "folder", "--source", str(meshes), "--test-subjects", "cat",
+                 "--image-size", "24", "--out", str(out), "--quiet"]) == 0
+    command = generate_command(out, read_manifest(out))
+    words = shlex.split(command)
+    assert words[words.index("--source") + 1] == str(meshes.resolve()) and "--test-subjects" in words
+    capsys.readouterr()
+    assert main([*words[1:], "--quiet"]) == 0, capsys.readouterr().err
+    assert re.search(r"resuming .*: (\d+) of \1 shards already done", capsys.readouterr().out)

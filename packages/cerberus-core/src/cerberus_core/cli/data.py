@@ -178,14 +178,15 @@ def run_check(args: argparse.Namespace) -> int:
 def run_show(args: argparse.Namespace) -> int:
     from cerberus_core.datasets.format import read_manifest, split_info
     from cerberus_core.datasets.show import save_contact_sheet
-    from cerberus_core.plugins import RENDERER_GROUP, get_plugin, resolve_renderer
+    from cerberus_core.plugins import AUTO_RENDERER, RENDERER_GROUP, get_plugin
 
     for option, value, most in (("--count", args.count, MAX_SHOW_COUNT), ("--scale", args.scale, MAX_SHOW_SCALE)):
         if value > most:
             raise ConfigError(f"{option} {value}: at most {most}")
     split_info(read_manifest(args.root), args.split, args.root)
     out = output_file(args.out or args.root / f"contact_{args.split}.png")
-    get_plugin(RENDERER_GROUP, resolve_renderer(args.renderer))  # a known backend, even without --parts
+    if args.renderer != AUTO_RENDERER:
+        get_plugin(RENDERER_GROUP, args.renderer)  # a known backend, even without --parts
     save_contact_sheet(args.root, out, split=args.split, count=args.count, parts=args.parts,
                        renderer=args.renderer, scale=args.scale)
     print(f"contact sheet written to {out}")
