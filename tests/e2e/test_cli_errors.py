@@ -274,3 +274,39 @@ def test_the_scene_of_a_model_is_never_a_silent_default(place, tmp_path):
         model_scene(gone, None, None)
     with pytest.raises(ConfigError, match="not a Cerberus dataset"):
         model_scene(config, place["root"] / "notes", saved)
+
+
+def test_training_verifies_the_shard_checksums_when_it_starts(place, tmp_path, capsys):
+    """Issue 11: training checked shard sizes but never their checksums. A flipped byte (same size) is
+    refused before the run folder exists."""
+    import shutil
+
+    data = tmp_path / "data"
+    shutil.copytree(place["data"], data)
+    victim = next((data / "train").glob("*.images.npy"))
+    raw = bytearray(victim.read_bytes())
+    raw[-1] ^= 0xFF
+    victim.write_bytes(bytes(raw))
+    code = main(["train", "--preset", "tiny", "--set", f"data.root={data}", "--set", "train.steps=1",
+                 "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "sha256 mismatch" in err and str(victim) in err, err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_run_resumes_from_another_directory(place, tmp_path, monkeypatch, capsys):
+    """Issue 11 (6): a run stored a relative data.root, so `train --resume` failed from another directory."""
+    run = tmp_path / "run"
+    common = ["--set", "train.tensorboard=false", "--set", "train.progress=false"]
+    torch_threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        monkeypatch.chdir(place["root"])
+        assert main(["train", "--preset", "tiny", "--set", "data.root=data", "--set", "train.steps=1", *common,
+                     "--out", str(run)]) == 0
+        (tmp_path / "elsewhere").mkdir()
+        monkeypatch.chdir(tmp_path / "elsewhere")
+        assert main(["train", "--out", "../run", "--resume", "--set", "train.steps=2", *common]) == 0
+    finally:
+        torch.set_num_threads(torch_threads)
+    assert "finished step 2" in capsys.readouterr().out
