@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+import sys
 
 import pytest
 from PIL import Image
@@ -61,3 +62,17 @@ def test_console_script_help() -> None:
     proc = subprocess.run(["cerberus", "--help"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "renderers" in proc.stdout and "demo" in proc.stdout
 
+
+
+def test_a_warning_prints_as_one_line_without_a_source_line() -> None:
+    """Issue 11: warnings printed the Python source line that raised them."""
+    script = ("import sys, warnings\n"
+              "import cerberus_core.cli as cli, cerberus_core.cli.renderers as r\n"
+              "def run(args):\n"
+              "    warnings.warn('a first line\\nand a second', UserWarning)\n"
+              "    return 0\n"
+              "r.run = run\n"
+              "sys.exit(cli.main(['renderers']))\n")
+    proc = subprocess.run([sys.executable, "-W", "always", "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == "cerberus renderers: warning: a first line; and a second\n"

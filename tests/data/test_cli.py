@@ -26,7 +26,7 @@ def test_generate_check_show_primitives(tmp_path, capsys):
 
     # rerunning resumes (nothing to do); other options refuse; a damaged file fails the check
     assert main(args) == 0
-    assert main(args[:-1] + ["--seed", "4", "--quiet"]) == 1
+    assert main(args[:-1] + ["--seed", "4", "--quiet"]) == 2
     assert "different dataset" in capsys.readouterr().err
     victim = next((out / "train").glob("*.images.npy"))
     victim.write_bytes(victim.read_bytes()[:-1] + b"\x01")
@@ -36,12 +36,12 @@ def test_generate_check_show_primitives(tmp_path, capsys):
 
 
 def test_cli_input_errors(tmp_path, capsys):
-    assert main(["data", "generate", "--dataset", "folder", "--out", str(tmp_path / "x")]) == 1
+    assert main(["data", "generate", "--dataset", "folder", "--out", str(tmp_path / "x")]) == 2
     assert "--source" in capsys.readouterr().err
     assert main(["data", "generate", "--dataset", "folder", "--source", str(tmp_path / "none"),
-                 "--out", str(tmp_path / "x")]) == 1
+                 "--out", str(tmp_path / "x")]) == 2
     assert "does not exist" in capsys.readouterr().err
-    assert main(["data", "check", str(tmp_path)]) == 1
+    assert main(["data", "check", str(tmp_path)]) == 2  # not a dataset: bad input (1 is for a damaged dataset)
     assert main(["data", "generate", "--dataset", "human", "--size", "paper", "--out", str(tmp_path / "p"),
                  "--dry-run"]) == 0
     text = capsys.readouterr().out
@@ -63,7 +63,7 @@ def test_generate_takes_set_overrides_with_the_training_configs_validation(tmp_p
                            (["--set", "scene.fov_y=200"], "scene: SceneSetup.fov_y must lie in"),
                            (["--set", "seed"], "section.key=value"),
                            (["--size", "tiniest"], "unknown preset 'tiniest' for dataset 'primitives'.*tiny")):
-        assert main([*base, *flags, "--dry-run"]) == 1
+        assert main([*base, *flags, "--dry-run"]) == 2
         assert re.search(message, capsys.readouterr().err)
     assert not (tmp_path / "x").exists()
     # --preset still names the size, with a deprecation note
@@ -105,3 +105,32 @@ def test_a_second_writer_of_a_dataset_folder_is_refused_with_the_holders_pid(tmp
         assert [p.name for p in out.iterdir()] == [".cerberus.lock"], "nothing written beside the lock"
     assert main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(out), "--quiet"]) == 0
     assert (out / "manifest.json").is_file() and not (out / ".cerberus.lock").exists()
+
+
+def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, capsys):
+    """plan.generate_command names the mesh folder and its test split: rerunning it resumes (here:
+    nothing left to do) instead of refusing a different dataset."""
+    import shlex
+
+    import trimesh
+
+    from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
+    from cerberus_core.datasets.format import read_manifest
+    from cerberus_core.datasets.plan import generate_command
+
+    meshes = tmp_path / "meshes"
+    source = PrimitiveBodySource()
+    for name, subject in zip(("ann", "ben", "cat"), sample_subjects(3, 1, "train"), strict=True):
+        (meshes / name).mkdir(parents=True)
+        for k, body in enumerate(source.posed_bodies(subject, [1, 2])):
+            trimesh.Trimesh(body.vertices, body.faces, process=False).export(meshes / name / f"p{k}.obj")
+            np.save(meshes / name / f"p{k}.parts.npy", body.vertex_parts.astype(np.int64))
+    out = tmp_path / "ds"
+    assert main(["data", "generate", "--dataset", "folder", "--source", str(meshes), "--test-subjects", "cat",
+                 "--image-size", "24", "--out", str(out), "--quiet"]) == 0
+    command = generate_command(out, read_manifest(out))
+    words = shlex.split(command)
+    assert words[words.index("--source") + 1] == str(meshes.resolve()) and "--test-subjects" in words
+    capsys.readouterr()
+    assert main([*words[1:], "--quiet"]) == 0, capsys.readouterr().err
+    assert re.search(r"resuming .*: (\d+) of \1 shards already done", capsys.readouterr().out)

@@ -158,3 +158,31 @@ def test_stored_images_match_a_fresh_render_of_the_stored_mesh(pairs_dataset):
         again = (out.image[0].clamp(0, 1) * 255 + 0.5).to(torch.uint8).float() / 255
         assert torch.equal(again, item["images"])
         assert np.abs(body.vertices).max() <= 0.5
+
+
+def test_the_memory_of_a_generation_is_checked_where_it_lives(monkeypatch, tmp_path):
+    """The shard's images live in RAM; the render buffers in RAM on a CPU, on the GPU with --device cuda."""
+    from types import SimpleNamespace
+
+    import torch
+
+    import cerberus_core.datasets.generate as gen
+    from cerberus_core.datasets.plan import preset_config
+    from cerberus_core.errors import ConfigError
+
+    config = preset_config("primitives", "tiny", image_size=1024)  # 24-image shards: 0.07 GiB + 3.75 GiB to render
+    job = gen.validate_generation(config, batch_size=24)
+    assert job.peak_bytes == 24 * 3 * 1024**2 + 24 * 1024**2 * gen.RENDER_BYTES_PER_PIXEL
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    monkeypatch.setattr(torch.cuda, "get_device_properties", lambda device: SimpleNamespace(total_memory=2**30))
+    with pytest.raises(ConfigError, match=r"on GPU cuda \(.*to render 24 views at once\), more than it has \(1.0 GiB"):
+        gen.validate_generation(config, device="cuda", batch_size=24)
+    gen.validate_generation(config, device="cuda", batch_size=4)  # 0.6 GiB of buffers fit
+    ram = {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 2**30 // 4096}  # a machine with 1 GiB
+    monkeypatch.setattr(gen.os, "sysconf", lambda name: ram[name])
+    with pytest.raises(ConfigError, match="on this machine .*lower --image-size, --batch-size or --shard-images"):
+        gen.validate_generation(config, batch_size=24)
+    with pytest.raises(ConfigError, match="on this machine"):  # generate() validates first: nothing written
+        gen.generate(config, tmp_path / "ds", batch_size=24, **QUIET)
+    assert not (tmp_path / "ds").exists()

@@ -92,3 +92,19 @@ def test_comparison_figure_columns(renderer, primitive_bodies):
     assert img.size == (5 * (H + PAD) + PAD, TITLE_HEIGHT + 3 * (H + PAD) + PAD)
     with pytest.raises(ValueError, match="reconstructions for 3 images"):
         figures.comparison_rows(renderer, images, cams, ours.index([0, 1]))
+
+
+@pytest.mark.parametrize("size", [16, 32, 64])
+def test_figure_one_titles_stay_inside_their_columns(size):
+    """Issue 11: at 32 px the captions ran into each other. Every caption is drawn inside its own
+    column: the title band is white where two columns meet, and every caption left some ink."""
+    panels = {k: torch.full((3, size, size), 0.5) for k in figures.FIGURE_ONE_TITLES}
+    picture = np.asarray(figures.figure_one(panels, scale=1, columns=3).convert("L"))
+    cell = size + PAD
+    for row in range(2):
+        band = picture[row * (TITLE_HEIGHT + cell + PAD):][:TITLE_HEIGHT]
+        for c in range(3):
+            x0 = PAD + c * cell
+            assert (band[:, x0 - PAD // 2] == 255).all(), f"a caption crosses the left edge of column {c}"
+            assert (band[:, x0 + size - 1 + PAD // 2] == 255).all(), f"a caption crosses the right edge of column {c}"
+            assert (band[:, x0:x0 + size] < 128).any(), f"caption {c} of row {row} drew nothing"

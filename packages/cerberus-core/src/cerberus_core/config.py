@@ -15,7 +15,9 @@
 """
 from __future__ import annotations
 
+import contextlib
 import difflib
+import math
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -29,7 +31,7 @@ import yaml
 from cerberus_core.errors import ConfigError
 
 __all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean", "flatten", "load_raw",
-           "parse_overrides"]
+           "parse_overrides", "yaml_problem"]
 
 
 def did_you_mean(word: Any, options: Iterable[Any]) -> str:
@@ -58,17 +60,27 @@ def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
+def yaml_problem(exc: BaseException, source: object) -> str:
+    """``SOURCE:LINE: not valid YAML (problem)``: a YAML syntax error on one line."""
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
+    where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
+    return f"{where}: not valid YAML ({problem})"
+
+
 def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> dict[str, Any]:
     """``["optim.lr=1e-4", "train.steps=10"]`` → nested dict (values parsed as YAML)."""
     out: dict[str, Any] = {}
     for item in items:
-        if "=" not in item or not item.split("=", 1)[0].strip():
+        key, eq, text = item.partition("=")
+        if not eq or not key.strip() or any(not p for p in key.strip().split(".")):
             raise ConfigError(f"--set {item!r}: expected section.key=value, e.g. --set {example}")
-        key, text = item.split("=", 1)
         try:
             value = yaml.safe_load(text) if text.strip() else None
         except yaml.YAMLError as exc:
-            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({exc})") from None
+            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({problem}); close brackets and "
+                              f"quotes, e.g. --set {example}") from None
         node = out
         parts = key.strip().split(".")
         for p in parts[:-1]:
@@ -149,7 +161,7 @@ def _layers(text: str, source: str, base_dir: Path | None, presets: Presets,
     try:
         raw = yaml.safe_load(text) or {}
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{source} is not valid YAML: {exc}") from exc
+        raise ConfigError(yaml_problem(exc, source) + "; fix the file") from None
     if not isinstance(raw, dict):
         raise ConfigError(f"{source} must hold a YAML mapping of config sections")
     parents = raw.pop("extends", None)
@@ -211,14 +223,17 @@ def coerce(value: Any, hint: Any, key: str) -> Any:
             return int(value)
         raise ConfigError(f"{key}: expected an integer, got {value!r}")
     if hint is float:
+        number = None
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
-        if isinstance(value, str):
-            try:
-                return float(value)  # YAML reads "5e-4" as a string
-            except ValueError:
-                pass
-        raise ConfigError(f"{key}: expected a number, got {value!r}")
+            number = float(value)
+        elif isinstance(value, str):
+            with contextlib.suppress(ValueError):
+                number = float(value)  # YAML reads "5e-4" as a string
+        if number is None:
+            raise ConfigError(f"{key}: expected a number, got {value!r}")
+        if not math.isfinite(number):  # .nan / .inf are YAML numbers, never sensible settings
+            raise ConfigError(f"{key} = {number}: must be a finite number (--set {key}=VALUE)")
+        return number
     if origin in (list, tuple):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{key}: expected a list, got {value!r}")

@@ -1,5 +1,6 @@
-"""Argument checks shared by the sub-commands: argparse types for numbers, and path / device checks
-that raise :class:`~cerberus_core.errors.ConfigError` before a command writes anything."""
+"""Argument checks shared by the sub-commands: argparse types for numbers, and path checks that raise
+:class:`~cerberus_core.errors.ConfigError` before a command writes anything (the device check is
+:func:`cerberus_core.devices.check_device`, which library code uses too)."""
 from __future__ import annotations
 
 import argparse
@@ -40,32 +41,30 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message}; see {self.prog} --help\n")
 
 
-def output_folder(path: Path, option: str = "--out") -> Path:
-    """``path`` may be created as a folder: not an existing file, nor under one."""
+def output_folder(path: Path, option: str = "--out", *, dataset_ok: bool = False) -> Path:
+    """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
+    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results."""
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
                 what = "is a file" if p == path else f"is under {p}, which is a file"
                 raise ConfigError(f"{option} {path} {what}; pass a folder path")
             break
+    if not dataset_ok and is_dataset(path):
+        raise ConfigError(f"{option} {path} is a dataset folder; write results to another folder")
     return path
 
 
-def check_device(name: str, option: str = "--device") -> str:
-    """``cpu``, ``cuda`` or ``cuda:N`` that exists here, or ``auto``."""
-    import torch
-
-    if name in ("auto", "cpu"):
-        return name
-    if name == "cuda" or name.startswith("cuda:"):
-        if not torch.cuda.is_available():
-            raise ConfigError(f"{option} {name}: CUDA is not available on this machine; use {option} cpu")
-        index = name.partition(":")[2]
-        if index and (not index.isdigit() or int(index) >= torch.cuda.device_count()):
-            raise ConfigError(f"{option} {name}: no such GPU (this machine has {torch.cuda.device_count()}); "
-                              f"use {option} cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
-        return name
-    raise ConfigError(f"{option} {name!r}: expected cpu, cuda or cuda:N")
+def output_file(path: Path, option: str = "--out") -> Path:
+    """``path`` may be written as a file: not an existing folder, nor under a file."""
+    if path.is_dir():
+        raise ConfigError(f"{option} {path} is a folder; pass a file path")
+    for p in path.parents:
+        if p.exists():
+            if not p.is_dir():
+                raise ConfigError(f"{option} {path} is under {p}, which is a file; pass a path inside a folder")
+            break
+    return path
 
 
 def is_dataset(path: Path) -> bool:

@@ -7,9 +7,12 @@ import warnings
 from pathlib import Path
 
 from cerberus_core.bodies.folder import DEFAULT_UP_AXIS, UP_AXES
+from cerberus_core.cli.checks import output_file, output_folder, positive_int
 from cerberus_core.errors import ConfigError, DatasetError
 
 _DATASETS = ("human", "animal", "folder", "primitives")  # the order --help lists them
+DEFAULT_TEST_FRACTION = 0.3
+MAX_SHOW_COUNT, MAX_SHOW_SCALE = 256, 16  # a contact sheet stays a picture (256 rows of 64 px tiles x 16)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -45,9 +48,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--source", type=Path, help="folder of meshes: SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl> "
                    "(--dataset folder only)")
     g.add_argument("--test-subjects", help="folder: comma-separated test subject names (default: --test-fraction)")
-    g.add_argument("--test-fraction", type=float, default=0.3,
-                   help="folder: fraction of subjects (last in sorted order) held out for testing (default 0.3; "
-                   "1: a test-only dataset, to evaluate a trained model on your meshes)")
+    g.add_argument("--test-fraction", type=float, default=None,
+                   help="folder: fraction of subjects (last in sorted order) held out for testing "
+                   f"(default {DEFAULT_TEST_FRACTION}; 1: a test-only dataset, to evaluate a trained model on your meshes)")
     g.add_argument("--up-axis", choices=UP_AXES, default=None,
                    help="folder: the meshes' up axis, turned into +Y (default +y, the toolkit's world; Blender, "
                    "anny and many scans are +z); recorded in the manifest")
@@ -63,7 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="seed of every random choice (default 0); same as --set seed=...")
     g.add_argument("--shard-images", type=int, default=None,
                    help="images per shard (default 1024); same as --set shard_images=...")
-    g.add_argument("--batch-size", type=int, default=64, help="views per render call (default 64; no effect on output)")
+    g.add_argument("--batch-size", type=positive_int, default=64, help="views per render call (default 64; no effect on output)")
     g.add_argument("--device", default="cpu", help="torch device for posing and rendering (default cpu)")
     g.add_argument("--overwrite", action="store_true", help="replace a different dataset in --out")
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
@@ -84,76 +87,83 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("root", type=Path, help="dataset folder")
     s.add_argument("--split", default="train", help="split to show (default train)")
     s.add_argument("--out", type=Path, help="PNG path (default: ROOT/contact_<split>.png)")
-    s.add_argument("--count", type=int, default=8, help="rows (default 8)")
+    s.add_argument("--count", type=positive_int, default=8, help=f"rows, 1..{MAX_SHOW_COUNT} (default 8)")
     s.add_argument("--parts", action="store_true", help="add ground-truth part renderings")
-    s.add_argument("--scale", type=int, default=2, help="tile upscaling (default 2)")
+    s.add_argument("--scale", type=positive_int, default=2, help=f"tile upscaling, 1..{MAX_SHOW_SCALE} (default 2)")
     s.add_argument("--renderer", default="auto", help="backend for --parts (default auto: warp, else torch)")
     s.set_defaults(func=run_show)
 
 
-def _fail(exc: Exception) -> int:
-    print(f"error: {exc}", file=sys.stderr)
-    return 1
-
-
 def _generation_config(args: argparse.Namespace):
     """The resolved config: the size preset, then the shortcut flags, then --set (later wins)."""
-    from cerberus_core.datasets.plan import load_generation_config
+    from cerberus_core.datasets.plan import SHORTCUT_FLAGS, load_generation_config
 
     size = args.size
     if args.size_alias is not None:
         print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "
               "recipes are `cerberus train --preset`)", file=sys.stderr)
         size = size or args.size_alias
-    shortcuts = [f"{key}={value}" for key, value in (("seed", args.seed), ("image_size", args.image_size),
-                                                     ("renderer", args.renderer), ("shard_images", args.shard_images))
-                 if value is not None]
+    shortcuts = [f"{key}={value}" for key, flag in SHORTCUT_FLAGS.items()
+                 if (value := getattr(args, flag[2:].replace("-", "_"))) is not None]
     return load_generation_config(args.dataset, size, [*shortcuts, *args.overrides])
 
 
+def _source_options(args: argparse.Namespace) -> dict:
+    """The body source's options (stored in the manifest): the folder's root and test split."""
+    if (args.dataset == "folder") != (args.source is not None):
+        raise ConfigError("--source DIR is required with --dataset folder (and only then)")
+    if args.dataset != "folder":
+        if args.test_subjects is not None or args.test_fraction is not None:
+            raise ConfigError("--test-subjects and --test-fraction choose the test subjects of --dataset folder "
+                              "only; the other datasets' splits are set by --size and --set")
+        if args.up_axis is not None or args.canonical is not None:
+            raise ConfigError("--up-axis and --canonical apply to --dataset folder only; drop them or use --dataset folder")
+        return {}
+    options = {"root": str(args.source.resolve()),
+               "test_fraction": DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction,
+               "up_axis": args.up_axis or DEFAULT_UP_AXIS}
+    if args.canonical is not None:
+        options["canonical"] = args.canonical
+    if args.test_subjects is not None:
+        options["test_subjects"] = [s.strip() for s in args.test_subjects.split(",") if s.strip()]
+        if not options["test_subjects"]:
+            raise ConfigError(f"--test-subjects {args.test_subjects!r}: expected comma-separated subject names")
+    return options
+
+
 def run_generate(args: argparse.Namespace) -> int:
+    """Every argument is checked (:func:`validate_generation`) before --dry-run returns and before the
+    folder's lock or manifest is written."""
     import yaml
 
-    from cerberus_core.bodies.sources import make_source
-    from cerberus_core.datasets.generate import generate
-    from cerberus_core.datasets.plan import make_plan
+    from cerberus_core.datasets.generate import generate, validate_generation
+    from cerberus_core.lock import check_unlocked, folder_lock
 
-    if (args.dataset == "folder") != (args.source is not None):
-        return _fail(ValueError("--source DIR is required with --dataset folder (and only then)"))
-    if args.dataset != "folder" and (args.up_axis is not None or args.canonical is not None):
-        raise ConfigError("--up-axis and --canonical apply to --dataset folder only; drop them or use --dataset folder")
-    options = {}
-    if args.dataset == "folder":
-        options = {"root": str(args.source.resolve()), "test_fraction": args.test_fraction,
-                   "up_axis": args.up_axis or DEFAULT_UP_AXIS}
-        if args.test_subjects:
-            options["test_subjects"] = [s.strip() for s in args.test_subjects.split(",") if s.strip()]
-        if args.canonical is not None:
-            options["canonical"] = args.canonical
-    try:
-        config = _generation_config(args)
-        if args.print_config:
-            print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
-            return 0
-        runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
-        source = make_source(args.dataset, **options, **runtime)
-        if args.dataset == "folder" and args.up_axis is None and (hint := source.up_axis_warning()):
-            warnings.warn(hint, UserWarning, stacklevel=1)  # an explicit --up-axis silences it
-        if args.dry_run:
-            plan = make_plan(config, source)
-            print(f"{args.dataset}/{config.preset}: {len(plan.subjects)} subjects, scene {config.scene.to_dict()}")
-            for split in config.splits:
-                t = plan.totals(split)
-                print(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} quadruplets "
-                      f"{t['meshes']:>7} meshes")
-            return 0
-        from cerberus_core.lock import folder_lock
-
-        with folder_lock(args.out, "cerberus data generate"):  # one writer per dataset folder
-            manifest = generate(config, args.out, source=source, source_options=options, overwrite=args.overwrite,
-                                device=args.device, batch_size=args.batch_size, progress=not args.quiet)
-    except (DatasetError, ValueError, ImportError) as exc:
-        return _fail(exc)
+    options = _source_options(args)
+    config = _generation_config(args)
+    if args.print_config:
+        print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
+        return 0
+    output_folder(args.out, dataset_ok=True)
+    runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
+    job = validate_generation(config, source_options=options, source_runtime=runtime, device=args.device,
+                              batch_size=args.batch_size, out=args.out, overwrite=args.overwrite)
+    if args.dataset == "folder" and args.up_axis is None and (hint := job.source.up_axis_warning()):
+        warnings.warn(hint, UserWarning, stacklevel=1)  # an explicit --up-axis silences it
+    if args.out.is_dir():
+        check_unlocked(args.out)  # a live writer: refused before the lock file is even attempted
+    if args.dry_run:
+        plan = job.plan
+        print(f"{args.dataset}/{config.preset}: {len(plan.subjects)} subjects, renderer {job.config.renderer}, "
+              f"about {job.peak_bytes / 2**30:.2f} GiB of memory per shard, scene {config.scene.to_dict()}")
+        for split in config.splits:
+            t = plan.totals(split)
+            print(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} quadruplets "
+                  f"{t['meshes']:>7} meshes")
+        return 0
+    with folder_lock(args.out, "cerberus data generate"):  # one writer per dataset folder
+        manifest = generate(config, args.out, source=job.source, source_options=options, overwrite=args.overwrite,
+                            device=args.device, batch_size=args.batch_size, progress=not args.quiet)
     for split, info in manifest["splits"].items():
         print(f"{split:<6} {info['planned_images']:>8} images {info['planned_quadruplets']:>8} quadruplets")
     print(f"dataset written to {args.out}")
@@ -161,17 +171,19 @@ def run_generate(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
+    """Exit 2 when ROOT is not a readable dataset (bad input), 1 when the dataset has problems."""
     from cerberus_core.datasets.format import verify_dataset
 
     manifest, problems = verify_dataset(args.root, checksums=not args.quick, progress=sys.stderr.isatty())
-    if manifest is not None:
-        print(f"{args.root}: {manifest['dataset']}/{manifest['preset']}, format v{manifest['format_version']}, "
-              f"{manifest['image_size']}px, {len(manifest['subjects'])} subjects, {len(manifest['part_names'])} parts")
-        for split, info in manifest["splits"].items():
-            shards = info.get("shards", [])
-            count = {k: sum(s[k] for s in shards) for k in ("images", "quadruplets", "meshes")}
-            print(f"  {split:<6} {len(shards)}/{info['planned_shards']} shards, {count['images']} images, "
-                  f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
+    if manifest is None:
+        raise DatasetError(problems[0])
+    print(f"{args.root}: {manifest['dataset']}/{manifest['preset']}, format v{manifest['format_version']}, "
+          f"{manifest['image_size']}px, {len(manifest['subjects'])} subjects, {len(manifest['part_names'])} parts")
+    for split, info in manifest["splits"].items():
+        shards = info.get("shards", [])
+        count = {k: sum(s[k] for s in shards) for k in ("images", "quadruplets", "meshes")}
+        print(f"  {split:<6} {len(shards)}/{info['planned_shards']} shards, {count['images']} images, "
+              f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
     for p in problems:
         print(f"problem: {p}", file=sys.stderr)
     print("ok" if not problems else f"{len(problems)} problem(s)")
@@ -179,13 +191,18 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_show(args: argparse.Namespace) -> int:
+    from cerberus_core.datasets.format import read_manifest, split_info
     from cerberus_core.datasets.show import save_contact_sheet
+    from cerberus_core.plugins import AUTO_RENDERER, RENDERER_GROUP, get_plugin
 
-    out = args.out or args.root / f"contact_{args.split}.png"
-    try:
-        save_contact_sheet(args.root, out, split=args.split, count=args.count, parts=args.parts,
-                           renderer=args.renderer, scale=args.scale)
-    except (DatasetError, ValueError) as exc:
-        return _fail(exc)
+    for option, value, most in (("--count", args.count, MAX_SHOW_COUNT), ("--scale", args.scale, MAX_SHOW_SCALE)):
+        if value > most:
+            raise ConfigError(f"{option} {value}: at most {most}")
+    split_info(read_manifest(args.root), args.split, args.root)
+    out = output_file(args.out or args.root / f"contact_{args.split}.png")
+    if args.renderer != AUTO_RENDERER:
+        get_plugin(RENDERER_GROUP, args.renderer)  # a known backend, even without --parts
+    save_contact_sheet(args.root, out, split=args.split, count=args.count, parts=args.parts,
+                       renderer=args.renderer, scale=args.scale)
     print(f"contact sheet written to {out}")
     return 0

@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli.checks import check_device, is_dataset, output_folder, positive_int
+from cerberus_core.cli.checks import is_dataset, output_folder, positive_int
+from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.plugins import get_metric, make_renderer

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import torch
 
-from cerberus_core.cli.checks import check_device, finite_float, output_folder
+from cerberus_core.cli.checks import finite_float, output_folder
+from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import make_renderer
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli.checks import check_device, output_folder
+from cerberus_core.cli.checks import output_folder
+from cerberus_core.config import yaml_problem
+from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 
 EPILOG = """\
@@ -51,16 +53,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _yaml_problem(exc: BaseException, source: object) -> str:
-    """``FILE:LINE: problem`` for a YAML syntax error (one line)."""
-    import yaml
-
-    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
-    where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
-    return f"{where}: not valid YAML ({problem})"
-
-
 def _check_config_file(path: Path) -> None:
     """A --config file must exist, parse and hold at least one setting (an empty file is refused, not the
     100,000-step paper preset)."""
@@ -72,56 +64,12 @@ def _check_config_file(path: Path) -> None:
     try:
         raw = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
-        raise ConfigError(_yaml_problem(exc, path) + "; fix the file") from None
+        raise ConfigError(yaml_problem(exc, path) + "; fix the file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"--config {path}: cannot be read ({exc})") from None
     if not raw:
         raise ConfigError(f"--config {path} is empty; write at least 'extends: tiny' (or another preset) "
                           "in it, or pass --preset paper to train with the paper's settings")
-
-
-def _check_overrides(items: list[str]) -> None:
-    """Every --set is ``section.key=VALUE`` with a YAML value (quote strings, close brackets)."""
-    import yaml
-
-    for item in items:
-        key, eq, text = item.partition("=")
-        if not eq or not key.strip() or any(not p for p in key.strip().split(".")):
-            raise ConfigError(f"--set {item!r}: expected section.key=value, e.g. --set optim.lr=0.0001")
-        try:
-            yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({problem}); close brackets and "
-                              "quotes, e.g. --set train.steps=200 or --set optim.betas=[0.9,0.99]") from None
-
-
-def _config_error(exc: ValueError) -> ConfigError:
-    """A config loader's ValueError as one line (a YAML error in an 'extends' file names file and line)."""
-    import yaml
-
-    cause = exc.__cause__
-    if isinstance(cause, yaml.YAMLError):
-        source = str(exc).split(" is not valid YAML", 1)[0]
-        return ConfigError(_yaml_problem(cause, source) + "; fix the file")
-    return exc if isinstance(exc, ConfigError) else ConfigError(str(exc))
-
-
-def check_finite(config) -> None:
-    """Every number in the config is finite: ``.nan`` / ``.inf`` are YAML numbers, never sensible settings."""
-    import math
-
-    def walk(node, prefix: str) -> None:
-        if isinstance(node, dict):
-            for k, v in node.items():
-                walk(v, f"{prefix}{k}.")
-        elif isinstance(node, list | tuple):
-            for i, v in enumerate(node):
-                walk(v, f"{prefix[:-1]}[{i}].")
-        elif isinstance(node, float) and not math.isfinite(node):
-            raise ConfigError(f"{prefix[:-1]} = {node}: must be a finite number (--set {prefix[:-1]}=VALUE)")
-
-    walk(config.to_dict(), "")
 
 
 def resolve_config(args: argparse.Namespace, out: Path):
@@ -130,7 +78,6 @@ def resolve_config(args: argparse.Namespace, out: Path):
 
     from cerberus_core.train.config import TrainConfig, deep_merge, load_config, parse_overrides
 
-    _check_overrides(args.overrides)
     saved = out / "config.yaml"
     try:
         if args.resume and args.config is None and args.preset is None and saved.is_file():
@@ -138,7 +85,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
             try:
                 raw = yaml.safe_load(saved.read_text())
             except yaml.YAMLError as exc:
-                raise ConfigError(_yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
+                raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
             config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(args.overrides)))
             root = Path(config.data.root)
             if not root.is_absolute() and not root.exists():
@@ -149,9 +96,8 @@ def resolve_config(args: argparse.Namespace, out: Path):
                 _check_config_file(args.config)
             config = load_config(args.config, preset=None if args.config else (args.preset or ["paper"]),
                                  overrides=args.overrides)
-    except ValueError as exc:
-        raise _config_error(exc) from None
-    check_finite(config)
+    except ValueError as exc:  # the config's own checks (ConfigError is a ValueError): one line
+        raise (exc if isinstance(exc, ConfigError) else ConfigError(str(exc))) from None
     check_device(config.device, option="device")
     return config
 

@@ -117,6 +117,8 @@ def read_manifest(root: Path) -> dict:
     """
     root = Path(root)
     path = root / MANIFEST
+    if root.exists() and not root.is_dir():
+        raise DatasetError(f"{root} is a file, not a dataset folder; pass the folder that holds {MANIFEST}")
     if not root.is_dir():
         raise DatasetError(f"dataset folder {root} does not exist; generate one with "
                            f"`cerberus data generate --out {root}`")
@@ -217,9 +219,11 @@ def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False
         problems.extend(check_shard_files(root, shard, checksums=checksums))
     for name, info in manifest["splits"].items():
         if not split_complete(info):
+            from cerberus_core.datasets.plan import generate_command  # plan builds on this module
+
             problems.append(f"split {name!r} is incomplete: {len(info.get('shards', []))} of "
-                            f"{info.get('planned_shards')} shards; resume with `cerberus data generate` and the same "
-                            "options")
+                            f"{info.get('planned_shards')} shards; finish generating it (it resumes) with "
+                            f"`{generate_command(root, manifest)}`")
     return manifest, problems
 
 

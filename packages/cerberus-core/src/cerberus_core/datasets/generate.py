@@ -8,9 +8,10 @@ the finished shards; a config that differs from the folder's refuses unless ``ov
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,11 +34,105 @@ from cerberus_core.datasets.format import (
 )
 from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.devices import check_device
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Renderer
 
 ShardCallback = Callable[[str, dict], None]
+
+
+# ------------------------------------------------------------------------------------ validation
+RENDER_BYTES_PER_PIXEL = 160
+"""Memory one view takes per pixel while it is rendered (rasterizer and shading buffers), an upper
+bound: measured 133-136 bytes with the torch backend and 65-70 with Warp (peak RSS growth of one
+:func:`render_views` call of 16 views at 256 and 512 px on a CPU: ``benchmarks/bench_render_memory.py``)."""
+
+
+@dataclass(frozen=True)
+class GenerationJob:
+    """A generation that passed :func:`validate_generation`: everything :func:`generate` needs.
+
+    Attributes:
+        config: the config with its renderer resolved (``auto`` → the backend) and the source's
+            description filled in: what the manifest stores.
+        source: the body source.
+        plan: the shard plan of every split.
+        peak_bytes: the memory the largest shard needs while it is built (images and render buffers).
+    """
+
+    config: GenerationConfig
+    source: BodySource
+    plan: DatasetPlan
+    peak_bytes: int
+
+
+def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
+    """``(what, bytes or None if unknown, holds the render buffers)`` for each memory a generation uses:
+    this machine's RAM (the shard's images, and the render buffers on a CPU) and the GPU's."""
+    try:
+        ram: int | None = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # no sysconf (Windows): nothing to compare with
+        ram = None
+    if not device.startswith("cuda"):
+        return [("this machine", ram, True)]
+    gpu = torch.cuda.get_device_properties(torch.device(device)).total_memory
+    return [("this machine", ram, False), (f"GPU {device}", gpu, True)]
+
+
+def validate_generation(config: GenerationConfig, *, source: BodySource | None = None,
+                        source_options: dict[str, Any] | None = None, source_runtime: dict[str, Any] | None = None,
+                        device: str = "cpu", batch_size: int = 64, out: str | Path | None = None,
+                        overwrite: bool = False) -> GenerationJob:
+    """Check a whole generation before anything is written (``--dry-run`` stops after this).
+
+    Checks the device, the batch size, the body source and its options, the renderer (resolved
+    through the ``cerberus.renderers`` entry points and built once), the shard plan (split sizes:
+    a split with subjects, subjects disjoint) and the memory the largest shard needs against the
+    machine's (or the GPU's); with ``out``, also the folder (:func:`check_folder`: a file, another
+    dataset or other files without ``overwrite``). The image size bound itself is
+    :class:`GenerationConfig`'s; the folder's lock is the caller's (:mod:`cerberus_core.lock`).
+
+    Args:
+        source: the body source (default: built from ``config.dataset``, ``source_options`` and
+            ``source_runtime``: options with no effect on the content, e.g. the human source's ``device``).
+        out, overwrite: the dataset folder to check, and whether it may be replaced.
+
+    Raises:
+        ConfigError: what is wrong and how to fix it (one line); plugin errors for the renderer.
+    """
+    check_device(device)
+    if batch_size < 1:
+        raise ConfigError(f"--batch-size {batch_size}: must be >= 1")
+    try:
+        if source is None:
+            source = make_source(config.dataset, **dict(source_options or {}), **dict(source_runtime or {}))
+        renderer = resolve_renderer(config.renderer)
+        make_renderer(renderer)  # installed, imports, builds: before the manifest names it
+        # The manifest names the backend that draws the images (``auto`` resolved).
+        config = replace(config, source=_jsonable(source.describe()), renderer=renderer)
+        plan = make_plan(config, source)
+    except CerberusError:
+        raise
+    except (ValueError, ImportError) as exc:  # the sources' and the plan's checks; a missing extra
+        raise ConfigError(str(exc)) from exc
+    views = max(len(s.views) for shards in plan.shards.values() for s in shards)
+    pixels = config.image_size ** 2
+    rendered = (config.image_size * config.supersample) ** 2  # each image is rendered supersampled
+    images, buffers = views * 3 * pixels, min(batch_size, views) * rendered * RENDER_BYTES_PER_PIXEL
+    for where, total, renders in _memory_places(device):
+        need = images + buffers if renders else images
+        if total is not None and need > total:
+            raise ConfigError(f"image_size {config.image_size} needs about {need / 2**30:.1f} GiB of memory on "
+                              f"{where} ({images / 2**30:.1f} GiB for a shard of {views} images"
+                              + (f", {buffers / 2**30:.1f} GiB to render {min(batch_size, views)} views at once"
+                                 if renders else "")
+                              + f"), more than it has ({total / 2**30:.1f} GiB); lower --image-size, --batch-size "
+                              "or --shard-images")
+    if out is not None:
+        check_folder(Path(out), _jsonable(config.to_dict()), overwrite)
+    return GenerationJob(config, source, plan, images + buffers)
 
 
 # ------------------------------------------------------------------------------------ rendering
@@ -142,16 +237,24 @@ def _remove_dataset(out: Path, splits: list[str]) -> None:
     clean_temporaries(out)
 
 
-def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None]) -> dict | None:
-    """Decide between a fresh run and a resume; return the manifest to resume from (or ``None``)."""
+def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | None]:
+    """What generating ``config`` (the manifest's form) into ``out`` will do; changes nothing.
+
+    Returns:
+        ``(action, old)``: ``"new"`` (``out`` is missing or empty), ``"resume"`` (it holds this
+        dataset; ``old`` is its manifest) or ``"overwrite"`` (``overwrite`` and it holds something
+        else; ``old`` is the manifest replaced, if readable).
+
+    Raises:
+        DatasetError: ``out`` is a file, or holds another dataset or other files and not ``overwrite``.
+    """
     from cerberus_core.datasets.format import read_manifest
+    from cerberus_core.lock import is_lock_file
 
     if not out.exists():
-        out.mkdir(parents=True)
-        return None
+        return "new", None
     if not out.is_dir():
         raise DatasetError(f"{out} exists and is not a folder; choose another --out")
-    old_splits = list(config["splits"])
     if (out / MANIFEST).exists():
         try:
             old = read_manifest(out)
@@ -159,28 +262,34 @@ def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None
             if not overwrite:
                 raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass --overwrite to "
                                    "replace it, or choose another --out") from exc
-            log(f"overwriting the dataset in {out}")
-            _remove_dataset(out, old_splits)
-            return None
+            return "overwrite", None
         if old["config"] == config:
-            return old
+            return "resume", old
         if not overwrite:
             diff = "; ".join(_differences(old["config"], config)[:6])
             raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
                                "--overwrite to replace it, or choose another --out")
-        log(f"overwriting the dataset in {out} (different config)")
-        _remove_dataset(out, old_splits + list(old.get("splits", {})))
-        return None
-    from cerberus_core.lock import is_lock_file
-
+        return "overwrite", old
     entries = [p for p in out.iterdir() if not (p.name.startswith(".") and p.name.endswith(".tmp")) and not is_lock_file(p)]
-    if entries:
-        if not overwrite:
-            raise DatasetError(f"{out} is not empty and holds no Cerberus dataset ({len(entries)} entries, e.g. "
-                               f"{entries[0].name}); choose an empty or new --out, or pass --overwrite to write "
-                               "there anyway")
-        log(f"writing into the non-empty folder {out} (--overwrite)")
-        _remove_dataset(out, old_splits)
+    if not entries:
+        return "new", None
+    if not overwrite:
+        raise DatasetError(f"{out} is not empty and holds no Cerberus dataset ({len(entries)} entries, e.g. "
+                           f"{entries[0].name}); choose an empty or new --out, or pass --overwrite to write "
+                           "there anyway")
+    return "overwrite", None
+
+
+def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None]) -> dict | None:
+    """Decide between a fresh run and a resume (:func:`check_folder`); return the manifest to resume from."""
+    action, old = check_folder(out, config, overwrite)
+    if action == "resume":
+        return old
+    if action == "overwrite":
+        log(f"overwriting the dataset in {out}" if (out / MANIFEST).exists()
+            else f"writing into the non-empty folder {out} (--overwrite)")
+        _remove_dataset(out, list(config["splits"]) + list((old or {}).get("splits", {})))
+    out.mkdir(parents=True, exist_ok=True)
     return None
 
 
@@ -237,18 +346,17 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
         The final manifest.
 
     Raises:
+        ConfigError: the generation is invalid (:func:`validate_generation`; nothing written).
         DatasetError: ``out`` holds something else (see :func:`_prepare`).
     """
     out = Path(out)
     source_options = dict(source_options or {})
-    if source is None:
-        source = make_source(config.dataset, **source_options)
-    # The manifest names the backend that drew the images (``auto`` resolved).
-    config = replace(config, source=_jsonable(source.describe()), renderer=resolve_renderer(config.renderer))
+    job = validate_generation(config, source=source, source_options=source_options, device=device,
+                              batch_size=batch_size, out=out, overwrite=overwrite)  # nothing written before this
+    config, source, plan = job.config, job.source, job.plan
     cfg = _jsonable(config.to_dict())
     resume = _prepare(out, cfg, overwrite, log)
     clean_temporaries(out)
-    plan = make_plan(config, source)
     for split in config.splits:
         if not plan.shards[split]:
             log(f"split {split!r} has no subject and is left empty")

@@ -22,14 +22,18 @@ that is what makes generation resumable and deterministic.
 from __future__ import annotations
 
 import hashlib
+import json
+import shlex
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+import yaml
 
 from cerberus_core.bodies.sources import BodySource, Subject
-from cerberus_core.config import Presets, build, did_you_mean, load_raw
+from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.errors import ConfigError
@@ -37,6 +41,24 @@ from cerberus_core.errors import ConfigError
 LAYOUTS = ("pairs", "grid")
 POSE_PAIRS = ("independent", "motion")
 """How the two poses of a ``pairs`` training example relate (:attr:`SplitConfig.pose_pairs`)."""
+
+MAX_SPLIT_IMAGES = 1_000_000
+"""Most images a split may plan: 13x the paper's largest (78,000 human training images). The plan is
+held in memory: 1,000,000 images (250,000 primitives pairs) plan in 1.6 s with 540 MB peak memory."""
+
+MAX_SUBJECTS = 10_000
+"""Most subjects a split may ask for (the paper uses at most 41)."""
+
+MAX_VIEWS = 360
+"""Most views per pose on a grid: one per degree of azimuth."""
+
+MAX_QUADRUPLET_POSES = 1_000
+"""Most poses per subject when a grid draws quadruplets (its pose pairs are enumerated; the paper: 47)."""
+
+MAX_IMAGE_SIZE = 1024
+"""Largest ``image_size`` of a dataset: 16x the paper's 64 px (a shard of 1024 such images is 3 GiB;
+the memory a generation needs is checked too, by
+:func:`cerberus_core.datasets.generate.validate_generation`)."""
 
 
 @dataclass(frozen=True)
@@ -88,10 +110,30 @@ class SplitConfig:
             raise ValueError("SplitConfig.views must be >= 1")
         if self.layout == "grid" and self.quadruplets_per_pose and self.views < 2:
             raise ValueError("quadruplets need at least 2 views per pose")
-        for name in ("subjects", "pairs", "poses"):
+        for name in ("subjects", "pairs", "poses", "quadruplets_per_pose"):
             v = getattr(self, name)
             if v is not None and v < 0:
                 raise ValueError(f"SplitConfig.{name} must be >= 0, got {v}")
+        if self.subjects is not None and self.subjects > MAX_SUBJECTS:
+            raise ValueError(f"SplitConfig.subjects {self.subjects}: at most {MAX_SUBJECTS}")
+        if self.layout == "grid" and self.views > MAX_VIEWS:
+            raise ValueError(f"SplitConfig.views {self.views}: at most {MAX_VIEWS} (one per degree)")
+        if self.layout == "grid" and self.quadruplets_per_pose and (self.poses or 0) > MAX_QUADRUPLET_POSES:
+            raise ValueError(f"SplitConfig.poses {self.poses}: at most {MAX_QUADRUPLET_POSES} per subject when "
+                             "quadruplets are drawn")
+        images = self.planned_images_bound()
+        if images is not None and images > MAX_SPLIT_IMAGES:
+            raise ValueError(f"this split would hold {images:,} images, more than {MAX_SPLIT_IMAGES:,}; lower its "
+                             "pairs, subjects, poses or views")
+
+    def planned_images_bound(self) -> int | None:
+        """The most images the split can hold, from its counts alone (``None``: the source decides)."""
+        if self.layout == "pairs":
+            return None if self.pairs is None else 4 * self.pairs
+        if self.poses is None:
+            return None
+        per_subject = (self.poses + (1 if self.canonical else 0)) * self.views
+        return per_subject * (1 if self.subjects is None else max(self.subjects, 1))
 
 
 @dataclass(frozen=True)
@@ -128,8 +170,8 @@ class GenerationConfig:
     supersample: int = 1
 
     def __post_init__(self) -> None:
-        if self.image_size < 8:
-            raise ValueError(f"image_size must be >= 8 pixels, got {self.image_size}")
+        if not 8 <= self.image_size <= MAX_IMAGE_SIZE:
+            raise ValueError(f"image_size must lie in 8..{MAX_IMAGE_SIZE} pixels, got {self.image_size}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
         if not isinstance(self.supersample, int) or not 1 <= self.supersample <= 8:
@@ -167,6 +209,10 @@ follows the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in
 
 SET_EXAMPLE = "splits.train.pairs=2000"
 """The ``--set`` example that error messages show."""
+
+SHORTCUT_FLAGS: dict[str, str] = {"seed": "--seed", "image_size": "--image-size", "renderer": "--renderer",
+                                  "shard_images": "--shard-images"}
+"""Config keys that ``cerberus data generate`` also takes as a flag of their own (same as ``--set KEY=...``)."""
 
 
 def sizes(dataset: str) -> list[str]:
@@ -211,6 +257,37 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
     """The :class:`GenerationConfig` of a bundled preset, with ``overrides`` (Python values for
     ``seed``, ``image_size``, ``renderer``, ``scene``, ``shard_images``, ``splits``) applied."""
     return replace(load_generation_config(dataset, size), **overrides)
+
+
+def generate_command(root: str | Path, manifest: dict[str, Any]) -> str:
+    """The ``cerberus data generate`` command that resumes the dataset of ``manifest`` in ``root``.
+
+    It names the dataset, the size preset, the body source's options and, as a flag or ``--set``,
+    every config key whose value differs from the bundled preset's, so that the command rebuilds
+    exactly the stored config (``generate`` then resumes instead of refusing a different dataset).
+    """
+    config = manifest.get("config") or {}
+    dataset = str(manifest.get("dataset") or config.get("dataset"))
+    size = str(manifest.get("preset") or config.get("preset"))
+    words = ["cerberus", "data", "generate", "--dataset", dataset, "--size", size, "--out", str(root)]
+    options = (manifest.get("source") or {}).get("options") or {}
+    if "root" in options:
+        words += ["--source", str(options["root"])]
+    if options.get("test_subjects"):
+        words += ["--test-subjects", ",".join(options["test_subjects"])]
+    elif "test_fraction" in options:
+        words += ["--test-fraction", str(options["test_fraction"])]
+    try:
+        preset = flatten(json.loads(json.dumps(load_generation_config(dataset, size).to_dict())))
+    except ConfigError:  # a preset this version no longer bundles: every stored key is given
+        preset = {}
+    stored = flatten({k: v for k, v in config.items() if k not in ("dataset", "preset", "source")})
+    for key, value in stored.items():
+        if key in preset and preset[key] == value:
+            continue
+        text = value if isinstance(value, str) and yaml.safe_load(value) == value else json.dumps(value)
+        words += [SHORTCUT_FLAGS[key], text] if key in SHORTCUT_FLAGS else ["--set", f"{key}={text}"]
+    return shlex.join(words)
 
 
 # ------------------------------------------------------------------------------------ plan

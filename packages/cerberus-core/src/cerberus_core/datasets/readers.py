@@ -27,6 +27,7 @@ from cerberus_core.datasets.format import (
     split_info,
     unpack_mesh,
 )
+from cerberus_core.datasets.plan import generate_command
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
 
@@ -48,9 +49,8 @@ class _SplitReader:
                                f"folder dataset made with --test-fraction 1); use a dataset with {split} subjects{use}")
         if not allow_partial and not split_complete(self.info):
             raise DatasetError(f"{self.root}: split {split!r} is incomplete ({len(self.info['shards'])} of "
-                               f"{self.info['planned_shards']} shards); finish it with `cerberus data generate` and "
-                               "the "
-                               "same options (it resumes), or pass allow_partial=True")
+                               f"{self.info['planned_shards']} shards); finish generating it (it resumes) with "
+                               f"`{generate_command(self.root, self.manifest)}`")
         self.shards: list[dict] = self.info["shards"]
         for shard in self.shards:
             problems = check_shard_files(self.root, shard, checksums=verify)

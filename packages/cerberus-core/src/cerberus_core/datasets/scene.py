@@ -134,15 +134,28 @@ class SceneSetup:
             raise ValueError(f"SceneSetup.fov_y must lie in (0, 180) degrees, got {self.fov_y}")
         if not -90 < self.elevation < 90:
             raise ValueError(f"SceneSetup.elevation must lie in (-90, 90) degrees, got {self.elevation}")
+        if not self.fitted_extent > 0:
+            raise ValueError(f"SceneSetup.fitted_extent must be > 0, got {self.fitted_extent}")
         if self.fitted_radius is not None and not self.fitted_radius > 0:
             raise ValueError(f"SceneSetup.fitted_radius must be positive or null, got {self.fitted_radius}")
         if self.distance is None:
             object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent,
                                                                radius=self.fitted_radius))
+        if not self.near > 0:
+            raise ValueError(f"SceneSetup.near must be > 0, got {self.near}")
         if self.distance <= self.near:
             raise ValueError(f"SceneSetup.distance {self.distance} must exceed the near plane {self.near}")
+        if self.far <= self.distance:
+            raise ValueError(f"SceneSetup.far {self.far} must exceed the distance {self.distance} (the body sits "
+                             "at the origin)")
+        for name in ("ambient", "diffuse"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"SceneSetup.{name} must be >= 0, got {getattr(self, name)}")
         object.__setattr__(self, "albedo", tuple(float(a) for a in self.albedo))
         object.__setattr__(self, "background", tuple(float(b) for b in self.background))
+        for name in ("albedo", "background"):
+            if not all(0.0 <= c <= 1.0 for c in getattr(self, name)):
+                raise ValueError(f"SceneSetup.{name} {list(getattr(self, name))}: RGB values must lie in [0, 1]")
 
     LIGHT = {"type": "directional+ambient", "follows_camera": True, "colour": "white"}
     """The only light there is (stored in the manifest for readers of the JSON): white directional

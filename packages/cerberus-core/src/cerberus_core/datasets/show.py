@@ -10,6 +10,7 @@ from PIL import Image
 
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, _SplitReader
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import DatasetError
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render
 from cerberus_core.viz import atomic_save_png, image_grid, part_colors
@@ -82,7 +83,8 @@ def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, par
             prefix = "c " if rec["canonical"][start] else ""
             titles.append(f"{prefix}s{int(rec['subject'][start])} p{int(rec['pose'][start])}")
     if not rows:
-        raise ValueError(f"{root}: split {split!r} has no finished shard to show")
+        raise DatasetError(f"{root}: split {split!r} has no finished shard to show yet; let its generation "
+                           "finish a shard first")
     return image_grid(rows, titles, scale=scale)
 
 
