@@ -155,7 +155,8 @@ def test_splits_must_not_share_subjects():
 def test_every_bundled_dataset_preset_loads():
     from cerberus_core.datasets.plan import DATASETS, load_generation_config, sizes
 
-    assert sizes("human") == sizes("animal") == sizes("primitives") == ["paper", "small", "tiny"]
+    assert sizes("human") == sizes("animal") == ["paper", "small", "small_faithful", "tiny"]
+    assert sizes("primitives") == ["paper", "small", "tiny"]
     assert sizes("folder") == ["grid", "pairs"]
     for dataset in DATASETS:
         for size in sizes(dataset):
@@ -163,6 +164,12 @@ def test_every_bundled_dataset_preset_loads():
             assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
     human, prims = preset_config("human", "small").splits, preset_config("primitives", "small").splits
     assert human["train"].pose_pairs == "motion" and prims["train"].pose_pairs == "independent"
+    # the default look (anti-aliased, framed, on black) and the paper's (look_paper.yaml)
+    new, old = preset_config("human", "small"), preset_config("human", "small_faithful")
+    assert (new.supersample, new.scene.fitted_radius, new.scene.background) == (4, 0.2, (0.0, 0.0, 0.0))
+    assert (old.supersample, old.scene.fitted_radius, old.scene.background) == (1, None, (1.0, 1.0, 1.0))
+    assert old.splits["train"].pose_pairs == "independent" and old.scene.distance > new.scene.distance
+    assert preset_config("primitives", "small").supersample == 1
     assert prims == {**human, "train": replace(human["train"], pose_pairs="independent")}  # extends
     assert preset_config("animal", "paper").splits["train"] == SplitConfig(
         "grid", subjects=41, poses=47, views=4, azimuths="shared", quadruplets_per_pose=20)

@@ -67,7 +67,7 @@ CASES = [
     ("train-set-type", "train --preset tiny --set optim.lr=fast --out {root}/new", "optim.lr: expected a number"),
     ("train-set-unknown", "train --preset tiny --set optim.lrr=1 --out {root}/new", "unknown config key"),
     ("train-set-nan", "train --preset tiny --set data.root={data} --set losses.smoothness=.nan --out {root}/new",
-     "losses.smoothness is a loss weight and must be a finite number"),
+     "losses.smoothness = nan: must be a finite number"),
     ("train-set-inf", "train --preset tiny --set data.root={data} --set optim.lr=.inf --out {root}/new", "finite"),
     ("train-config-empty", "train --config {root}/empty.yaml --out {root}/new", "is empty"),
     ("train-config-yaml", "train --config {root}/bad.yaml --out {root}/new", "bad.yaml:3: not valid YAML"),
@@ -159,7 +159,7 @@ CASES = [
     ("data-generate-folder-missing", "data generate --dataset folder --source {root}/nothing --out {root}/new",
      "does not exist"),
     ("data-generate-folder-fraction", "data generate --dataset folder --source {root}/notes --test-fraction 2 "
-     "--out {root}/new", "test_fraction must lie in [0, 1)"),
+     "--out {root}/new", "test_fraction must lie in [0, 1]"),
     ("data-check-missing", "data check {root}/nothing", "does not exist"),
     ("data-check-file", "data check {root}/afile", "is a file, not a dataset folder"),
     ("data-check-notes", "data check {root}/notes", "is not a Cerberus dataset"),
