@@ -20,9 +20,10 @@ def tiny_model(speed: SpeedConfig) -> Cerberus:
                                             depth_offset=2.5)), speed)
 
 
-def test_speed_switches_are_off_by_default_and_validated():
-    for preset in ("paper", "cpu", "tiny"):
+def test_speed_switches_are_off_by_default_on_in_the_cpu_recipe_and_validated():
+    for preset in ("paper", "paper_faithful", "tiny"):
         assert load_config(preset=preset).speed == SpeedConfig()
+    assert load_config(preset="cpu").speed == SpeedConfig(autocast="bf16", channels_last=True, smoothness_once=True)
     c = load_config(preset="tiny", overrides=FAST + ["speed.compile=true"])
     assert (c.speed.autocast, c.speed.channels_last, c.speed.compile) == ("bf16", True, True)
     with pytest.raises(ValueError, match="speed.autocast must be null or one of"):
