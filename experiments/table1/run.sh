@@ -3,7 +3,7 @@
 # Free Cerberus and the NMRr baseline on each (CPU schedule, Warp renderer), evaluate each run on its
 # test split, and write the table. Run from the repository root inside the project's environment
 # (scripts/setup.sh). Each training uses one thread; JOBS (default 2) trainings run side by side.
-#   bash experiments/table1/run.sh                      # about 2 hours on the 2-core machine
+#   bash experiments/table1/run.sh                      # about 1.5 hours on the 2-core machine (see docs/results.md)
 #   JOBS=1 RUNS=runs/table1 bash experiments/table1/run.sh
 set -euo pipefail
 cd "$(dirname "$0")/../.."
