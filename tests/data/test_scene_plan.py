@@ -155,7 +155,7 @@ def test_splits_must_not_share_subjects():
 def test_every_bundled_dataset_preset_loads():
     from cerberus_core.datasets.plan import DATASETS, load_generation_config, sizes
 
-    assert sizes("human") == sizes("animal") == ["paper", "small", "small_faithful", "tiny"]
+    assert sizes("human") == sizes("animal") == ["paper", "small", "small128", "small_faithful", "tiny"]
     assert sizes("primitives") == ["paper", "small", "tiny"]
     assert sizes("folder") == ["grid", "pairs"]
     for dataset in DATASETS:
