@@ -229,3 +229,47 @@ def test_motion_pairs_are_refused_where_they_cannot_exist():
         load_generation_config("human", "tiny", ["splits.train.pose_pairs=video"])
     with pytest.raises(ConfigError, match="unlimited motion pairs"):
         make_source("human").motion_pairs(make_source("human").subjects("train", 1, 0)[0], "train", None)
+
+
+@pytest.mark.parametrize("radius", [0.2, 0.4])
+def test_framed_distance_fits_a_vertical_cylinder_tightly(radius):
+    """``fitted_radius``: the camera is fitted to a vertical cylinder around an upright body instead
+    of the cube: nearer, every rim point in frame from any azimuth, and tight."""
+    scene = SceneSetup(fitted_radius=radius)
+    assert scene.distance < SceneSetup().distance
+    th = torch.deg2rad(torch.arange(0.0, 360.0, 3.0))
+    rim = torch.stack([radius * torch.cos(th), torch.zeros_like(th), radius * torch.sin(th)], -1)
+    pts = torch.cat([rim + torch.tensor([0.0, -FILL / 2, 0.0]), rim + torch.tensor([0.0, FILL / 2, 0.0])])
+    az = torch.arange(0.0, 360.0, 5.0)
+    uv, _ = scene.cameras(az, 64).project(pts.expand(len(az), -1, -1))
+    assert float(uv.min()) >= 0 and float(uv.max()) <= 64
+    closer = replace(scene, distance=0.95 * scene.distance).cameras(az, 64)
+    uv2, _ = closer.project(pts.expand(len(az), -1, -1))
+    assert float(uv2.min()) < 0 or float(uv2.max()) > 64
+    assert SceneSetup.from_dict(scene.to_dict()) == scene and scene.to_dict()["fitted_radius"] == radius
+    assert "fitted_radius" not in SceneSetup().to_dict()  # the paper's set-up keeps its stored form
+    with pytest.raises(ValueError, match="fitted_radius must be positive"):
+        SceneSetup(fitted_radius=0.0)
+
+
+def test_supersampled_images_blend_edges_and_keep_the_coverage(tmp_path):
+    """``supersample``: images are rendered larger and box-filtered, so edges take intermediate values
+    while the body's total brightness matches the hard render's; stored only when not 1."""
+    from cerberus_core.bodies.body import PosedBody
+    from cerberus_core.datasets.generate import render_views
+    from cerberus_core.plugins import make_renderer
+    from cerberus_core.render.templates import icosphere
+
+    sphere = icosphere(3)
+    body = PosedBody(0.3 * sphere.vertices.numpy(), sphere.faces.numpy(), np.zeros(len(sphere.vertices)), ["all"], "s", 0)
+    scene = SceneSetup(background=(0.0, 0.0, 0.0))
+    renderer = make_renderer("torch")
+    args = (renderer, [body], np.zeros(2, dtype=np.int64), np.array([0.0, 90.0]), scene, 32)
+    hard, soft = render_views(*args), render_views(*args, supersample=4)
+    edge_values = lambda im: int(((im > 0) & (im < 40)).sum())  # noqa: E731  darker than any lit surface pixel
+    assert edge_values(soft) > 3 * max(edge_values(hard), 1)
+    assert abs(float(soft.astype(np.float64).sum()) / float(hard.astype(np.float64).sum()) - 1) < 0.05
+    cfg = preset_config("primitives", "tiny")
+    assert "supersample" not in cfg.to_dict() and replace(cfg, supersample=4).to_dict()["supersample"] == 4
+    with pytest.raises(ValueError, match="supersample must be an integer"):
+        replace(cfg, supersample=0)
