@@ -23,11 +23,12 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
+from cerberus_core.train.objective import TERMS
 from cerberus_core.viz import atomic_save_png, part_colors, save_image_grid
 
 Tensor = torch.Tensor
 
-LOSS_FIELDS = ("total", "recon", "translation", "background", "smoothness")
+LOSS_FIELDS = ("total", *TERMS)
 CSV_FIELDS = ("step", "elapsed_s", "lr", "steps_per_s", "grad_norm", "skipped", *LOSS_FIELDS)
 
 
