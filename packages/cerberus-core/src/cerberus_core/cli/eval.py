@@ -117,8 +117,10 @@ def run(args: argparse.Namespace) -> int:
     if result.hard is not None:
         line += f"; Hard Human: {result.hard.mean:.4f}"
     elif not args.no_hard:
-        line += ("; Hard Human: not run (no canonical-pose images in this split; for your meshes, name the "
-                 "canonical pose with `cerberus data generate --dataset folder --canonical POSE`)")
+        line += "; Hard Human: not run (no canonical-pose images in this split"
+        if dataset.manifest["config"]["dataset"] == "folder":
+            line += "; name each subject's canonical pose with `cerberus data generate --dataset folder --canonical POSE`"
+        line += ")"
     print(line)
     if result.part_visibility is not None:
         print(visibility_line(result.part_visibility))
