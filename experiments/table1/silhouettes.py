@@ -3,8 +3,8 @@
     python experiments/table1/silhouettes.py runs/table1/animal_cerberus data/animal
 
 Each test image is reconstructed and its posed parts rendered from the image's own camera (Warp
-renderer); the predicted mask (alpha) is compared with the true mask (pixels darker than the white
-background). Prints the mean predicted / true silhouette area and the mean silhouette IoU, which
+renderer); the predicted mask (alpha) is compared with the true mask (pixels more than 0.02 from the
+dataset's background colour in some channel, as the training's background mask). Prints the mean predicted / true silhouette area and the mean silhouette IoU, which
 separate "the parts do not cover the body in the image" from "they cover it but sit wrongly in 3D"
 when reading a voxel IoU.
 """
@@ -14,14 +14,14 @@ import sys
 
 import torch
 
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.readers import ViewDataset, background_mask
 from cerberus_core.eval.runner import collate
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
 from cerberus_core.train.checkpoint import load_model
 
-BACKGROUND_LEVEL = 0.98
-"""A pixel with every channel at or above this is background (the datasets' background is white)."""
+TOLERANCE = 0.02
+"""A pixel within this of the background colour in every channel is background (``losses.background_tolerance``)."""
 
 
 def main(argv: list[str]) -> int:
@@ -42,7 +42,7 @@ def main(argv: list[str]) -> int:
             rec = model.reconstruct(batch["images"], cams)
             out = render_parts(renderer, rec.posed(), rec.faces, cams)
         pred = out.alpha[:, 0] > 0.5
-        true = (batch["images"] < BACKGROUND_LEVEL).any(1)
+        true = background_mask(batch["images"], ds.scene.background, TOLERANCE)[:, 0] < 0.5
         ratios += (pred.sum((1, 2)).float() / true.sum((1, 2)).clamp(min=1)).tolist()
         ious += ((pred & true).sum((1, 2)).float() / (pred | true).sum((1, 2)).clamp(min=1)).tolist()
     print(f"{run}: predicted / true silhouette area {sum(ratios) / len(ratios):.3f}, "

@@ -12,7 +12,8 @@ def test_shipped_human_model_scores_its_card_iou(tmp_path, capsys):
     data = tmp_path / "human"
     # the card's test split (the small preset's 208 images); a one-pair training split keeps this quick,
     # and the test split does not depend on it
-    assert main(["data", "generate", "--dataset", "human", "--size", "small", "--set", "splits.train.pairs=1",
+    assert entry.data["dataset"] == "human"
+    assert main(["data", "generate", "--dataset", "human", "--size", entry.data["size"], "--set", "splits.train.pairs=1",
                  "--out", str(data), "--quiet"]) == 0
     assert main(["eval", "human", "--data", str(data), "--out", str(tmp_path / "eval"), "--no-part-quality",
                  "--figure-images", "2", "--viewer-images", "0"]) == 0

@@ -40,6 +40,8 @@ class PretrainedModel:
         sha256: hex digest of the weights file.
         card: file name of the model card.
         results: headline figures of the card (e.g. ``test_iou``), for ``cerberus models``.
+        data: the dataset it was trained and scored on, ``{"dataset": ..., "size": ...}``: regenerate
+            its test split with ``cerberus data generate --dataset DATASET --size SIZE``.
     """
 
     name: str
@@ -48,6 +50,7 @@ class PretrainedModel:
     sha256: str
     card: str
     results: dict[str, Any] = field(default_factory=dict)
+    data: dict[str, str] = field(default_factory=dict)
 
     @property
     def path(self) -> Path:
