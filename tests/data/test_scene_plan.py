@@ -163,12 +163,12 @@ def test_every_bundled_dataset_preset_loads():
             cfg = load_generation_config(dataset, size)
             assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
     human, prims = preset_config("human", "small").splits, preset_config("primitives", "small").splits
-    assert human["train"].pose_pairs == "motion" and prims["train"].pose_pairs == "independent"
+    assert human["train"].pose_pairs == "independent" and prims["train"].pose_pairs == "independent"
     # the default look (anti-aliased, framed, on black) and the paper's (look_paper.yaml)
     new, old = preset_config("human", "small"), preset_config("human", "small_faithful")
     assert (new.supersample, new.scene.fitted_radius, new.scene.background) == (4, 0.2, (0.0, 0.0, 0.0))
     assert (old.supersample, old.scene.fitted_radius, old.scene.background) == (1, None, (1.0, 1.0, 1.0))
-    assert old.splits["train"].pose_pairs == "independent" and old.scene.distance > new.scene.distance
+    assert old.scene.distance > new.scene.distance
     assert preset_config("primitives", "small").supersample == 1
     assert prims == {**human, "train": replace(human["train"], pose_pairs="independent")}  # extends
     assert preset_config("animal", "paper").splits["train"] == SplitConfig(
@@ -197,8 +197,8 @@ def test_pose_pairs_mode_picks_the_pose_ids_and_only_motion_enters_the_config_ha
     from cerberus_core.datasets.format import config_hash
     from cerberus_core.datasets.plan import load_generation_config
 
-    motion = load_generation_config("human", "tiny")  # the human presets' default
-    independent = load_generation_config("human", "tiny", ["splits.train.pose_pairs=independent"])
+    motion = load_generation_config("human", "tiny", ["splits.train.pose_pairs=motion"])
+    independent = load_generation_config("human", "tiny")  # the human presets' default
     assert motion.splits["train"].pose_pairs == "motion" and independent.splits["train"].pose_pairs == "independent"
     base = MOTION_POSE_BASE
     assert _pair_ids(_plan(motion)) == [(0, base, base + 1), (0, base + 2, base + 3), (0, base + 4, base + 5),
