@@ -312,7 +312,8 @@ class _Trainer:
 
     def run(self, resume: bool) -> TrainResult:
         """Hold the run folder's lock (main process) around :meth:`_run`; every rank learns of a refusal."""
-        check_run_folder(self.run_dir, resume)
+        # Only the main process checks for a live writer: the others may look after it has taken the lock.
+        check_run_folder(self.run_dir, resume, holding_lock=not self.info.is_main)
         lock, refused = None, None
         if self.info.is_main:
             try:
