@@ -31,7 +31,7 @@ import yaml
 from cerberus_core.errors import ConfigError
 
 __all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean", "flatten", "load_raw",
-           "parse_overrides", "yaml_problem"]
+           "omit_defaults", "parse_overrides", "yaml_problem"]
 
 
 def did_you_mean(word: Any, options: Iterable[Any]) -> str:
@@ -58,6 +58,16 @@ def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[prefix + str(k)] = v
     return out
+
+
+def omit_defaults(d: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str, Any]:
+    """``d`` without the keys whose value equals their entry in ``defaults``.
+
+    The stored form of a config key added after configs were first written: it is written only when
+    set, so a config from before the key (the key absent, its behaviour the default) keeps its form
+    and its hash (the dataset manifest's ``config_sha256``).
+    """
+    return {k: v for k, v in d.items() if not (k in defaults and v == defaults[k])}
 
 
 def yaml_problem(exc: BaseException, source: object) -> str:

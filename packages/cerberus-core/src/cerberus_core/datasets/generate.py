@@ -351,8 +351,9 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
     """
     out = Path(out)
     source_options = dict(source_options or {})
+    # Nothing is written before these two: the whole generation is checked, then the folder (_prepare).
     job = validate_generation(config, source=source, source_options=source_options, device=device,
-                              batch_size=batch_size, out=out, overwrite=overwrite)  # nothing written before this
+                              batch_size=batch_size)
     config, source, plan = job.config, job.source, job.plan
     cfg = _jsonable(config.to_dict())
     resume = _prepare(out, cfg, overwrite, log)

@@ -33,7 +33,7 @@ import numpy as np
 import yaml
 
 from cerberus_core.bodies.sources import BodySource, Subject
-from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw
+from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw, omit_defaults
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.errors import ConfigError
@@ -182,20 +182,15 @@ class GenerationConfig:
             raise ValueError("a dataset needs at least one split")
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (stored as the manifest's ``config``)."""
-        return {
+        """JSON-ready dict (stored as the manifest's ``config``; keys added after format v1 only when
+        set: :func:`~cerberus_core.config.omit_defaults`)."""
+        d = {
             "dataset": self.dataset, "preset": self.preset, "seed": self.seed, "image_size": self.image_size,
             "renderer": self.renderer, "scene": self.scene.to_dict(), "shard_images": self.shard_images,
-            "splits": {k: _split_dict(v) for k, v in self.splits.items()}, "source": self.source,
-        } | ({"supersample": self.supersample} if self.supersample != 1 else {})
-
-
-def _split_dict(split: SplitConfig) -> dict[str, Any]:
-    """A split's config as the manifest stores it: ``pose_pairs`` only when not ``independent``."""
-    out = asdict(split)
-    if out["pose_pairs"] == "independent":
-        del out["pose_pairs"]
-    return out
+            "splits": {k: omit_defaults(asdict(v), {"pose_pairs": "independent"}) for k, v in self.splits.items()},
+            "source": self.source, "supersample": self.supersample,
+        }
+        return omit_defaults(d, {"supersample": 1})
 
 
 # ------------------------------------------------------------------------------------ presets

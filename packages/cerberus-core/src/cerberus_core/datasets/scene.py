@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from cerberus_core.bodies.body import FILL
+from cerberus_core.config import omit_defaults
 from cerberus_core.errors import ConfigError
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
@@ -165,8 +166,7 @@ class SceneSetup:
         """JSON-ready dict (as stored in the manifest's ``scene`` and ``config.scene``)."""
         d = asdict(self)
         d["albedo"], d["background"] = list(self.albedo), list(self.background)
-        if d["fitted_radius"] is None:
-            del d["fitted_radius"]
+        d = omit_defaults(d, {"fitted_radius": None})
         d["light"] = dict(self.LIGHT)
         return d
 
