@@ -18,6 +18,9 @@ background            ``1/N sum_k sum_xy p^k_xy b_xy``                     :func
 smoothness            ``sum_edges (cos theta + 1)^2`` (Kato et al.)        :func:`smoothness_loss`
 ====================  ==================================================  =========================
 
+Beyond the paper (weight 0 in its settings): :func:`silhouette_loss`, :func:`silhouette_chamfer` and
+:func:`hidden_part_pull`.
+
 :class:`LossConfig` holds the weights ``(lambda_r, lambda_t, lambda_b, lambda_s)`` and the switches
 that give the paper's variants (Free Cerberus: ``pose_consistency: false``).
 """
@@ -52,6 +55,8 @@ class LossConfig:
             has a gradient only with ``render.antialias: true``.
         chamfer: weight of :func:`silhouette_chamfer` (projected part vertices vs the input's
             foreground pixels, every vertex visible or not); beyond the paper, 0 there.
+        hidden: weight of :func:`hidden_part_pull` (parts wholly hidden in their input view pulled
+            toward the foreground no part covers); beyond the paper, 0 there.
         pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses
             its own shape latent — "Free Cerberus").
         viewpoint_consistency: also render each image's rotated mesh from the other viewpoint with
@@ -75,13 +80,14 @@ class LossConfig:
     smoothness: float = 0.0001
     silhouette: float = 0.0
     chamfer: float = 0.0
+    hidden: float = 0.0
     pose_consistency: bool = True
     viewpoint_consistency: bool = True
     render_background: str = "black"
     background_tolerance: float = 0.02
 
     def validate(self) -> None:
-        for name in ("recon", "translation", "background", "smoothness", "silhouette", "chamfer"):
+        for name in ("recon", "translation", "background", "smoothness", "silhouette", "chamfer", "hidden"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ValueError(f"losses.{name} is a loss weight and must be a finite number >= 0, got {getattr(self, name)}")
         if self.render_background not in ("black", "dataset"):
@@ -274,4 +280,40 @@ def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512
         centres = torch.stack([cols, rows], -1).to(pts.dtype) + 0.5  # (K, 2) as (u, v)
         dist = torch.cdist(centres, pts[i])  # (K, M')
         out.append((dist.min(dim=1).values.mean() + dist.min(dim=0).values.mean()) / height)
+    return torch.stack(out)
+
+
+def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tensor:
+    """Long-range pull of the parts an image does not show toward the foreground no part covers.
+
+    A part wholly hidden in its input view (behind other parts, or off the image) gets no gradient
+    from the rendering terms. This term moves it, in the image plane, toward the input's foreground
+    pixels that no part covers yet (in practice the limbs the other parts miss), where the
+    rendering terms take over. Each of the part's projected vertices is pulled to its nearest such
+    pixel; distances are in units of the image height, not squared, as in
+    :func:`silhouette_chamfer`.
+
+    Args:
+        points: ``(N, P, V, 2)`` projected vertices in pixels (:meth:`Camera.project`), per part.
+        visible: ``(N, P)`` bool, whether the part covers at least one pixel of its input view.
+        uncovered: ``(N, 1, H, W)`` or ``(N, H, W)``, 1 on foreground pixels that no part covers.
+    Returns:
+        ``(N,)`` the mean over the image's hidden parts of their mean vertex distance; 0 for an image
+        where every part shows or no foreground pixel is uncovered.
+    """
+    free = uncovered.reshape(uncovered.shape[0], *uncovered.shape[-2:]) > 0.5
+    n, height, _ = free.shape
+    if points.ndim != 4 or points.shape[0] != n or points.shape[-1] != 2 or visible.shape != points.shape[:2]:
+        raise ValueError(f"hidden_part_pull: points must be ({n}, P, V, 2) and visible (N, P), got "
+                         f"{tuple(points.shape)} and {tuple(visible.shape)}")
+    out = []
+    for i in range(n):
+        hidden = torch.nonzero(~visible[i].bool(), as_tuple=True)[0]
+        rows, cols = torch.nonzero(free[i], as_tuple=True)
+        if hidden.numel() == 0 or rows.numel() == 0:
+            out.append(points.new_zeros(()))
+            continue
+        centres = torch.stack([cols, rows], -1).to(points.dtype) + 0.5  # (K, 2) as (u, v)
+        pts = points[i, hidden].reshape(-1, 2)  # (h V, 2)
+        out.append(torch.cdist(pts, centres).min(dim=1).values.mean() / height)
     return torch.stack(out)

@@ -35,6 +35,10 @@ def _evenly(n_items: int, count: int) -> list[int]:
     return [int(round(x)) for x in np.linspace(0, n_items - 1, count)]
 
 
+TITLE_CHARS = 14
+"""The longest row title that fits a row of 64 px tiles at the default scale."""
+
+
 def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, parts: bool = False,
                   renderer: str = "auto", scale: int = 2) -> Image.Image:
     """A picture of ``count`` rows of a split.
@@ -68,7 +72,9 @@ def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, par
                         _parts_image(views, first + int(quad[2]), scene, rend)]
             rows.append(torch.cat(row))
             p = item["pose"]
-            titles.append(f"s{int(item['subject'])} {int(p[0])}/{int(p[2])}")
+            title = f"s{int(item['subject'])} {int(p[0])}/{int(p[2])}"
+            # Motion pairs number their poses with 10-digit ids that do not fit a tile: name the quadruplet.
+            titles.append(title if len(title) <= TITLE_CHARS else f"s{int(item['subject'])} quad {i}")
     else:
         rec = views.records
         keys = np.stack([~rec["canonical"], rec["subject"], rec["pose"]], 1)

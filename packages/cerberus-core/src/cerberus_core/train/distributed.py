@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import torch
 import torch.distributed as dist
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.devices import check_device
 
 
 @dataclass(frozen=True)
@@ -35,13 +35,13 @@ class DistInfo:
 
 
 def resolve_device(name: str, local_rank: int = 0) -> torch.device:
-    """``auto`` → CUDA (this process's local GPU) if available, else CPU; ``cpu``; ``cuda[:N]``."""
+    """``auto`` → CUDA (this process's local GPU) if available, else CPU; ``cpu``; ``cuda[:N]``.
+
+    The name is checked by :func:`cerberus_core.devices.check_device` (the config key ``device``)."""
+    check_device(name, "device")
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name.startswith("cuda"):
-        if not torch.cuda.is_available():
-            raise ConfigError(f"device {name!r} was asked for but CUDA is not available; use device: cpu or auto "
-                              "(--set device=cpu)")
         return torch.device(name if ":" in name else f"cuda:{local_rank}")
     return torch.device(name)
 

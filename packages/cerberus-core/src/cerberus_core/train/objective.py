@@ -10,8 +10,10 @@ its own viewpoint, and with its viewpoint partner's translation from the partner
 averaged over the batch (:mod:`cerberus_core.losses` defines every term). Beyond the paper (off in
 its settings): ``antialias`` renders with the analytic anti-aliasing op, which gives the image and
 the coverage visibility gradients; ``lambda_sil L_sil`` compares the rendered coverage with the
-input's foreground (own and partner viewpoint, averaged like equation 4) and ``lambda_c L_c`` pulls
-the projected part vertices onto the foreground (``losses.silhouette``, ``losses.chamfer``).
+input's foreground (own and partner viewpoint, averaged like equation 4), ``lambda_c L_c`` pulls
+the projected part vertices onto the foreground and ``lambda_h L_h`` pulls the parts an image does
+not show toward the foreground no part covers (``losses.silhouette``, ``losses.chamfer``,
+``losses.hidden``).
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ from cerberus_core.losses import (
     VIEW_PARTNER,
     LossConfig,
     background_loss,
+    hidden_part_pull,
     mix_shape_latents,
     reconstruction_loss,
     silhouette_chamfer,
@@ -44,7 +47,7 @@ from cerberus_core.train.data import QuadrupletBatch
 
 Tensor = torch.Tensor
 
-TERMS = ("recon", "translation", "background", "smoothness", "silhouette", "chamfer")
+TERMS = ("recon", "translation", "background", "smoothness", "silhouette", "chamfer", "hidden")
 """Loss terms in logging order (their weights are the fields of the same name in LossConfig)."""
 
 
@@ -158,11 +161,19 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
     foreground = (1 - mask).view(bsz, 4, *mask.shape[1:])  # (B, 4, 1, H, W)
     sil_own = silhouette_loss(alpha_own, foreground)
     sil_cross = None if alpha_cross is None else silhouette_loss(alpha_cross, foreground[:, list(VIEW_PARTNER)])
-    if losses.chamfer != 0:
+    uv = None
+    if losses.chamfer != 0 or losses.hidden != 0:
         uv, _ = batch.camera.project(own.flatten(0, 1).flatten(1, 2))  # (4B, N V, 2) pixels
-        chamfer = silhouette_chamfer(uv, foreground.flatten(0, 1))
-    else:  # a Python loop over images: not computed when off
-        chamfer = images.new_zeros(4 * bsz)
+    # Both are Python loops over images: not computed when off.
+    chamfer = silhouette_chamfer(uv, foreground.flatten(0, 1)) if losses.chamfer != 0 else images.new_zeros(4 * bsz)
+    if losses.hidden != 0:
+        part_id = out.part_id[:4 * bsz]  # (4B, H, W) own viewpoints, -1 where no part
+        shown = torch.zeros(4 * bsz, n + 1, dtype=torch.long, device=part_id.device)
+        shown.scatter_add_(1, (part_id + 1).flatten(1), torch.ones_like(part_id.flatten(1)))
+        uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
+        hidden = hidden_part_pull(uv.view(4 * bsz, n, v, 2), shown[:, 1:] > 0, uncovered)
+    else:
+        hidden = images.new_zeros(4 * bsz)
 
     values = {
         "recon": viewpoint_reconstruction(loss_own, loss_cross).mean(),
@@ -172,6 +183,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                       smoothness_once and losses.pose_consistency).mean(),
         "silhouette": viewpoint_reconstruction(sil_own, sil_cross).mean(),
         "chamfer": chamfer.mean(),
+        "hidden": hidden.mean(),
     }
     total = sum(getattr(losses, k) * values[k] for k in TERMS if getattr(losses, k) != 0)
     total = total if isinstance(total, Tensor) else images.new_zeros(())
