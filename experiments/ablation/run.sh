@@ -6,12 +6,15 @@
 # thread; JOBS (default 2) run side by side. Datasets go to DATA (default data/ablation), runs to RUNS.
 #   bash experiments/ablation/run.sh                  # about 2 hours on the 2-core machine
 #   STEPS=1000 RUNS=runs/ablation_quick bash experiments/ablation/run.sh
+# VARIANTS names another variants file: experiments/ablation/beyond.txt holds the changes tried on top of the
+# default recipe (docs/results.md, "Beyond the default recipe"):
+#   VARIANTS=experiments/ablation/beyond.txt STEPS=5000 RUNS=runs/beyond bash experiments/ablation/run.sh
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 JOBS=${JOBS:-2}; STEPS=${STEPS:-3000}
 RUNS=${RUNS:-runs/ablation}; DATA=${DATA:-data/ablation}
 mkdir -p "$RUNS" "$DATA"
-VARIANTS=experiments/ablation/variants.txt
+VARIANTS=${VARIANTS:-experiments/ablation/variants.txt}
 
 # One dataset per distinct data-argument string (variants that share data share the folder).
 declare -A folder

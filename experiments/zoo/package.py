@@ -56,6 +56,7 @@ def main() -> None:
     extras = [name for name, on in (("anti-aliased rendering (visibility gradients)", config.render.antialias),
                                     (f"silhouette term {config.losses.silhouette:g}", config.losses.silhouette > 0),
                                     (f"chamfer term {config.losses.chamfer:g}", config.losses.chamfer > 0),
+                                    (f"hidden-part pull {config.losses.hidden:g}", config.losses.hidden > 0),
                                     (f"bfloat16 network ({config.speed.autocast})", config.speed.autocast)) if on]
     recipe = "the paper's losses and renderer" if not extras else "the paper's losses plus " + ", ".join(extras)
     scene = manifest["scene"]
@@ -65,6 +66,9 @@ def main() -> None:
     labels = {p["label"].split(".")[0] for p in pq.get("parts", []) if p.get("label")}
     gt_kinds = {g.split(".")[0] for g in pq.get("gt_parts", [])}
     missing = [name for name in ("head", "upper_arm", "lower_arm") if name in gt_kinds and name not in labels]
+    vis = results.get("part_visibility") or {}
+    hidden_row = (f"| parts wholly hidden in their input view in most test images | "
+                  f"{vis['parts_hidden_in_most_images']} of {config.model.num_parts} |" if vis else "")
     changes = f"\n## What changed\n\n{args.changes}\n" if args.changes else ""
     card = f"""# Model card: `{args.name}`
 
@@ -85,6 +89,7 @@ def main() -> None:
 | voxel IoU (kato, 32³), {figures['test_images']} images | {figures['test_iou']} |
 {"| Hard Human voxel IoU | " + str(figures['hard_human_iou']) + " |" if 'hard_human_iou' in figures else ""}
 {"| part consistency (mean agreement) | " + str(figures['part_consistency']) + " |" if pq else ""}
+{hidden_row}
 
 Learned parts against the ground-truth semantic parts (majority label, agreement over test images):
 

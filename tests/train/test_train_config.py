@@ -115,9 +115,9 @@ def test_errors_name_the_key_the_choices_and_the_closest_name():
 def test_beyond_the_paper_switches_are_off_in_the_paper_presets_and_checked():
     for preset in ("paper", "paper_faithful"):
         c = load_config(preset=preset)
-        assert (c.render.antialias, c.losses.silhouette, c.losses.chamfer) == (False, 0.0, 0.0)
+        assert (c.render.antialias, c.losses.silhouette, c.losses.chamfer, c.losses.hidden) == (False, 0.0, 0.0, 0.0)
     c = load_config(preset="cpu")
-    assert (c.render.antialias, c.losses.silhouette, c.losses.chamfer) == (True, 1.0, 0.1)
+    assert (c.render.antialias, c.losses.silhouette, c.losses.chamfer, c.losses.hidden) == (True, 1.0, 0.1, 0.1)
     nmrr = load_config(preset=["cpu", "nmrr"])  # the baseline gets the same renderer and terms
     assert (nmrr.model.num_parts, nmrr.render.antialias, nmrr.losses.silhouette) == (1, True, 1.0)
     with pytest.raises(ValueError, match="losses.silhouette needs render.antialias: true"):
