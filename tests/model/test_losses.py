@@ -280,11 +280,16 @@ def test_objective_silhouette_term_is_the_coverage_error_of_each_view():
     assert out.terms["silhouette"].item() == pytest.approx(expected.item(), rel=1e-6)
 
 
-def test_objective_chamfer_term_only_computed_when_weighted_and_pulls_every_vertex():
+def test_objective_pulls_are_zero_when_unweighted():
+    """The chamfer and hidden-part pulls are Python loops over images: not computed at weight 0."""
     model, scene, batch, _ = _setup()
     off = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(),
                                torch.Generator().manual_seed(0))
-    assert off.terms["chamfer"].item() == 0.0
+    assert off.terms["chamfer"].item() == 0.0 and off.terms["hidden"].item() == 0.0
+
+
+def test_objective_chamfer_term_is_the_chamfer_of_the_projected_parts_and_pulls_every_vertex():
+    model, scene, batch, _ = _setup()
     losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, chamfer=1.0)
     out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
     from cerberus_core.losses import silhouette_chamfer
@@ -317,11 +322,8 @@ def test_hidden_part_pull_moves_only_hidden_parts_toward_uncovered_foreground():
         hidden_part_pull(pts.detach()[0], visible, uncovered)
 
 
-def test_objective_hidden_term_only_computed_when_weighted_and_pulls_hidden_parts():
-    model, scene, batch, _ = _setup()
-    off = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(),
-                               torch.Generator().manual_seed(0))
-    assert off.terms["hidden"].item() == 0.0
+def test_objective_hidden_term_is_the_pull_of_the_hidden_parts():
+    _, scene, batch, _ = _setup()
     losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, hidden=1.0)
     torch.manual_seed(0)  # twelve parts at one anchor crowd the middle of the image: some hide behind others
     model = Cerberus(ModelConfig(num_parts=12, sphere_level=1, width=8, shape_latent_dim=8, depth_offset=2.5,
