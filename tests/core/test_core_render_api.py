@@ -139,3 +139,11 @@ def test_one_pixel_centre_rule_in_every_dtype():
         p = pixel_ndc(4, 6, rows, cols, dtype)
         assert p.dtype == dtype
         assert torch.equal(p, torch.stack([px[cols], py[rows], torch.ones(2, dtype=dtype)], -1))
+
+
+def test_part_pixel_counts_counts_front_pixels_per_part_and_image():
+    from cerberus_core.render.api import part_pixel_counts
+
+    part_id = torch.tensor([[[-1, 0], [2, 2]],
+                            [[-1, -1], [-1, 1]]])  # (2, 2, 2): -1 where no part
+    assert part_pixel_counts(part_id, 3).tolist() == [[1, 0, 2], [0, 1, 0]]

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from cerberus_core.parts import PartSet
-from cerberus_core.render.api import render_parts
+from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 
@@ -46,10 +46,7 @@ def visible_pixels(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor
     recon = recon.to(camera.device)
     with torch.no_grad():
         part_id = render_parts(renderer, recon.posed(), recon.faces, camera).part_id  # (B, H, W), -1 background
-    bsz, nparts = recon.batch_size, recon.num_parts
-    slot = part_id.reshape(bsz, -1) + 1 + torch.arange(bsz, device=part_id.device).unsqueeze(1) * (nparts + 1)
-    counts = torch.bincount(slot.reshape(-1), minlength=bsz * (nparts + 1)).reshape(bsz, nparts + 1)
-    return counts[:, 1:].cpu()
+    return part_pixel_counts(part_id, recon.num_parts).cpu()
 
 
 @dataclass

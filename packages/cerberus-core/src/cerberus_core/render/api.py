@@ -152,3 +152,18 @@ def render_parts(renderer: Renderer, part_vertices: Tensor, faces: Tensor, camer
         alb = alb.reshape(bsz, nparts * nverts, 3)
     return render(renderer, vertices, packed_faces, camera, light, albedo=alb, face_part=face_part,
                   background=background, antialias=antialias)
+
+
+def part_pixel_counts(part_id: Tensor, num_parts: int) -> Tensor:
+    """Pixels each part is the front surface of, per image.
+
+    Args:
+        part_id: ``(B, H, W)`` a :class:`RenderOutput`'s ``part_id`` (-1 where no part).
+        num_parts: ``P``.
+    Returns:
+        ``(B, P)`` int64 on ``part_id``'s device (0: the part is wholly hidden in that image).
+    """
+    bsz = part_id.shape[0]
+    slot = part_id.reshape(bsz, -1) + 1 + torch.arange(bsz, device=part_id.device).unsqueeze(1) * (num_parts + 1)
+    counts = torch.bincount(slot.reshape(-1), minlength=bsz * (num_parts + 1)).reshape(bsz, num_parts + 1)
+    return counts[:, 1:]

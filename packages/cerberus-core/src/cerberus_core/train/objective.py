@@ -40,7 +40,7 @@ from cerberus_core.losses import (
     viewpoint_scenes,
 )
 from cerberus_core.model.cerberus import Cerberus, Predictions
-from cerberus_core.render.api import render_parts
+from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.data import QuadrupletBatch
@@ -168,10 +168,8 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
     chamfer = silhouette_chamfer(uv, foreground.flatten(0, 1)) if losses.chamfer != 0 else images.new_zeros(4 * bsz)
     if losses.hidden != 0:
         part_id = out.part_id[:4 * bsz]  # (4B, H, W) own viewpoints, -1 where no part
-        shown = torch.zeros(4 * bsz, n + 1, dtype=torch.long, device=part_id.device)
-        shown.scatter_add_(1, (part_id + 1).flatten(1), torch.ones_like(part_id.flatten(1)))
         uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
-        hidden = hidden_part_pull(uv.view(4 * bsz, n, v, 2), shown[:, 1:] > 0, uncovered)
+        hidden = hidden_part_pull(uv.view(4 * bsz, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered)
     else:
         hidden = images.new_zeros(4 * bsz)
 
