@@ -3,13 +3,14 @@ exact resumption with the switches on. Their speed is measured in benchmarks/ben
 import pytest
 import torch
 
+from cerberus_core.devices import native_bf16
 from cerberus_core.model import Cerberus
 from cerberus_core.model.cerberus import ModelConfig
 from cerberus_core.render.templates import icosphere
 from cerberus_core.train import NonFiniteError, load_checkpoint, load_config, train
 from cerberus_core.train.checkpoint import checkpoint_dir
 from cerberus_core.train.objective import smoothness_term
-from cerberus_core.train.speed import SpeedConfig, apply_speed, release_speed
+from cerberus_core.train.speed import SpeedConfig, apply_speed, release_speed, resolve_autocast
 
 FAST = ["speed.autocast=bf16", "speed.channels_last=true"]
 
@@ -23,10 +24,10 @@ def tiny_model(speed: SpeedConfig) -> Cerberus:
 def test_speed_switches_are_off_by_default_on_in_the_cpu_recipe_and_validated():
     for preset in ("paper", "paper_faithful", "tiny"):
         assert load_config(preset=preset).speed == SpeedConfig()
-    assert load_config(preset="cpu").speed == SpeedConfig(autocast="bf16", channels_last=True, smoothness_once=True)
+    assert load_config(preset="cpu").speed == SpeedConfig(autocast="auto", channels_last=True, smoothness_once=True)
     c = load_config(preset="tiny", overrides=FAST + ["speed.compile=true"])
     assert (c.speed.autocast, c.speed.channels_last, c.speed.compile) == ("bf16", True, True)
-    with pytest.raises(ValueError, match="speed.autocast must be null or one of"):
+    with pytest.raises(ValueError, match="speed.autocast must be null, auto or one of"):
         load_config(overrides=["speed.autocast=fp8"])
     with pytest.raises(ValueError, match="speed.channels_last: expected true/false"):
         load_config(overrides=["speed.channels_last=1"])
@@ -87,3 +88,34 @@ def test_smoothness_once_gives_the_same_loss_when_a_quadruplets_meshes_are_equal
     assert once.shape == full.shape == (12,) and torch.equal(once.mean(), full.mean())
     config = load_config(preset="tiny", overrides=["speed.smoothness_once=true"])
     assert config.speed.smoothness_once
+
+
+@pytest.mark.parametrize(("flags", "expected"), [
+    ({"avx2", "avx512f", "avx512_bf16"}, "bf16"),   # AVX-512 with native bf16 (e.g. Zen 4, Cooper Lake)
+    ({"avx2", "amx_bf16", "amx_tile"}, "bf16"),     # Sapphire Rapids' AMX
+    ({"fp", "asimd", "bf16"}, "bf16"),              # Arm v8.6
+    ({"avx2", "fma", "avx512f"}, None),             # AVX-512 without bf16: emulated, slower than float32
+    ({"avx2", "fma"}, None),                        # AVX2 only
+    (set(), None),                                  # no /proc/cpuinfo (macOS, Windows)
+])
+def test_native_bf16_is_read_from_the_cpu_flags(flags, expected):
+    native, why = native_bf16("cpu", frozenset(flags))
+    assert native == (expected == "bf16") and why.startswith("this CPU has")
+
+
+def test_autocast_auto_resolves_for_this_machine_and_other_values_pass_through():
+    native, _ = native_bf16("cpu")
+    value, why = resolve_autocast("auto", "cpu")
+    assert value == ("bf16" if native else None) and why.startswith("auto: this CPU")
+    assert resolve_autocast("bf16", "cpu") == ("bf16", "set in the config")
+    assert resolve_autocast(None, "cpu") == (None, "set in the config")
+    model = tiny_model(SpeedConfig(autocast="auto"))
+    assert model.cnn_autocast == (torch.bfloat16 if native else None)
+
+
+def test_a_run_saves_the_resolved_autocast_in_its_config(tiny_config, tmp_path):
+    import yaml
+
+    train(tiny_config("speed.autocast=auto"), tmp_path / "run")
+    saved = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
+    assert saved["speed"]["autocast"] == resolve_autocast("auto", "cpu")[0]

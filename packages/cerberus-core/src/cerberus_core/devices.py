@@ -29,4 +29,44 @@ def check_device(name: str, option: str = "--device") -> str:
     raise ConfigError(f"{option} {name!r}: expected cpu, cuda or cuda:N (or auto)")
 
 
-__all__ = ["check_device"]
+def cpu_flags() -> frozenset[str]:
+    """The processor's feature flags as Linux reports them (``/proc/cpuinfo``: x86 ``flags``, Arm
+    ``Features``), lower case; empty where that file does not exist (macOS, Windows)."""
+    try:
+        text = open("/proc/cpuinfo", encoding="ascii", errors="replace").read()
+    except OSError:
+        return frozenset()
+    flags: set[str] = set()
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip().lower() in ("flags", "features"):
+            flags.update(value.lower().split())
+    return frozenset(flags)
+
+
+NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16", "bf16")
+"""CPU flags of native bfloat16 arithmetic: AVX512_BF16 and AMX (x86), BF16 (Arm v8.6). Without one,
+oneDNN emulates bfloat16 matrix products and they run slower than float32 (docs/training.md, "Speed")."""
+
+
+def native_bf16(device: str = "cpu", flags: frozenset[str] | None = None) -> tuple[bool, str]:
+    """Whether ``device`` computes bfloat16 natively, and why, in words.
+
+    Args:
+        device: ``cpu``, ``cuda`` or ``cuda:N``.
+        flags: the CPU's flags (default: :func:`cpu_flags`; given by tests).
+    Returns:
+        ``(native, reason)``, e.g. ``(True, "this CPU has avx512_bf16")``.
+    """
+    import torch
+
+    if str(device).startswith("cuda"):
+        ok = torch.cuda.is_available() and torch.cuda.is_bf16_supported()
+        return ok, "this GPU " + ("supports" if ok else "does not support") + " bfloat16"
+    have = [f for f in NATIVE_BF16_FLAGS if f in (cpu_flags() if flags is None else flags)]
+    if have:
+        return True, f"this CPU has {'/'.join(have)}"
+    return False, f"this CPU has none of {'/'.join(NATIVE_BF16_FLAGS)} (bfloat16 would be emulated, slower than float32)"
+
+
+__all__ = ["check_device", "cpu_flags", "native_bf16"]

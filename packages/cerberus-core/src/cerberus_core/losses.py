@@ -248,6 +248,61 @@ def silhouette_loss(alpha: Tensor, foreground: Tensor) -> Tensor:
     return (alpha - foreground).square().mean(dim=(-3, -2, -1))
 
 
+def mask_pixel_centres(mask: Tensor) -> tuple[Tensor, Tensor]:
+    """The centres of each image's mask pixels, padded to one length.
+
+    Args:
+        mask: ``(N, H, W)`` bool.
+    Returns:
+        ``centres`` ``(N, K, 2)`` as ``(u, v)`` pixels (``col + 0.5, row + 0.5``), ``K`` the largest
+        count of any image (at least 1), in row-major order per image; and ``valid`` ``(N, K)`` bool,
+        False on the padding (whose centres are 0).
+    """
+    n = mask.shape[0]
+    img, rows, cols = torch.nonzero(mask, as_tuple=True)  # sorted by image, then row-major
+    counts = torch.bincount(img, minlength=n)
+    k = max(1, int(counts.max())) if n else 1
+    slot = torch.arange(img.numel(), device=mask.device) - (torch.cumsum(counts, 0) - counts)[img]
+    centres = torch.zeros(n, k, 2, device=mask.device)
+    centres[img, slot] = torch.stack([cols, rows], -1).float() + 0.5
+    valid = torch.zeros(n, k, dtype=torch.bool, device=mask.device)
+    valid[img, slot] = True
+    return centres, valid
+
+
+def nearest_indices(points: Tensor, targets: Tensor, counts: list[int]) -> tuple[Tensor, Tensor]:
+    """Nearest-neighbour indices between two point sets per image, searched without gradient.
+
+    One ``(M, K_n)`` distance table per image (a loop: padding the tables to one size costs more
+    memory traffic than the loop's overhead on a CPU), scanned both ways.
+
+    Args:
+        points: ``(N, M, 2)``.
+        targets: ``(N, K, 2)`` of which the first ``counts[n]`` are real in image ``n``.
+        counts: ``N`` ints.
+    Returns:
+        ``to_target`` ``(N, M)``: each point's nearest real target (0 where the image has none), and
+        ``to_point`` ``(N, K)``: each real target's nearest point (0 on the padding).
+    """
+    n, m = points.shape[:2]
+    to_target = torch.zeros(n, m, dtype=torch.long, device=points.device)
+    to_point = torch.zeros(n, targets.shape[1], dtype=torch.long, device=points.device)
+    with torch.no_grad():
+        for i, k in enumerate(counts):
+            if k:
+                table = torch.cdist(points[i].detach(), targets[i, :k].detach())  # (M, k)
+                to_target[i] = table.min(1).indices
+                to_point[i, :k] = table.min(0).indices
+    return to_target, to_point
+
+
+def _pair_distance(points: Tensor, targets: Tensor, index: Tensor) -> Tensor:
+    """``|points[n, i] - targets[n, index[n, i]]|`` ``(N, I)``: differentiable in both, exactly the
+    distance to the chosen target (the gradient of a minimum reaches only its argument)."""
+    chosen = targets.gather(1, index.unsqueeze(-1).expand(*index.shape, targets.shape[-1]))
+    return (points - chosen).norm(dim=-1)
+
+
 def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512) -> Tensor:
     """Long-range pull of the parts onto the input's silhouette, in the image plane.
 
@@ -257,6 +312,10 @@ def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512
     hidden ones wandering outside, come back). Unlike the rendering loss it reaches every vertex,
     visible or not, at any distance. Distances are in units of the image height, not squared, so the
     pull has the same strength near and far.
+
+    The nearest neighbours are searched without gradient (:func:`nearest_indices`), and the
+    distances are then recomputed, with gradient, for the chosen pairs only, batched over images (the gradient of a minimum reaches only its argument, so the value and the
+    gradient are those of ``min(cdist)``, up to rounding).
 
     Args:
         points: ``(N, M, 2)`` projected vertices in pixels (:meth:`Camera.project`), all parts.
@@ -270,17 +329,14 @@ def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512
     if points.ndim != 3 or points.shape[0] != n or points.shape[-1] != 2:
         raise ValueError(f"silhouette_chamfer: points must be ({n}, M, 2), got {tuple(points.shape)}")
     stride = max(1, -(-points.shape[1] // max_points))
-    pts = points[:, ::stride]
-    out = []
-    for i in range(n):
-        rows, cols = torch.nonzero(fg[i], as_tuple=True)
-        if rows.numel() == 0:
-            out.append(pts.new_zeros(()))
-            continue
-        centres = torch.stack([cols, rows], -1).to(pts.dtype) + 0.5  # (K, 2) as (u, v)
-        dist = torch.cdist(centres, pts[i])  # (K, M')
-        out.append((dist.min(dim=1).values.mean() + dist.min(dim=0).values.mean()) / height)
-    return torch.stack(out)
+    pts = points[:, ::stride]  # (N, M', 2)
+    centres, valid = mask_pixel_centres(fg)  # (N, K, 2), (N, K)
+    centres = centres.to(pts.dtype)
+    count = valid.sum(1)
+    to_pixel, to_vertex = nearest_indices(pts, centres, count.tolist())
+    pixel_side = (_pair_distance(centres, pts, to_vertex) * valid).sum(1) / count.clamp(min=1)
+    vertex_side = _pair_distance(pts, centres, to_pixel).mean(1)
+    return torch.where(count > 0, (pixel_side + vertex_side) / height, pts.new_zeros(()))
 
 
 def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tensor:
@@ -291,7 +347,7 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
     pixels that no part covers yet (in practice the limbs the other parts miss), where the
     rendering terms take over. Each of the part's projected vertices is pulled to its nearest such
     pixel; distances are in units of the image height, not squared, as in
-    :func:`silhouette_chamfer`.
+    :func:`silhouette_chamfer` (and computed the same way, for the hidden parts only).
 
     Args:
         points: ``(N, P, V, 2)`` projected vertices in pixels (:meth:`Camera.project`), per part.
@@ -306,14 +362,15 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
     if points.ndim != 4 or points.shape[0] != n or points.shape[-1] != 2 or visible.shape != points.shape[:2]:
         raise ValueError(f"hidden_part_pull: points must be ({n}, P, V, 2) and visible (N, P), got "
                          f"{tuple(points.shape)} and {tuple(visible.shape)}")
-    out = []
-    for i in range(n):
-        hidden = torch.nonzero(~visible[i].bool(), as_tuple=True)[0]
-        rows, cols = torch.nonzero(free[i], as_tuple=True)
-        if hidden.numel() == 0 or rows.numel() == 0:
-            out.append(points.new_zeros(()))
-            continue
-        centres = torch.stack([cols, rows], -1).to(points.dtype) + 0.5  # (K, 2) as (u, v)
-        pts = points[i, hidden].reshape(-1, 2)  # (h V, 2)
-        out.append(torch.cdist(pts, centres).min(dim=1).values.mean() / height)
-    return torch.stack(out)
+    has_free = free.flatten(1).any(1)
+    image, part = torch.nonzero(~visible.bool() & has_free[:, None], as_tuple=True)  # the pulled parts
+    out = points.new_zeros(n)
+    if image.numel() == 0:
+        return out
+    centres, valid = mask_pixel_centres(free[image])  # (H, K, 2) each pulled part's targets
+    centres = centres.to(points.dtype)
+    pts = points[image, part]  # (H, V, 2)
+    nearest, _ = nearest_indices(pts, centres, valid.sum(1).tolist())  # (H, V)
+    per_part = _pair_distance(pts, centres, nearest).mean(1)  # (H,)
+    hidden = torch.bincount(image, minlength=n).to(points.dtype)
+    return out.index_add(0, image, per_part) / hidden.clamp(min=1) / height

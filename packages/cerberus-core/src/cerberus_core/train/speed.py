@@ -18,17 +18,35 @@ from dataclasses import dataclass
 
 import torch
 
+from cerberus_core.devices import native_bf16
 from cerberus_core.model.cerberus import Cerberus
 
 AUTOCAST_DTYPES = {"bf16": torch.bfloat16}
-"""Accepted values of ``speed.autocast`` (besides ``null``)."""
+"""Accepted values of ``speed.autocast`` (besides ``null`` and ``auto``)."""
+
+
+def resolve_autocast(value: str | None, device: torch.device | str) -> tuple[str | None, str]:
+    """``speed.autocast`` as it will run on ``device``: ``auto`` becomes ``bf16`` where the device
+    computes bfloat16 natively (:func:`cerberus_core.devices.native_bf16`: AVX512_BF16 or AMX on an
+    x86 CPU, BF16 on Arm, a bfloat16 GPU) and ``null`` elsewhere (an AVX2-only CPU emulates bfloat16
+    products and runs them slower than float32). Other values are returned as they are.
+
+    Returns:
+        ``(value, reason)``: the resolved value and a line that says why.
+    """
+    if value != "auto":
+        return value, "set in the config"
+    native, why = native_bf16(str(device))
+    return ("bf16" if native else None), f"auto: {why}"
 
 
 @dataclass
 class SpeedConfig:
     """Attributes:
         autocast: ``bf16``: run the encoder and decoder under ``torch.autocast(dtype=bfloat16)``
-            (heads, geometry, rendering and losses stay float32); ``null``: off.
+            (heads, geometry, rendering and losses stay float32); ``null``: off; ``auto``: ``bf16``
+            where the device computes bfloat16 natively, else off (:func:`resolve_autocast`; the
+            trainer saves the resolved value in the run's config and says which).
         channels_last: convert the encoder and decoder to the channels-last memory format.
         compile: ``torch.compile`` the encoder and decoder (``nn.Module.compile``, in place: the
             state dict keeps its keys).
@@ -44,8 +62,9 @@ class SpeedConfig:
     smoothness_once: bool = False
 
     def validate(self) -> None:
-        if self.autocast is not None and self.autocast not in AUTOCAST_DTYPES:
-            raise ValueError(f"speed.autocast must be null or one of {sorted(AUTOCAST_DTYPES)}, got {self.autocast!r}")
+        if self.autocast is not None and self.autocast != "auto" and self.autocast not in AUTOCAST_DTYPES:
+            raise ValueError(f"speed.autocast must be null, auto or one of {sorted(AUTOCAST_DTYPES)}, got "
+                             f"{self.autocast!r}")
 
 
 def apply_speed(model: Cerberus, speed: SpeedConfig) -> Cerberus:
@@ -55,11 +74,12 @@ def apply_speed(model: Cerberus, speed: SpeedConfig) -> Cerberus:
     built before or after sees the same tensors) and the state dict keeps its keys and dtypes.
     """
     speed.validate()
+    autocast, _ = resolve_autocast(speed.autocast, next(model.parameters()).device)
     trunk = (model.encoder, model.decoder)
     if speed.channels_last:
         for module in trunk:
             module.to(memory_format=torch.channels_last)
-    model.cnn_autocast = AUTOCAST_DTYPES[speed.autocast] if speed.autocast is not None else None
+    model.cnn_autocast = AUTOCAST_DTYPES[autocast] if autocast is not None else None
     if speed.compile:
         for module in trunk:
             module.compile()

@@ -75,7 +75,7 @@ from cerberus_core.train.distributed import (
 )
 from cerberus_core.train.logs import MetricsLog, plot_loss_curves, save_progress_grid
 from cerberus_core.train.objective import quadruplet_objective
-from cerberus_core.train.speed import apply_speed, release_speed
+from cerberus_core.train.speed import apply_speed, release_speed, resolve_autocast
 
 RESUMABLE_CHANGES = frozenset({
     "threads", "train.steps", "train.log_every", "train.image_every", "train.checkpoint_every", "train.keep_every",
@@ -263,6 +263,9 @@ class _Trainer:
         self.image_size = config.data.image_size or int(self.dataset.image_size)
         config.renderer = resolve_renderer(config.renderer)  # the saved config names the backend used
         self.renderer = make_renderer(config.renderer)
+        autocast, why = resolve_autocast(config.speed.autocast, device)  # saved resolved, like the renderer
+        config.speed = dataclasses.replace(config.speed, autocast=autocast)
+        self.speed_note = f"speed.autocast: {autocast or 'off (float32)'} ({why})"
 
     # ------------------------------------------------------------------ set-up
     def _build(self, payload: dict[str, Any] | None) -> int:
@@ -341,6 +344,8 @@ class _Trainer:
             log = MetricsLog(self.run_dir, start, loop.tensorboard)
         bar = tqdm(total=loop.steps, initial=start, desc="train", unit="step", dynamic_ncols=True, mininterval=1.0,
                    disable=not (info.is_main and loop.progress))
+        if info.is_main and loop.progress:
+            bar.write(f"renderer: {cfg.renderer}, device: {self.device}, {self.speed_note}")
         terms: dict[str, float] = {}
         consecutive, done, interrupted, stop_signal = 0, start, False, 0
         window = [time.perf_counter(), 0]  # start time and steps of the current logging window
