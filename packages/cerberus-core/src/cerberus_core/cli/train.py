@@ -16,6 +16,7 @@ examples:
   cerberus train --preset cpu --preset nmrr --set data.root=data/human  # a variant on the CPU schedule
   cerberus train --config my.yaml --set optim.lr=1e-4 --set train.steps=2000
   cerberus train --out runs/paper --resume                           # continue a run
+  cerberus train --preset paper --device cuda --set data.root=data/human  # on a GPU
   torchrun --nproc_per_node 2 -m cerberus_core.cli train --preset cpu  # data parallel
 
 A config file may start with 'extends: PRESET' and override any key. The resolved config is saved
@@ -49,6 +50,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", action="store_true",
                    help="continue the run in RUN_DIR from its last checkpoint (the saved config is used; "
                    "--set may change train.steps and logging keys)")
+    p.add_argument("--device", default=None, metavar="DEVICE",
+                   help="cpu, cuda, cuda:N or auto (CUDA when available); same as --set device=... (default: the "
+                   "config's: cpu in the cpu presets, auto in paper). On CUDA the torch and Warp renderers run there "
+                   "too; speed.autocast auto picks bf16 where the device computes it natively")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
     p.set_defaults(func=run)
 
@@ -98,7 +103,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
                                  overrides=args.overrides)
     except ValueError as exc:  # the config's own checks (ConfigError is a ValueError): one line
         raise (exc if isinstance(exc, ConfigError) else ConfigError(str(exc))) from None
-    check_device(config.device, option="device")
+    check_device(config.device, option="--device" if args.device is not None else "device")
     return config
 
 
@@ -108,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
 
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
     out = output_folder(args.out or Path("runs") / name)
+    if args.device is not None:  # one mechanism: --device is the config key device
+        args.overrides = [*args.overrides, f"device={args.device}"]
     config = resolve_config(args, out)
     if args.print_config:
         print(config.to_yaml(), end="")
