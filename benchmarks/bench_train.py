@@ -12,6 +12,12 @@ preset's ``render.antialias`` is on) over the step time.
     python benchmarks/bench_train.py --threads 1 --steps 5 --renderers warp
     python benchmarks/bench_train.py --switches --presets cpu --renderers warp --threads 1 --steps 20
 
+``--precision`` times the preset with ``speed.autocast`` at ``null`` (float32), ``bf16`` and ``auto``
+side by side (its other switches as the preset has them), interleaved like ``--switches``, and prints
+the CPU's bfloat16 flags and what ``auto`` picked on this machine:
+
+    python benchmarks/bench_train.py --precision --presets cpu --renderers warp --threads 1 --steps 20
+
 ``--switches [NAME ...]`` times the training speed switches instead (``speed.autocast: bf16``,
 ``speed.channels_last``, ``speed.compile``, ``speed.smoothness_once``; all of them without NAMEs):
 one model per variant (off, each switch alone, all together), steps interleaved round by round,
@@ -145,15 +151,26 @@ def switch_variants(names: list[str]) -> list[tuple[str, dict]]:
     return variants
 
 
+def precision_variants(preset: str) -> list[tuple[str, dict]]:
+    """``fp32``, ``bf16`` and ``auto``: the preset's speed switches with ``speed.autocast`` set to each."""
+    from dataclasses import asdict
+
+    from cerberus_core.train.config import load_config
+
+    base = asdict(load_config(preset=preset).speed)
+    return [(label, base | {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
+
+
 def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int,
-                   batch_size: int | None, names: list[str]) -> list[dict]:
+                   batch_size: int | None, names: list[str] | None, variants_of=None) -> list[dict]:
     """Full steps of one model per switch variant, interleaved: each round times one step of every
-    variant in turn (so load changes hit all alike); the median over rounds is reported."""
+    variant in turn (so load changes hit all alike); the median over rounds is reported. The variants
+    are :func:`switch_variants` of ``names``, or ``variants_of(preset)``."""
     from cerberus_core.train.speed import SpeedConfig
 
     cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)
     variants = []
-    for label, speed in switch_variants(names):
+    for label, speed in (variants_of(preset) if variants_of else switch_variants(names)):
         _, step = stepper(cfg, scene, batch, renderer, SpeedConfig(**speed))
         t0 = time.perf_counter()
         first = step(0)  # the first step's loss (same weights and batch for every variant)
@@ -178,13 +195,14 @@ def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int,
 
 def print_switches(rows: list[dict]) -> None:
     w = max(10, *(len(r["switches"]) + 2 for r in rows))
-    head = f"{'preset':<8}{'renderer':>9}  {'switches':<{w}}{'s/step':>8}{'steps/s':>9}{'x off':>7}" \
+    base = "x " + rows[0]["switches"]
+    head = f"{'preset':<8}{'renderer':>9}  {'switches':<{w}}{'s/step':>8}{'steps/s':>9}{base:>{max(7, len(base) + 1)}}" \
            f"{'loss 1st step':>15}{'warm-up s':>11}"
     print(head)
     print("-" * len(head))
     for r in rows:
         print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['step_s']:>8.3f}{r['steps_per_s']:>9.2f}"
-              f"{r['speedup']:>7.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
+              f"{r['speedup']:>{max(7, len(base) + 1)}.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
 
 
 def main() -> None:
@@ -198,6 +216,9 @@ def main() -> None:
     p.add_argument("--warmup", type=int, default=2, help="untimed steps first")
     p.add_argument("--batch-size", type=int, default=None, help="override the presets' batch sizes")
     p.add_argument("--data", type=Path, default=None, help="a quadruplet dataset (default: generate primitives)")
+    p.add_argument("--precision", action="store_true",
+                   help="instead: time speed.autocast null (fp32), bf16 and auto side by side, interleaved, "
+                        "with the preset's other speed switches")
     p.add_argument("--switches", nargs="*", default=None, choices=sorted(SWITCHES), metavar="NAME",
                    help="instead: time the speed switches (speed.* of the config) side by side, interleaved: "
                         "off, each NAME alone and all NAMEs together (default with no NAME: "
@@ -206,19 +227,28 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     from cerberus_core.train.config import load_config
 
-    if args.switches is not None:
-        names = args.switches or list(SWITCHES)
-        if "compile" in names:
+    if args.switches is not None or args.precision:
+        names = None if args.precision else (args.switches or list(SWITCHES))
+        if names and "compile" in names:
             args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
         rows = []
         with tempfile.TemporaryDirectory() as tmp:
             for preset in args.presets:
                 root = args.data or make_data(Path(tmp) / preset, load_config(preset=preset).data.image_size or 64)
                 for name in args.renderers:
-                    rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names)
+                    rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names,
+                                           precision_variants if args.precision else None)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
               f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps")
+        if args.precision:
+            from cerberus_core.devices import NATIVE_BF16_FLAGS, cpu_flags
+            from cerberus_core.train.speed import resolve_autocast
+
+            picked, why = resolve_autocast("auto", "cpu")
+            have = sorted(f for f in cpu_flags() if f.startswith(("avx", "amx")) or f in NATIVE_BF16_FLAGS)
+            print(f"CPU flags: {' '.join(have) or 'none of avx/amx/bf16'}")
+            print(f"speed.autocast auto -> {picked or 'null (float32)'} ({why})")
         print_switches(rows)
         return
     rows = []
