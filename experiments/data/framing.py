@@ -14,7 +14,8 @@ import argparse
 import numpy as np
 from scipy import ndimage
 
-from cerberus_core.datasets.readers import ViewDataset, background_mask
+from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.losses import background_mask
 
 
 def stats(root: str, split: str, tol: float) -> dict[str, float]:

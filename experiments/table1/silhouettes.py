@@ -14,8 +14,9 @@ import sys
 
 import torch
 
-from cerberus_core.datasets.readers import ViewDataset, background_mask
+from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.eval.runner import collate
+from cerberus_core.losses import background_mask
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
 from cerberus_core.train.checkpoint import load_model

@@ -9,7 +9,8 @@ import torch
 from torch.utils.data import DataLoader
 
 from cerberus_core.datasets.format import DatasetError
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, background_mask
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
+from cerberus_core.losses import background_mask
 from cerberus_core.render.camera import Camera
 
 

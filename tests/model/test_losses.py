@@ -4,12 +4,12 @@ import math
 import pytest
 import torch
 
-from cerberus_core.datasets.readers import background_mask
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.losses import (
     VIEW_PARTNER,
     LossConfig,
     background_loss,
+    background_mask,
     dihedral_cosines,
     mix_shape_latents,
     reconstruction_loss,
@@ -347,3 +347,24 @@ def test_objective_hidden_term_is_the_pull_of_the_hidden_parts():
 def test_loss_config_rejects_nan_weights():
     with pytest.raises(ValueError, match="losses.silhouette"):
         LossConfig(silhouette=float("nan")).validate()
+
+
+def test_one_registry_of_loss_terms_names_the_config_weights_the_objective_the_logs_and_the_docs():
+    from dataclasses import fields
+    from pathlib import Path
+
+    from cerberus_core.losses import LOSS_TERMS, TERMS
+    from cerberus_core.train.logs import LOSS_FIELDS
+    from cerberus_core.train.objective import TERM_VALUES
+
+    weights = {f.name for f in fields(LossConfig) if f.type in ("float", float)} - {"background_tolerance"}
+    assert set(TERMS) == weights == set(TERM_VALUES)
+    assert LOSS_FIELDS == ("total", *TERMS)
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "training.md").read_text()
+    rows = [line for line in docs.splitlines() if line.startswith("| `losses.") and line.count("|") == 6]
+    assert [row.split("`")[1] for row in rows] == [f"losses.{t.name}" for t in LOSS_TERMS]
+    for term, row in zip(LOSS_TERMS, rows, strict=True):
+        assert term.function.__module__ == "cerberus_core.losses" and f"`{term.function.__name__}`" in row
+        assert (" yes " in row) == term.paper and term.summary.split(" (")[0] in row
+    with pytest.raises(ValueError, match="losses.hidden is a loss weight"):
+        LossConfig(hidden=float("nan")).validate()

@@ -27,6 +27,7 @@ that give the paper's variants (Free Cerberus: ``pose_consistency: false``).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -40,6 +41,26 @@ QUADRUPLET: tuple[str, ...] = ("a0", "a1", "b0", "b1")
 
 VIEW_PARTNER: tuple[int, ...] = (1, 0, 3, 2)
 """Index of the image of the same pose from the other viewpoint: a0 <-> a1, b0 <-> b1."""
+
+
+@dataclass(frozen=True)
+class LossTerm:
+    """One term of the training objective.
+
+    Attributes:
+        name: its name everywhere: the weight ``losses.<name>`` of :class:`LossConfig`, the column of
+            ``metrics.csv``, the key of ``ObjectiveOutput.terms``.
+        function: the function of this module that defines it.
+        symbol: its symbol in the total ``sum_k lambda_k L_k`` (docs).
+        paper: whether the paper has it (the others weigh 0 in its settings).
+        summary: what it measures, in one line (docs, ``--help``).
+    """
+
+    name: str
+    function: Callable[..., Tensor]
+    symbol: str
+    paper: bool
+    summary: str
 
 
 @dataclass
@@ -71,7 +92,7 @@ class LossConfig:
             grow it. Since the mask is exact, this equals a dataset rendered on black.
         background_tolerance: a pixel is background (``b_xy = 1``) when every channel is within this
             of the dataset's background colour
-            (:func:`cerberus_core.datasets.readers.background_mask`).
+            (:func:`background_mask`).
     """
 
     recon: float = 1.0
@@ -87,13 +108,34 @@ class LossConfig:
     background_tolerance: float = 0.02
 
     def validate(self) -> None:
-        for name in ("recon", "translation", "background", "smoothness", "silhouette", "chamfer", "hidden"):
+        for name in TERMS:
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ValueError(f"losses.{name} is a loss weight and must be a finite number >= 0, got {getattr(self, name)}")
         if self.render_background not in ("black", "dataset"):
             raise ValueError(f"losses.render_background must be 'black' or 'dataset', got {self.render_background!r}")
         if not 0 <= self.background_tolerance < 1:
             raise ValueError(f"losses.background_tolerance must be in [0, 1), got {self.background_tolerance}")
+
+    def weight(self, name: str) -> float:
+        """The weight ``lambda`` of the term ``name`` of :data:`LOSS_TERMS`."""
+        return float(getattr(self, name))
+
+
+def background_mask(images: Tensor, background: tuple[float, float, float] | list[float],
+                    tol: float = 0.5 / 255) -> Tensor:
+    """The background mask ``b`` of the background loss: pixels equal to the background colour.
+
+    Args:
+        images: ``(..., 3, H, W)`` in [0, 1] (as the datasets return them).
+        background: the dataset's ``scene.background``.
+        tol: a pixel is background when every channel is within this of the colour
+            (``losses.background_tolerance`` in training).
+    Returns:
+        ``(..., 1, H, W)`` float32, 1 on background. With the default scene every body pixel is at
+        most 0.8 bright, so the mask is exact.
+    """
+    bg = torch.as_tensor(background, dtype=images.dtype, device=images.device).view(3, 1, 1)
+    return ((images - bg).abs() <= tol).all(dim=-3, keepdim=True).to(torch.float32)
 
 
 def reconstruction_loss(rendered: Tensor, target: Tensor) -> Tensor:
@@ -182,7 +224,7 @@ def background_loss(prob: Tensor, mask: Tensor) -> Tensor:
     Args:
         prob: ``(..., N, H, W)`` probability maps (each sums to 1).
         mask: ``(..., 1, H, W)`` background mask ``b`` of the input image
-            (:func:`cerberus_core.datasets.readers.background_mask`).
+            (:func:`background_mask`).
     Returns:
         ``(...)`` in [0, 1].
     """
@@ -374,3 +416,26 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
     per_part = _pair_distance(pts, centres, nearest).mean(1)  # (H,)
     hidden = torch.bincount(image, minlength=n).to(points.dtype)
     return out.index_add(0, image, per_part) / hidden.clamp(min=1) / height
+
+
+LOSS_TERMS: tuple[LossTerm, ...] = (
+    LossTerm("recon", reconstruction_loss, "lambda_r L_r'", True,
+             "squared RGB error of each image's rendering, own and partner viewpoint (eqs. 2, 4, 7)"),
+    LossTerm("translation", translation_loss, "lambda_t L_t'", True,
+             "disagreement of the translations predicted from the two viewpoints (eqs. 5, 6)"),
+    LossTerm("background", background_loss, "lambda_b L_b", True,
+             "keypoint probability mass on the input's background"),
+    LossTerm("smoothness", smoothness_loss, "lambda_s L_s", True,
+             "sum over mesh edges of (cos theta + 1)^2 (Kato et al.)"),
+    LossTerm("silhouette", silhouette_loss, "lambda_sil L_sil", False,
+             "squared error of the rendered coverage against the input's foreground (needs render.antialias)"),
+    LossTerm("chamfer", silhouette_chamfer, "lambda_c L_c", False,
+             "2-D chamfer distance between the projected part vertices and the foreground pixels"),
+    LossTerm("hidden", hidden_part_pull, "lambda_h L_h", False,
+             "pull of the parts an image does not show toward the foreground no part covers"),
+)
+"""Every term of the training objective, in logging order: the one list the config (a weight per
+name), the objective, ``metrics.csv`` and the docs (docs/training.md, checked by a test) read."""
+
+TERMS: tuple[str, ...] = tuple(t.name for t in LOSS_TERMS)
+"""The terms' names, in logging order."""

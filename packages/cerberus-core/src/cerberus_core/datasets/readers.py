@@ -320,19 +320,4 @@ class ViewDataset(_Base):
             raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
 
 
-def background_mask(images: Tensor, background: tuple[float, float, float] | list[float],
-                    tol: float = 0.5 / 255) -> Tensor:
-    """Pixels equal to the background colour.
-
-    Args:
-        images: ``(..., 3, H, W)`` in [0, 1] (as the datasets return them).
-        background: the dataset's ``scene.background``.
-    Returns:
-        ``(..., 1, H, W)`` float32, 1 on background. With the default scene every body pixel is at
-        most 0.8 bright, so the mask is exact.
-    """
-    bg = torch.as_tensor(background, dtype=images.dtype, device=images.device).view(3, 1, 1)
-    return ((images - bg).abs() <= tol).all(dim=-3, keepdim=True).to(torch.float32)
-
-
-__all__ = ["QuadrupletDataset", "ViewDataset", "background_mask"]
+__all__ = ["QuadrupletDataset", "ViewDataset"]

@@ -18,17 +18,18 @@ not show toward the foreground no part covers (``losses.silhouette``, ``losses.c
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 import torch
 from torch import nn
 
-from cerberus_core.datasets.readers import background_mask
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.losses import (
+    TERMS,
     VIEW_PARTNER,
     LossConfig,
     background_loss,
+    background_mask,
     hidden_part_pull,
     mix_shape_latents,
     reconstruction_loss,
@@ -40,15 +41,15 @@ from cerberus_core.losses import (
     viewpoint_scenes,
 )
 from cerberus_core.model.cerberus import Cerberus, Predictions
+from cerberus_core.parts import PartSet
 from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Renderer
+from cerberus_core.render.interface import Renderer, RenderOutput
 from cerberus_core.train.data import QuadrupletBatch
 
 Tensor = torch.Tensor
 
-TERMS = ("recon", "translation", "background", "smoothness", "silhouette", "chamfer", "hidden")
-"""Loss terms in logging order (their weights are the fields of the same name in LossConfig)."""
+__all__ = ["TERMS", "ObjectiveOutput", "quadruplet_objective"]
 
 
 @dataclass
@@ -103,6 +104,124 @@ def smoothness_term(local_vertices: Tensor, dihedral: Tensor, num_quadruplets: i
     return smoothness_loss(first, dihedral).unsqueeze(1).expand(num_quadruplets, 4).reshape(-1)
 
 
+@dataclass
+class QuadrupletRender:
+    """The renderings of equation 4 for ``B`` quadruplets.
+
+    Attributes:
+        own: each image's parts from its own viewpoint: ``image`` ``(B, 4, 3, H, W)``, ``alpha``
+            ``(B, 4, 1, H, W)``, ``part_id`` ``(B, 4, H, W)``.
+        cross: each image's rotated parts with the partner's translation from the partner's
+            viewpoint (``None`` without viewpoint consistency); ``cross[:, x]`` is compared with
+            image ``VIEW_PARTNER[x]``.
+        parts_own: ``(B, 4, N, V, 3)`` the world-space parts of ``own``.
+    """
+
+    own: RenderOutput
+    cross: RenderOutput | None
+    parts_own: Tensor
+
+
+def render_quadruplets(renderer: Renderer, parts: PartSet, batch: QuadrupletBatch, scene: SceneSetup,
+                       background: tuple[float, float, float], *, viewpoint_consistency: bool,
+                       antialias: bool) -> QuadrupletRender:
+    """Render ``parts`` (``4 B`` images' world-space parts) as equation 4 asks, in one renderer call."""
+    bsz = batch.num_quadruplets
+
+    def quad(t: Tensor) -> Tensor:  # (4B, ...) -> (B, 4, ...)
+        return t.reshape(bsz, 4, *t.shape[1:])
+
+    own, cross = viewpoint_scenes(quad(parts.local_vertices), quad(parts.rotations), quad(parts.translations))
+    style = dict(albedo=scene.albedo, background=background, antialias=antialias)
+    if viewpoint_consistency:
+        cameras = Camera.cat([batch.camera, partner_cameras(batch.camera, bsz)])
+        verts = torch.cat([own.flatten(0, 1), cross.flatten(0, 1)])
+    else:
+        cameras, verts = batch.camera, own.flatten(0, 1)
+    out = render_parts(renderer, verts, parts.faces, cameras, scene.light(cameras), **style)
+    halves = [RenderOutput(**{f.name: quad(getattr(out, f.name)[k * 4 * bsz:(k + 1) * 4 * bsz]) for f in fields(out)})
+              for k in range(2 if viewpoint_consistency else 1)]
+    return QuadrupletRender(halves[0], halves[1] if viewpoint_consistency else None, own)
+
+
+@dataclass
+class ObjectiveInputs:
+    """Everything the terms of the objective read, for ``B`` quadruplets (``4 B`` images).
+
+    Attributes:
+        batch: the quadruplets and their cameras.
+        pred: the network's predictions for the ``4 B`` images.
+        parts: their world-space parts (:class:`PartSet`, ``4 B`` images).
+        mask: ``(4 B, 1, H, W)`` the inputs' background mask ``b``.
+        targets: ``(B, 4, 3, H, W)`` the images compared with the renderings (background black with
+            ``losses.render_background: black``).
+        render: the renderings (:class:`QuadrupletRender`).
+        dihedral: the template's dihedral quadruples; ``smoothness_once``: see :func:`smoothness_term`.
+    """
+
+    batch: QuadrupletBatch
+    pred: Predictions
+    parts: PartSet
+    mask: Tensor
+    targets: Tensor
+    render: QuadrupletRender
+    dihedral: Tensor
+    smoothness_once: bool
+    _uv: Tensor | None = field(default=None, repr=False)
+
+    @property
+    def foreground(self) -> Tensor:
+        """``(B, 4, 1, H, W)`` 1 on the inputs' body pixels."""
+        return (1 - self.mask).view(self.batch.num_quadruplets, 4, *self.mask.shape[1:])
+
+    @property
+    def uv(self) -> Tensor:
+        """``(4 B, N V, 2)`` the own-viewpoint parts' vertices projected into their images, in pixels."""
+        if self._uv is None:
+            self._uv, _ = self.batch.camera.project(self.render.parts_own.flatten(0, 1).flatten(1, 2))
+        return self._uv
+
+
+def _partner(t: Tensor) -> Tensor:
+    return t[:, list(VIEW_PARTNER)]
+
+
+def _recon(x: ObjectiveInputs) -> Tensor:
+    own = reconstruction_loss(x.render.own.image, x.targets)
+    cross = None if x.render.cross is None else reconstruction_loss(x.render.cross.image, _partner(x.targets))
+    return viewpoint_reconstruction(own, cross)
+
+
+def _silhouette(x: ObjectiveInputs) -> Tensor:
+    own = silhouette_loss(x.render.own.alpha, x.foreground)
+    cross = None if x.render.cross is None else silhouette_loss(x.render.cross.alpha, _partner(x.foreground))
+    return viewpoint_reconstruction(own, cross)
+
+
+def _hidden(x: ObjectiveInputs) -> Tensor:
+    part_id = x.render.own.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
+    n, v = x.parts.num_parts, x.parts.num_vertices
+    uncovered = x.foreground.flatten(0, 1)[:, 0] * (part_id < 0)
+    return hidden_part_pull(x.uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered)
+
+
+TERM_VALUES: dict[str, Callable[[ObjectiveInputs], Tensor]] = {
+    "recon": _recon,
+    "translation": lambda x: translation_loss(x.parts.translations.view(-1, 4, *x.parts.translations.shape[1:])),
+    "background": lambda x: background_loss(x.pred.maps.prob, x.mask),
+    "smoothness": lambda x: smoothness_term(x.pred.local_vertices, x.dihedral, x.batch.num_quadruplets,
+                                            x.smoothness_once),
+    "silhouette": _silhouette,
+    "chamfer": lambda x: silhouette_chamfer(x.uv, x.foreground.flatten(0, 1)),
+    "hidden": _hidden,
+}
+"""How the objective computes each term of :data:`cerberus_core.losses.LOSS_TERMS` from its inputs
+(per image or per quadruplet; averaged over the batch)."""
+
+ALWAYS_LOGGED = frozenset({"recon", "translation", "background", "smoothness", "silhouette"})
+"""Terms computed and logged even at weight 0 (cheap); the others (the pulls) only when weighted."""
+
+
 def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: QuadrupletBatch, scene: SceneSetup,
                          losses: LossConfig, generator: torch.Generator | None = None, *,
                          smoothness_once: bool = False, antialias: bool = False) -> ObjectiveOutput:
@@ -123,67 +242,25 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
             gradients for the reconstruction and silhouette terms.
     """
     core = unwrap(model)
-    bsz = batch.num_quadruplets
     images = batch.images.flatten(0, 1)  # (4B, 3, H, W)
-    mix = quadruplet_mixer(generator) if losses.pose_consistency else None
-    pred: Predictions = model(images, mix)
-    r_world, t_world, _, _ = core.world_pose(pred, batch.camera)
-    n, v = pred.local_vertices.shape[1:3]
-    local = pred.local_vertices.view(bsz, 4, n, v, 3)
-    rot = r_world.view(bsz, 4, n, 3, 3)
-    trans = t_world.view(bsz, 4, n, 3)
-
-    if not all(bool(torch.isfinite(t.detach()).all()) for t in (local, rot, trans)):
+    pred: Predictions = model(images, quadruplet_mixer(generator) if losses.pose_consistency else None)
+    parts = core.pose(pred, batch.camera)  # world frame, 4B images
+    if not all(bool(torch.isfinite(t.detach()).all()) for t in (parts.local_vertices, parts.rotations,
+                                                                 parts.translations)):
         nan = images.new_tensor(float("nan"))
         return ObjectiveOutput(nan, {k: nan for k in (*TERMS, "total")}, False)
 
     mask = background_mask(images, scene.background, losses.background_tolerance)  # (4B, 1, H, W)
-    targets = batch.images
-    bg_colour = scene.background
-    if losses.render_background == "black":
-        targets = (batch.images * (1 - mask.view(bsz, 4, 1, *mask.shape[-2:])))
-        bg_colour = (0.0, 0.0, 0.0)
-
-    own, cross = viewpoint_scenes(local, rot, trans)
-    style = dict(albedo=scene.albedo, background=bg_colour, antialias=antialias)
-    if losses.viewpoint_consistency:
-        cameras = Camera.cat([batch.camera, partner_cameras(batch.camera, bsz)])
-        verts = torch.cat([own.flatten(0, 1), cross.flatten(0, 1)])
-        out = render_parts(renderer, verts, core.faces, cameras, scene.light(cameras), **style)
-        rendered_own, rendered_cross = out.image.view(2, bsz, 4, *out.image.shape[1:]).unbind(0)
-        alpha_own, alpha_cross = out.alpha.view(2, bsz, 4, *out.alpha.shape[1:]).unbind(0)
-        loss_cross = reconstruction_loss(rendered_cross, targets[:, list(VIEW_PARTNER)])
-    else:
-        out = render_parts(renderer, own.flatten(0, 1), core.faces, batch.camera, scene.light(batch.camera), **style)
-        rendered_own, loss_cross = out.image.view(bsz, 4, *out.image.shape[1:]), None
-        alpha_own, alpha_cross = out.alpha.view(bsz, 4, *out.alpha.shape[1:]), None
-    loss_own = reconstruction_loss(rendered_own, targets)
-    foreground = (1 - mask).view(bsz, 4, *mask.shape[1:])  # (B, 4, 1, H, W)
-    sil_own = silhouette_loss(alpha_own, foreground)
-    sil_cross = None if alpha_cross is None else silhouette_loss(alpha_cross, foreground[:, list(VIEW_PARTNER)])
-    uv = None
-    if losses.chamfer != 0 or losses.hidden != 0:
-        uv, _ = batch.camera.project(own.flatten(0, 1).flatten(1, 2))  # (4B, N V, 2) pixels
-    # Both are Python loops over images: not computed when off.
-    chamfer = silhouette_chamfer(uv, foreground.flatten(0, 1)) if losses.chamfer != 0 else images.new_zeros(4 * bsz)
-    if losses.hidden != 0:
-        part_id = out.part_id[:4 * bsz]  # (4B, H, W) own viewpoints, -1 where no part
-        uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
-        hidden = hidden_part_pull(uv.view(4 * bsz, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered)
-    else:
-        hidden = images.new_zeros(4 * bsz)
-
-    values = {
-        "recon": viewpoint_reconstruction(loss_own, loss_cross).mean(),
-        "translation": translation_loss(trans).mean(),
-        "background": background_loss(pred.maps.prob, mask).mean(),
-        "smoothness": smoothness_term(pred.local_vertices, core.dihedral, bsz,
-                                      smoothness_once and losses.pose_consistency).mean(),
-        "silhouette": viewpoint_reconstruction(sil_own, sil_cross).mean(),
-        "chamfer": chamfer.mean(),
-        "hidden": hidden.mean(),
-    }
-    total = sum(getattr(losses, k) * values[k] for k in TERMS if getattr(losses, k) != 0)
+    black = losses.render_background == "black"
+    targets = batch.images * (1 - mask.view_as(batch.images[:, :, :1])) if black else batch.images
+    render = render_quadruplets(renderer, parts, batch, scene, (0.0, 0.0, 0.0) if black else scene.background,
+                                viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias)
+    inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
+                             smoothness_once and losses.pose_consistency)
+    values = {k: TERM_VALUES[k](inputs).mean() if k in ALWAYS_LOGGED or losses.weight(k) != 0
+              else images.new_zeros(()) for k in TERMS}
+    total = sum(losses.weight(k) * values[k] for k in TERMS if losses.weight(k) != 0)
     total = total if isinstance(total, Tensor) else images.new_zeros(())
     terms = {k: t.detach() for k, t in values.items()} | {"total": total.detach()}
-    return ObjectiveOutput(total, terms, bool(torch.isfinite(total.detach())), rendered_own.detach(), own.detach())
+    return ObjectiveOutput(total, terms, bool(torch.isfinite(total.detach())), render.own.image.detach(),
+                           render.parts_own.detach())
