@@ -126,3 +126,27 @@ def test_entry_points_discover_metrics(helpers):
     iou = voxel(parts, a, protocol="kato", resolution=32)
     assert isinstance(iou, float) and 0 < iou <= 1
     assert isinstance(eps["fscore"].load()(a, a, n_samples=1000), float)
+
+
+def test_clamped_parts_are_counted_in_the_result_the_batch_and_the_cli(tmp_path, helpers, capsys):
+    """--outside clamp: a part past the kato grid's corner is clamped, and every output says how many."""
+    helpers.box((-0.3, -0.3, -0.3), (0.3, 0.3, 0.3)).export(tmp_path / "gt.obj")
+    helpers.box((-0.3, -0.3, -0.3), (0.3, 0.3, 0.3)).export(tmp_path / "body.obj")
+    helpers.box((0.7, 0.7, 0.7), (0.8, 0.8, 0.8)).export(tmp_path / "corner.obj")  # wholly past a corner
+    (tmp_path / "pairs.csv").write_text("id,pred,gt\nc,body.obj;corner.obj,gt.obj\nplain,body.obj,gt.obj\n")
+    pairs = pairs_from_file(tmp_path / "pairs.csv")
+    res = run_batch(pairs, ["voxel_iou"], jobs=1, progress=False, outside="clamp")
+    assert [(r["voxel_iou"], r["clamped_parts"]) for r in res.rows] == [(1.0, 1), (1.0, 0)]
+    assert (res.summary["pairs_clamped"], res.summary["parts_clamped"]) == (1, 1)
+    args = ["batch", "--pairs", str(tmp_path / "pairs.csv"), "--jobs", "1", "--no-progress", "--outside", "clamp",
+            "--out", str(tmp_path / "o.json")]
+    assert main(args) == 0
+    assert "clamped: 1 pairs (1 prediction parts" in capsys.readouterr().out
+    assert json.loads((tmp_path / "o.json").read_text())["summary"]["parts_clamped"] == 1
+    pred = [str(tmp_path / "body.obj"), str(tmp_path / "corner.obj"), str(tmp_path / "gt.obj")]
+    assert main(["iou", *pred, "--outside", "clamp", "--json"]) == 0
+    out = capsys.readouterr()
+    assert json.loads(out.out)["clamped_parts"] == 1 and "1 prediction part(s) reached outside" in out.err
+    assert main(["iou", *pred]) == 2  # default: the kato grid's strictness, one line naming the part
+    assert "outside the kato grid" in capsys.readouterr().err
+

@@ -260,7 +260,9 @@ def _progress(total: int, enabled: bool):
 
 
 def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[str, Any]:
-    """Summary: pair counts, failures (id and error) and per-metric mean/median/min/max/count."""
+    """Summary: pair counts, failures (id and error), clamped predictions (``pairs_clamped``: pairs
+    with a prediction part clamped into the ``kato`` grid, ``parts_clamped``: such parts in all)
+    and per-metric mean/median/min/max/count."""
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = [r for r in rows if r.get("status") != "ok"]
     out: dict[str, Any] = {
@@ -269,6 +271,8 @@ def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[st
         "failed": len(failed),
         "failures": [{"id": r["id"], "error": r.get("error", "")} for r in failed],
         "pairs_with_warnings": sum(1 for r in rows if r.get("warnings")),
+        "pairs_clamped": sum(1 for r in ok if r.get("clamped_parts")),
+        "parts_clamped": int(sum(r.get("clamped_parts") or 0 for r in ok)),
         "metrics": {},
     }
     names = list(metrics)
