@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import stat
 import subprocess
 import sys
 from importlib.metadata import entry_points
@@ -150,3 +152,24 @@ def test_clamped_parts_are_counted_in_the_result_the_batch_and_the_cli(tmp_path,
     assert main(["iou", *pred]) == 2  # default: the kato grid's strictness, one line naming the part
     assert "outside the kato grid" in capsys.readouterr().err
 
+
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_results_get_the_permissions_of_a_plain_open(folders, tmp_path, umask):
+    """write_results is atomic (temporary file, then rename) but must not leave results 0600: new files
+    get 0666 less the umask, like open(); a replaced file keeps its mode."""
+    pred, gt = folders
+    res = run_batch(pairs_from_folders(pred, gt)[-1:], ["voxel_iou"], jobs=1, progress=False)
+    old = os.umask(umask)
+    try:
+        write_results(res, tmp_path / "r.json", tmp_path / "r.csv")
+        (tmp_path / "plain.txt").write_text("x")
+    finally:
+        os.umask(old)
+    plain = stat.S_IMODE((tmp_path / "plain.txt").stat().st_mode)
+    assert plain == 0o666 & ~umask
+    for name in ("r.json", "r.csv"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == plain, name
+    os.chmod(tmp_path / "r.json", 0o640)
+    write_results(res, tmp_path / "r.json", None)
+    assert stat.S_IMODE((tmp_path / "r.json").stat().st_mode) == 0o640
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
