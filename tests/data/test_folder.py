@@ -276,3 +276,27 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
         generate(preset_config("folder", "pairs", image_size=32, splits={"train": preset_config(
             "folder", "pairs").splits["train"]}), tmp_path / "ds2",
             source_options={"root": str(root), "test_fraction": 1.0}, progress=False, log=lambda s: None)
+
+
+@pytest.mark.parametrize("factor, unit", [(1000.0, "millimetres among metres"), (1e-2, "centimetres among metres")])
+def test_a_subject_mixing_units_is_refused_with_the_reason(tmp_path, factor, unit):
+    """One pose in millimetres among poses in metres used to set the subject's one scale, shrinking the
+    other poses 1000x (views that render empty). The folder source refuses it, naming file and factor."""
+    root = _figures(tmp_path / "m", poses=(1, 2, 3))
+    odd = root / "alice" / "pose2.ply"
+    mesh = trimesh.load(odd, process=False)
+    _export(odd, np.asarray(mesh.vertices) * factor, mesh.faces)
+    with pytest.raises(DatasetError) as info:
+        FolderSource(root, test_fraction=0.5)
+    msg = str(info.value)
+    assert str(odd) in msg and unit in msg and "re-export it" in msg and "\n" not in msg
+    assert ("larger" if factor > 1 else "smaller") in msg and "subject 'alice'" in msg
+    # Posing alone (the same figure in other poses, same unit) never trips it, nor units across subjects.
+    root2 = _figures(tmp_path / "ok", poses=(0, 1, 2, 3), subjects=1)
+    carol = root2 / "bob"
+    _figures(tmp_path / "tmp", poses=(1, 2), subjects=2)
+    (tmp_path / "tmp" / "bob").rename(carol)
+    for f in carol.iterdir():
+        m = trimesh.load(f, process=False)
+        _export(f, np.asarray(m.vertices) * 1000.0, m.faces)  # a whole subject in millimetres is fine
+    FolderSource(root2, test_fraction=0.5)
