@@ -1,6 +1,8 @@
 """Bring your own meshes: a folder of posed meshes becomes a dataset."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import trimesh
@@ -276,3 +278,49 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
         generate(preset_config("folder", "pairs", image_size=32, splits={"train": preset_config(
             "folder", "pairs").splits["train"]}), tmp_path / "ds2",
             source_options={"root": str(root), "test_fraction": 1.0}, progress=False, log=lambda s: None)
+
+
+@pytest.mark.parametrize("factor, unit", [(1000.0, "millimetres among metres"), (1e-2, "centimetres among metres")])
+def test_a_subject_mixing_units_is_refused_with_the_reason(tmp_path, factor, unit):
+    """One pose in millimetres among poses in metres used to set the subject's one scale, shrinking the
+    other poses 1000x (views that render empty). The folder source refuses it, naming file and factor."""
+    root = _figures(tmp_path / "m", poses=(1, 2, 3))
+    odd = root / "alice" / "pose2.ply"
+    mesh = trimesh.load(odd, process=False)
+    _export(odd, np.asarray(mesh.vertices) * factor, mesh.faces)
+    with pytest.raises(DatasetError) as info:
+        FolderSource(root, test_fraction=0.5)
+    msg = str(info.value)
+    assert str(odd) in msg and unit in msg and "re-export it" in msg and "\n" not in msg
+    assert ("larger" if factor > 1 else "smaller") in msg and "subject 'alice'" in msg
+    # Posing alone (the same figure in other poses, same unit) never trips it, nor units across subjects.
+    root2 = _figures(tmp_path / "ok", poses=(0, 1, 2, 3), subjects=1)
+    carol = root2 / "bob"
+    _figures(tmp_path / "tmp", poses=(1, 2), subjects=2)
+    (tmp_path / "tmp" / "bob").rename(carol)
+    for f in carol.iterdir():
+        m = trimesh.load(f, process=False)
+        _export(f, np.asarray(m.vertices) * 1000.0, m.faces)  # a whole subject in millimetres is fine
+    FolderSource(root2, test_fraction=0.5)
+
+
+def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
+    """One subject at the default --test-fraction 0.3 gives round(0.3 x 1) = 0 test subjects. The hint
+    used to blame '--test-fraction 1', which empties the *train* split instead."""
+    root = _figures(tmp_path / "m", poses=(1, 2), subjects=1)
+    out = tmp_path / "ds"
+    generate(preset_config("folder", "pairs", image_size=32), out,
+             source_options={"root": str(root), "test_fraction": 0.3}, progress=False, log=lambda s: None)
+    with pytest.raises(DatasetError) as info:
+        ViewDataset(out)
+    msg = str(info.value)
+    assert "split 'test' is empty" in msg and "--test-fraction 0.3 of its 1 subject gives round(0.3 x 1) = 0 test" in msg
+    assert "--test-fraction 1 (every subject a test subject" in msg and "made with --test-fraction 1" not in msg
+    from cerberus_core.datasets.readers import empty_split_hint
+
+    manifest = json.loads((out / "manifest.json").read_text())
+    three = dict(manifest, subjects=manifest["subjects"] * 3, source={"options": {"test_fraction": 0.0}})
+    assert "--test-fraction 0 of its 3 subjects gives 0 (a fraction of 0) test subjects" in empty_split_hint(three,
+                                                                                                              "test")
+    train = dict(manifest, source={"options": {"test_fraction": 1.0}})
+    assert "(its only subject is a test subject, --test-fraction 1)" in empty_split_hint(train, "train", out)

@@ -157,3 +157,34 @@ def test_corruption_is_detected(pairs_dataset, tmp_path):
     (ds / shard["files"]["quads"]["path"]).unlink()
     _, problems = verify_dataset(ds, checksums=False)
     assert any("missing" in p for p in problems)
+
+
+def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsys):
+    """A view with no body on the background (e.g. a pose shrunk to nothing by a unit mix-up) is a
+    problem of `cerberus data check`, naming the file, subject, pose and view; sound views are not."""
+    from cerberus_core.cli import main
+    from cerberus_core.datasets.format import sha256_file
+
+    root = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, root)
+    assert verify_dataset(root)[1] == []
+    manifest = json.loads((root / MANIFEST).read_text())
+    shard = manifest["splits"]["test"]["shards"][0]
+    path = resolve_inside(root, shard["files"]["images"]["path"])
+    images = np.load(path)
+    views = np.load(resolve_inside(root, shard["files"]["views"]["path"]))
+    background = np.round(np.asarray(manifest["scene"]["background"]) * 255).astype(np.uint8)
+    images[2] = background[:, None, None]  # the view as rendered when the body is out of the frame
+    images[3] = background[:, None, None]
+    np.save(path, images)
+    shard["files"]["images"]["sha256"] = sha256_file(path)  # a consistent dataset: only the views are wrong
+    (root / MANIFEST).write_text(json.dumps(manifest))
+    _, problems = verify_dataset(root)
+    assert len(problems) == 1
+    subject = manifest["subjects"][int(views[2]["subject"])]["name"]
+    assert str(path) in problems[0] and "2 of" in problems[0] and "render empty" in problems[0]
+    assert f"image 2: subject {subject} pose {int(views[2]['pose'])}" in problems[0]
+    assert "0 foreground pixels" in problems[0] and "regenerate" in problems[0]
+    assert main(["data", "check", str(root)]) == 1
+    out = capsys.readouterr()
+    assert "render empty" in out.err and "1 problem(s)" in out.out

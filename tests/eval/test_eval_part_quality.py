@@ -104,3 +104,34 @@ def test_summary_marks_unused_parts():
     assert s["unused_parts"] == [2] and s["parts"][2]["label"] is None
     with pytest.raises(ValueError, match="expected a"):
         acc.add(np.zeros((2, 2)))
+
+
+def test_data_without_part_labels_says_so_instead_of_scoring_one(primitive_bodies, tmp_path):
+    """A mesh folder without parts.npy has one ground-truth part ('body'): every learned part's
+    majority is that part, so consistency and segmentation IoU used to come out 1.0 for any model."""
+    from cerberus_core.bodies.folder import FolderSource
+    from cerberus_core.eval.report import markdown_report
+
+    for i, body in enumerate(primitive_bodies[:3]):  # real meshes, no part labels
+        (tmp_path / "meshes" / "subject").mkdir(parents=True, exist_ok=True)
+        trimesh.Trimesh(body.vertices, body.faces, process=False).export(tmp_path / "meshes" / "subject" / f"p{i}.ply")
+    source = FolderSource(tmp_path / "meshes", test_fraction=0.0)
+    bodies = source.bodies(source.subjects("train", None, 0)[0], [0, 1, 2])
+    assert bodies[0].part_names == ["body"]
+    rng = np.random.default_rng(1)
+    sphere = trimesh.creation.icosphere(1)
+    acc = PartQualityAccumulator(4, bodies[0].part_names)
+    for body in bodies:  # a nonsense prediction: four random blobs
+        pv = np.asarray(sphere.vertices)[None] * 0.1 + rng.uniform(-0.4, 0.4, size=(4, 1, 3))
+        acc.add(image_overlap(pv, np.asarray(sphere.faces), body.vertices, body.faces, body.vertex_parts, 1),
+                body.subject)
+    s = acc.summary()
+    assert s["part_labels"] is False and "no part labels" in s["note"]
+    assert s["consistency"] is None and s["mean_segmentation_iou"] is None and s["mean_entropy_bits"] is None
+    assert s["parts"] == [] and s["segmentation_iou"] == {} and s["images"] == 3
+    report = markdown_report({"protocol": "kato", "resolution": 32, "seconds": 0.0,
+                              "standard": {"mean": 0.5, "count": 3, "per_group": {}}, "hard": None,
+                              "canonical": {}, "part_quality": s, "part_visibility": None, "records": []})
+    assert "Not scored: no part labels" in report and "Consistency" not in report
+    labelled = _summary(primitive_bodies, _parts)  # with labels nothing changes
+    assert labelled["part_labels"] is True and labelled["note"] is None and labelled["consistency"] == 1.0

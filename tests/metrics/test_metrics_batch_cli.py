@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import stat
 import subprocess
 import sys
 from importlib.metadata import entry_points
@@ -126,3 +128,48 @@ def test_entry_points_discover_metrics(helpers):
     iou = voxel(parts, a, protocol="kato", resolution=32)
     assert isinstance(iou, float) and 0 < iou <= 1
     assert isinstance(eps["fscore"].load()(a, a, n_samples=1000), float)
+
+
+def test_clamped_parts_are_counted_in_the_result_the_batch_and_the_cli(tmp_path, helpers, capsys):
+    """--outside clamp: a part past the kato grid's corner is clamped, and every output says how many."""
+    helpers.box((-0.3, -0.3, -0.3), (0.3, 0.3, 0.3)).export(tmp_path / "gt.obj")
+    helpers.box((-0.3, -0.3, -0.3), (0.3, 0.3, 0.3)).export(tmp_path / "body.obj")
+    helpers.box((0.7, 0.7, 0.7), (0.8, 0.8, 0.8)).export(tmp_path / "corner.obj")  # wholly past a corner
+    (tmp_path / "pairs.csv").write_text("id,pred,gt\nc,body.obj;corner.obj,gt.obj\nplain,body.obj,gt.obj\n")
+    pairs = pairs_from_file(tmp_path / "pairs.csv")
+    res = run_batch(pairs, ["voxel_iou"], jobs=1, progress=False, outside="clamp")
+    assert [(r["voxel_iou"], r["clamped_parts"]) for r in res.rows] == [(1.0, 1), (1.0, 0)]
+    assert (res.summary["pairs_clamped"], res.summary["parts_clamped"]) == (1, 1)
+    args = ["batch", "--pairs", str(tmp_path / "pairs.csv"), "--jobs", "1", "--no-progress", "--outside", "clamp",
+            "--out", str(tmp_path / "o.json")]
+    assert main(args) == 0
+    assert "clamped: 1 pairs (1 prediction parts" in capsys.readouterr().out
+    assert json.loads((tmp_path / "o.json").read_text())["summary"]["parts_clamped"] == 1
+    pred = [str(tmp_path / "body.obj"), str(tmp_path / "corner.obj"), str(tmp_path / "gt.obj")]
+    assert main(["iou", *pred, "--outside", "clamp", "--json"]) == 0
+    out = capsys.readouterr()
+    assert json.loads(out.out)["clamped_parts"] == 1 and "1 prediction part(s) reached outside" in out.err
+    assert main(["iou", *pred]) == 2  # default: the kato grid's strictness, one line naming the part
+    assert "outside the kato grid" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_results_get_the_permissions_of_a_plain_open(folders, tmp_path, umask):
+    """write_results is atomic (temporary file, then rename) but must not leave results 0600: new files
+    get 0666 less the umask, like open(); a replaced file keeps its mode."""
+    pred, gt = folders
+    res = run_batch(pairs_from_folders(pred, gt)[-1:], ["voxel_iou"], jobs=1, progress=False)
+    old = os.umask(umask)
+    try:
+        write_results(res, tmp_path / "r.json", tmp_path / "r.csv")
+        (tmp_path / "plain.txt").write_text("x")
+    finally:
+        os.umask(old)
+    plain = stat.S_IMODE((tmp_path / "plain.txt").stat().st_mode)
+    assert plain == 0o666 & ~umask
+    for name in ("r.json", "r.csv"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == plain, name
+    os.chmod(tmp_path / "r.json", 0o640)
+    write_results(res, tmp_path / "r.json", None)
+    assert stat.S_IMODE((tmp_path / "r.json").stat().st_mode) == 0o640
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]

@@ -228,3 +228,41 @@ def test_scorer_entry_point_clamps_into_the_kato_cube_and_caches_ground_truths()
     assert (scorer.cache.misses, scorer.cache.hits) == (1, 1)
     with pytest.raises(Exception, match="unknown protocol"):
         VoxelIoUScorer("foo")
+
+
+DIRECTIONS = [(1, 0, 0), (0, -1, 0), (1, 1, 0), (-1, 0, -1), (1, 1, 1), (-1, -1, -1)]
+
+
+@pytest.mark.parametrize("direction", DIRECTIONS, ids=["face+x", "face-y", "edge+x+y", "edge-x-z", "corner+", "corner-"])
+def test_a_part_outside_the_kato_grid_is_clamped_by_one_rule_in_every_direction(helpers, direction):
+    """A part straddling a face, an edge or a corner of the kato grid keeps exactly its voxels inside
+    the grid (oracle: the part voxelized whole on a grown lattice of the same pitch, then cropped)."""
+    d = np.asarray(direction, float)
+    part = helpers.box(0.5 * d - 0.2, 0.5 * d + 0.2)  # half (or a quarter, an eighth) inside the grid
+    clamped = voxelize(part, outside="clamp")
+    grown = voxelize(part, frame=Frame(31.0, (16.0, 16.0, 16.0), 32, False))  # same map, grid may grow
+    assert clamped.clamped == 1 and clamped.origin == (0, 0, 0) and clamped.occupancy.shape == (32,) * 3
+    assert np.array_equal(clamped.occupancy, grown.dense())
+    # The same box counted by hand: lattice extent [31 * (0.5 d - 0.2) + 16, ...], cut to [0, 32) per axis.
+    lo_p, hi_p = 31 * (0.5 * d - 0.2) + 16, 31 * (0.5 * d + 0.2) + 16
+    expected = np.prod(np.minimum(np.floor(hi_p), 31) - np.maximum(np.floor(lo_p), 0) + 1)
+    assert clamped.count == expected
+    with pytest.raises(Exception, match="outside the kato grid"):
+        voxelize(part)  # the default stays the reference's strictness
+
+
+@pytest.mark.parametrize("direction", DIRECTIONS[::2], ids=["face", "edge", "corner"])
+def test_scorer_keeps_the_prediction_when_a_part_lies_wholly_past_a_face_edge_or_corner(helpers, direction):
+    """Before: a part wholly past an edge or a corner collapsed to a line or a point when its vertices
+    were clamped, so the whole prediction was rejected (IoU 0); past a face it became a slab of false
+    voxels. Now such a part adds no voxel, in every direction alike, and is counted."""
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    gt = helpers.box((-0.3, -0.3, -0.3), (0.3, 0.3, 0.3))
+    gt_pair = (np.asarray(gt.vertices), np.asarray(gt.faces))
+    far = helpers.box(0.75 * np.asarray(direction) - 0.05, 0.75 * np.asarray(direction) + 0.05)
+    scorer = VoxelIoUScorer("kato", 32)
+    iou, clamped = scorer([gt_pair, (np.asarray(far.vertices), np.asarray(far.faces))], gt_pair)
+    assert (iou, clamped) == (1.0, 1)
+    iou, clamped = scorer([gt_pair], gt_pair)
+    assert (iou, clamped) == (1.0, 0)

@@ -7,7 +7,7 @@ Quick start::
     iou = voxel_iou("pred.ply", "gt.ply", protocol="gt_bbox", resolution=64)
 """
 
-from .api import METRICS, chamfer_l2, evaluate_pair, fscore, inspect_mesh, voxel_iou, voxelize
+from .api import METRICS, chamfer_l2, evaluate_pair, fscore, inspect_mesh, voxel_iou, voxel_iou_clamped, voxelize
 from .cache import GridCache
 from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
 from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
@@ -36,5 +36,6 @@ __all__ = [
     "load_parts",
     "make_frame",
     "voxel_iou",
+    "voxel_iou_clamped",
     "voxelize",
 ]

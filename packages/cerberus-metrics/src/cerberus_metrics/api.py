@@ -26,6 +26,7 @@ from .voxelize import VoxelGrid, grid_iou, voxelize_meshes
 __all__ = [
     "voxelize",
     "voxel_iou",
+    "voxel_iou_clamped",
     "grid_iou",
     "chamfer_l2",
     "fscore",
@@ -48,6 +49,7 @@ def voxelize(
     check_self_intersections: bool | str = True,
     open_mesh: str = "warn",
     name: str = "mesh",
+    outside: str = "error",
 ) -> VoxelGrid:
     """Voxelize a mesh (or the union of parts) into a solid occupancy grid.
 
@@ -59,7 +61,12 @@ def voxelize(
     fill: False returns only the surface voxels (``surface``-rule protocols).
     cache: a :class:`GridCache`; the key hashes the mesh content and all options.
     open_mesh: ``"warn"`` | ``"close"`` | ``"error"`` for non-watertight meshes (see docs).
-    name: how messages name this mesh. Returns a :class:`VoxelGrid`.
+    name: how messages name this mesh.
+    outside: ``"error"`` (default) | ``"clamp"``: what the ``kato`` protocol does with a part reaching
+    outside its grid ``[0, R)^3`` (``[-16/31, 16/31]^3`` mesh units at R = 32). ``"clamp"`` is one rule
+    for faces, edges and corners alike: the part is voxelized whole and its voxels outside the grid
+    are dropped (a part wholly outside adds no voxel). Returns a :class:`VoxelGrid` whose ``clamped``
+    counts the parts so clamped.
     """
     proto = get_protocol(protocol)
     key = None
@@ -72,6 +79,7 @@ def voxelize(
             fill=fill,
             self_intersections=check_self_intersections,
             open_mesh=open_mesh,
+            **({"outside": outside} if outside != "error" else {}),  # keys of existing caches stay valid
         )
         hit = cache.get(key)
         if hit is not None:
@@ -83,13 +91,36 @@ def voxelize(
         parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh)
         if frame is None:
             frame = make_frame(proto, resolution, np.concatenate([p.vertices for p in parts]))
-        grid = voxelize_meshes(parts, proto, frame, fill=fill)
+        grid = voxelize_meshes(parts, proto, frame, fill=fill, outside=outside)
     messages = tuple(str(w.message) for w in caught if issubclass(w.category, MeshQualityWarning))
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if cache is not None and key is not None:
         cache.put(key, CachedGrid(grid, messages))
     return grid
+
+
+def voxel_iou_clamped(
+    pred: Any,
+    gt: Any,
+    protocol: str = "kato",
+    resolution: int = 32,
+    *,
+    cache: GridCache | None = None,
+    check_self_intersections: bool | str = True,
+    open_mesh: str = "warn",
+    outside: str = "clamp",
+) -> tuple[float, int]:
+    """:func:`voxel_iou` that also says how many prediction parts were clamped into the grid.
+
+    outside: for the prediction only (see :func:`voxelize`; default ``"clamp"``); a ground truth
+    outside the ``kato`` grid is always an error, since it is a data problem, not a score.
+    Returns ``(iou in [0, 1], number of prediction parts clamped)``.
+    """
+    opts = dict(check_self_intersections=check_self_intersections, open_mesh=open_mesh)
+    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", **opts)
+    p = voxelize(pred, protocol, resolution, frame=g.frame, name="pred", outside=outside, **opts)
+    return grid_iou(p, g), p.clamped
 
 
 def voxel_iou(
@@ -101,17 +132,18 @@ def voxel_iou(
     cache: GridCache | None = None,
     check_self_intersections: bool | str = True,
     open_mesh: str = "warn",
+    outside: str = "error",
 ) -> float:
     """Voxel IoU |P & G| / |P | G| between a prediction (mesh or list of parts) and a ground truth.
 
     protocol/resolution: see :func:`voxelize`; the default is the paper's ``kato`` at 32^3.
     cache: optional :class:`GridCache` for ground-truth grids (keyed by content hash).
+    outside: ``"error"`` | ``"clamp"`` for prediction parts outside the ``kato`` grid (see
+    :func:`voxelize`); :func:`voxel_iou_clamped` and :func:`evaluate_pair` also report the count.
     Returns a float in [0, 1].
     """
-    opts = dict(check_self_intersections=check_self_intersections, open_mesh=open_mesh)
-    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", **opts)
-    p = voxelize(pred, protocol, resolution, frame=g.frame, name="pred", **opts)
-    return grid_iou(p, g)
+    return voxel_iou_clamped(pred, gt, protocol, resolution, cache=cache, outside=outside,
+                             check_self_intersections=check_self_intersections, open_mesh=open_mesh)[0]
 
 
 def _distances(pred: Any, gt: Any, n_samples: int, seed: int, normalize: bool) -> PointDistances:
@@ -158,11 +190,15 @@ def evaluate_pair(
     cache: GridCache | None = None,
     check_self_intersections: bool | str = True,
     open_mesh: str = "warn",
+    outside: str = "error",
 ) -> dict[str, float]:
     """Several metrics for one pair; surfaces are sampled once for Chamfer and F-score.
 
-    Returns ``{"voxel_iou": .., "chamfer_l2": .., "fscore": .., "precision": .., "recall": ..}``
-    restricted to the requested metrics (precision/recall come with fscore).
+    outside: ``"error"`` | ``"clamp"`` for prediction parts outside the ``kato`` grid (see
+    :func:`voxelize`; Chamfer and F-score use the meshes as they are).
+    Returns ``{"voxel_iou": .., "clamped_parts": .., "chamfer_l2": .., "fscore": .., "precision": ..,
+    "recall": ..}`` restricted to the requested metrics (precision/recall come with fscore,
+    ``clamped_parts``, the number of prediction parts clamped into the grid, with voxel_iou).
     """
     metrics = list(metrics)
     unknown = sorted(set(metrics) - set(METRICS))
@@ -170,7 +206,7 @@ def evaluate_pair(
         raise MeshInputError(f"unknown metric(s) {unknown}; choose from {list(METRICS)}")
     out: dict[str, float] = {}
     if "voxel_iou" in metrics:
-        out["voxel_iou"] = voxel_iou(
+        out["voxel_iou"], out["clamped_parts"] = voxel_iou_clamped(
             pred,
             gt,
             protocol,
@@ -178,6 +214,7 @@ def evaluate_pair(
             cache=cache,
             check_self_intersections=check_self_intersections,
             open_mesh=open_mesh,
+            outside=outside,
         )
     if "chamfer_l2" in metrics or "fscore" in metrics:
         d = _distances(pred, gt, n_samples, seed, normalize)

@@ -24,7 +24,8 @@ import json
 import math
 import multiprocessing as mp
 import os
-import tempfile
+import secrets
+import stat
 import time
 import warnings
 from collections.abc import Iterable, Sequence
@@ -260,7 +261,9 @@ def _progress(total: int, enabled: bool):
 
 
 def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[str, Any]:
-    """Summary: pair counts, failures (id and error) and per-metric mean/median/min/max/count."""
+    """Summary: pair counts, failures (id and error), clamped predictions (``pairs_clamped``: pairs
+    with a prediction part clamped into the ``kato`` grid, ``parts_clamped``: such parts in all)
+    and per-metric mean/median/min/max/count."""
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = [r for r in rows if r.get("status") != "ok"]
     out: dict[str, Any] = {
@@ -269,6 +272,8 @@ def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[st
         "failed": len(failed),
         "failures": [{"id": r["id"], "error": r.get("error", "")} for r in failed],
         "pairs_with_warnings": sum(1 for r in rows if r.get("warnings")),
+        "pairs_clamped": sum(1 for r in ok if r.get("clamped_parts")),
+        "parts_clamped": int(sum(r.get("clamped_parts") or 0 for r in ok)),
         "metrics": {},
     }
     names = list(metrics)
@@ -314,11 +319,40 @@ def _csv_text(rows: Sequence[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
+def _create_temp(target: Path) -> tuple[int, str]:
+    """Create a new temporary file beside ``target`` with the permissions ``open(target, "w")`` would
+    give: ``0o666`` less the umask (the kernel applies it) or, when ``target`` exists, its mode.
+
+    ``tempfile.mkstemp`` would create it ``0o600``, and :func:`os.replace` keeps the temporary
+    file's mode, so results would be readable by their owner only. Returns ``(fd, path)``.
+    """
+    try:
+        mode: int | None = stat.S_IMODE(os.stat(target).st_mode)
+    except OSError:
+        mode = None
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = str(target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp")
+        try:
+            fd = os.open(tmp, flags, 0o666)
+        except FileExistsError:
+            continue
+        if mode is not None:
+            try:
+                os.fchmod(fd, mode)
+            except OSError:  # e.g. a file system without modes: keep the umask's
+                pass
+        return fd, tmp
+    raise FileExistsError(f"no free temporary file name beside '{target}'")
+
+
 def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_path: str | os.PathLike | None) -> None:
     """Write ``{"summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ').
 
     Atomic: each file is written to a temporary file in its folder and moved into place only
-    when all requested files are complete, so a failure leaves no partial output.
+    when all requested files are complete, so a failure leaves no partial output. Permissions are
+    those of a plain ``open(path, "w")``: a new file gets ``0o666`` less the umask, a replaced
+    file keeps its mode.
     """
     todo = []
     if json_path:
@@ -328,7 +362,7 @@ def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_
     temps: list[str] = []
     try:
         for target, text in todo:
-            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+            fd, tmp = _create_temp(target)
             temps.append(tmp)
             with os.fdopen(fd, "w", newline="") as fh:
                 fh.write(text)

@@ -92,6 +92,7 @@ class GridCache:
             frame=np.asarray([g.frame.scale, *g.frame.shift, g.frame.resolution, g.frame.fixed], np.float64),
             protocol=np.asarray(g.protocol),
             messages=np.asarray(json.dumps(list(item.messages))),
+            clamped=np.asarray(g.clamped),
         )
         os.replace(tmp, path)  # atomic: concurrent workers never read half a file
 
@@ -104,5 +105,6 @@ class GridCache:
             occ = np.unpackbits(z["bits"], count=int(np.prod(shape))).astype(bool).reshape(shape)
             f = z["frame"]
             frame = Frame(float(f[0]), (float(f[1]), float(f[2]), float(f[3])), int(f[4]), bool(f[5]))
-            grid = VoxelGrid(occ, tuple(int(o) for o in z["origin"]), frame, str(z["protocol"]))
+            clamped = int(z["clamped"]) if "clamped" in z.files else 0  # files written before the field: 0
+            grid = VoxelGrid(occ, tuple(int(o) for o in z["origin"]), frame, str(z["protocol"]), clamped)
             return CachedGrid(grid, tuple(json.loads(str(z["messages"]))))

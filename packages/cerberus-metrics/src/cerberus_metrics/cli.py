@@ -102,6 +102,13 @@ def _add_voxel_options(p: argparse.ArgumentParser) -> None:
         default=32,
         help="voxels per grid side, 2..1024 (default: 32, the paper's)",
     )
+    p.add_argument(
+        "--outside",
+        choices=("error", "clamp"),
+        default="error",
+        help="kato protocol, a prediction part reaching outside the grid: fail (default), or clamp it to "
+        "the grid, one rule for faces, edges and corners (its voxels outside are dropped) and count it",
+    )
 
 
 def _add_sampling_options(p: argparse.ArgumentParser, threshold: bool) -> None:
@@ -248,7 +255,7 @@ def _run_pair(args: argparse.Namespace) -> int:
     metric = {"iou": "voxel_iou", "chamfer": "chamfer_l2", "fscore": "fscore"}[args.command]
     kwargs: dict[str, Any] = _mesh_kwargs(args)
     if metric == "voxel_iou":
-        kwargs.update(protocol=args.protocol, resolution=args.resolution)
+        kwargs.update(protocol=args.protocol, resolution=args.resolution, outside=args.outside)
     else:
         kwargs.update(n_samples=args.samples, seed=args.seed, normalize=args.normalize)
         if metric == "fscore":
@@ -259,6 +266,9 @@ def _run_pair(args: argparse.Namespace) -> int:
     notes = sorted({str(w.message) for w in caught})
     for n in notes:
         print(f"warning: {n}", file=sys.stderr)
+    if result.get("clamped_parts"):
+        print(f"warning: {result['clamped_parts']} prediction part(s) reached outside the {args.protocol} grid "
+              "and were clamped to it (their voxels outside were dropped)", file=sys.stderr)
     if args.json:
         settings = {k: v for k, v in kwargs.items()}
         print(json.dumps({"pred": args.meshes[:-1], "gt": gt, **result, "settings": settings, "warnings": notes}))
@@ -323,6 +333,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         protocol=args.protocol,
         resolution=args.resolution,
+        outside=args.outside,
         n_samples=args.samples,
         seed=args.seed,
         threshold=args.threshold,
@@ -336,6 +347,9 @@ def _run_batch(args: argparse.Namespace) -> int:
     else:
         print(f"pairs: {s['pairs']}  succeeded: {s['succeeded']}  failed: {s['failed']}  "
               f"with warnings: {s['pairs_with_warnings']}")
+        if s["pairs_clamped"]:
+            print(f"clamped: {s['pairs_clamped']} pairs ({s['parts_clamped']} prediction parts reached outside the "
+                  f"{args.protocol} grid; their voxels outside were dropped)")
         for m, st in s["metrics"].items():
             if st["count"]:
                 print(f"{m}: mean {st['mean']:.6f}  median {st['median']:.6f}  count {st['count']}")

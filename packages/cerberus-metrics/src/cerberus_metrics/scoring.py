@@ -5,9 +5,11 @@ holds what such a loop needs and what only this package knows:
 
 * the ground-truth grids, in a :class:`~cerberus_metrics.cache.GridCache` (memory by default), so
   the views of one pose voxelize their shared ground truth once;
-* the protocol's grid: a prediction leaving a fixed-frame protocol's box (``kato``:
-  ``[-0.5, 0.5]^3``) is clamped into it (its outside bits pressed onto the box's faces, which is
-  what voxelizing only inside the grid amounts to) and reported as clipped, instead of raising;
+* the protocol's grid: a prediction part leaving a fixed-frame protocol's grid (``kato``: ``[0, R)^3``
+  in lattice units, ``[-16/31, 16/31]^3`` mesh units at R = 32) is clamped to it by one rule in every
+  direction (faces, edges and corners alike): the part is voxelized whole and its voxels outside the
+  grid are dropped (a part wholly outside adds none). The scorer returns how many parts were clamped
+  instead of raising;
 * quiet predictions: mesh-quality notes on predicted parts (self-intersections, open parts) would
   flood a log, so the self-intersection check is off and quality warnings are silenced.
 """
@@ -20,19 +22,16 @@ from typing import Any
 
 import numpy as np
 
-from .api import voxel_iou
+from .api import voxel_iou_clamped
 from .cache import GridCache
 from .io import MeshQualityWarning
 from .protocols import check_resolution, get_protocol
 
-__all__ = ["VoxelIoUScorer", "UNIT_HALF_EXTENT"]
-
-UNIT_HALF_EXTENT = 0.5
-"""Half-side of the fixed box of ``unit``-frame protocols (``kato``), in mesh units."""
+__all__ = ["VoxelIoUScorer"]
 
 
 class VoxelIoUScorer:
-    """``scorer(pred_parts, gt) -> (iou, clipped)``.
+    """``scorer(pred_parts, gt) -> (iou, clamped)``.
 
     Args:
         protocol: a protocol name (:data:`~cerberus_metrics.protocols.PROTOCOLS`).
@@ -49,30 +48,18 @@ class VoxelIoUScorer:
         self.resolution = int(check_resolution(resolution))
         self.cache = cache if isinstance(cache, GridCache) else GridCache(cache)
 
-    def clip(self, parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
-        """Clamp ``(vertices, faces)`` parts into the protocol's fixed box (other frames: unchanged)."""
-        if get_protocol(self.protocol).frame != "unit":
-            return parts, False
-        out, clipped = [], False
-        for v, f in parts:
-            v = np.asarray(v)
-            if v.size and np.abs(v).max() > UNIT_HALF_EXTENT:
-                v = np.clip(v, -UNIT_HALF_EXTENT, UNIT_HALF_EXTENT)
-                clipped = True
-            out.append((v, f))
-        return out, clipped
-
-    def __call__(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> tuple[float, bool]:
-        """Voxel IoU of the union of ``pred_parts`` (``(vertices (V, 3), faces (F, 3))`` pairs)
-        against ``gt`` (any mesh input of :func:`~cerberus_metrics.api.voxel_iou`).
+    def __call__(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> tuple[float, int]:
+        """Voxel IoU of the union of ``pred_parts`` (``(vertices (V, 3), faces (F, 3))`` pairs, mesh
+        units) against ``gt`` (any mesh input of :func:`~cerberus_metrics.api.voxel_iou`).
 
         Returns:
-            ``(iou, clipped)``. Raises :class:`~cerberus_metrics.io.MeshInputError` where a mesh
-            cannot be scored.
+            ``(iou, clamped)``: iou in [0, 1]; clamped, the number of parts that reached outside a
+            fixed-frame protocol's grid and were clamped to it (0 for none; see the module
+            docstring). Raises :class:`~cerberus_metrics.io.MeshInputError` where a mesh cannot be
+            scored.
         """
-        parts, clipped = self.clip(pred_parts)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeshQualityWarning)
-            iou = voxel_iou(parts, gt, self.protocol, self.resolution, cache=self.cache,
-                            check_self_intersections=False)
-        return float(iou), clipped
+            iou, clamped = voxel_iou_clamped(pred_parts, gt, self.protocol, self.resolution, cache=self.cache,
+                                             check_self_intersections=False, outside="clamp")
+        return float(iou), int(clamped)

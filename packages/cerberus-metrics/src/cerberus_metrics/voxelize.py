@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .io import Mesh, MeshInputError, MeshQualityWarning
-from .protocols import Frame, Protocol, lattice_box
+from .protocols import MAX_GRID_VOXELS, Frame, Protocol, lattice_box
 
 __all__ = [
     "VoxelGrid",
@@ -41,12 +41,20 @@ __all__ = [
     "center_occupancy",
     "voxelize_meshes",
     "grid_iou",
+    "OUTSIDE",
 ]
+
+OUTSIDE = ("error", "clamp")
+"""What a fixed-frame protocol (``kato``) does with a part that reaches outside its grid ``[0, R)^3``:
+``"error"`` raises :class:`MeshInputError` naming the part; ``"clamp"`` applies one rule in every
+direction (faces, edges and corners alike): the part is voxelized whole, then its voxels outside the
+grid are dropped, and the grid counts it in :attr:`VoxelGrid.clamped`."""
 
 # Ray axis -> the (u, w) axes of its lattice lines, in the order the reference kernel uses
 # ("y", "x"); this only matters for floating-point rounding of the barycentric test.
 _RAY_AXES = {0: (2, 1), 1: (0, 2), 2: (0, 1)}
 _MAX_CANDIDATES = 1 << 22  # (triangle, line) pairs per vectorised chunk
+_MAX_BATCH_VOXELS = 1 << 25  # padded voxels up to which parts are flood-filled as one batch
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,12 +65,15 @@ class VoxelGrid:
     frame: the mesh-to-lattice map (its ``pitch`` is the voxel edge in mesh units).
     protocol: protocol name. For the ``kato`` protocol origin is (0, 0, 0) and the
     shape is (R, R, R); other frames may extend past ``[0, R)^3`` to hold a prediction.
+    clamped: number of parts (meshes) that reached outside a fixed frame's grid and were clamped
+    to it (``outside="clamp"``, see :data:`OUTSIDE`); 0 otherwise.
     """
 
     occupancy: np.ndarray
     origin: tuple[int, int, int]
     frame: Frame
     protocol: str
+    clamped: int = 0
 
     @property
     def count(self) -> int:
@@ -289,6 +300,8 @@ def _fill_parts(surfaces: list[np.ndarray]) -> list[np.ndarray]:
     if len(surfaces) == 1:
         return [fill_exterior(surfaces[0])]
     big = np.max([s.shape for s in surfaces], axis=0)
+    if len(surfaces) * float(np.prod(big)) > _MAX_BATCH_VOXELS:  # e.g. one clamped part far larger than the rest
+        return [fill_exterior(s) for s in surfaces]
     stack = np.zeros((len(surfaces), *big), bool)
     for i, s in enumerate(surfaces):
         stack[i, : s.shape[0], : s.shape[1], : s.shape[2]] = s
@@ -409,21 +422,66 @@ def _check_leak(mesh: Mesh, frame: Frame, solid_voxels: int) -> None:
         )
 
 
-def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True) -> VoxelGrid:
+def _clamp_boxes(bounds: np.ndarray, frame: Frame, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-part lattice boxes for ``outside="clamp"`` on a fixed frame.
+
+    bounds: (P, 2, 3) per-part (min, max) lattice coordinates. Returns ``(keep, s_lo, s_hi)``:
+    keep (P,) bool, the parts that can mark a voxel of the grid ``[0, R)^3`` (a part wholly
+    outside marks none, so it is not voxelized at all); s_lo, s_hi (P, 3) int64, each part's
+    whole box (bounding voxels plus one empty voxel of margin), not cut by the grid, so the
+    flood fill sees the part's closed surface before the grid crops it.
+    """
+    r = frame.resolution
+    # The surface rule marks voxel R-1 for a surface at lattice coordinate R (the ray on line R marks
+    # voxels R-1 and R), so a part starting exactly at R can still reach the grid; one past it cannot.
+    keep = ~((bounds[:, 1] < 0).any(axis=1) | (bounds[:, 0] > r).any(axis=1))
+    lo = np.floor(bounds[:, 0]) - 1
+    hi = np.floor(bounds[:, 1]) + 2
+    sizes = np.prod(hi - lo, axis=1)
+    too_big = keep & ~(sizes <= MAX_GRID_VOXELS)  # also catches non-finite sizes
+    if too_big.any():
+        k = int(np.flatnonzero(too_big)[0])
+        reach = float(np.abs(bounds[k] - r / 2).max()) / (r - 1)
+        raise MeshInputError(
+            f"{names[k]}: mesh reaches {reach:.3g} cube sizes from the centre of the [-0.5, 0.5]^3 cube, so "
+            f"clamping it to the grid would voxelize {sizes[k]:.3g} voxels (limit {MAX_GRID_VOXELS:.3g}); "
+            "such a mesh is not in the protocol's units: normalise it to [-0.5, 0.5]^3 or use protocol='gt_bbox'"
+        )
+    lo = np.where(keep[:, None], lo, 0).astype(np.int64)
+    hi = np.where(keep[:, None], hi, 1).astype(np.int64)
+    return keep, lo, hi
+
+
+def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,
+                    outside: str = "error") -> VoxelGrid:
     """Voxelize the union of cleaned parts: each part is voxelized alone, then OR-ed.
 
     parts: cleaned meshes in mesh coordinates. frame: from :func:`make_frame`.
     fill: False returns the ``surface`` rule's surface voxels without the flood fill.
+    outside: ``"error"`` | ``"clamp"``, what a fixed frame (``kato``) does with a part reaching
+    outside its grid ``[0, R)^3`` (see :data:`OUTSIDE`; other frames grow the grid instead).
     Issues :class:`MeshQualityWarning` for open/self-intersecting parts (see docs).
     """
     if not fill and protocol.rule != "surface":
         raise MeshInputError(f"fill=False applies to the surface rule only, not protocol {protocol.name!r}")
+    if outside not in OUTSIDE:
+        raise MeshInputError(f"outside={outside!r} is not a choice; use one of {list(OUTSIDE)}")
+    names = [p.name for p in parts]
     tris = [frame.to_lattice(p.triangles) for p in parts]
     bounds = np.array([_bounds(t.reshape(-1, 3)) for t in tris])  # (P, 2, 3)
-    lo, hi = lattice_box(frame, bounds, [p.name for p in parts])
-    # Each part gets its own box: its bounding voxels plus one empty voxel of margin, within [lo, hi).
-    s_lo = np.maximum(np.floor(bounds[:, 0]).astype(np.int64) - 1, lo)
-    s_hi = np.minimum(np.floor(bounds[:, 1]).astype(np.int64) + 2, hi)
+    r = frame.resolution
+    clamped = 0
+    if outside == "clamp" and frame.fixed:
+        clamped = int(((bounds[:, 0] < 0).any(axis=1) | (bounds[:, 1] > r).any(axis=1)).sum())
+    if clamped:
+        lo, hi = np.zeros(3, np.int64), np.full(3, r, np.int64)
+        keep, s_lo, s_hi = _clamp_boxes(bounds, frame, names)
+    else:
+        lo, hi = lattice_box(frame, bounds, names)
+        keep = np.ones(len(parts), bool)
+        # Each part gets its own box: its bounding voxels plus one empty voxel of margin, within [lo, hi).
+        s_lo = np.maximum(np.floor(bounds[:, 0]).astype(np.int64) - 1, lo)
+        s_hi = np.minimum(np.floor(bounds[:, 1]).astype(np.int64) + 2, hi)
     for mesh, b in zip(parts, bounds, strict=True):
         _warn_quality(mesh, protocol.rule)
         span = float((b[1] - b[0]).max())
@@ -435,18 +493,24 @@ def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fil
                 MeshQualityWarning,
                 stacklevel=3,
             )
-    if protocol.rule == "surface":
-        subs = kato_surface_parts(tris, s_lo, s_hi - s_lo)
+    idx = np.flatnonzero(keep)
+    kept = [parts[i] for i in idx]
+    k_tris, k_lo, k_hi = [tris[i] for i in idx], s_lo[idx], s_hi[idx]
+    subs: list[np.ndarray] = []
+    if not kept:
+        pass  # every part lies wholly outside the fixed grid: it contributes no voxel
+    elif protocol.rule == "surface":
+        subs = kato_surface_parts(k_tris, k_lo, k_hi - k_lo)
         if fill:
             subs = _fill_parts(subs)
-            for mesh, sub in zip(parts, subs, strict=True):
+            for mesh, sub in zip(kept, subs, strict=True):
                 _check_leak(mesh, frame, int(np.count_nonzero(sub)))
     else:
-        subs = [center_occupancy(t, a, b - a) for t, a, b in zip(tris, s_lo, s_hi, strict=True)]
+        subs = [center_occupancy(t, a, b - a) for t, a, b in zip(k_tris, k_lo, k_hi, strict=True)]
     occ = np.zeros(tuple(hi - lo), bool)
-    for sub, a in zip(subs, s_lo, strict=True):
-        _paste(occ, lo, sub, a, np.logical_or)
-    return VoxelGrid(occ, tuple(int(x) for x in lo), frame, protocol.name)
+    for sub, a in zip(subs, k_lo, strict=True):
+        _paste(occ, lo, sub, a, np.logical_or)  # pastes only the overlap: this crops clamped parts to the grid
+    return VoxelGrid(occ, tuple(int(x) for x in lo), frame, protocol.name, clamped)
 
 
 # --------------------------------------------------------------------------- IoU

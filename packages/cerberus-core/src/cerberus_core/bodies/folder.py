@@ -15,7 +15,18 @@ their orientation), in float64. Every subject is then normalised with
 :func:`~cerberus_core.bodies.body.normalise_subject` (one scale per subject, each pose centred on its
 bounding box), still in float64, and only the result is cast to float32: meshes in any unit (metres,
 millimetres, 1e6 or 1e-6 of them) give the same bodies. Meshes are read with ``process=False`` so
-vertex order, hence sidecar labels, is kept. Subjects are split by name: ``test_subjects``
+vertex order, hence sidecar labels, is kept.
+
+The poses of one subject must share a unit: a pose in millimetres among poses in metres is refused
+(:class:`~cerberus_core.errors.DatasetError` naming the file, the factor and the fix), not rescaled.
+One scale per subject is the normalisation's point: a subject's poses keep their true sizes relative
+to each other (a crouch is smaller than a stand, and the Hard Human test poses one pose's shapes into
+another), so normalising each pose by its own size would distort them, and guessing a per-pose unit
+factor could silently rescale a different body filed under the same subject. Kept as is, the odd
+pose would set the subject's scale and shrink the others to a few pixels (views that render empty).
+A pose's size is measured by the square root of its surface area, which articulation hardly changes;
+a pose more than :data:`UNIT_MISMATCH_FACTOR` times larger or smaller than the median of the
+subject's other poses is refused. Subjects are split by name: ``test_subjects``
 explicitly, or the last ``round(test_fraction * n)`` subjects in sorted order (at least one when
 there are two or more); ``test_fraction=1`` makes every subject a test subject (a test-only dataset,
 to evaluate a trained model on your meshes). Someone with SMPL or SMAL meshes reproduces the
@@ -43,6 +54,16 @@ from cerberus_core.errors import DatasetError
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
 """The file stem of a subject's canonical pose unless ``canonical=`` names another."""
+
+UNIT_MISMATCH_FACTOR = 1.5
+"""Largest ratio of one pose's size (the square root of its surface area) to the median of its
+subject's other poses before the folder source refuses the subject as mixing units. Posing changes a
+body's area by a few per cent; unit mix-ups are factors of 2.54 (inch, centimetre), 10, 25.4, 100,
+1000 or more."""
+
+_UNIT_FACTORS = ((2.54, "inches among centimetres"), (10.0, "millimetres among centimetres"),
+                 (25.4, "inches among millimetres"), (39.37, "inches among metres"),
+                 (100.0, "centimetres among metres"), (1000.0, "millimetres among metres"))
 
 DEFAULT_UP_AXIS = "+y"
 """The toolkit's world convention (:mod:`cerberus_core.bodies.body`): +Y up."""
@@ -127,6 +148,45 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, path: Path | str) -> Non
     if not (doubled > 1e-12).any():
         raise DatasetError(f"{path}: degenerate mesh: all {len(faces)} triangles have zero area (its vertices lie on "
                            "a line, or were written with too few digits for their unit); fix or remove the file")
+
+
+def surface_size(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """The square root of a mesh's surface area, in the mesh's length unit: a size that posing
+    hardly changes. ``vertices`` ``(V, 3)`` float64 (any unit, finite), ``faces`` ``(F, 3)`` int64.
+    Computed on the mesh scaled to a unit extent first, so huge or tiny units cannot overflow."""
+    used = vertices[np.unique(faces)]
+    lo = used.min(0)
+    extent = float((used.max(0) - lo).max())
+    tri = ((vertices - lo) / extent)[faces]
+    area = 0.5 * float(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
+    return extent * float(np.sqrt(area))
+
+
+def check_units(subject_dir: Path, files: Sequence[Path], sizes: Sequence[float]) -> None:
+    """Refuse a subject whose poses come in different units (module docstring).
+
+    Args:
+        subject_dir: the subject's folder (for the message).
+        files: its pose files; sizes: their :func:`surface_size` values (file units), one per file.
+    Raises:
+        DatasetError: naming the pose that differs most from the median of the others, the factor,
+            a likely unit pair, and the fix.
+    """
+    if len(sizes) < 2:
+        return
+    logs = np.log(np.asarray(sizes, dtype=np.float64))
+    k = int(np.argmax(np.abs(logs - np.median(logs))))
+    factor = float(np.exp(logs[k] - np.median(np.delete(logs, k))))
+    big = max(factor, 1.0 / factor)
+    if big <= UNIT_MISMATCH_FACTOR:
+        return
+    guess = next((f", {name}?" for f, name in _UNIT_FACTORS if abs(big / f - 1.0) < 0.1), "")
+    others = [f.name for i, f in enumerate(files) if i != k]
+    shown = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3 else "")
+    raise DatasetError(
+        f"{files[k]}: this pose is {big:.3g}x {'larger' if factor > 1 else 'smaller'} than the other poses of "
+        f"subject {subject_dir.name!r} ({shown}) by surface area, so it is in another unit{guess}; a subject's "
+        "poses share one scale, so re-export it in the others' unit (or move it to a subject folder of its own)")
 
 
 def _load_labels(path: Path, n_vertices: int, mesh: Path) -> np.ndarray:
@@ -238,10 +298,11 @@ class FolderSource(BodySource):
         labelled, unlabelled = [], []
         max_label = -1
         for subject, files in self._files.items():
-            boxes = []
+            boxes, sizes = [], []
             for f in files:
-                v, _ = self._load(f)
+                v, faces = self._load(f)
                 boxes.append((v.min(0), v.max(0)))
+                sizes.append(surface_size(v, faces))
                 self._tallest.append(int(np.argmax(np.abs(self._rotation.T @ (v.max(0) - v.min(0))))))
                 lab = self._label_file(f)
                 if lab is None:
@@ -252,6 +313,7 @@ class FolderSource(BodySource):
                     self._digest_file(digest, lab)
                 self._digest_file(digest, f)
             self._bbox[subject] = boxes
+            check_units(self.root / subject, files, sizes)
             try:
                 self._scale[subject], _ = normalise_subject([np.stack(b) for b in boxes], fill=FILL)
             except ValueError as exc:

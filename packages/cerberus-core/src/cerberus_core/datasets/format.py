@@ -197,8 +197,58 @@ def check_shard_files(root: Path, shard: dict, *, checksums: bool) -> list[str]:
     return problems
 
 
+EMPTY_VIEW_FRACTION = 1e-3
+"""A view whose foreground (pixels that differ from the scene's background colour) covers less than
+this fraction of the image (at least 1 pixel) renders empty: :func:`empty_views` flags it. Bodies fill
+most of the frame (:mod:`cerberus_core.datasets.scene`), so a sound view has thousands of times more."""
+
+
+def empty_views(root: Path, manifest: dict, split: str, shard: dict, chunk: int = 256) -> list[str]:
+    """One problem line for a shard with views that render empty (no body on the background), or none.
+
+    Args:
+        root: the dataset folder; manifest: its manifest (``scene.background``: RGB in [0, 1],
+            ``subjects``); split: the shard's split; shard: its manifest record, files already checked.
+        chunk: images compared at a time (``(chunk, 3, H, W)`` uint8 in memory).
+    Returns:
+        ``[]``, or one line naming the images file, how many views are empty, the first few (subject,
+        pose, view, foreground pixels) and the likely cause and fix.
+    """
+    files = shard.get("files", {})
+    if "images" not in files or "views" not in files:
+        return []
+    images = np.load(resolve_inside(root, files["images"]["path"]), mmap_mode="r", allow_pickle=False)
+    views = np.load(resolve_inside(root, files["views"]["path"]), mmap_mode="r", allow_pickle=False)
+    background = np.asarray(manifest.get("scene", {}).get("background", (1.0, 1.0, 1.0)), dtype=np.float64)
+    bg = np.round(np.clip(background, 0.0, 1.0) * 255).astype(np.int16).reshape(1, 3, 1, 1)
+    h, w = images.shape[-2:]
+    least = max(1, int(np.ceil(EMPTY_VIEW_FRACTION * h * w)))
+    counts = np.concatenate([(np.asarray(images[i:i + chunk], dtype=np.int16) != bg).any(axis=1).sum(axis=(1, 2))
+                             for i in range(0, len(images), chunk)]) if len(images) else np.zeros(0, np.int64)
+    bad = np.flatnonzero(counts < least)
+    if bad.size == 0:
+        return []
+    subjects = manifest.get("subjects", [])
+
+    def name(i: int) -> str:
+        v = views[i]
+        sub = subjects[int(v["subject"])] if 0 <= int(v["subject"]) < len(subjects) else {}
+        poses = sub.get("info", {}).get("poses") if isinstance(sub, dict) else None
+        pose = int(v["pose"])
+        pose_name = f" ({poses[pose]})" if isinstance(poses, list) and 0 <= pose < len(poses) else ""
+        return (f"image {i}: subject {sub.get('name', int(v['subject'])) if isinstance(sub, dict) else sub} "
+                f"pose {pose}{pose_name} view {int(v['view'])}, {int(counts[i])} foreground pixels")
+
+    shown = "; ".join(name(int(i)) for i in bad[:3]) + (f"; and {bad.size - 3} more" if bad.size > 3 else "")
+    return [f"{resolve_inside(root, files['images']['path'])}: {bad.size} of {len(images)} views of split {split!r} "
+            f"render empty (fewer than {least} of {h}x{w} pixels differ from the background): {shown}; the body is "
+            "outside the camera or a few pixels small (a pose in another unit than its subject's other poses?): "
+            "fix the meshes or the scene and regenerate the dataset"]
+
+
 def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False) -> tuple[dict | None, list[str]]:
-    """Check a whole dataset: manifest, completeness, every shard file (and its sha256).
+    """Check a whole dataset: manifest, completeness, every shard file (and its sha256), and views
+    that render empty (:func:`empty_views`, on shards whose files are sound).
 
     Returns:
         ``(manifest or None, problems)``; an empty problem list means the dataset is sound.
@@ -215,8 +265,9 @@ def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False
         from tqdm import tqdm
 
         it = tqdm(shards, desc="checking shards", unit="shard")
-    for _, shard in it:
-        problems.extend(check_shard_files(root, shard, checksums=checksums))
+    for split, shard in it:
+        found = check_shard_files(root, shard, checksums=checksums)
+        problems.extend(found or empty_views(root, manifest, split, shard))
     for name, info in manifest["splits"].items():
         if not split_complete(info):
             from cerberus_core.datasets.plan import generate_command  # plan builds on this module

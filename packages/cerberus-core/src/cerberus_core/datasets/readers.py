@@ -34,6 +34,47 @@ from cerberus_core.render.camera import Camera
 Tensor = torch.Tensor
 
 
+def empty_split_hint(manifest: dict, split: str, root: str | Path = "ROOT") -> str:
+    """Why ``split`` of a dataset has no subject and what to do, with the dataset's own counts.
+
+    Args:
+        manifest: the dataset's manifest (``subjects``: each with its ``splits``; ``source.options``:
+            a folder source's ``test_fraction`` or ``test_subjects``).
+        split: the empty split (``"train"`` or ``"test"``).
+        root: the dataset folder, for the command the hint names.
+    Returns:
+        One line, e.g. for a folder of one subject with the default ``--test-fraction 0.3``: "the
+        dataset has no test subjects: --test-fraction 0.3 of its 1 subject gives round(0.3 x 1) = 0
+        test subjects; ...". The count follows :class:`~cerberus_core.bodies.folder.FolderSource`'s
+        rule (the last ``round(f * n)`` subjects, at least one when ``f > 0`` and ``n >= 2``).
+    """
+    subjects = manifest.get("subjects") or []
+    n = len(subjects)
+    plural = "" if n == 1 else "s"
+    options = (manifest.get("source") or {}).get("options") or {}
+    head = f"the dataset has no {split} subjects"
+    if split == "train":
+        cause = " (its only subject is a test subject" if n == 1 else f" (all {n} subjects are test subjects"
+        cause += ", --test-fraction 1)" if options.get("test_fraction") == 1 else ")"
+        return (f"{head}{cause}; a dataset without train subjects is for `cerberus eval RUN --data {root}`; "
+                "train on a dataset with train subjects")
+    if options.get("test_subjects"):
+        cause = f": --test-subjects named {len(options['test_subjects'])} subject(s), none of them in it"
+    elif "test_fraction" in options:
+        f = float(options["test_fraction"])
+        k = int(round(f * n))
+        if f > 0 and n >= 2:
+            k = max(1, k)
+        cause = (f": --test-fraction {f:g} of its {n} subject{plural} gives "
+                 f"{'0 (a fraction of 0)' if f == 0 else f'round({f:g} x {n}) = {k}'} test subjects")
+    else:
+        cause = f" (its {n} subject{plural} are all in other splits)"
+    fix = ("regenerate it with --test-fraction 1 (every subject a test subject, for evaluation) or "
+           "--test-subjects NAME[,NAME], or add subjects" if "test_fraction" in options or options.get("test_subjects")
+           else "use a dataset with test subjects")
+    return f"{head}{cause}; {fix}"
+
+
 class _SplitReader:
     """Lazy access to the shards of one split (shared by the datasets below)."""
 
@@ -43,10 +84,7 @@ class _SplitReader:
         self.manifest = read_manifest(self.root)
         self.info = split_info(self.manifest, split, self.root)
         if self.info.get("planned_shards") == 0:
-            use = (f"; a dataset without {split} subjects is for `cerberus eval RUN --data {self.root}`"
-                   if split == "train" else "")
-            raise DatasetError(f"{self.root}: split {split!r} is empty: the dataset has no {split} subjects (e.g. a "
-                               f"folder dataset made with --test-fraction 1); use a dataset with {split} subjects{use}")
+            raise DatasetError(f"{self.root}: split {split!r} is empty: {empty_split_hint(self.manifest, split, self.root)}")
         if not allow_partial and not split_complete(self.info):
             raise DatasetError(f"{self.root}: split {split!r} is incomplete ({len(self.info['shards'])} of "
                                f"{self.info['planned_shards']} shards); finish generating it (it resumes) with "
@@ -320,4 +358,4 @@ class ViewDataset(_Base):
             raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
 
 
-__all__ = ["QuadrupletDataset", "ViewDataset"]
+__all__ = ["QuadrupletDataset", "ViewDataset", "empty_split_hint"]

@@ -21,6 +21,14 @@ the parts Cerberus discovered.
    truth part; a ground-truth part nobody maps to scores 0), and per ground-truth part
    ``IoU_k = |pred = k and gt = k| / |pred = k or gt = k|`` is accumulated (by area) over the whole
    test set; the mean over ground-truth parts is reported.
+
+**No part labels.** Data without part labels (a mesh folder with no ``parts.npy``: one ground-truth
+part, ``"body"``, covering every vertex) would make every score above a trivial 1.0: every learned
+part's majority is the single ground-truth part. So when fewer than two ground-truth parts carry any
+area over the test set, :meth:`PartQualityAccumulator.summary` scores nothing: ``part_labels`` is
+``False``, ``consistency``, ``mean_entropy_bits`` and ``mean_segmentation_iou`` are ``None``,
+``parts`` and ``segmentation_iou`` are empty and ``note`` says so in one line. With labels,
+``part_labels`` is ``True`` and ``note`` is ``None``.
 """
 from __future__ import annotations
 
@@ -169,10 +177,34 @@ class PartQualityAccumulator:
         return np.where(total.sum(1) > 0, total.argmax(1), -1)
 
     def summary(self) -> dict[str, Any]:
-        """Consistency per predicted part and the segmentation IoU (see the module docstring)."""
+        """Consistency per predicted part and the segmentation IoU (see the module docstring).
+
+        Returns a dict: ``images`` (int), ``gt_parts`` (K names), ``part_labels`` (bool: at least two
+        ground-truth parts carry area; ``False``: no part labels, nothing is scored), ``note`` (one
+        line when ``part_labels`` is ``False``, else ``None``), ``parts`` (one dict per learned part:
+        part, label, images, agreement, entropy_bits, purity, agreement_by_group), ``consistency``,
+        ``mean_entropy_bits``, ``unused_parts``, ``segmentation_iou`` ({gt part: IoU}) and
+        ``mean_segmentation_iou`` (floats in [0, 1], entropy in bits; ``None`` without part labels).
+        """
         if not self.overlaps:
             raise ValueError("PartQualityAccumulator.summary: no images were added")
         stack = np.stack(self.overlaps)  # (N, P, K)
+        present = [self.gt_part_names[k] for k in np.flatnonzero(stack.sum(axis=(0, 1)) > 0)]
+        if len(present) < 2:
+            return {
+                "images": len(self.overlaps),
+                "gt_parts": list(self.gt_part_names),
+                "part_labels": False,
+                "note": (f"no part labels: the ground truth has {len(present)} labelled part"
+                         f"{'' if len(present) == 1 else 's'} ({', '.join(present) or 'none'}), so part quality "
+                         "is not scored; give the meshes per-vertex part labels (parts.npy) to score it"),
+                "parts": [],
+                "consistency": None,
+                "mean_entropy_bits": None,
+                "unused_parts": [],
+                "segmentation_iou": {},
+                "mean_segmentation_iou": None,
+            }
         labels = self.labels()
         names = self.gt_part_names
         parts = []
@@ -205,6 +237,8 @@ class PartQualityAccumulator:
         return {
             "images": len(self.overlaps),
             "gt_parts": list(names),
+            "part_labels": True,
+            "note": None,
             "parts": parts,
             "consistency": float(np.mean([r["agreement"] for r in used_rows])) if used_rows else float("nan"),
             "mean_entropy_bits": float(np.mean([r["entropy_bits"] for r in used_rows])) if used_rows else float("nan"),

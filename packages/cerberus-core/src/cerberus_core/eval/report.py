@@ -102,6 +102,9 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
     def vis_cells(p: int) -> list[Any]:
         return [vis["hidden_fraction"][p], vis["mean_silhouette_share"][p]] if vis else []
 
+    if pq and pq.get("part_labels") is False:  # data without part labels: say so, score nothing
+        out += ["## Part quality", "", f"Not scored: {pq['note']}.", ""]
+        pq = None
     if pq:
         out += ["## Part quality (ground-truth semantic parts, never seen in training)", "",
                 f"Consistency (mean agreement) {_fmt(pq['consistency'])}, mean entropy "

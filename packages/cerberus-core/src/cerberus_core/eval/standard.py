@@ -5,9 +5,10 @@ voxels as the output. The metric lives in the ``cerberus-metrics`` package and i
 through its ``cerberus.metrics`` entry point ``voxel_iou_scorer`` (:func:`cerberus_core.plugins.get_metric`):
 a factory ``(protocol=, resolution=, cache=) -> scorer`` whose ``scorer(pred_parts, gt)`` returns
 ``(iou, clipped)``. The scorer owns what only the metric knows: the ground-truth grid cache (the views
-of a pose voxelize their mesh once), the protocol's grid (a prediction leaving the ``kato`` cube is
-clamped into it and reported as ``clipped``) and the mesh-quality policy for predictions. Core never
-imports the package by name.
+of a pose voxelize their mesh once), the protocol's grid (a predicted part leaving the ``kato`` grid is
+clamped to it, one rule for faces, edges and corners: its voxels outside are dropped; ``clipped`` is the
+number of parts so clamped) and the mesh-quality policy for predictions. Core never imports the
+package by name.
 
 :class:`GroundTruthMemo` keeps the last few ground-truth meshes so the views of a pose do not rebuild
 them. A prediction the metric still rejects (e.g. every triangle degenerate) scores 0 and is counted
@@ -32,11 +33,12 @@ SCORER_ENTRY_POINT = "voxel_iou_scorer"
 
 @dataclass
 class Score:
-    """One voxel IoU. ``clipped``: the prediction was clamped into the grid. ``error``: the metric
-    rejected the prediction (then ``iou`` is 0)."""
+    """One voxel IoU. ``clipped``: the number of the prediction's parts clamped into the grid (0: none;
+    a scorer answering a bool counts as 0 or 1). ``error``: the metric rejected the prediction (then
+    ``iou`` is 0)."""
 
     iou: float
-    clipped: bool = False
+    clipped: int = 0
     error: str | None = None
 
 
@@ -68,8 +70,8 @@ class VoxelScorer:
         except Exception as exc:  # noqa: BLE001 - a rejected prediction scores 0, see module docstring
             # If the ground truth alone fails too, that is a data error, not a score: let it raise.
             self.scorer([gt], gt)
-            return Score(0.0, False, f"{type(exc).__name__}: {exc}")
-        return Score(iou, clipped)
+            return Score(0.0, 0, f"{type(exc).__name__}: {exc}")
+        return Score(iou, int(clipped))
 
 
 class GroundTruthMemo:
@@ -99,17 +101,22 @@ class GroundTruthMemo:
 
 @dataclass
 class IoUSummary:
-    """Mean voxel IoU overall and per group (subject or species)."""
+    """Mean voxel IoU overall and per group (subject or species).
+
+    clipped: predictions (images) with at least one part clamped into the grid; clipped_parts: the
+    parts clamped, over all predictions. failed: predictions the metric rejected (scored 0).
+    """
 
     mean: float
     count: int
     per_group: dict[str, float] = field(default_factory=dict)
     clipped: int = 0
     failed: int = 0
+    clipped_parts: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return {"mean": self.mean, "count": self.count, "per_group": self.per_group, "clipped": self.clipped,
-                "failed": self.failed}
+                "clipped_parts": self.clipped_parts, "failed": self.failed}
 
 
 def summarize(scores: list[Score], groups: list[str]) -> IoUSummary:
@@ -121,5 +128,5 @@ def summarize(scores: list[Score], groups: list[str]) -> IoUSummary:
     ious = np.array([s.iou for s in scores])
     g = np.asarray(groups)
     per_group = {name: float(ious[g == name].mean()) for name in sorted(set(groups))}
-    return IoUSummary(float(ious.mean()), len(scores), per_group, sum(s.clipped for s in scores),
-                      sum(s.error is not None for s in scores))
+    return IoUSummary(float(ious.mean()), len(scores), per_group, sum(bool(s.clipped) for s in scores),
+                      sum(s.error is not None for s in scores), sum(int(s.clipped) for s in scores))
