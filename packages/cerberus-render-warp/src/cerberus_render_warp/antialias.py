@@ -19,7 +19,7 @@ from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.antialias import MAX_WALK as _MAX_WALK
 from cerberus_core.render.antialias import check_antialias_inputs, edge_neighbors
-from cerberus_core.render.interface import pixel_centres
+from cerberus_core.render.camera import pixel_centres
 from cerberus_render_warp._runtime import (
     as_warp,
     items_per_thread,

@@ -19,7 +19,7 @@ from typing import Any
 
 import torch
 
-from cerberus_core.render.interface import pixel_centres
+from cerberus_core.render.camera import pixel_centres
 from cerberus_render_warp._runtime import (
     as_warp,
     items_per_thread,

@@ -18,7 +18,8 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
-from cerberus_core.render.interface import Light, pixel_centres
+from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import NORMAL_EPS
 from cerberus_render_warp._runtime import (
     as_warp,

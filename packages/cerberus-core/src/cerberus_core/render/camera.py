@@ -76,6 +76,22 @@ def spherical_to_eye(azimuth_deg: Tensor, elevation_deg: Tensor, distance: Tenso
     )
 
 
+def pixel_centres(height: int, width: int, dtype: torch.dtype = torch.float32,
+                  device: torch.device | str | None = None) -> tuple[Tensor, Tensor]:
+    """NDC coordinates of the pixel centres (module docstring, "Pixels"; the rasterization rule of
+    :mod:`cerberus_core.render.interface`): the one place they are computed (the backends'
+    rasterizers, the shared shading and anti-aliasing all take them from here, so they agree bit for
+    bit in every dtype).
+
+    Returns:
+        ``px`` ``(W,)`` = ``2 (j + 0.5) / W - 1`` per column and ``py`` ``(H,)`` = ``1 - 2 (i + 0.5) / H``
+        per row, in ``dtype``.
+    """
+    cols = torch.arange(width, device=device).to(dtype)
+    rows = torch.arange(height, device=device).to(dtype)
+    return (2.0 * cols + 1.0) / width - 1.0, 1.0 - (2.0 * rows + 1.0) / height
+
+
 @dataclass
 class Camera:
     """A batch of perspective pinhole cameras sharing one image size.
