@@ -37,9 +37,9 @@ from PIL import Image
 
 from cerberus_core.atomic import atomic_write, atomic_write_text
 from cerberus_core.eval.export import export_parts
-from cerberus_core.eval.figures import NEW_LIGHT_CAMERA_DIRECTION, camera_spherical
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.camera import Camera
+from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION
 from cerberus_core.viz import part_colors, to_uint8
 
 THREE_VERSION = "0.184.0"
@@ -130,7 +130,7 @@ def camera_view(camera: Camera) -> dict:
     """``{"azimuth", "elevation", "distance", "fov_y"}`` of a batch-1 look-at camera aimed at the origin."""
     if camera.batch_size != 1:
         raise ValueError(f"camera_view: expected one camera, got {camera.batch_size}")
-    az, el, dist = camera_spherical(camera)
+    az, el, dist = camera.spherical()
     return {"azimuth": float(az[0]), "elevation": float(el[0]), "distance": float(dist[0]),
             "fov_y": float(camera.fov_y_deg.reshape(-1)[0])}
 
