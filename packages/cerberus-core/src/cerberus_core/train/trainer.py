@@ -45,10 +45,12 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from cerberus_core.atomic import atomic_write_text
+from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.lock import LockedError, acquire, check_unlocked, is_lock_file
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer, resolve_renderer
+from cerberus_core.signals import interrupt_for
 from cerberus_core.train.checkpoint import (
     LAST,
     checkpoint_dir,
@@ -166,8 +168,6 @@ class _StopRequest:
 
     def _handle(self, signum, frame) -> None:  # noqa: ARG002
         if self.requested:  # second signal: give up immediately
-            from cerberus_core.signals import interrupt_for
-
             raise interrupt_for(signum)
         self.requested, self.signum = True, signum
 
@@ -245,8 +245,6 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
 def verify_split(root: str | Path, split: str) -> None:
     """Check every shard file of ``split`` against the sha256 the manifest records (once, at the start
     of a run: the reader only checks sizes on every open). :class:`DatasetError` names the bad file."""
-    from cerberus_core.datasets.readers import QuadrupletDataset
-
     QuadrupletDataset(root, split=split, verify=True)
 
 
