@@ -193,6 +193,17 @@ def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int,
     return rows
 
 
+def print_cpu_precision() -> None:
+    """The CPU's vector and bfloat16 flags, and what ``speed.autocast: auto`` picks on it."""
+    from cerberus_core.devices import NATIVE_BF16_FLAGS, cpu_flags
+    from cerberus_core.train.speed import resolve_autocast
+
+    picked, why = resolve_autocast("auto", "cpu")
+    have = sorted(f for f in cpu_flags() if f.startswith(("avx", "amx")) or f in NATIVE_BF16_FLAGS)
+    print(f"CPU flags: {' '.join(have) or 'none of avx/amx/bf16'}")
+    print(f"speed.autocast auto -> {picked or 'null (float32)'} ({why})")
+
+
 def print_switches(rows: list[dict]) -> None:
     w = max(10, *(len(r["switches"]) + 2 for r in rows))
     base = "x " + rows[0]["switches"]
@@ -203,6 +214,28 @@ def print_switches(rows: list[dict]) -> None:
     for r in rows:
         print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['step_s']:>8.3f}{r['steps_per_s']:>9.2f}"
               f"{r['speedup']:>{max(7, len(base) + 1)}.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
+
+
+def run_switches(args: argparse.Namespace) -> None:
+    """``--switches`` / ``--precision``: the variants side by side, interleaved."""
+    from cerberus_core.train.config import load_config
+
+    names = None if args.precision else (args.switches or list(SWITCHES))
+    if names and "compile" in names:
+        args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for preset in args.presets:
+            root = args.data or make_data(Path(tmp) / preset, load_config(preset=preset).data.image_size or 64)
+            for name in args.renderers:
+                rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names,
+                                       precision_variants if args.precision else None)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
+          f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps")
+    if args.precision:
+        print_cpu_precision()
+    print_switches(rows)
 
 
 def main() -> None:
@@ -228,28 +261,7 @@ def main() -> None:
     from cerberus_core.train.config import load_config
 
     if args.switches is not None or args.precision:
-        names = None if args.precision else (args.switches or list(SWITCHES))
-        if names and "compile" in names:
-            args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
-        rows = []
-        with tempfile.TemporaryDirectory() as tmp:
-            for preset in args.presets:
-                root = args.data or make_data(Path(tmp) / preset, load_config(preset=preset).data.image_size or 64)
-                for name in args.renderers:
-                    rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names,
-                                           precision_variants if args.precision else None)
-        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
-              f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps")
-        if args.precision:
-            from cerberus_core.devices import NATIVE_BF16_FLAGS, cpu_flags
-            from cerberus_core.train.speed import resolve_autocast
-
-            picked, why = resolve_autocast("auto", "cpu")
-            have = sorted(f for f in cpu_flags() if f.startswith(("avx", "amx")) or f in NATIVE_BF16_FLAGS)
-            print(f"CPU flags: {' '.join(have) or 'none of avx/amx/bf16'}")
-            print(f"speed.autocast auto -> {picked or 'null (float32)'} ({why})")
-        print_switches(rows)
+        run_switches(args)
         return
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

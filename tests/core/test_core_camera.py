@@ -126,3 +126,17 @@ def test_look_at_is_continuous_at_the_poles(pole: float) -> None:
     near = Camera.look_at(0.0, pole - math.copysign(1e-3, pole), 2.0).rotation
     assert torch.allclose(exact, near, atol=1e-4)
 
+
+
+def test_spherical_inverts_look_at_and_orbit_turns_the_azimuth() -> None:
+    cam = Camera.look_at(torch.tensor([-120.0, 0.0, 75.0]), torch.tensor([10.0, -20.0, 45.0]), 2.5)
+    az, el, dist = cam.spherical()
+    torch.testing.assert_close(az, torch.tensor([-120.0, 0.0, 75.0]), atol=1e-4, rtol=0)
+    torch.testing.assert_close(el, torch.tensor([10.0, -20.0, 45.0]), atol=1e-4, rtol=0)
+    torch.testing.assert_close(dist, torch.full((3,), 2.5))
+    turned = cam.index([1]).orbit([90.0, -30.0])
+    assert turned.batch_size == 2
+    torch.testing.assert_close(turned.spherical()[0], torch.tensor([90.0, -30.0]), atol=1e-4, rtol=0)
+    torch.testing.assert_close(turned.spherical()[1], torch.full((2,), -20.0), atol=1e-4, rtol=0)
+    with pytest.raises(ValueError, match="one camera"):
+        cam.orbit([10.0])

@@ -5,10 +5,12 @@ import sys
 
 import pytest
 
+from cerberus_core.errors import CerberusError
 from cerberus_core.plugins import (
     METRIC_GROUP,
     RENDERER_GROUP,
     DuplicatePluginError,
+    PluginError,
     PluginLoadError,
     UnknownPluginError,
     available_renderers,
@@ -119,3 +121,13 @@ def test_auto_picks_warp_then_torch_then_others_skipping_broken_ones(fake_dist, 
     sys.modules.pop("fake_good_backend", None)
     with pytest.raises(UnknownPluginError, match=r"renderer 'auto': no renderer backend.*pip install cerberus-render"):
         resolve_renderer("auto", path=[str(tmp_path / "empty")])
+
+
+def test_plugin_errors_are_cerberus_errors() -> None:
+    """One base class: ``except CerberusError`` (the ``cerberus`` command) catches plugin errors too,
+    and callers that caught them as ``RuntimeError`` (or an unknown name as ``KeyError``) still do."""
+    for cls in (PluginError, UnknownPluginError, DuplicatePluginError, PluginLoadError):
+        assert issubclass(cls, CerberusError) and issubclass(cls, RuntimeError)
+    assert issubclass(UnknownPluginError, KeyError)
+    with pytest.raises(CerberusError, match="unknown"):
+        get_plugin(RENDERER_GROUP, "no_such_backend")

@@ -10,10 +10,10 @@ import trimesh
 from cerberus_core.bodies.body import FILL
 from cerberus_core.bodies.folder import FolderSource
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
-from cerberus_core.datasets.format import DatasetError, verify_dataset
+from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.generate import generate
 from cerberus_core.datasets.plan import preset_config
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, verify_dataset
 
 
 def _export(path, vertices, faces):

@@ -18,9 +18,9 @@ from cerberus_core.datasets.format import (
     read_manifest,
     resolve_inside,
     unpack_mesh,
-    verify_dataset,
     write_shard,
 )
+from cerberus_core.datasets.readers import verify_dataset
 
 
 def _body(rng, n_verts, n_faces, pose, faces=None, parts=None):

@@ -9,8 +9,9 @@ import textwrap
 import numpy as np
 import pytest
 
-from cerberus_core.datasets.format import MANIFEST, DatasetError, sha256_file, verify_dataset
+from cerberus_core.datasets.format import MANIFEST, DatasetError, sha256_file
 from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.readers import verify_dataset
 
 QUIET = {"progress": False, "log": lambda s: None}
 

@@ -60,7 +60,8 @@ def glb_mesh_count(path) -> int:
 def test_vendored_three_is_pinned_and_licensed() -> None:
     assert viewer.THREE_DIR.name == f"three-{viewer.THREE_VERSION}"
     assert "MIT License" in (viewer.THREE_DIR / "LICENSE").read_text()
-    readme = (viewer.ASSETS / "README.md").read_text()
+    assert viewer.THREE_DIR.parent == viewer.VENDOR and viewer.VENDOR.name == "vendor"
+    readme = (viewer.VENDOR / "README.md").read_text()
     assert f"three.js {viewer.THREE_VERSION}" in readme.replace("**", "") and "MIT" in readme
     for path in viewer.THREE_FILES:
         assert (viewer.THREE_DIR / path).is_file(), path

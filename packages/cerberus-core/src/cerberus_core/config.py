@@ -203,23 +203,70 @@ def _hint_name(hint: Any) -> str:
     return {int: "an integer", float: "a number"}.get(hint, getattr(hint, "__name__", str(hint)))
 
 
+def _coerce_union(value: Any, options: tuple, key: str) -> Any:
+    for option in options:
+        try:
+            return coerce(value, option, key)
+        except ConfigError:
+            pass
+    raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {value!r}")
+
+
+def _coerce_literal(value: Any, allowed: tuple, key: str) -> Any:
+    if any(value == a and type(value) is type(a) for a in allowed):
+        return value
+    raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
+                      f"{did_you_mean(value, allowed)}")
+
+
+def _coerce_int(value: Any, key: str) -> int:
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    raise ConfigError(f"{key}: expected an integer, got {value!r}")
+
+
+def _coerce_float(value: Any, key: str) -> float:
+    number = None
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        number = float(value)
+    elif isinstance(value, str):
+        with contextlib.suppress(ValueError):
+            number = float(value)  # YAML reads "5e-4" as a string
+    if number is None:
+        raise ConfigError(f"{key}: expected a number, got {value!r}")
+    if not math.isfinite(number):  # .nan / .inf are YAML numbers, never sensible settings
+        raise ConfigError(f"{key} = {number}: must be a finite number (--set {key}=VALUE)")
+    return number
+
+
+def _coerce_sequence(value: Any, origin: type, args: tuple, key: str) -> list | tuple:
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{key}: expected a list, got {value!r}")
+    if origin is tuple and args and args[-1] is not Ellipsis:
+        if len(value) != len(args):
+            raise ConfigError(f"{key}: expected a list of {len(args)} values, got {value!r}")
+        return tuple(coerce(v, a, f"{key}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True)))
+    item = args[0] if args else Any
+    out = [coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
+    return tuple(out) if origin is tuple else out
+
+
+def _coerce_mapping(value: Any, args: tuple, key: str) -> dict:
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{key}: expected a mapping, got {value!r}")
+    _, item = args or (str, Any)
+    return {str(k): coerce(v, item, f"{key}.{k}") for k, v in value.items()}
+
+
 def coerce(value: Any, hint: Any, key: str) -> Any:
     """Check/convert one value against a type hint; :class:`ConfigError` names the key on mismatch."""
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
-        options = typing.get_args(hint)
-        for option in options:
-            try:
-                return coerce(value, option, key)
-            except ConfigError:
-                pass
-        raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {value!r}")
+        return _coerce_union(value, typing.get_args(hint), key)
     if origin is typing.Literal:
-        allowed = typing.get_args(hint)
-        if any(value == a and type(value) is type(a) for a in allowed):
-            return value
-        raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
-                          f"{did_you_mean(value, allowed)}")
+        return _coerce_literal(value, typing.get_args(hint), key)
     if hint is Any:
         return value
     if hint in _EXACT:
@@ -227,39 +274,13 @@ def coerce(value: Any, hint: Any, key: str) -> Any:
             return value
         raise ConfigError(f"{key}: expected {_EXACT[hint]}, got {value!r}")
     if hint is int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-        if isinstance(value, float) and value.is_integer():
-            return int(value)
-        raise ConfigError(f"{key}: expected an integer, got {value!r}")
+        return _coerce_int(value, key)
     if hint is float:
-        number = None
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            number = float(value)
-        elif isinstance(value, str):
-            with contextlib.suppress(ValueError):
-                number = float(value)  # YAML reads "5e-4" as a string
-        if number is None:
-            raise ConfigError(f"{key}: expected a number, got {value!r}")
-        if not math.isfinite(number):  # .nan / .inf are YAML numbers, never sensible settings
-            raise ConfigError(f"{key} = {number}: must be a finite number (--set {key}=VALUE)")
-        return number
+        return _coerce_float(value, key)
     if origin in (list, tuple):
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{key}: expected a list, got {value!r}")
-        args = typing.get_args(hint)
-        if origin is tuple and args and args[-1] is not Ellipsis:
-            if len(value) != len(args):
-                raise ConfigError(f"{key}: expected a list of {len(args)} values, got {value!r}")
-            return tuple(coerce(v, a, f"{key}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True)))
-        item = args[0] if args else Any
-        out = [coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
-        return tuple(out) if origin is tuple else out
+        return _coerce_sequence(value, origin, typing.get_args(hint), key)
     if origin is dict:
-        if not isinstance(value, Mapping):
-            raise ConfigError(f"{key}: expected a mapping, got {value!r}")
-        _, item = typing.get_args(hint) or (str, Any)
-        return {str(k): coerce(v, item, f"{key}.{k}") for k, v in value.items()}
+        return _coerce_mapping(value, typing.get_args(hint), key)
     if is_dataclass(hint):
         return build(hint, value, key + ".")
     return value

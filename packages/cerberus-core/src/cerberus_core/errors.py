@@ -7,6 +7,9 @@ of them the same way, and one module, so that no layer imports another just for 
   another format;
 * :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid.
 
+Errors that belong to one module derive from :class:`CerberusError` there (the plugin errors in
+:mod:`cerberus_core.plugins`, the lock, checkpoint, zoo and image-input errors).
+
 ``DatasetError`` and ``ConfigError`` are also ``ValueError``\\ s, so ``except ValueError`` keeps
 catching them.
 """

@@ -19,6 +19,9 @@ from typing import Any
 
 import entrypoints
 
+from cerberus_core.errors import CerberusError
+from cerberus_core.render.interface import Renderer
+
 RENDERER_GROUP = "cerberus.renderers"
 METRIC_GROUP = "cerberus.metrics"
 
@@ -29,8 +32,10 @@ KNOWN_PACKAGES: dict[str, dict[str, str]] = {
 }
 
 
-class PluginError(RuntimeError):
-    """Base class of plugin discovery errors."""
+class PluginError(CerberusError, RuntimeError):
+    """Base class of plugin discovery errors: a :class:`~cerberus_core.errors.CerberusError` (the
+    ``cerberus`` command reports it in one line like the others), still a ``RuntimeError`` for callers
+    that caught it as one."""
 
 
 class UnknownPluginError(PluginError, KeyError):
@@ -187,8 +192,6 @@ def make_renderer(name: str = AUTO_RENDERER, **options: Any):
             (:func:`resolve_renderer`: Warp if it works, else torch).
         **options: passed to the backend's constructor.
     """
-    from cerberus_core.render.interface import Renderer
-
     name = resolve_renderer(name)
     cls = get_plugin(RENDERER_GROUP, name)
     renderer = cls(**options)

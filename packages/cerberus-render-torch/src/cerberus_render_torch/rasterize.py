@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.render.interface import Renderer, pixel_centres
+from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.interface import Renderer
 
 Tensor = torch.Tensor
 

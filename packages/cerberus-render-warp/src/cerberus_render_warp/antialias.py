@@ -19,23 +19,14 @@ from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.antialias import MAX_WALK as _MAX_WALK
 from cerberus_core.render.antialias import check_antialias_inputs, edge_neighbors
-from cerberus_core.render.interface import pixel_centres
-from cerberus_render_warp._runtime import (
-    as_warp,
-    items_per_thread,
-    launch_scenes,
-    launch_stream,
-    vec_view,
-    warp_device,
-    wp,
-)
+from cerberus_core.render.camera import pixel_centres
+from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, overloads, row_span, wp
+from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
 from cerberus_render_warp.rasterize import check_inputs
-from cerberus_render_warp.shade import _barycentrics, _overloads, _row_span, _xyw
+from cerberus_render_warp.shade import _barycentrics, _xyw
 
-wp.set_module_options({"fuse_fp": False, "enable_backward": False})
-
-Tensor = torch.Tensor
+wp.set_module_options(KERNEL_OPTIONS)
 MAX_WALK = wp.constant(_MAX_WALK)
 
 
@@ -217,7 +208,7 @@ def _aa_forward_kernel(
     """Thread ``t``: the right and lower pairs of columns ``k * cols_per_thread ..`` of one row."""
     height = face_id.shape[1]
     width = face_id.shape[2]
-    b, r, c_first, c_last = _row_span(wp.tid(), height, width, cols_per_thread)
+    b, r, c_first, c_last = row_span(wp.tid(), height, width, cols_per_thread)
     for c in range(c_first, c_last):
         f = face_id[b, r, c]
         for d in range(2):
@@ -252,7 +243,7 @@ def _aa_backward_kernel(
     holding ``grad_out``, the identity part)."""
     height = face_id.shape[1]
     width = face_id.shape[2]
-    b, r, c_first, c_last = _row_span(wp.tid(), height, width, cols_per_thread)
+    b, r, c_first, c_last = row_span(wp.tid(), height, width, cols_per_thread)
     zero = px_of_col.dtype(0.0)
     half = px_of_col.dtype(0.5)
     one = px_of_col.dtype(1.0)
@@ -310,9 +301,9 @@ def _aa_backward_kernel(
 
 
 _SCALAR = {"px_of_col": wp.array, "py_of_row": wp.array}
-_FORWARD = _overloads(_aa_forward_kernel, {}, {"clip": wp.array2d},
+_FORWARD = overloads(_aa_forward_kernel, {}, {"clip": wp.array2d},
                       {**_SCALAR, "color": wp.array4d, "out": wp.array4d})
-_BACKWARD = _overloads(_aa_backward_kernel, {}, {"clip": wp.array2d, "grad_clip": wp.array2d},
+_BACKWARD = overloads(_aa_backward_kernel, {}, {"clip": wp.array2d, "grad_clip": wp.array2d},
                        {**_SCALAR, "color": wp.array4d, "grad_out": wp.array4d, "grad_color": wp.array4d})
 
 

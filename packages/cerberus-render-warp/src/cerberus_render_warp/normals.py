@@ -15,36 +15,18 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.templates import NORMAL_EPS
-from cerberus_render_warp._runtime import (
-    as_warp,
-    items_per_thread,
-    launch_scenes,
-    launch_stream,
-    vec_view,
-    warp_device,
-    wp,
-)
+from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, overloads, span, wp
+from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
 
-wp.set_module_options({"fuse_fp": False, "enable_backward": False})
-
-Tensor = torch.Tensor
-
-
-@wp.func
-def _span(tid: int, count: int, per_thread: int):
-    """Thread ``tid`` -> scene ``b`` and its item range ``[first, last)`` of ``count`` items."""
-    chunks = (count + per_thread - 1) / per_thread
-    b = tid / chunks
-    first = (tid - b * chunks) * per_thread
-    return b, first, wp.min(first + per_thread, count)
+wp.set_module_options(KERNEL_OPTIONS)
 
 
 @wp.kernel
 def _accumulate_kernel(vertices: wp.array2d(dtype=Any), faces: wp.array(dtype=wp.vec3i), fused: int,
                        per_thread: int, acc: wp.array2d(dtype=Any)):
     """``acc[b, v] += (v1 - v0) x (v2 - v0)`` over the faces of ``v``, in face order."""
-    b, first, last = _span(wp.tid(), faces.shape[0], per_thread)
+    b, first, last = span(wp.tid(), faces.shape[0], per_thread)
     for f in range(first, last):
         tri = faces[f]
         v0 = vertices[b, tri[0]]
@@ -57,7 +39,7 @@ def _accumulate_kernel(vertices: wp.array2d(dtype=Any), faces: wp.array(dtype=wp
 @wp.kernel
 def _normalize_kernel(acc: wp.array2d(dtype=Any), per_thread: int, out: wp.array2d(dtype=Any)):
     """``out = acc / max(|acc|, eps)`` per vertex."""
-    b, first, last = _span(wp.tid(), acc.shape[1], per_thread)
+    b, first, last = span(wp.tid(), acc.shape[1], per_thread)
     for v in range(first, last):
         n = acc[b, v]
         out[b, v] = n / wp.max(wp.length(n), type(n[0])(NORMAL_EPS))
@@ -67,7 +49,7 @@ def _normalize_kernel(acc: wp.array2d(dtype=Any), per_thread: int, out: wp.array
 def _normalize_backward_kernel(acc: wp.array2d(dtype=Any), grad_out: wp.array2d(dtype=Any), per_thread: int,
                                grad_acc: wp.array2d(dtype=Any)):
     """Adjoint of :func:`_normalize_kernel` (the ``max`` passes the gradient where ``|acc| >= eps``)."""
-    b, first, last = _span(wp.tid(), acc.shape[1], per_thread)
+    b, first, last = span(wp.tid(), acc.shape[1], per_thread)
     for v in range(first, last):
         n = acc[b, v]
         g = grad_out[b, v]
@@ -86,7 +68,7 @@ def _accumulate_backward_kernel(vertices: wp.array2d(dtype=Any), faces: wp.array
                                 grad_acc: wp.array2d(dtype=Any), per_thread: int,
                                 grad_vertices: wp.array2d(dtype=Any)):
     """Adjoint of :func:`_accumulate_kernel`: ``n = e1 x e2`` with ``e1 = v1 - v0``, ``e2 = v2 - v0``."""
-    b, first, last = _span(wp.tid(), faces.shape[0], per_thread)
+    b, first, last = span(wp.tid(), faces.shape[0], per_thread)
     for f in range(first, last):
         tri = faces[f]
         v0 = vertices[b, tri[0]]
@@ -100,16 +82,15 @@ def _accumulate_backward_kernel(vertices: wp.array2d(dtype=Any), faces: wp.array
         wp.atomic_add(grad_vertices, b, tri[2], g2)
 
 
-def _overloads(kernel, names: tuple[str, ...]) -> dict[torch.dtype, Any]:
+def _vec3_overloads(kernel, names: tuple[str, ...]) -> dict[torch.dtype, Any]:
     """float32 and float64 overloads of a kernel whose ``names`` arguments are 2-D arrays of 3-vectors."""
-    return {dtype: wp.overload(kernel, {n: wp.array2d(dtype=wp.types.vector(3, t)) for n in names})
-            for dtype, t in ((torch.float32, wp.float32), (torch.float64, wp.float64))}
+    return overloads(kernel, dict.fromkeys(names, wp.array2d), {}, {})
 
 
-_ACCUMULATE = _overloads(_accumulate_kernel, ("vertices", "acc"))
-_NORMALIZE = _overloads(_normalize_kernel, ("acc", "out"))
-_NORMALIZE_BWD = _overloads(_normalize_backward_kernel, ("acc", "grad_out", "grad_acc"))
-_ACCUMULATE_BWD = _overloads(_accumulate_backward_kernel, ("vertices", "grad_acc", "grad_vertices"))
+_ACCUMULATE = _vec3_overloads(_accumulate_kernel, ("vertices", "acc"))
+_NORMALIZE = _vec3_overloads(_normalize_kernel, ("acc", "out"))
+_NORMALIZE_BWD = _vec3_overloads(_normalize_backward_kernel, ("acc", "grad_out", "grad_acc"))
+_ACCUMULATE_BWD = _vec3_overloads(_accumulate_backward_kernel, ("vertices", "grad_acc", "grad_vertices"))
 
 
 class WarpVertexNormals(torch.autograd.Function):

@@ -19,21 +19,12 @@ from typing import Any
 
 import torch
 
-from cerberus_core.render.interface import pixel_centres
-from cerberus_render_warp._runtime import (
-    as_warp,
-    items_per_thread,
-    launch_scenes,
-    launch_stream,
-    vec_view,
-    warp_device,
-    wp,
-)
+from cerberus_core.render.camera import pixel_centres
+from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, span, wp
+from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
 
-wp.set_module_options({"fuse_fp": False, "enable_backward": False})
-
-Tensor = torch.Tensor
+wp.set_module_options(KERNEL_OPTIONS)
 
 BBOX_EPS = 1e-3
 """Widening of each triangle's pixel bounding box, in pixels (as in the torch backend); coverage is
@@ -75,12 +66,7 @@ def _vertex_bounds_kernel(
     bounds ``(first col, last col, first row, last row)`` as :func:`_pixel_bound` gives them for the
     degenerate box ``[u, u] x [v, v]`` of its projection (vertices with ``w <= near`` get an empty
     range; their triangles are not drawn)."""
-    tid = wp.tid()
-    nverts = clip.shape[1]
-    chunks = (nverts + vertices_per_thread - 1) / vertices_per_thread
-    b = tid / chunks
-    v_first = (tid - b * chunks) * vertices_per_thread
-    v_last = wp.min(v_first + vertices_per_thread, nverts)
+    b, v_first, v_last = span(wp.tid(), clip.shape[1], vertices_per_thread)
     one = type(near)(1.0)
     half_w = type(near)(0.5) * type(near)(width)
     half_h = type(near)(0.5) * type(near)(height)
@@ -114,12 +100,7 @@ def _raster_kernel(
     out: wp.array3d(dtype=wp.int64),
 ):
     """Thread ``t``: faces ``k * faces_per_thread ..`` of scene ``b`` (``t = b * chunks + k``)."""
-    tid = wp.tid()
-    nfaces = faces.shape[0]
-    chunks = (nfaces + faces_per_thread - 1) / faces_per_thread
-    b = tid / chunks
-    f_first = (tid - b * chunks) * faces_per_thread
-    f_last = wp.min(f_first + faces_per_thread, nfaces)
+    b, f_first, f_last = span(wp.tid(), faces.shape[0], faces_per_thread)
     zero = type(near)(0.0)
     one = type(near)(1.0)
     inf = type(near)(wp.inf)

@@ -18,23 +18,15 @@ from typing import Any
 import torch
 from torch.autograd.function import once_differentiable
 
-from cerberus_core.render.interface import Light, pixel_centres
+from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import NORMAL_EPS
-from cerberus_render_warp._runtime import (
-    as_warp,
-    items_per_thread,
-    launch_scenes,
-    launch_stream,
-    vec_view,
-    warp_device,
-    wp,
-)
+from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, overloads, row_span, wp
+from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
 from cerberus_render_warp.rasterize import check_inputs
 
-wp.set_module_options({"fuse_fp": False, "enable_backward": False})
-
-Tensor = torch.Tensor
+wp.set_module_options(KERNEL_OPTIONS)
 
 
 @wp.func
@@ -80,16 +72,6 @@ def _unit_normal(n: Any, ldir: Any):
     return length, den, nh, wp.dot(nh, ldir)
 
 
-@wp.func
-def _row_span(tid: int, height: int, width: int, cols_per_thread: int):
-    """Thread ``tid`` -> scene ``b``, row ``r`` and its column range ``[c_first, c_last)``."""
-    chunks = (width + cols_per_thread - 1) / cols_per_thread
-    row_id = tid / chunks
-    b = row_id / height
-    c_first = (tid - row_id * chunks) * cols_per_thread
-    return b, row_id - b * height, c_first, wp.min(c_first + cols_per_thread, width)
-
-
 @wp.kernel
 def _shade_forward_kernel(
     clip: wp.array2d(dtype=Any),
@@ -107,8 +89,8 @@ def _shade_forward_kernel(
     rgb: wp.array3d(dtype=Any),
     depth: wp.array3d(dtype=Any),
 ):
-    """Thread ``t``: columns ``k * cols_per_thread ..`` of one image row (see :func:`_row_span`)."""
-    b, r, c_first, c_last = _row_span(wp.tid(), face_id.shape[1], face_id.shape[2], cols_per_thread)
+    """Thread ``t``: columns ``k * cols_per_thread ..`` of one image row (see :func:`~cerberus_render_warp._common.row_span`)."""
+    b, r, c_first, c_last = row_span(wp.tid(), face_id.shape[1], face_id.shape[2], cols_per_thread)
     zero = px_of_col.dtype(0.0)
     zero3 = wp.vector(zero, zero, zero)
     py = py_of_row[r]
@@ -161,7 +143,7 @@ def _shade_backward_kernel(
     need_light: int,
 ):
     """Adjoint of :func:`_shade_forward_kernel` over the same thread layout."""
-    b, r, c_first, c_last = _row_span(wp.tid(), face_id.shape[1], face_id.shape[2], cols_per_thread)
+    b, r, c_first, c_last = row_span(wp.tid(), face_id.shape[1], face_id.shape[2], cols_per_thread)
     zero = px_of_col.dtype(0.0)
     one = px_of_col.dtype(1.0)
     eps = px_of_col.dtype(NORMAL_EPS)
@@ -243,24 +225,12 @@ def _shade_backward_kernel(
         wp.atomic_add(grad_diffuse, b, acc_dif)
 
 
-def _overloads(kernel, vec3: dict[str, Any], vec4: dict[str, Any], scalar: dict[str, Any]) -> dict[torch.dtype, Any]:
-    """Concrete float32 and float64 overloads of a generic kernel, keyed by torch dtype. The dicts map
-    argument names to array constructors whose dtype is a 3-vector, a 4-vector or a scalar."""
-    out = {}
-    for dtype, t in ((torch.float32, wp.float32), (torch.float64, wp.float64)):
-        v3, v4 = wp.types.vector(3, t), wp.types.vector(4, t)
-        args = {**{k: ctor(dtype=v3) for k, ctor in vec3.items()}, **{k: ctor(dtype=v4) for k, ctor in vec4.items()},
-                **{k: ctor(dtype=t) for k, ctor in scalar.items()}}
-        out[dtype] = wp.overload(kernel, args)
-    return out
-
-
 _VEC3_IN = {"normals": wp.array2d, "albedo": wp.array2d, "direction": wp.array, "ambient": wp.array,
             "diffuse": wp.array}
 _SCALAR_IN = {"px_of_col": wp.array, "py_of_row": wp.array}
-_FORWARD = _overloads(_shade_forward_kernel, {**_VEC3_IN, "rgb": wp.array3d}, {"clip": wp.array2d},
+_FORWARD = overloads(_shade_forward_kernel, {**_VEC3_IN, "rgb": wp.array3d}, {"clip": wp.array2d},
                       {**_SCALAR_IN, "depth": wp.array3d})
-_BACKWARD = _overloads(
+_BACKWARD = overloads(
     _shade_backward_kernel,
     {**_VEC3_IN, "grad_normals": wp.array2d, "grad_albedo": wp.array2d, "grad_direction": wp.array,
      "grad_ambient": wp.array, "grad_diffuse": wp.array},

@@ -1,14 +1,8 @@
 """Poses of the procedural quadrupeds and their deterministic generator.
 
-A pose is a handful of joint angles (radians) applied on top of a species' rest skeleton. Sign
-conventions (body frame: +Y up, head towards +Z, the animal's left is +X):
-
-* leg ``swing`` > 0 moves the foot forward (+Z); ``bend`` >= 0 flexes knee/elbow and ankle/wrist;
-  ``abduct`` > 0 moves the foot away from the body midline.
-* ``body_pitch`` > 0 raises the front (sitting); ``spine_yaw`` > 0 curves both ends to the animal's
-  left; ``spine_pitch`` > 0 sways the back (both ends up).
-* ``neck_raise`` > 0 lifts the neck; ``head_pitch`` > 0 lifts the nose; ``*_yaw`` > 0 turns left.
-* ``tail_lift`` > 0 raises the tail; ``tail_curl`` > 0 curls it upwards along its length.
+A pose (:class:`~cerberus_core.bodies.animal_skeleton.AnimalPose`, joint angles in radians; sign
+conventions in :mod:`cerberus_core.bodies.animal_skeleton`) is applied on top of a species' rest
+skeleton.
 
 The generator mixes gaits (stand, walk, trot, gallop) and behaviours (graze, alert, sit, lie) with
 small per-joint noise; its ranges are deliberately smaller than for humans (as in the paper).
@@ -24,10 +18,7 @@ import numpy as np
 
 from cerberus_core.bodies.animal_sdf import primitives_bounds
 from cerberus_core.bodies.animal_shape import AnimalSpecies
-from cerberus_core.bodies.animal_skeleton import LEG_GROUPS, TORSO, animal_primitives
-
-LEG_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "back_left", "back_right")
-"""Leg order used by :attr:`AnimalPose.legs`."""
+from cerberus_core.bodies.animal_skeleton import LEG_GROUPS, TORSO, AnimalPose, animal_primitives
 
 POSE_KINDS: dict[str, float] = {
     "stand": 0.16,
@@ -57,33 +48,6 @@ LIMITS: dict[str, tuple[float, float]] = {
     "abduct": (0.0, 0.2),
 }
 """Joint limits (rad) every sampled pose is clipped to."""
-
-
-@dataclass(frozen=True)
-class AnimalPose:
-    """Joint angles of one quadruped pose (radians; conventions in the module docstring).
-
-    Attributes:
-        kind: the behaviour it was drawn from (a key of :data:`POSE_KINDS`, or ``"rest"``).
-        legs: four ``(swing, bend, abduct)`` triples in :data:`LEG_NAMES` order.
-    """
-
-    kind: str = "rest"
-    legs: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),) * 4
-    body_pitch: float = 0.0
-    spine_yaw: float = 0.0
-    spine_pitch: float = 0.0
-    neck_raise: float = 0.0
-    neck_yaw: float = 0.0
-    head_pitch: float = 0.0
-    head_yaw: float = 0.0
-    tail_lift: float = 0.0
-    tail_yaw: float = 0.0
-    tail_curl: float = 0.0
-
-    def __post_init__(self) -> None:
-        if len(self.legs) != 4 or any(len(leg) != 3 for leg in self.legs):
-            raise ValueError(f"AnimalPose.legs must be 4 (swing, bend, abduct) triples, got {self.legs}")
 
 
 def rest_pose() -> AnimalPose:

@@ -12,18 +12,57 @@ animal's left is +X, ground at ``y = 0`` in the rest pose. The skeleton is
 * tail: five tapered capsules.
 
 Each primitive belongs to one semantic part (:data:`PART_GROUPS`).
+
+A pose (:class:`AnimalPose`, defined here with the kinematics that give its angles a meaning; the
+generator is :mod:`cerberus_core.bodies.animal_pose`) is a handful of joint angles (radians).
+Sign conventions (body frame: +Y up, head towards +Z, the animal's left is +X):
+
+* leg ``swing`` > 0 moves the foot forward (+Z); ``bend`` >= 0 flexes knee/elbow and ankle/wrist;
+  ``abduct`` > 0 moves the foot away from the body midline.
+* ``body_pitch`` > 0 raises the front (sitting); ``spine_yaw`` > 0 curves both ends to the animal's
+  left; ``spine_pitch`` > 0 sways the back (both ends up).
+* ``neck_raise`` > 0 lifts the neck; ``head_pitch`` > 0 lifts the nose; ``*_yaw`` > 0 turns left.
+* ``tail_lift`` > 0 raises the tail; ``tail_curl`` > 0 curls it upwards along its length.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
 
 import numpy as np
 
 from cerberus_core.bodies.animal_sdf import Ellipsoid, Primitive, RoundCone
 
-if TYPE_CHECKING:  # animal_pose imports this module (sitting poses are solved with the skeleton)
-    from cerberus_core.bodies.animal_pose import AnimalPose
+LEG_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "back_left", "back_right")
+"""Leg order used by :attr:`AnimalPose.legs`."""
+
+
+@dataclass(frozen=True)
+class AnimalPose:
+    """Joint angles of one quadruped pose (radians; conventions in the module docstring).
+
+    Attributes:
+        kind: the behaviour it was drawn from (a key of :data:`~cerberus_core.bodies.animal_pose.POSE_KINDS`, or ``"rest"``).
+        legs: four ``(swing, bend, abduct)`` triples in :data:`LEG_NAMES` order.
+    """
+
+    kind: str = "rest"
+    legs: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),) * 4
+    body_pitch: float = 0.0
+    spine_yaw: float = 0.0
+    spine_pitch: float = 0.0
+    neck_raise: float = 0.0
+    neck_yaw: float = 0.0
+    head_pitch: float = 0.0
+    head_yaw: float = 0.0
+    tail_lift: float = 0.0
+    tail_yaw: float = 0.0
+    tail_curl: float = 0.0
+
+    def __post_init__(self) -> None:
+        if len(self.legs) != 4 or any(len(leg) != 3 for leg in self.legs):
+            raise ValueError(f"AnimalPose.legs must be 4 (swing, bend, abduct) triples, got {self.legs}")
+
 
 PART_GROUPS: tuple[str, ...] = (
     "head",

@@ -1,4 +1,6 @@
-"""The posed-body record that every body source (human, animal, mesh folder) produces.
+"""The posed-body record that every body source (human, animal, mesh folder) produces, and the
+contract of those sources (:class:`BodySource`, :class:`Subject`; the sources themselves and
+:func:`~cerberus_core.bodies.sources.make_source` are in :mod:`cerberus_core.bodies.sources`).
 
 A body source turns (subject, pose) into a :class:`PosedBody`: a watertight-ish triangle mesh in the
 dataset's world frame plus per-vertex ground-truth part labels. World frame conventions (shared with
@@ -13,10 +15,14 @@ keeps part shapes identical across poses, which pose consistency relies on.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+
+from cerberus_core.errors import ConfigError
 
 FILL: float = 0.9
 """Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""
@@ -86,3 +92,83 @@ def normalise_subject(poses: Sequence[np.ndarray], fill: float = FILL) -> tuple[
         centre = 0.5 * (p.max(0) + p.min(0))
         out.append(((p - centre) * scale).astype(np.float32))
     return scale, out
+
+
+@dataclass(frozen=True)
+class Subject:
+    """One subject (person, species, mesh folder) as the manifest stores it.
+
+    Attributes:
+        name: unique within the dataset (``PosedBody.subject``).
+        info: JSON-ready parameters of the subject: everything its source needs to pose it.
+    """
+
+    name: str
+    info: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "info": dict(self.info)}
+
+    @classmethod
+    def from_dict(cls, record: Mapping[str, Any]) -> Subject:
+        """The subject of a manifest entry (``{"name": ..., "info": {...}, ...}``; other keys ignored)."""
+        return cls(str(record["name"]), dict(record.get("info", {})))
+
+    def need(self, source: str, *keys: str) -> list[Any]:
+        """``info[key]`` for each key, or a ``KeyError`` naming the missing ones (an older manifest)."""
+        missing = [k for k in keys if k not in self.info]
+        if missing:
+            raise KeyError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
+                           "self-contained subject records: rerun the same `cerberus data generate` command (it "
+                           "resumes and rewrites the manifest)")
+        return [self.info[k] for k in keys]
+
+
+class BodySource(ABC):
+    """Geometry provider of a dataset (:mod:`cerberus_core.bodies.sources` describes the calls).
+
+    Attributes:
+        name: the source's name as ``cerberus data generate --dataset`` spells it.
+        part_names: names of the ground-truth parts indexed by ``PosedBody.vertex_parts``.
+        shared_subjects: ``True`` if every split holds the same subjects with disjoint poses (the
+            animal protocol); ``False`` if splits hold disjoint subjects (human, folder).
+    """
+
+    name: str = "abstract"
+    part_names: list[str]
+    shared_subjects: bool = False
+
+    @abstractmethod
+    def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
+        """The ``n`` subjects of ``split`` (``None``: all the source has for the split)."""
+
+    @abstractmethod
+    def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
+        """Pose ids of ``subject`` available to ``split``, at most ``n`` of them (``None``: all).
+
+        Sources with unlimited poses return exactly ``n`` fresh ids; sources with a fixed set
+        return up to ``n`` (the generator reuses them when it needs more).
+        """
+
+    def canonical_pose(self, subject: Subject) -> int | None:
+        """Pose id of the subject's canonical pose, or ``None`` if the source has none."""
+        return None
+
+    def motion_pairs(self, subject: Subject, split: str, n: int | None) -> list[tuple[int, int]]:
+        """``n`` pose-id pairs ``(a, b)`` of ``subject``, each two nearby frames of one motion (the
+        ``pose_pairs: motion`` mode of a ``pairs`` split); sources without motions refuse.
+
+        Raises:
+            ConfigError: the source has no motion pairs (or, for ``n=None``, no fixed number of them).
+        """
+        raise ConfigError(f"splits.{split}.pose_pairs: the {self.name} source has no motion pose pairs; set "
+                          f"splits.{split}.pose_pairs=independent")
+
+    @abstractmethod
+    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
+        """Normalised posed bodies of one subject, one per pose id, in order; each depends only on
+        ``(subject, pose id)``, never on the other ids asked for."""
+
+    def describe(self) -> dict[str, Any]:
+        """Options that determine the geometry (stored in the manifest's config; part of its hash)."""
+        return {}

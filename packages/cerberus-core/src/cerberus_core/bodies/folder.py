@@ -47,8 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
-from cerberus_core.bodies.sources import BodySource, Subject
+from cerberus_core.bodies.body import FILL, BodySource, PosedBody, Subject, normalise_subject
 from cerberus_core.errors import DatasetError
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")

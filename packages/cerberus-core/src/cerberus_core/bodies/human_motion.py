@@ -30,7 +30,7 @@ bending, a loose swing and twist of both arms, the head looking around by up to 
 slight bend of the spine), a static *posture* shared by both frames (normal,
 :data:`POSTURE_SD` degrees per joint: the person's stance, head tilt, knee bend) and to each frame
 an independent jitter of :data:`JITTER_SD` degrees per joint. Both frames are clipped to
-:data:`~cerberus_core.bodies.human.DOF_LIMITS`, so every pose stays within the joint limits.
+:data:`~cerberus_core.bodies.human_joints.DOF_LIMITS`, so every pose stays within the joint limits.
 
 Pose ids (reproducible from the manifest alone): motion frames have ids ``>=`` :data:`MOTION_POSE_BASE`;
 clip ``c`` has frames ``MOTION_POSE_BASE + 2c`` (``a``) and ``MOTION_POSE_BASE + 2c + 1`` (``b``),
@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cerberus_core.bodies.human import DOF_LIMITS, DOF_NAMES
+from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES
 
 MOTION_POSE_BASE: int = 1_000_000_000
 """Pose ids ``>=`` this are motion-clip frames (module docstring); fits the int32 ``pose`` field."""

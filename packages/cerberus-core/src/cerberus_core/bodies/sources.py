@@ -1,7 +1,7 @@
 """Body sources behind the datasets: one small, stateless adapter per geometry provider.
 
-A :class:`BodySource` is a set of pure functions of its construction options (and, for ``folder``,
-the files it reads):
+A :class:`~cerberus_core.bodies.body.BodySource` is a set of pure functions of its construction
+options (and, for ``folder``, the files it reads):
 
 * :meth:`~BodySource.subjects` ``(split, n, seed) -> [Subject]`` — who is in a split;
 * :meth:`~BodySource.pose_pool` ``(subject, split, n) -> [pose id]`` — which poses a split may use;
@@ -10,8 +10,8 @@ the files it reads):
   frames of one motion (``human`` only; the others refuse);
 * :meth:`~BodySource.bodies` ``(subject, pose ids) -> [PosedBody]`` — mesh + part labels.
 
-A :class:`Subject` is a small JSON-ready record (its ``name`` and ``info``: phenotype, species
-parameters, pose seed, file names ...) that holds everything :meth:`~BodySource.bodies` needs. The
+A :class:`~cerberus_core.bodies.body.Subject` is a small JSON-ready record (its ``name`` and
+``info``: phenotype, species parameters, pose seed, file names ...) that holds everything :meth:`~BodySource.bodies` needs. The
 dataset manifest stores these records (``manifest["subjects"]``), so a reader rebuilds any body from
 the manifest alone (:meth:`Subject.from_dict`), without replaying the generator's calls; no call
 depends on an earlier one. Sources may cache (a loaded model, a subject's scale), never remember.
@@ -23,93 +23,18 @@ Sources: ``human`` (anny, :mod:`cerberus_core.bodies.human`), ``animal`` (proced
 """
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from typing import Any
 
-from cerberus_core.bodies.body import PosedBody
+from cerberus_core.bodies import animal, human, primitives
+from cerberus_core.bodies.body import BodySource, PosedBody, Subject
+from cerberus_core.bodies.folder import FolderSource
+from cerberus_core.bodies.human_motion import motion_pose_id
 from cerberus_core.errors import ConfigError
 
-
-@dataclass(frozen=True)
-class Subject:
-    """One subject (person, species, mesh folder) as the manifest stores it.
-
-    Attributes:
-        name: unique within the dataset (``PosedBody.subject``).
-        info: JSON-ready parameters of the subject: everything its source needs to pose it.
-    """
-
-    name: str
-    info: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "info": dict(self.info)}
-
-    @classmethod
-    def from_dict(cls, record: Mapping[str, Any]) -> Subject:
-        """The subject of a manifest entry (``{"name": ..., "info": {...}, ...}``; other keys ignored)."""
-        return cls(str(record["name"]), dict(record.get("info", {})))
-
-    def need(self, source: str, *keys: str) -> list[Any]:
-        """``info[key]`` for each key, or a ``KeyError`` naming the missing ones (an older manifest)."""
-        missing = [k for k in keys if k not in self.info]
-        if missing:
-            raise KeyError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
-                           "self-contained subject records: rerun the same `cerberus data generate` command (it "
-                           "resumes and rewrites the manifest)")
-        return [self.info[k] for k in keys]
-
-
-class BodySource(ABC):
-    """Geometry provider of a dataset (module docstring).
-
-    Attributes:
-        name: the source's name as ``cerberus data generate --dataset`` spells it.
-        part_names: names of the ground-truth parts indexed by ``PosedBody.vertex_parts``.
-        shared_subjects: ``True`` if every split holds the same subjects with disjoint poses (the
-            animal protocol); ``False`` if splits hold disjoint subjects (human, folder).
-    """
-
-    name: str = "abstract"
-    part_names: list[str]
-    shared_subjects: bool = False
-
-    @abstractmethod
-    def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
-        """The ``n`` subjects of ``split`` (``None``: all the source has for the split)."""
-
-    @abstractmethod
-    def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
-        """Pose ids of ``subject`` available to ``split``, at most ``n`` of them (``None``: all).
-
-        Sources with unlimited poses return exactly ``n`` fresh ids; sources with a fixed set
-        return up to ``n`` (the generator reuses them when it needs more).
-        """
-
-    def canonical_pose(self, subject: Subject) -> int | None:
-        """Pose id of the subject's canonical pose, or ``None`` if the source has none."""
-        return None
-
-    def motion_pairs(self, subject: Subject, split: str, n: int | None) -> list[tuple[int, int]]:
-        """``n`` pose-id pairs ``(a, b)`` of ``subject``, each two nearby frames of one motion (the
-        ``pose_pairs: motion`` mode of a ``pairs`` split); sources without motions refuse.
-
-        Raises:
-            ConfigError: the source has no motion pairs (or, for ``n=None``, no fixed number of them).
-        """
-        raise ConfigError(f"splits.{split}.pose_pairs: the {self.name} source has no motion pose pairs; set "
-                          f"splits.{split}.pose_pairs=independent")
-
-    @abstractmethod
-    def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
-        """Normalised posed bodies of one subject, one per pose id, in order; each depends only on
-        ``(subject, pose id)``, never on the other ids asked for."""
-
-    def describe(self) -> dict[str, Any]:
-        """Options that determine the geometry (stored in the manifest's config; part of its hash)."""
-        return {}
+#: The source contract (:class:`BodySource`, :class:`Subject`) is defined in :mod:`.body`, which the
+#: sources (``folder`` included) build on; it is importable from here as well.
+__all__ = ["AnimalSource", "BodySource", "HumanSource", "PrimitiveSource", "Subject", "make_source"]
 
 
 class _SeededSubjects(BodySource):
@@ -146,8 +71,6 @@ class HumanSource(_SeededSubjects):
     name = "human"
 
     def __init__(self, device: str = "cpu") -> None:
-        from cerberus_core.bodies import human
-
         self._human = human
         self.part_names = list(human.PART_NAMES)
         self._device = device
@@ -162,8 +85,6 @@ class HumanSource(_SeededSubjects):
     def motion_pairs(self, subject: Subject, split: str, n: int | None) -> list[tuple[int, int]]:
         """Motion clips ``0..n-1``: pose ids ``(10^9 + 2c, 10^9 + 2c + 1)``
         (:mod:`cerberus_core.bodies.human_motion`)."""
-        from cerberus_core.bodies.human_motion import motion_pose_id
-
         if n is None:
             raise ConfigError(f"splits.{split}.pairs: the human source has unlimited motion pairs; give a pair count")
         return [(motion_pose_id(c, 0), motion_pose_id(c, 1)) for c in range(n)]
@@ -194,8 +115,6 @@ class PrimitiveSource(_SeededSubjects):
     name = "primitives"
 
     def __init__(self) -> None:
-        from cerberus_core.bodies import primitives
-
         self._prim = primitives
         self._model = primitives.PrimitiveBodySource()
         self.part_names = list(primitives.PART_NAMES)
@@ -227,8 +146,6 @@ class AnimalSource(BodySource):
     TEST_POSE_BASE = 1000
 
     def __init__(self) -> None:
-        from cerberus_core.bodies import animal
-
         self._animal = animal
         self.part_names = list(animal.ANIMAL_PART_NAMES)
 
@@ -271,7 +188,5 @@ def make_source(name: str, **options: Any) -> BodySource:
     if name == "animal":
         return AnimalSource(**options)
     if name == "folder":
-        from cerberus_core.bodies.folder import FolderSource
-
         return FolderSource(**options)
     raise ValueError(f"unknown dataset source {name!r}; choose human, animal, primitives or folder")

@@ -172,7 +172,7 @@ def run_generate(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     """Exit 2 when ROOT is not a readable dataset (bad input), 1 when the dataset has problems."""
-    from cerberus_core.datasets.format import verify_dataset
+    from cerberus_core.datasets.readers import verify_dataset
 
     manifest, problems = verify_dataset(args.root, checksums=not args.quick, progress=sys.stderr.isatty())
     if manifest is None:

@@ -246,38 +246,6 @@ def empty_views(root: Path, manifest: dict, split: str, shard: dict, chunk: int 
             "fix the meshes or the scene and regenerate the dataset"]
 
 
-def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False) -> tuple[dict | None, list[str]]:
-    """Check a whole dataset: manifest, completeness, every shard file (and its sha256), and views
-    that render empty (:func:`empty_views`, on shards whose files are sound).
-
-    Returns:
-        ``(manifest or None, problems)``; an empty problem list means the dataset is sound.
-    """
-    root = Path(root)
-    try:
-        manifest = read_manifest(root)
-    except DatasetError as exc:
-        return None, [str(exc)]
-    problems: list[str] = []
-    shards = [(name, s) for name, info in manifest["splits"].items() for s in info.get("shards", [])]
-    it = shards
-    if progress:
-        from tqdm import tqdm
-
-        it = tqdm(shards, desc="checking shards", unit="shard")
-    for split, shard in it:
-        found = check_shard_files(root, shard, checksums=checksums)
-        problems.extend(found or empty_views(root, manifest, split, shard))
-    for name, info in manifest["splits"].items():
-        if not split_complete(info):
-            from cerberus_core.datasets.plan import generate_command  # plan builds on this module
-
-            problems.append(f"split {name!r} is incomplete: {len(info.get('shards', []))} of "
-                            f"{info.get('planned_shards')} shards; finish generating it (it resumes) with "
-                            f"`{generate_command(root, manifest)}`")
-    return manifest, problems
-
-
 # ------------------------------------------------------------------------------------ meshes
 def pack_meshes(bodies: list, subject_index: list[int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Pack ground-truth meshes of one shard; topologies (faces + part labels) are stored once.

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from cerberus_core import __version__
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.bodies.sources import BodySource, Subject, make_source
 from cerberus_core.datasets.format import (
@@ -30,12 +31,14 @@ from cerberus_core.datasets.format import (
     clean_temporaries,
     config_hash,
     pack_meshes,
+    read_manifest,
     write_shard,
 )
 from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.lock import is_lock_file
 from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.render.api import render
 from cerberus_core.render.interface import Renderer
@@ -248,9 +251,6 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | 
     Raises:
         DatasetError: ``out`` is a file, or holds another dataset or other files and not ``overwrite``.
     """
-    from cerberus_core.datasets.format import read_manifest
-    from cerberus_core.lock import is_lock_file
-
     if not out.exists():
         return "new", None
     if not out.is_dir():
@@ -294,8 +294,6 @@ def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None
 
 
 def _manifest(config: GenerationConfig, cfg: dict, source: BodySource, source_options: dict, plan: DatasetPlan) -> dict:
-    from cerberus_core import __version__
-
     splits = {}
     for name, split_cfg in config.splits.items():
         t = plan.totals(name)

@@ -3,6 +3,8 @@
 * :class:`QuadrupletDataset` — training quadruplets: one body in 2 poses (a, b) from 2 viewpoints
   (0, 1), images in the order ``(a0, a1, b0, b1)``.
 * :class:`ViewDataset` — single images (evaluation), with the ground-truth mesh of each image.
+* :func:`verify_dataset` — the whole-folder check of ``cerberus data verify`` (the readers run the
+  same checks on the split they open).
 
 Both are cheap to construct (they read ``manifest.json`` and stat the shard files) and picklable:
 shards are opened lazily in each process with ``np.load(mmap_mode="r")``.
@@ -15,12 +17,15 @@ from typing import Any
 import numpy as np
 import torch
 from torch.utils.data import Dataset
+from tqdm import tqdm
 
 from cerberus_core.bodies.body import PosedBody
+from cerberus_core.bodies.sources import Subject, make_source
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
     check_shard_files,
+    empty_views,
     read_manifest,
     resolve_inside,
     split_complete,
@@ -75,6 +80,34 @@ def empty_split_hint(manifest: dict, split: str, root: str | Path = "ROOT") -> s
     return f"{head}{cause}; {fix}"
 
 
+def incomplete_split(root: Path, manifest: dict, split: str) -> str:
+    """The problem with an incomplete split, naming the command that finishes it (it resumes)."""
+    info = manifest["splits"][split]
+    return (f"split {split!r} is incomplete ({len(info.get('shards', []))} of {info.get('planned_shards')} shards); "
+            f"finish generating it (it resumes) with `{generate_command(root, manifest)}`")
+
+
+def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False) -> tuple[dict | None, list[str]]:
+    """Check a whole dataset: manifest, completeness, every shard file (and its sha256), and views
+    that render empty (:func:`~cerberus_core.datasets.format.empty_views`, on shards whose files are sound).
+
+    Returns:
+        ``(manifest or None, problems)``; an empty problem list means the dataset is sound.
+    """
+    root = Path(root)
+    try:
+        manifest = read_manifest(root)
+    except DatasetError as exc:
+        return None, [str(exc)]
+    problems: list[str] = []
+    shards = [(name, s) for name, info in manifest["splits"].items() for s in info.get("shards", [])]
+    for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
+        problems.extend(check_shard_files(root, shard, checksums=checksums) or empty_views(root, manifest, split, shard))
+    problems += [incomplete_split(root, manifest, name) for name, info in manifest["splits"].items()
+                 if not split_complete(info)]
+    return manifest, problems
+
+
 class _SplitReader:
     """Lazy access to the shards of one split (shared by the datasets below)."""
 
@@ -86,9 +119,7 @@ class _SplitReader:
         if self.info.get("planned_shards") == 0:
             raise DatasetError(f"{self.root}: split {split!r} is empty: {empty_split_hint(self.manifest, split, self.root)}")
         if not allow_partial and not split_complete(self.info):
-            raise DatasetError(f"{self.root}: split {split!r} is incomplete ({len(self.info['shards'])} of "
-                               f"{self.info['planned_shards']} shards); finish generating it (it resumes) with "
-                               f"`{generate_command(self.root, self.manifest)}`")
+            raise DatasetError(f"{self.root}: {incomplete_split(self.root, self.manifest, split)}")
         self.shards: list[dict] = self.info["shards"]
         for shard in self.shards:
             problems = check_shard_files(self.root, shard, checksums=verify)
@@ -343,8 +374,6 @@ class ViewDataset(_Base):
 
     def _regenerate(self, subject: int, pose: int) -> PosedBody:
         """Rebuild a body from the manifest alone: its source (name and options) and the subject's record."""
-        from cerberus_core.bodies.sources import Subject, make_source
-
         if self._source is None:
             src = self.manifest["source"]
             try:

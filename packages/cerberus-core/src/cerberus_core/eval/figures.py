@@ -17,10 +17,13 @@ from pathlib import Path
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
+from cerberus_core.eval.runner import collate
+from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light, Renderer
+from cerberus_core.render.interface import Renderer
+from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION, Light
 from cerberus_core.viz import atomic_save_png, part_colors, to_uint8
 
 Tensor = torch.Tensor
@@ -30,50 +33,17 @@ RGB = tuple[float, float, float]
 DEFAULT_ALBEDO: RGB = (0.8, 0.8, 0.8)
 #: Figure background (the datasets render on white).
 DEFAULT_BACKGROUND: RGB = (1.0, 1.0, 1.0)
-#: "New lighting" direction in the input camera's frame (+x right, +y up, +z towards the viewer):
-#: from the upper left, slightly in front.
-NEW_LIGHT_CAMERA_DIRECTION = (-1.0, 1.0, 0.35)
 
 PAD = 4
 TITLE_HEIGHT = 18
 ROW_LABEL_WIDTH = 90
 
 
-# ------------------------------------------------------------------ cameras and lights
-def camera_spherical(camera: Camera) -> tuple[Tensor, Tensor, Tensor]:
-    """``(azimuth_deg, elevation_deg, distance)``, each ``(B,)``, of look-at cameras aimed at the origin
-    (the inverse of :meth:`Camera.look_at`)."""
-    c = camera.center
-    dist = c.norm(dim=-1)
-    el = torch.rad2deg(torch.asin((c[:, 1] / dist).clamp(-1, 1)))
-    az = torch.rad2deg(torch.atan2(c[:, 0], c[:, 2]))
-    return az, el, dist
-
-
-def orbit_cameras(camera: Camera, azimuth_offsets_deg: Sequence[float] | Tensor) -> Camera:
-    """Cameras at the input camera's elevation, distance and fov, turned by each azimuth offset.
-
-    Args:
-        camera: one camera (batch 1).
-        azimuth_offsets_deg: ``(n,)`` offsets added to its azimuth.
-    Returns:
-        ``n`` cameras.
-    """
-    if camera.batch_size != 1:
-        raise ValueError(f"orbit_cameras: expected one camera, got {camera.batch_size}")
-    az, el, dist = camera_spherical(camera)
-    offsets = torch.as_tensor(azimuth_offsets_deg, dtype=az.dtype, device=az.device).reshape(-1)
-    return Camera.look_at(az + offsets, el.expand_as(offsets), dist.expand_as(offsets),
-                          fov_y_deg=camera.fov_y_deg.expand_as(offsets), image_size=(camera.height, camera.width),
-                          near=camera.near, far=camera.far, device=camera.device)
-
-
+# ------------------------------------------------------------------ lights
 def camera_relative_light(camera: Camera, direction_cam: Sequence[float] = NEW_LIGHT_CAMERA_DIRECTION,
                           ambient: float = 0.25, diffuse: float = 0.75) -> Light:
-    """A white directional light given in each camera's frame (so it reads the same in every view)."""
-    d = torch.as_tensor(direction_cam, dtype=camera.rotation.dtype, device=camera.device)
-    world = (camera.rotation.transpose(-1, -2) @ d).reshape(camera.batch_size, 3)
-    return Light.white(world, ambient, diffuse)
+    """Figure 1 (d)'s new light: white, given in each camera's frame (:meth:`Light.camera_relative`)."""
+    return Light.camera_relative(camera, direction_cam, ambient, diffuse)
 
 
 # ------------------------------------------------------------------ renders
@@ -101,7 +71,7 @@ def turntable(renderer: Renderer, recon: PartSet, camera: Camera, n_views: int =
         raise ValueError(f"turntable: expected one reconstruction, got {recon.batch_size}")
     if n_views < 1:
         raise ValueError(f"turntable: n_views must be >= 1, got {n_views}")
-    cams = orbit_cameras(camera, [k * 360.0 / n_views for k in range(n_views)])
+    cams = camera.orbit([k * 360.0 / n_views for k in range(n_views)])
     many = recon.index([0] * n_views)
     return render_reconstruction(renderer, many, cams, parts=parts, background=background)
 
@@ -233,7 +203,7 @@ def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartSet, camera:
         "output": render_reconstruction(renderer, recon, camera, background=background)[0],
         "parts": render_reconstruction(renderer, recon, camera, parts=True, background=background)[0],
         "new_lighting": relit(renderer, recon, camera, light, background=background)[0],
-        "new_viewpoint": render_reconstruction(renderer, recon, orbit_cameras(camera, [view_offset_deg]),
+        "new_viewpoint": render_reconstruction(renderer, recon, camera.orbit([view_offset_deg]),
                                                background=background)[0],
     }
     if pose_donor is not None:
@@ -281,7 +251,7 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
         columns[name] = render_reconstruction(renderer, rec, camera, background=background).cpu()
     columns["Ours"] = render_reconstruction(renderer, ours, camera, background=background).cpu()
     columns["Parts"] = render_reconstruction(renderer, ours, camera, parts=True, background=background).cpu()
-    turned = Camera.cat([orbit_cameras(camera.index([i]), [turn_deg]) for i in range(n)])
+    turned = Camera.cat([camera.index([i]).orbit([turn_deg]) for i in range(n)])
     columns["Turn"] = render_reconstruction(renderer, ours, turned, background=background).cpu()
     titles = list(columns)
     return titles, [[columns[t][i] for t in titles] for i in range(n)]
@@ -334,9 +304,6 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     Returns:
         The path of the Table-2 figure.
     """
-    from cerberus_core.eval.runner import collate
-    from cerberus_core.eval.viewer import write_reconstruction_viewer
-
     out = Path(out)
     n = min(n_images, len(dataset))
     idx = torch.linspace(0, len(dataset) - 1, n).round().long().unique().tolist()

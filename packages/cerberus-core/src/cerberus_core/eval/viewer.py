@@ -6,8 +6,8 @@ right-drag to pan; it opens at the input camera's view), a switch between the mo
 visibility toggle per part in its colour, and a light control (the training light, which follows the
 camera, or Figure 1 (d)'s new light, and its direction).
 
-It uses three.js, vendored at a pinned version in ``viewer_assets/three-<version>/`` (MIT; see the
-README there). Everything is inlined, so the page works offline from ``file://`` (where Chromium blocks
+It uses three.js, vendored at a pinned version in ``cerberus_core/vendor/three-<version>/`` (MIT;
+see the README there). Everything is inlined, so the page works offline from ``file://`` (where Chromium blocks
 module files and ``fetch``) as well as over HTTP: the GLBs and pictures are base64 strings in the page,
 and the three.js modules are ``data:`` URLs of an import map. That costs about 1.3 MB for three.js
 plus the meshes, so the number of cards is bounded (``limit``, default :data:`DEFAULT_LIMIT`) and the
@@ -37,14 +37,16 @@ from PIL import Image
 
 from cerberus_core.atomic import atomic_write, atomic_write_text
 from cerberus_core.eval.export import export_parts
-from cerberus_core.eval.figures import NEW_LIGHT_CAMERA_DIRECTION, camera_spherical
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.camera import Camera
+from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION
 from cerberus_core.viz import part_colors, to_uint8
 
 THREE_VERSION = "0.184.0"
 ASSETS = Path(__file__).with_name("viewer_assets")
-THREE_DIR = ASSETS / f"three-{THREE_VERSION}"
+#: Third-party files, each with its licence (``cerberus_core/vendor/README.md``).
+VENDOR = Path(__file__).resolve().parents[1] / "vendor"
+THREE_DIR = VENDOR / f"three-{THREE_VERSION}"
 #: The vendored files the page needs (paths inside the three.js package); the first is ``three``.
 THREE_FILES = ("build/three.module.min.js", "build/three.core.min.js", "examples/jsm/controls/OrbitControls.js",
                "examples/jsm/loaders/GLTFLoader.js", "examples/jsm/utils/BufferGeometryUtils.js",
@@ -130,7 +132,7 @@ def camera_view(camera: Camera) -> dict:
     """``{"azimuth", "elevation", "distance", "fov_y"}`` of a batch-1 look-at camera aimed at the origin."""
     if camera.batch_size != 1:
         raise ValueError(f"camera_view: expected one camera, got {camera.batch_size}")
-    az, el, dist = camera_spherical(camera)
+    az, el, dist = camera.spherical()
     return {"azimuth": float(az[0]), "elevation": float(el[0]), "distance": float(dist[0]),
             "fov_y": float(camera.fov_y_deg.reshape(-1)[0])}
 

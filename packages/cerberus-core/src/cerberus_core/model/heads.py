@@ -28,7 +28,7 @@ from kornia.geometry.conversions import quaternion_to_rotation_matrix
 from kornia.geometry.subpix import spatial_expectation2d
 from torch import nn
 
-from cerberus_core.render.camera import Camera
+from cerberus_core.render.camera import Camera, pixel_centres
 
 Tensor = torch.Tensor
 
@@ -178,8 +178,10 @@ class TranslationHead(nn.Module):
     def forward(self, features: Tensor, size: tuple[int, int]) -> KeypointMaps:
         """``features`` ``(B, C, h, w)`` → :class:`KeypointMaps` on an ``size = (H, W)`` pixel grid."""
         h, w = features.shape[-2:]
-        ys = (torch.arange(h, device=features.device, dtype=features.dtype) + 0.5) / h * 2 - 1
-        xs = (torch.arange(w, device=features.device, dtype=features.dtype) + 0.5) / w * 2 - 1
+        # Feature-cell centres in [-1, 1], x right and y down (rows): the pixel-centre rule of
+        # render.camera.pixel_centres, whose y grows up (0 - py, not -py: the same bits, +0.0 included).
+        xs, py = pixel_centres(h, w, features.dtype, features.device)
+        ys = 0.0 - py
         gy, gx = torch.meshgrid(ys, xs, indexing="ij")
         coords = torch.stack([gx, gy, gx.square(), gy.square()], -1)  # (h, w, 4)
         logits = self.logits(features) + self.coords(coords).permute(2, 0, 1).unsqueeze(0)

@@ -1,6 +1,12 @@
-"""Rendering: the backend contract (:mod:`.interface`), the shared differentiable shading
-(:mod:`.shading`) and the user-facing entry points :func:`render` / :func:`render_parts` (:mod:`.api`)."""
+"""Rendering: the camera and the pixel-centre rule (:mod:`.camera`), the light (:mod:`.light`), the
+backend contract (:mod:`.interface`), the shared differentiable shading and anti-aliasing
+(:mod:`.shading`, :mod:`.antialias`) and the user-facing entry points :func:`render` /
+:func:`render_parts` (:mod:`.api`).
+
+Within the package imports point one way: camera, light, templates <- shading <- antialias <-
+interface <- api."""
 from cerberus_core.render.api import render, render_parts
-from cerberus_core.render.interface import Light, Renderer, RenderOutput
+from cerberus_core.render.interface import Renderer, RenderOutput
+from cerberus_core.render.light import Light
 
 __all__ = ["Light", "RenderOutput", "Renderer", "render", "render_parts"]

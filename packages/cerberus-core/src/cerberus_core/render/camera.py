@@ -1,4 +1,5 @@
-"""Perspective pinhole camera: look-at placement, projection and unprojection.
+"""Perspective pinhole camera: look-at placement and its inverse, orbits, projection and unprojection,
+and the pixel-centre rule (:func:`pixel_centres`).
 
 Conventions (used everywhere in the toolkit):
 
@@ -15,6 +16,7 @@ Conventions (used everywhere in the toolkit):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
@@ -74,6 +76,22 @@ def spherical_to_eye(azimuth_deg: Tensor, elevation_deg: Tensor, distance: Tenso
         [distance * torch.cos(el) * torch.sin(az), distance * torch.sin(el), distance * torch.cos(el) * torch.cos(az)],
         dim=-1,
     )
+
+
+def pixel_centres(height: int, width: int, dtype: torch.dtype = torch.float32,
+                  device: torch.device | str | None = None) -> tuple[Tensor, Tensor]:
+    """NDC coordinates of the pixel centres (module docstring, "Pixels"; the rasterization rule of
+    :mod:`cerberus_core.render.interface`): the one place they are computed (the backends'
+    rasterizers, the shared shading and anti-aliasing all take them from here, so they agree bit for
+    bit in every dtype).
+
+    Returns:
+        ``px`` ``(W,)`` = ``2 (j + 0.5) / W - 1`` per column and ``py`` ``(H,)`` = ``1 - 2 (i + 0.5) / H``
+        per row, in ``dtype``.
+    """
+    cols = torch.arange(width, device=device).to(dtype)
+    rows = torch.arange(height, device=device).to(dtype)
+    return (2.0 * cols + 1.0) / width - 1.0, 1.0 - (2.0 * rows + 1.0) / height
 
 
 @dataclass
@@ -146,6 +164,32 @@ class Camera:
         trans = -(rot @ eye.unsqueeze(-1)).squeeze(-1)
         h, w = (image_size, image_size) if isinstance(image_size, int) else image_size
         return cls(rot, trans, fov_y_deg, int(h), int(w), near, far)
+
+    def spherical(self) -> tuple[Tensor, Tensor, Tensor]:
+        """``(azimuth_deg, elevation_deg, distance)``, each ``(B,)``, of look-at cameras aimed at the
+        origin: the inverse of :meth:`look_at`."""
+        c = self.center
+        dist = c.norm(dim=-1)
+        el = torch.rad2deg(torch.asin((c[:, 1] / dist).clamp(-1, 1)))
+        az = torch.rad2deg(torch.atan2(c[:, 0], c[:, 2]))
+        return az, el, dist
+
+    def orbit(self, azimuth_offsets_deg: Sequence[float] | Tensor) -> Camera:
+        """Cameras at this camera's elevation, distance and fov, turned about the origin by each
+        azimuth offset.
+
+        Args:
+            azimuth_offsets_deg: ``(n,)`` offsets added to the azimuth of this one camera (batch 1).
+        Returns:
+            ``n`` cameras.
+        """
+        if self.batch_size != 1:
+            raise ValueError(f"Camera.orbit: expected one camera, got {self.batch_size}")
+        az, el, dist = self.spherical()
+        offsets = torch.as_tensor(azimuth_offsets_deg, dtype=az.dtype, device=az.device).reshape(-1)
+        return Camera.look_at(az + offsets, el.expand_as(offsets), dist.expand_as(offsets),
+                              fov_y_deg=self.fov_y_deg.expand_as(offsets), image_size=(self.height, self.width),
+                              near=self.near, far=self.far, device=self.device)
 
     @property
     def batch_size(self) -> int:

@@ -31,56 +31,16 @@ from typing import ClassVar
 
 import torch
 
+from cerberus_core.render.antialias import antialias
+from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.light import Light
+from cerberus_core.render.shading import shade
+from cerberus_core.render.templates import vertex_normals
+
 Tensor = torch.Tensor
 
-
-def pixel_centres(height: int, width: int, dtype: torch.dtype = torch.float32,
-                  device: torch.device | str | None = None) -> tuple[Tensor, Tensor]:
-    """NDC coordinates of the pixel centres, the rule above: the one place it is computed (the
-    backends' rasterizers and the shared shading all take it from here, so they agree bit for bit in
-    every dtype).
-
-    Returns:
-        ``px`` ``(W,)`` = ``2 (j + 0.5) / W - 1`` per column and ``py`` ``(H,)`` = ``1 - 2 (i + 0.5) / H``
-        per row, in ``dtype``.
-    """
-    cols = torch.arange(width, device=device).to(dtype)
-    rows = torch.arange(height, device=device).to(dtype)
-    return (2.0 * cols + 1.0) / width - 1.0, 1.0 - (2.0 * rows + 1.0) / height
-
-
-@dataclass
-class Light:
-    """One directional light plus ambient light, in world coordinates.
-
-    Attributes:
-        direction: ``(B, 3)`` unit vectors pointing *towards* the light.
-        ambient: ``(B, 3)`` ambient RGB intensity.
-        diffuse: ``(B, 3)`` directional RGB intensity.
-
-    A surface point with unit normal ``n`` and albedo ``a`` gets the colour
-    ``a * (ambient + diffuse * max(0, n · direction))``.
-    """
-
-    direction: Tensor
-    ambient: Tensor
-    diffuse: Tensor
-
-    @classmethod
-    def white(cls, direction: Tensor, ambient: float = 0.4, diffuse: float = 0.6) -> Light:
-        """White light from ``direction`` ``(B, 3)`` (normalised here)."""
-        d = torch.nn.functional.normalize(direction, dim=-1)
-        b = d.shape[0]
-        ones = torch.ones(b, 3, dtype=d.dtype, device=d.device)
-        return cls(d, ones * ambient, ones * diffuse)
-
-    @classmethod
-    def following(cls, camera, ambient: float = 0.4, diffuse: float = 0.6) -> Light:
-        """White light shining along each camera's viewing direction (the paper's set-up)."""
-        return cls.white(camera.view_direction(), ambient, diffuse)
-
-    def index(self, idx) -> Light:
-        return Light(self.direction[idx], self.ambient[idx], self.diffuse[idx])
+#: The contract's types and its pixel rule, importable from here as the backends always have.
+__all__ = ["Light", "RenderOutput", "Renderer", "pixel_centres"]
 
 
 @dataclass
@@ -144,8 +104,6 @@ class Renderer(ABC):
         Returns:
             ``(B, V, 3)`` unit normals, the maths of :func:`cerberus_core.render.templates.vertex_normals`.
         """
-        from cerberus_core.render.templates import vertex_normals
-
         return vertex_normals(vertices, faces)
 
     def shade(self, clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo: Tensor,
@@ -162,8 +120,6 @@ class Renderer(ABC):
         Returns:
             ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)``, both 0 on background pixels.
         """
-        from cerberus_core.render.shading import shade
-
         return shade(clip, faces, face_id, normals, albedo, light)
 
     def antialias(self, color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
@@ -178,8 +134,6 @@ class Renderer(ABC):
         Returns:
             ``(B, H, W, C)`` blended colours, differentiable w.r.t. ``color`` and ``clip``.
         """
-        from cerberus_core.render.antialias import antialias
-
         return antialias(color, clip, faces, face_id)
 
     def __repr__(self) -> str:

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.render.interface import Light, pixel_centres
+from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import NORMAL_EPS
 
 Tensor = torch.Tensor

@@ -2,16 +2,21 @@
 
 The paper deforms a sphere of 162 vertices and 320 faces (icosphere subdivision level 2) per part.
 Icospheres come from :func:`trimesh.creation.icosphere`; this module adds what the model and the
-smoothness loss need (edges, dihedral quadruples, vertex adjacency) as torch tensors.
+smoothness loss need (edges, dihedral quadruples, vertex adjacency) as torch tensors. trimesh (which
+imports scipy when it is installed) is imported only when a template is built, so that
+``import cerberus_core.render`` needs torch alone.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-import trimesh
+
+if TYPE_CHECKING:
+    import trimesh
 
 Tensor = torch.Tensor
 
@@ -75,6 +80,10 @@ class MeshTemplate:
 
 @lru_cache(maxsize=8)
 def _icosphere_cached(level: int) -> MeshTemplate:
+    # Heavy dependency, imported when a template is first built: trimesh pulls in scipy (when
+    # installed), which `import cerberus_core.render` must not need (module docstring).
+    import trimesh.creation
+
     return MeshTemplate.from_trimesh(trimesh.creation.icosphere(subdivisions=level, radius=1.0))
 
 

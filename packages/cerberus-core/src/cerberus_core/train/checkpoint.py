@@ -13,20 +13,24 @@ every RNG state (Python, NumPy, torch CPU and CUDA) and the config as YAML — s
 """
 from __future__ import annotations
 
+import json
 import random
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
+import yaml
+from safetensors import safe_open
 from safetensors.torch import load_file, save
 
 from cerberus_core.atomic import atomic_write
-from cerberus_core.errors import CerberusError
+from cerberus_core.datasets.format import MANIFEST, read_manifest
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.model.cerberus import Cerberus
-
-if TYPE_CHECKING:
-    from cerberus_core.train.config import TrainConfig
+from cerberus_core.train.config import TrainConfig
+from cerberus_core.zoo import model_path
 
 FORMAT_VERSION = 1
 LAST = "last.pt"
@@ -138,8 +142,6 @@ def export_weights(model: Cerberus, path: str | Path, config_yaml: str, step: in
                    scene: dict[str, Any] | None = None) -> Path:
     """Write the model weights as safetensors, with the config, step and (optionally) the training
     data's scene set-up (:class:`~cerberus_core.datasets.scene.SceneSetup` as a dict) in the metadata."""
-    import json
-
     tensors = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     meta = {"config": config_yaml, "step": str(step), "format": "cerberus-model"}
     if scene is not None:
@@ -171,16 +173,7 @@ def load_run(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerb
         CheckpointError: a missing path, a folder that is not a run (a dataset folder says so), a
             truncated, foreign or pickled file, or weights that do not fit the saved config.
     """
-    import json
-
-    import yaml
-    from safetensors import safe_open
-
-    from cerberus_core.train.config import TrainConfig
-
     if not Path(path).exists() and "/" not in str(path) and not Path(path).suffix:
-        from cerberus_core.zoo import model_path
-
         path = model_path(str(path))  # a shipped model's name ("human"): its checksum-verified weights
     path = Path(path)
     if not path.exists():
@@ -238,10 +231,6 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
     Returns:
         A :class:`~cerberus_core.datasets.scene.SceneSetup`.
     """
-    from cerberus_core.datasets.format import MANIFEST, read_manifest
-    from cerberus_core.datasets.scene import SceneSetup
-    from cerberus_core.errors import ConfigError
-
     if data is not None:
         if not (Path(data) / MANIFEST).is_file():
             raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")

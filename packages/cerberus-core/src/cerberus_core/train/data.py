@@ -28,6 +28,7 @@ import numpy as np
 import torch
 from torch.utils.data import Sampler
 
+from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
 
@@ -49,8 +50,6 @@ def check_dataset(dataset: Any) -> None:
 
 def build_dataset(root: str, split: str) -> Any:
     """The quadruplet dataset of ``root`` (:class:`cerberus_core.datasets.readers.QuadrupletDataset`)."""
-    from cerberus_core.datasets.readers import QuadrupletDataset
-
     return QuadrupletDataset(root, split=split)
 
 

@@ -45,10 +45,12 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from cerberus_core.atomic import atomic_write_text
+from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.lock import LockedError, acquire, check_unlocked, is_lock_file
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import make_renderer, resolve_renderer
+from cerberus_core.signals import interrupt_for
 from cerberus_core.train.checkpoint import (
     LAST,
     checkpoint_dir,
@@ -166,8 +168,6 @@ class _StopRequest:
 
     def _handle(self, signum, frame) -> None:  # noqa: ARG002
         if self.requested:  # second signal: give up immediately
-            from cerberus_core.signals import interrupt_for
-
             raise interrupt_for(signum)
         self.requested, self.signum = True, signum
 
@@ -245,8 +245,6 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
 def verify_split(root: str | Path, split: str) -> None:
     """Check every shard file of ``split`` against the sha256 the manifest records (once, at the start
     of a run: the reader only checks sizes on every open). :class:`DatasetError` names the bad file."""
-    from cerberus_core.datasets.readers import QuadrupletDataset
-
     QuadrupletDataset(root, split=split, verify=True)
 
 
@@ -342,10 +340,7 @@ class _Trainer:
             self.run_dir.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.run_dir / "config.yaml", self.config_yaml)
             log = MetricsLog(self.run_dir, start, loop.tensorboard)
-        bar = tqdm(total=loop.steps, initial=start, desc="train", unit="step", dynamic_ncols=True, mininterval=1.0,
-                   disable=not (info.is_main and loop.progress))
-        if info.is_main and loop.progress:
-            bar.write(f"renderer: {cfg.renderer}, device: {self.device}, {self.speed_note}")
+        bar = self._progress_bar(start)
         terms: dict[str, float] = {}
         consecutive, done, interrupted, stop_signal = 0, start, False, 0
         window = [time.perf_counter(), 0]  # start time and steps of the current logging window
@@ -399,6 +394,16 @@ class _Trainer:
         barrier(info)
         return TrainResult(self.run_dir, done, release_speed(self.model), terms, self.skipped, interrupted, info.rank,
                            stop_signal)
+
+    def _progress_bar(self, start: int) -> tqdm:
+        """The main process's progress bar (when ``train.progress``), opened with a line that says what
+        runs where (the renderer, the device and the network's precision)."""
+        show = self.info.is_main and self.config.train.progress
+        bar = tqdm(total=self.config.train.steps, initial=start, desc="train", unit="step", dynamic_ncols=True,
+                   mininterval=1.0, disable=not show)
+        if show:
+            bar.write(f"renderer: {self.config.renderer}, device: {self.device}, {self.speed_note}")
+        return bar
 
     def _step(self, batch, step: int):
         """One optimisation step; returns ``(ok, objective output, gradient norm)``."""
