@@ -4,12 +4,18 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
 import math
+import time
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from cerberus_core.errors import ConfigError
 
 MANIFEST_NAME = "manifest.json"
+#: Written last into every result folder (reconstruct, eval): marks a folder a later run may replace.
+RESULT_MARKER = ".cerberus-result.json"
 
 
 def positive_int(text: str) -> int:
@@ -69,3 +75,46 @@ def output_file(path: Path, option: str = "--out") -> Path:
 
 def is_dataset(path: Path) -> bool:
     return (Path(path) / MANIFEST_NAME).is_file()
+
+
+def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
+                  keep: Sequence[Path] = ()) -> Path:
+    """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
+
+    Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
+    folder that is, or holds, one of ``keep`` (the inputs, the run, the dataset) or the current
+    directory, even with ``--overwrite``; a non-empty folder that is not an earlier result
+    (no :data:`RESULT_MARKER`) unless ``overwrite``; a folder a live process is writing into.
+    """
+    from cerberus_core.lock import check_unlocked, is_lock_file
+    from cerberus_core.names import printable
+
+    output_folder(path, option)
+    where = path.resolve()
+    for kept in [*keep, Path.cwd()]:
+        k = Path(kept).resolve()
+        if k == where or where in k.parents:
+            what = "the current directory" if kept == Path.cwd() else printable(kept)
+            raise ConfigError(f"{option} {printable(path)} holds {what}, and a result folder is replaced whole; "
+                              f"write the results to a folder of their own, e.g. {option} "
+                              f"{printable(path / 'results')}")
+    if path.is_dir():
+        check_unlocked(path)
+        held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))
+        if held and not (path / RESULT_MARKER).is_file() and not overwrite:
+            shown = ", ".join(printable(n) for n in held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
+            raise ConfigError(f"{option} {printable(path)} is not empty (it holds {shown}) and holds no earlier "
+                              f"Cerberus results; pass --overwrite to replace everything in it, or another {option}")
+    return path
+
+
+@contextlib.contextmanager
+def writing_results(path: Path, command: str) -> Iterator[Path]:
+    """Write a result folder whole: yields a temporary folder beside ``path`` to write into; when the
+    block ends it gets :data:`RESULT_MARKER` and replaces ``path`` in one rename
+    (:func:`cerberus_core.atomic.atomic_folder`). An error or a signal leaves ``path`` as it was."""
+    from cerberus_core.atomic import atomic_folder, atomic_write_text
+
+    with atomic_folder(path) as tmp:
+        yield tmp
+        atomic_write_text(tmp / RESULT_MARKER, json.dumps({"command": command, "written": time.time()}) + "\n")
