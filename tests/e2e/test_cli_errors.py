@@ -488,6 +488,8 @@ def test_eval_reports_its_step_and_a_newer_checkpoint(place, tmp_path, capsys):
     payload = torch.load(run / "checkpoints" / "last.pt", weights_only=True)
     payload["step"] = 5  # as a resumed training that checkpointed step 5, then was stopped
     torch.save(payload, run / "checkpoints" / "last.pt")
+    (run / "eval").mkdir()
+    (run / "eval" / "results.json").write_text("{}")  # an earlier version's results: replaced without --overwrite
     with pytest.warns(UserWarning, match=r"holds step 2 but .*last.pt is at step 5.*--resume"):
         assert main(["eval", str(run), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
                      "--viewer-images", "0"]) == 0

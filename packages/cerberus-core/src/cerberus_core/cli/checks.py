@@ -78,14 +78,19 @@ def is_dataset(path: Path) -> bool:
 
 
 def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
-                  keep: Sequence[Path] = ()) -> Path:
+                  keep: Sequence[Path] = (), earlier: frozenset[str] = frozenset()) -> Path:
     """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
 
     Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
     folder that is, or holds, one of ``keep`` (the inputs, the run, the dataset) or the current
     directory, even with ``--overwrite``; a non-empty folder that is not an earlier result
-    (no :data:`RESULT_MARKER`) unless ``overwrite``; a folder a live process is writing into.
+    (no :data:`RESULT_MARKER`, nor only the names in ``earlier``: what an older version wrote) unless
+    ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
+    writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
     """
+    import os
+
+    from cerberus_core.errors import OutputError
     from cerberus_core.lock import check_unlocked, is_lock_file
     from cerberus_core.names import printable
 
@@ -101,10 +106,15 @@ def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
     if path.is_dir():
         check_unlocked(path)
         held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))
-        if held and not (path / RESULT_MARKER).is_file() and not overwrite:
+        earlier_result = (path / RESULT_MARKER).is_file() or (earlier and set(held) <= earlier)
+        if held and not earlier_result and not overwrite:
             shown = ", ".join(printable(n) for n in held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
             raise ConfigError(f"{option} {printable(path)} is not empty (it holds {shown}) and holds no earlier "
                               f"Cerberus results; pass --overwrite to replace everything in it, or another {option}")
+    existing = next(p for p in (path.parent.absolute(), *path.parent.absolute().parents) if p.exists())
+    if not os.access(existing, os.W_OK | os.X_OK):  # also false on a read-only file system, even for root
+        raise OutputError(f"cannot write {printable(path)}: {printable(existing)} is not writable (read-only "
+                          f"file system or no permission); choose a writable {option}")
     return path
 
 

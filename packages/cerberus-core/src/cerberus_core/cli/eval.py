@@ -11,6 +11,8 @@ from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.names import printable
 from cerberus_core.plugins import get_metric, make_renderer
 
+#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without --overwrite.
+EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
 #: Largest voxel grid accepted (memory grows with its cube).
 MAX_RESOLUTION = 256
 
@@ -108,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     default_out = (run_path if run_path.is_dir() and looks_like_path(args.run) else run_path.parent) / "eval"
     keep = [run_path] if looks_like_path(args.run) else []
     out = result_folder(args.out or default_out, overwrite=args.overwrite,
-                        keep=[*keep, *([args.data] if args.data else [])])
+                        keep=[*keep, *([args.data] if args.data else [])], earlier=EARLIER_RESULTS)
     baselines = load_baselines(args.baseline, args.device)
     data_root = args.data or Path(config.data.root)
     if args.data is None and not is_dataset(data_root):
