@@ -5,9 +5,11 @@ each case snapshots the whole working folder (names, sizes, modification times) 
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
+import shutil
 import struct
 import zlib
 from pathlib import Path
@@ -53,6 +55,10 @@ def place(tmp_path_factory) -> dict[str, Path]:
     torch.save({"x": torch.nn.Linear(1, 1)}, root / "pickled.pt")  # a pickled module, not plain tensors
     (root / "trunc.safetensors").write_bytes((run / "model.safetensors").read_bytes()[:100])
     _bad_model_files(root, run)
+    shutil.copytree(data, root / "badscene")  # a dataset whose manifest records an unusable scene
+    manifest = json.loads((root / "badscene" / "manifest.json").read_text())
+    (root / "badscene" / "manifest.json").write_text(json.dumps(manifest | {"scene": manifest["scene"] | {
+        "elevation": "high"}}))
     os.mkfifo(root / "pipe.png")  # a FIFO: opening it for reading would block until a writer comes
     os.mkfifo(root / "pipe.safetensors")
     os.mkfifo(root / "pipe.yaml")
@@ -127,6 +133,10 @@ CASES = [
     ("eval-fifo", "eval {root}/pipe.safetensors", "is a FIFO (named pipe), not a model file"),
     ("eval-nan-weights", "eval {root}/nan.safetensors", "hold NaN or infinite values"),
     ("eval-scene-not-json", "eval {root}/scene_json.safetensors", "recorded scene set-up is not JSON"),
+    ("eval-scene-manifest", "eval {run} --data {root}/badscene", "scene.elevation = 'high': expected a finite"),
+    ("reconstruct-scene-manifest", "reconstruct {run} {root}/img.png --data {root}/badscene --out {root}/rec",
+     "invalid scene set-up (scene.elevation = 'high'"),
+    ("data-show-scene-manifest", "data show {root}/badscene --out {root}/sheet.png", "invalid scene set-up"),
     ("eval-unknown-name", "eval nosuchmodel", "no pretrained model named 'nosuchmodel'"),
     ("eval-out-notes", "eval {run} --out {root}/notes", "pass --overwrite"),
     ("eval-out-run", "eval {run} --out {run}", "a result folder is replaced whole"),

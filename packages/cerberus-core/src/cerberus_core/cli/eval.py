@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"the run's training data {data_root} is not a dataset folder from here; "
                           "pass --data DATASET")
     dataset = ViewDataset(data_root, args.split)
+    dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
     renderer = make_renderer(args.renderer or config.renderer)
     indices = range(min(args.limit, len(dataset))) if args.limit else None
     stale = weights.stale_warning()

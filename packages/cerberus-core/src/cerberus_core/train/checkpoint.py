@@ -376,20 +376,17 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
     from cerberus_core.datasets.scene import SceneSetup
     from cerberus_core.errors import ConfigError
 
-    def scene_of(record, where: str):
+    def scene_of(record, where: str, fix: str = "pass --data DATASET (the dataset it was trained on)"):
         try:
             return SceneSetup.from_dict(record)
-        except ConfigError as exc:
-            raise ConfigError(f"{where}: invalid scene set-up ({exc}); pass --data DATASET (the dataset it was "
-                              "trained on)") from None
-        except (ValueError, TypeError, AttributeError, KeyError) as exc:
-            raise ConfigError(f"{where}: invalid scene set-up ({type(exc).__name__}: {exc}); pass --data DATASET "
-                              "(the dataset it was trained on)") from None
+        except (ValueError, TypeError, AttributeError, KeyError) as exc:  # ConfigError is a ValueError
+            raise ConfigError(f"{where}: invalid scene set-up ({exc}); {fix}") from None
 
     if data is not None:
         if not (Path(data) / MANIFEST).is_file():
             raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
-        return scene_of(read_manifest(Path(data)).get("scene"), f"--data {data}")
+        return scene_of(read_manifest(Path(data)).get("scene"), f"--data {data}",
+                        "its manifest is damaged: regenerate it with `cerberus data generate`")
     if saved is not None:
         return scene_of(saved, "the model's recorded scene")
     root = Path(config.data.root)
