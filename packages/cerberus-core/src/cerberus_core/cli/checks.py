@@ -7,6 +7,7 @@ import argparse
 import contextlib
 import json
 import math
+import os
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -47,9 +48,37 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message}; see {self.prog} --help\n")
 
 
+#: The usual limits of a file name and of a whole path, in bytes (Linux's NAME_MAX and PATH_MAX).
+NAME_MAX, PATH_MAX = 255, 4096
+
+
+def check_path_length(path: Path, option: str = "--out") -> Path:
+    """:class:`ConfigError` when ``path`` or one of its names is longer than file systems allow (a name
+    over :data:`NAME_MAX` bytes, the whole over :data:`PATH_MAX`), before anything tries to use it.
+    Output names derived from it add at most a few dozen bytes."""
+    from cerberus_core.names import printable
+
+    def short(text: str) -> str:
+        text = printable(text)
+        return text if len(text) <= 40 else text[:37] + "..."
+
+    whole = len(os.fsencode(str(path.absolute())))
+    if whole > PATH_MAX - NAME_MAX:
+        raise ConfigError(f"{option} {short(str(path))}: the path is {whole} bytes long, more than file systems "
+                          f"allow for it and the names written inside it ({PATH_MAX - NAME_MAX}); choose a shorter path")
+    for part in path.parts:
+        if len(os.fsencode(part)) > NAME_MAX - 32:
+            raise ConfigError(f"{option}: the name {short(part)} is {len(os.fsencode(part))} bytes long; file systems "
+                              f"allow {NAME_MAX}, and a temporary name is added to it while writing: choose a name "
+                              f"under {NAME_MAX - 32} bytes")
+    return path
+
+
 def output_folder(path: Path, option: str = "--out", *, dataset_ok: bool = False) -> Path:
     """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
-    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results."""
+    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results;
+    nor a path too long to write (:func:`check_path_length`)."""
+    check_path_length(path, option)
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
@@ -62,7 +91,9 @@ def output_folder(path: Path, option: str = "--out", *, dataset_ok: bool = False
 
 
 def output_file(path: Path, option: str = "--out") -> Path:
-    """``path`` may be written as a file: not an existing folder, nor under a file."""
+    """``path`` may be written as a file: not an existing folder, nor under a file, nor too long
+    (:func:`check_path_length`)."""
+    check_path_length(path, option)
     if path.is_dir():
         raise ConfigError(f"{option} {path} is a folder; pass a file path")
     for p in path.parents:
@@ -88,8 +119,6 @@ def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
     ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
     writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
     """
-    import os
-
     from cerberus_core.errors import OutputError
     from cerberus_core.lock import check_unlocked, is_lock_file
     from cerberus_core.names import printable

@@ -72,6 +72,8 @@ def _open(path: Path) -> Image.Image:
     import stat
 
     shown = printable(path)
+    if len(shown) > 160:  # a path of thousands of characters: its start and its file name say enough
+        shown = f"{shown[:80]}...{shown[-60:]}"
     try:
         mode = path.stat().st_mode  # follows a symlink to what it names
     except FileNotFoundError:

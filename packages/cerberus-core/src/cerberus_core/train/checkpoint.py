@@ -201,17 +201,23 @@ def resolve_weights(path: str | Path) -> Path:
         from cerberus_core.zoo import available, model_path
 
         name = str(path)
+        local = _exists(Path(name))
         if name in available():
-            if Path(name).exists():
+            if local:
                 warnings.warn(f"{name!r} is the shipped model {name!r}, not the local {printable(name)}: write "
                               f"./{printable(name)} for that path", UserWarning, stacklevel=3)
             return model_path(name)  # its checksum-verified weights
-        if not Path(name).exists():
+        if not local:
             model_path(name)  # ZooError: no such shipped model, listing the shipped ones
     path = Path(path).expanduser()
     shown = printable(path)
-    if not path.exists():
-        raise CheckpointError(f"{shown} does not exist; {_USE}")
+    try:
+        path.stat()
+    except FileNotFoundError:
+        raise CheckpointError(f"{shown} does not exist; {_USE}") from None
+    except OSError as exc:  # a name too long, a loop of symlinks, no permission
+        raise CheckpointError(f"{shown[:80]}{'...' if len(shown) > 80 else ''}: cannot be read "
+                              f"({exc.strerror or exc}); {_USE}") from None
     if path.is_dir():
         for candidate in (path / "model.safetensors", checkpoint_dir(path) / LAST):
             if candidate.is_file():
@@ -224,6 +230,14 @@ def resolve_weights(path: str | Path) -> Path:
     if not path.is_file():
         raise CheckpointError(f"{shown} is {_file_kind(path)}, not a model file; {_USE}")
     return path
+
+
+def _exists(path: Path) -> bool:
+    """``path.exists()``, ``False`` where the name cannot even be looked up (too long, say)."""
+    try:
+        return path.exists()
+    except OSError:
+        return False
 
 
 def _file_kind(path: Path) -> str:
