@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
                                            tmp, stem, pose_donor=donor, background=scene.background)
         written += write_reconstruction_viewer(tmp, images, recon, camera, stems, limit=args.viewer_images,
                                                limit_hint="--viewer-images",
-                                               title=f"cerberus reconstruct: {printable(args.run)}",
+                                               title=f"cerberus reconstruct: {printable(args.model or args.run)}",
                                                background=scene.background)
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(args.images, stems, strict=True) if p.stem != s]
     if renamed:
