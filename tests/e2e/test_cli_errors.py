@@ -5,8 +5,11 @@ each case snapshots the whole working folder (names, sizes, modification times) 
 """
 from __future__ import annotations
 
+import json
+import os
 import re
 import shlex
+import shutil
 import struct
 import zlib
 from pathlib import Path
@@ -15,6 +18,7 @@ import pytest
 import torch
 
 from cerberus_core.cli import main
+from cerberus_core.cli.checks import RESULT_MARKER
 from cerberus_core.datasets.generate import generate
 from cerberus_core.datasets.plan import preset_config
 
@@ -50,11 +54,33 @@ def place(tmp_path_factory) -> dict[str, Path]:
     (root / "random.pt").write_bytes(bytes(range(256)) * 8)
     torch.save({"x": torch.nn.Linear(1, 1)}, root / "pickled.pt")  # a pickled module, not plain tensors
     (root / "trunc.safetensors").write_bytes((run / "model.safetensors").read_bytes()[:100])
+    _bad_model_files(root, run)
+    shutil.copytree(data, root / "badscene")  # a dataset whose manifest records an unusable scene
+    manifest = json.loads((root / "badscene" / "manifest.json").read_text())
+    (root / "badscene" / "manifest.json").write_text(json.dumps(manifest | {"scene": manifest["scene"] | {
+        "elevation": "high"}}))
+    os.mkfifo(root / "pipe.png")  # a FIFO: opening it for reading would block until a writer comes
+    os.mkfifo(root / "pipe.safetensors")
+    os.mkfifo(root / "pipe.yaml")
     from PIL import Image
     Image.new("RGB", (40, 40), (200, 10, 10)).save(root / "img.png")
     fake_png(root / "huge.png", 20000, 20000)
     fake_png(root / "big.png", 9000, 5000)
     return {"root": root, "data": data, "run": run}
+
+
+def _bad_model_files(root: Path, run: Path) -> None:
+    """Model files that load as safetensors but must be refused: NaN weights, a damaged scene record."""
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    with safe_open(str(run / "model.safetensors"), framework="pt") as f:
+        meta = f.metadata()
+    state = load_file(str(run / "model.safetensors"))
+    save_file({k: torch.full_like(v, float("nan")) if v.is_floating_point() else v for k, v in state.items()},
+              str(root / "nan.safetensors"), metadata=meta)
+    save_file(state, str(root / "scene_json.safetensors"), metadata=meta | {"scene": "{not json"})
+    save_file(state, str(root / "scene_value.safetensors"), metadata=meta | {"scene": '{"elevation": "high"}'})
 
 
 NO_CUDA = pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA is available here")
@@ -103,6 +129,38 @@ CASES = [
     ("eval-data-notes", "eval {run} --data {root}/notes", "not a Cerberus dataset"),
     ("eval-split", "eval {run} --split nosuch", "no split 'nosuch'"),
     ("eval-renderer", "eval {run} --renderer nope", "unknown renderer 'nope'"),
+    # issue 20: model files that cannot be scored, result folders that must not be replaced
+    ("eval-fifo", "eval {root}/pipe.safetensors", "is a FIFO (named pipe), not a model file"),
+    ("eval-nan-weights", "eval {root}/nan.safetensors", "hold NaN or infinite values"),
+    ("eval-scene-not-json", "eval {root}/scene_json.safetensors", "recorded scene set-up is not JSON"),
+    ("eval-scene-manifest", "eval {run} --data {root}/badscene", "scene.elevation = 'high': expected a finite"),
+    ("reconstruct-scene-manifest", "reconstruct {run} {root}/img.png --data {root}/badscene --out {root}/rec",
+     "invalid scene set-up (scene.elevation = 'high'"),
+    ("data-show-scene-manifest", "data show {root}/badscene --out {root}/sheet.png", "invalid scene set-up"),
+    ("eval-unknown-name", "eval nosuchmodel", "no pretrained model named 'nosuchmodel'"),
+    ("eval-out-notes", "eval {run} --out {root}/notes", "pass --overwrite"),
+    ("eval-out-run", "eval {run} --out {run}", "a result folder is replaced whole"),
+    ("eval-out-data-parent", "eval {run} --data {data} --out {root}", "a result folder is replaced whole"),
+    ("reconstruct-fifo", "reconstruct {run} {root}/pipe.png --out {root}/rec", "is a FIFO (named pipe), not an image"),
+    ("reconstruct-device", "reconstruct {run} /dev/zero --out {root}/rec", "is a device, not an image"),
+    ("reconstruct-nan-weights", "reconstruct {root}/nan.safetensors {root}/img.png --out {root}/rec", "NaN"),
+    ("reconstruct-scene-value", "reconstruct {root}/scene_value.safetensors {root}/img.png --out {root}/rec",
+     "invalid scene set-up"),
+    ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds " + "{root}/img.png"),
+    ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "a result folder is replaced whole"),
+    ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes", "pass --overwrite"),
+    ("reconstruct-model-path", "reconstruct --model ./human {root}/img.png --out {root}/rec",
+     "takes a shipped model's name"),
+    ("reconstruct-out-name-long", "reconstruct {run} {root}/img.png --out {root}/" + "o" * 300,
+     "is 300 bytes long; file systems allow 255"),
+    ("reconstruct-out-path-long", "reconstruct {run} {root}/img.png --out {root}/" + "/".join(["d" * 200] * 25),
+     "the path is"),
+    ("reconstruct-image-path-long", "reconstruct {run} {root}/" + "/".join(["d" * 200] * 25) + ".png --out {root}/rec",
+     "cannot be read (File name too long)"),
+    ("eval-run-name-long", "eval ./" + "r" * 300, "cannot be read (File name too long)"),
+    ("eval-out-name-long", "eval {run} --out {root}/" + "e" * 300, "is 300 bytes long"),
+    ("data-show-out-name-long", "data show {data} --out {root}/" + "s" * 300 + ".png", "is 304 bytes long"),
+    ("train-config-fifo", "train --config {root}/pipe.yaml --out {root}/new", "is not a regular file"),
     pytest.param("reconstruct-cuda", "reconstruct {run} {root}/img.png --device cuda --out {root}/rec",
                  "CUDA is not available", marks=NO_CUDA),
     ("reconstruct-azimuth-nan", "reconstruct {run} {root}/img.png --azimuth nan --out {root}/rec", "finite"),
@@ -171,6 +229,8 @@ CASES = [
     ("data-show-out-folder", "data show {data} --out {root}/notes", "is a folder"),
     ("data-show-out-under-file", "data show {data} --out {root}/afile/sheet.png", "which is a file"),
     ("data-show-renderer", "data show {data} --renderer nope --out {root}/sheet.png", "unknown renderer 'nope'"),
+    pytest.param("data-show-out-unwritable", "data show {data} --out /sys/cerberus-sheet.png", "cannot write",
+                 marks=pytest.mark.skipif(not Path("/sys").is_dir(), reason="no /sys here")),
     ("data-show-renderer-parts", "data show {data} --parts --renderer nope --out {root}/sheet.png",
      "unknown renderer 'nope'"),
 ]
@@ -193,7 +253,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(place, capsys, case, ar
     assert code == 2, (case, out, err)
     assert err.endswith("\n") and err.count("\n") == 1, f"not one line: {err!r}"
     assert re.match(rf"cerberus {args[0]}( [a-z]+)?: ", err), err  # argparse names the sub-command's action
-    assert expected in err, err
+    assert expected.format(**{k: str(v) for k, v in place.items()}) in err, err
     assert "Traceback" not in err and "weights_only" not in err
     assert out == ""
     assert snapshot(place["root"]) == before, "the failed command wrote or changed files"
@@ -209,7 +269,7 @@ def test_same_named_inputs_get_distinct_outputs(place, tmp_path, capsys):
     assert main(["reconstruct", str(place["run"]), str(tmp_path / "a" / "x.png"), str(tmp_path / "b" / "x.png"),
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    files = [p for p in out.rglob("*") if p.is_file()]
+    files = [p for p in out.rglob("*") if p.is_file() and p.name != RESULT_MARKER]
     assert f"wrote {len(files)} files for 2 image(s)" in printed and "a_x" in printed and "b_x" in printed
     assert (out / "a_x.glb").is_file() and (out / "b_x.glb").is_file()
     # per image: 13 pictures and meshes plus its new-pose GLB for the viewer; and the one viewer page
@@ -310,3 +370,180 @@ def test_a_run_resumes_from_another_directory(place, tmp_path, monkeypatch, caps
     finally:
         torch.set_num_threads(torch_threads)
     assert "finished step 2" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------------ issue 20: no lost or mixed-up file
+def _image(path: Path, colour=(200, 10, 10)) -> Path:
+    from PIL import Image
+
+    Image.new("RGB", (32, 32), colour).save(path)
+    return path
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_outputs_of_one_input_never_take_another_inputs_name(place, tmp_path, capsys):
+    """x.png writes x_new_pose.glb (the viewer's new pose), which is also the GLB of x_new_pose.png:
+    each input keeps every one of its outputs, under names that share nothing."""
+    from cerberus_core.cli.reconstruct import OUTPUT_PATTERNS, output_names
+
+    inputs = [_image(tmp_path / "x.png"), _image(tmp_path / "x_new_pose.png", (10, 10, 200)),
+              _image(tmp_path / "X_parts.png", (10, 200, 10))]
+    stems = output_names(inputs)
+    assert stems[0] == "x" and stems[1] != "x_new_pose" and len({s.casefold() for s in stems}) == 3
+    out = tmp_path / "rec"
+    assert main(["reconstruct", str(place["run"]), *map(str, inputs), "--out", str(out)]) == 0
+    assert "x_new_pose.png -> " in capsys.readouterr().out  # the renamed input is named
+    written = {p.name for p in out.iterdir()} - {"index.html", RESULT_MARKER}
+    expected = [{pattern.format(s) for pattern in OUTPUT_PATTERNS} for s in stems]
+    assert written == set().union(*expected), "OUTPUT_PATTERNS must list every name reconstruct writes"
+    assert sum(len(e) for e in expected) == len(written)  # no name is shared between two inputs
+
+
+def test_a_result_folder_is_complete_or_untouched(place, tmp_path, capsys, monkeypatch):
+    """A second reconstruct into the same --out replaces the first one's results whole; one stopped midway by
+    SIGTERM, or one that runs out of disk space, leaves the earlier results exactly as they were and no
+    temporary folder beside them."""
+    import resource
+    import signal
+
+    import cerberus_core.eval.figures as figures
+
+    a, b = _image(tmp_path / "a.png"), _image(tmp_path / "b.png", (10, 10, 200))
+    out = tmp_path / "results" / "rec"
+    assert main(["reconstruct", str(place["run"]), str(a), str(b), "--out", str(out)]) == 0
+    assert main(["reconstruct", str(place["run"]), str(a), "--out", str(out)]) == 0  # an earlier result: replaced
+    first = _tree(out)
+    assert not any(name.startswith("b") for name in first), "no mix of old and new results"
+    capsys.readouterr()
+
+    calls = []
+    real_save_png = figures.save_png
+
+    def save_then_sigterm(image, path):
+        calls.append(path)
+        written = real_save_png(image, path)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGTERM)  # a real signal, midway through the pictures
+        return written
+
+    monkeypatch.setattr(figures, "save_png", save_then_sigterm)
+    assert main(["reconstruct", str(place["run"]), str(b), "--out", str(out)]) == 143
+    monkeypatch.undo()
+    assert capsys.readouterr().err == "cerberus reconstruct: terminated (SIGTERM)\n"
+    assert len(calls) == 3 and _tree(out) == first
+    assert sorted(p.name for p in out.parent.iterdir()) == ["rec"], "a temporary folder was left behind"
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, hard))  # files past 20 kB fail with EFBIG, as on a full disk
+    try:
+        code = main(["reconstruct", str(place["run"]), str(b), "--out", str(out)])
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and f"cannot write {out}/" in err and "File too large" in err, err
+    assert _tree(out) == first
+    assert sorted(p.name for p in out.parent.iterdir()) == ["rec"]
+
+
+def test_an_unwritable_out_is_one_line(place, tmp_path, capsys):
+    """/sys refuses new folders even to root (a chmod would not stop root)."""
+    if not Path("/sys").is_dir():
+        pytest.skip("no /sys here")
+    code = main(["reconstruct", str(place["run"]), str(_image(tmp_path / "a.png")), "--out", "/sys/cerberus-out"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "cannot write /sys/cerberus-out" in err, err
+    assert "Traceback" not in err
+
+
+def test_hostile_file_names_are_outputs_and_printed_safely(place, tmp_path, capsys):
+    """A 250-byte name, a name that is not UTF-8 and one with terminal escapes: every input gets its outputs
+    (names within the file system's limit, valid UTF-8), and nothing raw reaches the terminal."""
+    names = ["n" * 246 + ".png", os.fsdecode(b"caf\xe9.png"), "\x1b[31mred\x07.png"]
+    inputs = [_image(tmp_path / n, (30 * i, 100, 200)) for i, n in enumerate(names)]
+    out = tmp_path / "rec"
+    assert main(["reconstruct", str(place["run"]), *map(str, inputs), "--out", str(out)]) == 0
+    printed, err = capsys.readouterr()
+    for text in (printed, err):
+        assert "\x1b" not in text and "\x07" not in text
+        text.encode("utf-8")  # no lone surrogate from the undecodable name
+    glbs = sorted(p.name for p in out.glob("*.glb") if not p.name.endswith("_new_pose.glb"))
+    assert len(glbs) == 3
+    for p in out.rglob("*"):
+        assert len(os.fsencode(p.name)) <= 255
+        p.name.encode("utf-8")
+    assert "\\x1b[31mred\\x07" in printed  # shown escaped
+
+
+def test_a_shipped_name_is_never_a_local_folder(place, tmp_path, monkeypatch):
+    """`human` is the shipped model even beside a folder called human; ./human is the folder."""
+    import shutil
+    import warnings
+
+    from cerberus_core.train.checkpoint import resolve_weights
+    from cerberus_core.zoo import ZOO_DIR
+
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(place["run"], tmp_path / "human")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert resolve_weights("human") == ZOO_DIR / "human.safetensors"
+    assert any("write ./human" in str(w.message) for w in caught)
+    assert resolve_weights("./human") == Path("human") / "model.safetensors"
+    assert resolve_weights(str(tmp_path / "human")).parent == tmp_path / "human"
+    help_text = " ".join(__import__("cerberus_core.cli", fromlist=["build_parser"]).build_parser()
+                         ._subparsers._group_actions[0].choices["reconstruct"].format_help().split())
+    assert "./human" in help_text
+
+
+def test_eval_reports_its_step_and_a_newer_checkpoint(place, tmp_path, capsys):
+    """After an interrupted --resume, last.pt is newer than model.safetensors: eval says which step it
+    scores, warns, and records both in results.json."""
+    import json
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(place["run"], run)
+    payload = torch.load(run / "checkpoints" / "last.pt", weights_only=True)
+    payload["step"] = 5  # as a resumed training that checkpointed step 5, then was stopped
+    torch.save(payload, run / "checkpoints" / "last.pt")
+    (run / "eval").mkdir()
+    (run / "eval" / "results.json").write_text("{}")  # an earlier version's results: replaced without --overwrite
+    with pytest.warns(UserWarning, match=r"holds step 2 but .*last.pt is at step 5.*--resume"):
+        assert main(["eval", str(run), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
+                     "--viewer-images", "0"]) == 0
+    printed = capsys.readouterr().out
+    assert f"evaluating {run / 'model.safetensors'} at step 2" in printed
+    assert f"note: these scores are for step 2; the run has a newer checkpoint {run / 'checkpoints' / 'last.pt'}" in printed
+    record = json.loads((run / "eval" / "results.json").read_text())
+    assert record["model"]["step"] == 2 and record["model"]["newer_checkpoint"]["step"] == 5
+    assert "Warning" in (run / "eval" / "results.md").read_text()
+    # the checkpoint itself is scored when named, without a warning
+    assert main(["eval", str(run / "checkpoints" / "last.pt"), "--limit", "1", "--no-hard", "--no-part-quality",
+                 "--figure-images", "1", "--viewer-images", "0", "--out", str(tmp_path / "ev")]) == 0
+    printed = capsys.readouterr().out
+    assert "at step 5" in printed and "note:" not in printed
+
+
+def test_a_training_that_crashed_before_its_first_checkpoint_restarts(place, tmp_path, capsys):
+    """A run stopped by a NaN at its first step leaves config.yaml and metrics.csv but no checkpoint; the
+    command run again starts there with no manual clean-up (and --resume says why it cannot)."""
+    run = tmp_path / "run"
+    common = ["train", "--preset", "tiny", "--set", f"data.root={place['data']}", "--set", "train.steps=1",
+              "--set", "train.tensorboard=false", "--set", "train.progress=false", "--out", str(run)]
+    torch_threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        assert main([*common, "--set", "debug.poison_steps=[0]", "--set", "train.on_nonfinite=stop"]) == 3
+        assert (run / "config.yaml").is_file() and not (run / "checkpoints" / "last.pt").exists()
+        capsys.readouterr()
+        assert main([*common, "--resume"]) == 2
+        assert "stopped before its first checkpoint" in capsys.readouterr().err
+        with pytest.warns(UserWarning, match="stopped before its first checkpoint .*starts again"):
+            assert main(common) == 0  # the same command, no manual clean-up
+    finally:
+        torch.set_num_threads(torch_threads)
+    assert "finished step 1" in capsys.readouterr().out
+    assert (run / "model.safetensors").is_file()

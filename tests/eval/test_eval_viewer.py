@@ -182,3 +182,44 @@ def test_screenshot_shows_the_parts(page, chromium, tmp_path) -> None:
     assert view.std() > 10, "the 3D view is blank"
     saturation = view.max(-1) - view.min(-1)
     assert (saturation > 60).mean() > 0.01, "no coloured parts in the 3D view"
+
+
+# ------------------------------------------------------------------ hostile names (issue 20)
+HOSTILE = ["<!--<script>.png", "\"'><img src=x onerror=\"document.title='pwned'\">.png",
+           ("n" * 120 + "</script><script>document.title='pwned'</script><!--" + "m" * 300)[:300]]
+
+
+@pytest.fixture(scope="module")
+def hostile_page(batch, tmp_path_factory):
+    """Three cards named with HTML and script syntax (one 300 characters long), and such a title."""
+    out = tmp_path_factory.mktemp("hostile")
+    glbs = viewer.write_reconstruction_viewer(out, batch["images"], batch["recon"], batch["camera"], STEMS, limit=3)
+    entries = [viewer.ViewerEntry(name, batch["images"][i], out / f"{STEMS[i]}.glb", note=f"from {name}",
+                                  camera=viewer.camera_view(batch["camera"].index([i])))
+               for i, name in enumerate(HOSTILE)]
+    path = viewer.write_viewer(out, entries, title="<!--</title><script>document.title='pwned'</script>",
+                               filename="hostile.html")
+    assert glbs
+    return path
+
+
+def test_hostile_names_stay_text_in_the_page(hostile_page) -> None:
+    text = hostile_page.read_text()
+    data = text.split('id="cerberus-viewer-data">', 1)[1].split("</script>", 1)[0]
+    assert "<" not in data and ">" not in data  # nothing in the data can end or reopen a script element
+    assert [e["name"] for e in json.loads(data)["entries"]] == HOSTILE  # JSON.parse gets the names back
+    body = text.split("<main>", 1)[1].split("</main>", 1)[0]
+    assert "<script" not in body and "<!--" not in body and "<img src=x" not in body
+    assert html.escape(HOSTILE[2]) in body
+
+
+def test_hostile_names_in_a_real_browser(hostile_page, chromium) -> None:
+    dom, console = chromium.dump_dom(hostile_page.as_uri())
+    assert console == [], f"console messages: {console}"
+    st = status(dom)
+    assert st["ready"] and st["errors"] == [], st
+    assert [c["name"] for c in st["cards"]] == HOSTILE  # each card shows its name as text, whole
+    assert dom.count('<section class="card"') == 3 and dom.count("<img") == 3  # the three input pictures only
+    title = html.unescape(re.search(r"<title>(.*?)</title>", dom, re.S).group(1))
+    assert title == "<!--</title><script>document.title='pwned'</script>"  # shown as text, never run
+    assert st["meshCount"] == 3 * 10

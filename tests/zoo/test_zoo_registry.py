@@ -53,3 +53,38 @@ def test_every_shipped_entry_matches_its_file():
     for name, entry in zoo.available().items():
         assert zoo.model_path(name).is_file()
         assert entry.card_path.is_file(), f"{name}: model card {entry.card_path} missing"
+
+
+@pytest.mark.parametrize(("entry", "expected"), [
+    ('{"name": "tiny", ', "not readable JSON"),
+    ('["tiny"]', "expected a JSON object"),
+    ('{"name": "tiny"}', "missing"),
+    (None, "it must name a .safetensors file beside the entry"),  # weights: a path out of the zoo
+])
+def test_a_damaged_registry_entry_is_one_clear_error(tmp_path, monkeypatch, capsys, entry, expected):
+    """Issue 20: a malformed entry was a JSONDecodeError / TypeError traceback, and its weights path went
+    unchecked (``ZOO_DIR / "../../x.safetensors"``)."""
+    from cerberus_core.cli import main
+
+    _fake_zoo(tmp_path, monkeypatch)
+    if entry is None:
+        data = json.loads((tmp_path / "tiny.json").read_text())
+        entry = json.dumps(data | {"weights": "../../elsewhere/tiny.safetensors"})
+    (tmp_path / "tiny.json").write_text(entry)
+    with pytest.raises(zoo.ZooError, match=expected):
+        zoo.available()
+    assert main(["models"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and expected in err and "Traceback" not in err
+
+
+def test_registry_text_reaches_the_terminal_escaped(tmp_path, monkeypatch, capsys):
+    from cerberus_core.cli import main
+
+    _fake_zoo(tmp_path, monkeypatch)
+    data = json.loads((tmp_path / "tiny.json").read_text())
+    (tmp_path / "tiny.json").write_text(json.dumps(data | {"summary": "\x1b[2J\x1b]0;owned\x07 cleared",
+                                                           "results": {"iou\x1b[31m": 1}}))
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\x07" not in out and "\\x1b[2J" in out

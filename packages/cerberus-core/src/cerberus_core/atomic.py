@@ -1,16 +1,55 @@
-"""Atomic file writes: the one way the toolkit writes a file a reader may open concurrently.
+"""Atomic writes: the one way the toolkit writes a file, or a folder of results, that a reader may open.
 
-Write to a temporary file in the same folder, flush, fsync, rename over the target, fsync the
-folder. A reader sees the old file, no file, or the complete new one; a failure removes the
-temporary and leaves the target untouched.
+* :func:`atomic_write` — write to a temporary file in the same folder, flush, fsync, rename over the
+  target, fsync the folder. A reader sees the old file, no file, or the complete new one; a failure
+  removes the temporary and leaves the target untouched.
+* :func:`atomic_folder` — build a whole folder under a temporary name beside the target, then swap it
+  in with one rename (an exchange where the kernel has ``renameat2``). The target holds the complete
+  old results or the complete new ones, never a mix; an error or a signal while writing removes the
+  temporary folder and leaves the target untouched.
+
+A write the file system refuses (permission, read-only, full, a name too long) raises
+:class:`~cerberus_core.errors.OutputError` naming the path and the fix.
 """
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import errno
 import io
 import os
+import shutil
+import signal
 import tempfile
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from pathlib import Path
+
+from cerberus_core.errors import OutputError
+
+#: errno values that mean "this destination cannot take the write", each with the fix a user can apply.
+_OUTPUT_ERRNOS = {
+    errno.EACCES: "no permission to write there: choose a folder you can write to",
+    errno.EPERM: "the file system does not allow writing there: choose another folder",
+    errno.EROFS: "the file system is read-only: choose a writable folder",
+    errno.ENOSPC: "the disk is full: free some space or choose another disk",
+    errno.EDQUOT: "the disk quota is exhausted: free some space or choose another disk",
+    errno.EFBIG: "the file is larger than this file system or process allows: free space or raise the limit",
+    errno.ENAMETOOLONG: "a file name is too long for this file system: use shorter input names or a shorter path",
+    errno.EILSEQ: "the file system refuses a character of the name: rename the input with plain characters",
+}
+
+
+def output_error(exc: OSError, path: str | Path) -> OSError:
+    """``exc`` as an :class:`OutputError` naming ``path`` and the fix, when it is a refused write (see
+    ``_OUTPUT_ERRNOS``); any other error is returned unchanged."""
+    if isinstance(exc, OutputError) or exc.errno not in _OUTPUT_ERRNOS:
+        return exc
+    reason = os.strerror(exc.errno) if exc.errno else str(exc)
+    err = OutputError(f"cannot write {os.fsencode(str(path)).decode('utf-8', 'replace')}: {reason}; "
+                      f"{_OUTPUT_ERRNOS[exc.errno]}")
+    err.errno = exc.errno
+    return err
 
 
 def _fsync_dir(path: Path) -> None:
@@ -41,8 +80,11 @@ def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None
     A reader sees either the old file, no file, or the complete new one.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{_short(path.name)}.", suffix=".tmp")
+    except OSError as exc:
+        raise output_error(exc, path) from None
     try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
@@ -50,12 +92,118 @@ def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None
             os.fsync(fh.fileno())
         os.chmod(tmp, _FILE_MODE)  # mkstemp creates 0600; give the file the usual permissions
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise output_error(exc, path) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     _fsync_dir(path.parent)
 
 
+def _short(name: str, limit: int = 100) -> str:
+    """A temporary file's name part: at most ``limit`` characters of ``name``, so that the temporary
+    name stays within the file system's limit however long the target's name is."""
+    return name[:limit]
+
+
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write a UTF-8 text file atomically."""
     atomic_write(Path(path), lambda fh: fh.write(text.encode()))
+
+
+# ------------------------------------------------------------------ folders
+_DIR_MODE = 0o777 & ~_current_umask()
+_RENAME_EXCHANGE = 2  # linux/fs.h
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two existing paths in one step (Linux ``renameat2(RENAME_EXCHANGE)``); ``False`` where the
+    kernel, C library or file system cannot, so the caller falls back to two renames."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):  # pragma: no cover - not glibc / not Linux
+        return False
+    at_fdcwd = -100
+    if renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP):
+        return False
+    raise OSError(code, os.strerror(code), str(b))
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """SIGINT and SIGTERM wait (are blocked, then delivered) while the block runs: a rename pair is
+    never cut in the middle by Ctrl-C. A no-op outside the main thread or where unsupported."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+@contextlib.contextmanager
+def atomic_folder(target: str | Path) -> Iterator[Path]:
+    """Build a folder of results whole, then put it in place of ``target`` in one step.
+
+    Yields an empty temporary folder beside ``target`` (same parent, so same file system) to write
+    into. When the block ends normally, the temporary folder replaces ``target`` (whatever it held
+    is removed); when it raises (an error, Ctrl-C, SIGTERM), the temporary folder is removed and
+    ``target`` is untouched. Signals arriving during the swap itself are delivered after it.
+
+    Callers decide beforehand whether ``target`` may be replaced (see
+    :func:`cerberus_core.cli.checks.result_folder`): this function replaces it unconditionally.
+
+    Raises:
+        OutputError: the parent folder cannot be created or written (permission, read-only, full).
+    """
+    target = Path(target)
+    parent = target.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{_short(target.name)}.", suffix=".tmp"))
+        os.chmod(tmp, _DIR_MODE)  # mkdtemp creates 0700; results get the usual permissions
+    except OSError as exc:
+        raise output_error(exc, target) from None
+    try:
+        try:
+            yield tmp
+            _fsync_dir(tmp)
+            with _signals_deferred():
+                _swap_in(tmp, target)
+        except OSError as exc:
+            err = output_error(exc, target)
+            if isinstance(err, OutputError):  # name the results' real place, not the temporary one
+                shown = os.fsencode(str(tmp)).decode("utf-8", "replace")
+                named = OutputError(str(err).replace(shown, os.fsencode(str(target)).decode("utf-8", "replace")))
+                named.errno = err.errno
+                err = named
+            raise err from None
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _swap_in(tmp: Path, target: Path) -> None:
+    """Put ``tmp`` at ``target``; the old ``target`` (if any) is removed afterwards."""
+    if not os.path.lexists(target):
+        os.rename(tmp, target)
+    elif target.is_dir() and not target.is_symlink() and _exchange(tmp, target):
+        shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old results
+    else:  # two renames: the old folder steps aside under a hidden name, the new one takes its place
+        old = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{_short(target.name)}.", suffix=".old"))
+        os.rename(target, old / "old")
+        try:
+            os.rename(tmp, target)
+        except BaseException:
+            os.rename(old / "old", target)
+            shutil.rmtree(old, ignore_errors=True)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+    _fsync_dir(target.parent)

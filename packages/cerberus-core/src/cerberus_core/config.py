@@ -131,10 +131,20 @@ class Presets:
 
 
 def read_file(path: str | Path) -> str:
+    """A config file's text; :class:`ConfigError` names the file when it is missing, not a regular file
+    (a folder, a FIFO: checked before it is opened, so nothing blocks), unreadable or not UTF-8."""
+    path = Path(path)
     try:
-        return Path(path).read_text()
+        if path.exists() and not path.is_file():
+            raise ConfigError(f"config file {path} is not a regular file (a folder, FIFO or device); pass a YAML file")
+        return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(f"config file {path} does not exist") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config file {path} is not UTF-8 text ({exc.reason} at byte {exc.start}); save it as "
+                          "UTF-8") from None
+    except OSError as exc:
+        raise ConfigError(f"config file {path} cannot be read ({exc.strerror or exc}); check its permissions") from None
 
 
 def load_raw(presets: Presets, path: str | Path | None = None, *, preset: str | list[str] | None = None,

@@ -5,13 +5,15 @@ of them the same way, and one module, so that no layer imports another just for 
   the file or key at fault and the fix);
 * :class:`DatasetError` — a dataset folder or mesh folder is missing, corrupt, incomplete or of
   another format;
-* :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid.
+* :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid;
+* :class:`OutputError` — a result cannot be written (read-only, unwritable or full destination, a name
+  the file system refuses); nothing half-written is left behind.
 
 Errors that belong to one module derive from :class:`CerberusError` there (the plugin errors in
 :mod:`cerberus_core.plugins`, the lock, checkpoint, zoo and image-input errors).
 
 ``DatasetError`` and ``ConfigError`` are also ``ValueError``\\ s, so ``except ValueError`` keeps
-catching them.
+catching them; ``OutputError`` is an ``OSError`` (with the original ``errno``).
 """
 from __future__ import annotations
 
@@ -29,4 +31,9 @@ class ConfigError(CerberusError, ValueError):
     """An invalid configuration: the message names the key, the value and what is allowed."""
 
 
-__all__ = ["CerberusError", "ConfigError", "DatasetError"]
+class OutputError(CerberusError, OSError):
+    """A file or folder of results cannot be written: the message names the path, the reason (permission,
+    read-only or full file system, a name too long) and the fix."""
+
+
+__all__ = ["CerberusError", "ConfigError", "DatasetError", "OutputError"]

@@ -64,8 +64,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def one_line(text: object) -> str:
-    """A message on one line: inner newlines become '; '."""
-    return "; ".join(part.strip() for part in str(text).strip().splitlines() if part.strip())
+    """A message on one line: inner newlines become '; ', and any other control character or undecodable
+    byte of a file name is shown escaped (:func:`cerberus_core.names.printable`), never sent raw."""
+    from cerberus_core.names import printable
+
+    return printable("; ".join(part.strip() for part in str(text).strip().splitlines() if part.strip()))
 
 
 @contextlib.contextmanager

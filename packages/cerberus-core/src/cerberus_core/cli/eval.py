@@ -4,12 +4,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli.checks import is_dataset, output_folder, positive_int
+from cerberus_core.cli.checks import is_dataset, positive_int, result_folder, writing_results
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT
+from cerberus_core.names import printable
 from cerberus_core.plugins import get_metric, make_renderer
 
+#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without --overwrite.
+EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
 #: Largest voxel grid accepted (memory grows with its cube).
 MAX_RESOLUTION = 256
 
@@ -24,11 +27,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "training never saw; how often each learned part is wholly hidden in its input view. Writes results.json, "
         "results.md, a Table-2-like figure (table2.png) and, for the same images, the pictures of the paper's "
         "Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose), with their meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an "
-        "interactive 3D viewer that works offline.")
-    p.add_argument("run", type=Path, help="run folder, model.safetensors or checkpoint .pt")
+        "interactive 3D viewer that works offline. Reports the training step of the weights it scores, and warns "
+        "when the run has a newer checkpoint than its model.safetensors (a resumed training not finished). "
+        "The results replace --out whole, in one step, once they are all written: an error or Ctrl-C leaves it as "
+        "it was.")
+    p.add_argument("run", help="run folder, model.safetensors or checkpoint .pt, or a shipped model's name "
+                   "(`cerberus models`); a bare name that a shipped model has (human) is that model: write a "
+                   "folder of that name as ./human")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
-    p.add_argument("--out", type=Path, help="output folder (default: RUN/eval)")
+    p.add_argument("--out", type=Path, help="output folder, replaced whole (default: RUN/eval)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even when it holds files that are not earlier results")
     p.add_argument("--protocol", default="kato", help="voxel-IoU protocol (default: kato, the paper's)")
     p.add_argument("--resolution", type=positive_int, default=32,
                    help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
@@ -75,13 +85,14 @@ def load_baselines(specs: list[str], device: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    import warnings
+
     from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.eval.figures import evaluation_figures
-    from cerberus_core.eval.report import markdown_report, write_json, write_text
+    from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
     from cerberus_core.eval.runner import evaluate_dataset
     from cerberus_core.eval.visibility import visibility_line
-    from cerberus_core.lock import folder_lock
-    from cerberus_core.train.checkpoint import load_model
+    from cerberus_core.train.checkpoint import describe_weights, load_model, looks_like_path
 
     # Every argument is checked, and every model and the dataset opened, before anything is written.
     if args.resolution > MAX_RESOLUTION:
@@ -93,25 +104,45 @@ def run(args: argparse.Namespace) -> int:
     if args.data is not None and not is_dataset(args.data):
         raise ConfigError(f"--data {args.data}: not a Cerberus dataset folder (no manifest.json)")
     get_metric(SCORER_ENTRY_POINT)  # fail early, naming the package, if cerberus-metrics is missing
-    model, config = load_model(args.run, args.device)
-    out = output_folder(args.out or ((args.run if args.run.is_dir() else args.run.parent) / "eval"))
+    weights = describe_weights(args.run)
+    model, config = load_model(weights.path, args.device)
+    run_path = Path(args.run)
+    default_out = (run_path if run_path.is_dir() and looks_like_path(args.run) else run_path.parent) / "eval"
+    keep = [run_path] if looks_like_path(args.run) else []
+    out = result_folder(args.out or default_out, overwrite=args.overwrite,
+                        keep=[*keep, *([args.data] if args.data else [])], earlier=EARLIER_RESULTS)
     baselines = load_baselines(args.baseline, args.device)
     data_root = args.data or Path(config.data.root)
     if args.data is None and not is_dataset(data_root):
         raise ConfigError(f"the run's training data {data_root} is not a dataset folder from here; "
                           "pass --data DATASET")
     dataset = ViewDataset(data_root, args.split)
+    dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
     renderer = make_renderer(args.renderer or config.renderer)
     indices = range(min(args.limit, len(dataset))) if args.limit else None
-    with folder_lock(out, "cerberus eval"):
+    stale = weights.stale_warning()
+    at_step = "" if weights.step is None else f" at step {weights.step}"
+    print(f"evaluating {printable(weights.path)}{at_step}")
+    if stale:
+        warnings.warn(stale, UserWarning, stacklevel=1)
+    shown_run = printable(args.run)
+    with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
         result = evaluate_dataset(dataset, model.reconstruct, protocol=args.protocol, resolution=args.resolution,
                                   hard=not args.no_hard, part_quality=not args.no_part_quality, indices=indices,
                                   renderer=renderer, device=args.device)
-        write_json(result, out / "results.json")
-        write_text(markdown_report(result, title=f"Evaluation of {args.run}"), out / "results.md")
-        fig = evaluation_figures(renderer, dataset, model, out, n_images=args.figure_images, baselines=baselines,
-                                 device=args.device, viewer_images=args.viewer_images,
-                                 title=f"cerberus eval: {args.run} ({args.split} split)")
+        record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
+                                                  "newer_checkpoint": None if weights.newer is None else
+                                                  {"path": str(weights.newer), "step": weights.newer_step}}}
+        write_json(record, tmp / "results.json")
+        report = markdown_report(record, title=f"Evaluation of {args.run}{at_step}")
+        if stale:
+            title, _, rest = report.partition("\n")
+            report = f"{title}\n\n> **Warning:** {md_text(stale)}\n{rest}"
+        write_text(report, tmp / "results.md")
+        evaluation_figures(renderer, dataset, model, tmp, n_images=args.figure_images, baselines=baselines,
+                           device=args.device, viewer_images=args.viewer_images,
+                           title=f"cerberus eval: {shown_run}{at_step} ({args.split} split)")
+    fig = out / "table2.png"
     line = (f"voxel IoU ({args.protocol}, {args.resolution}^3) over {result.standard.count} images: "
             f"{result.standard.mean:.4f}")
     if result.hard is not None:
@@ -124,7 +155,11 @@ def run(args: argparse.Namespace) -> int:
     print(line)
     if result.part_visibility is not None:
         print(visibility_line(result.part_visibility))
-    print(f"results: {out / 'results.json'}, {out / 'results.md'}; figures: {fig}, {out / 'pictures'}")
+    if stale:  # said again under the scores, where it is read
+        print(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
+              f"{printable(weights.newer)} (step {weights.newer_step})")
+    print(f"results: {printable(out / 'results.json')}, {printable(out / 'results.md')}; figures: {printable(fig)}, "
+          f"{printable(out / 'pictures')}")
     if args.viewer_images > 0:
-        print(f"3D viewer: {out / 'pictures' / 'index.html'}")
+        print(f"3D viewer: {printable(out / 'pictures' / 'index.html')}")
     return 0

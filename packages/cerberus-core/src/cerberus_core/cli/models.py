@@ -21,6 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from cerberus_core.names import printable
     from cerberus_core.zoo import available
 
     models = available()
@@ -32,8 +33,8 @@ def run(args: argparse.Namespace) -> int:
         print("no pretrained models are shipped with this install")
         return 0
     for name, m in models.items():
-        figures = ", ".join(f"{k} {v}" for k, v in m.results.items())
-        print(f"{name:<8} {m.summary}")
-        print(f"{'':<8} {figures}")
-        print(f"{'':<8} card: {m.card_path}")
+        figures = ", ".join(f"{k} {v}" for k, v in m.results.items())  # registry text: never raw escapes
+        print(f"{printable(name):<8} {printable(m.summary)}")
+        print(f"{'':<8} {printable(figures)}")
+        print(f"{'':<8} card: {printable(m.card_path)}")
     return 0

@@ -2,14 +2,25 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 
 import torch
 
-from cerberus_core.cli.checks import finite_float, output_folder
+from cerberus_core.cli.checks import RESULT_MARKER, finite_float, result_folder, writing_results
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
+from cerberus_core.names import printable, safe_stem
 from cerberus_core.plugins import make_renderer
+
+#: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
+#: :func:`cerberus_core.eval.export.export_reconstruction`, pictures of
+#: :func:`cerberus_core.eval.figures.save_image_pictures`, the viewer's new-pose GLB), and the names
+#: of the folder itself. :func:`output_names` keeps every image's set apart from every other's.
+OUTPUT_PATTERNS = ("{}.glb", "{}.obj", "{}_parts", "{}_input.png", "{}_reconstruction.png", "{}_parts.png",
+                   "{}_new_lighting.png", "{}_new_pose.png", "{}_turntable.png", "{}_figure1.png",
+                   "{}_new_pose.glb")
+FOLDER_NAMES = ("index.html", RESULT_MARKER)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,17 +31,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "in colours, a turntable, a new lighting direction, and a new pose (this image's parts posed with the "
         "rotations and translations predicted from the next image), and index.html, an interactive 3D viewer of "
         "them that works offline. Images of another size are centre-cropped and resized (with a warning); an alpha "
-        "channel is composited over the training background.",
+        "channel is composited over the training background.\n\n"
+        "The results replace --out whole, in one step, when they are all written: an error or Ctrl-C leaves --out "
+        "as it was. --out may hold earlier results; a folder holding other files needs --overwrite, and one holding "
+        "an input is refused.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  cerberus reconstruct --model human person.png          # a shipped model (cerberus models)\n"
-        "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run")
-    p.add_argument("inputs", type=Path, nargs="+", metavar="[RUN] IMAGE",
+        "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run\n"
+        "  cerberus reconstruct ./human a.png                       # a run folder called human (not the model)")
+    p.add_argument("inputs", nargs="+", metavar="[RUN] IMAGE",
                    help="a run folder, model.safetensors or checkpoint .pt (unless --model is given), then the input "
-                   "image files (PNG, JPEG, ...)")
-    p.add_argument("--model", help="a shipped pretrained model instead of a run (see `cerberus models`), e.g. human")
+                   "image files (PNG, JPEG, ...). A bare name that a shipped model has (human) is that model: "
+                   "write a folder of that name as ./human")
+    p.add_argument("--model", help="a shipped pretrained model instead of a run (see `cerberus models`), e.g. human; "
+                   "always the shipped model, never a local folder of that name")
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="images in the interactive 3D viewer OUT/index.html (default: the first 12; 0: no viewer)")
-    p.add_argument("--out", type=Path, default=Path("out/reconstruct"), help="output folder (default: out/reconstruct)")
+    p.add_argument("--out", type=Path, default=Path("out/reconstruct"),
+                   help="output folder, replaced whole (default: out/reconstruct)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even when it holds files that are not earlier results (never an input)")
     p.add_argument("--data", type=Path, help="dataset whose scene set-up (camera elevation, distance, fov, light) "
                    "the images follow (default: the set-up the run recorded, else the run's training data)")
     p.add_argument("--azimuth", type=finite_float, default=0.0,
@@ -40,21 +60,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def output_names(paths: list[Path]) -> list[str]:
-    """One distinct output name per input: the file stem, made unique with the parent folder's name and
-    then a counter when stems repeat (``a/x.png b/x.png`` → ``a_x``, ``b_x``)."""
-    stems = [p.stem or "image" for p in paths]
-    counts = {s: stems.count(s) for s in stems}
-    names = [s if counts[s] == 1 else f"{p.resolve().parent.name or 'root'}_{s}" for p, s in zip(paths, stems,
-                                                                                                      strict=True)]
-    seen: set[str] = set()
-    out = []
-    for name in names:
-        unique, k = name, 2
-        while unique in seen:
-            unique, k = f"{name}_{k}", k + 1
-        seen.add(unique)
-        out.append(unique)
+def _outputs(stem: str) -> list[str]:
+    return [pattern.format(stem) for pattern in OUTPUT_PATTERNS]
+
+
+def output_names(paths: Sequence[Path]) -> list[str]:
+    """One output name per input, such that no two inputs' files share a name.
+
+    The name is the file stem made safe (:func:`cerberus_core.names.safe_stem`: valid UTF-8, no control
+    characters, short enough for every derived name); stems that repeat get the parent folder's name
+    (``a/x.png b/x.png`` → ``a_x``, ``b_x``). Names are then claimed shortest first, and one whose files
+    (:data:`OUTPUT_PATTERNS`) would meet names already claimed gets a counter: ``x.png`` keeps ``x``
+    and ``x_new_pose.png`` becomes ``x_new_pose_2``, since ``x`` writes ``x_new_pose.glb``. Names are
+    compared without case, as case-insensitive file systems do.
+    """
+    stems = [safe_stem(Path(p).stem) for p in paths]
+    counts: dict[str, int] = {}
+    for s in stems:
+        counts[s.casefold()] = counts.get(s.casefold(), 0) + 1
+    names = [s if counts[s.casefold()] == 1 else safe_stem(f"{Path(p).resolve().parent.name or 'root'}_{s}")
+             for p, s in zip(paths, stems, strict=True)]
+    claimed = {n.casefold() for n in FOLDER_NAMES}
+    out: list[str] = [""] * len(names)
+    for i in sorted(range(len(names)), key=lambda i: (len(names[i]), i)):
+        unique, k = names[i], 2
+        while any(o.casefold() in claimed for o in _outputs(unique)):
+            unique, k = f"{names[i]}_{k}", k + 1
+        claimed.update(o.casefold() for o in _outputs(unique))
+        out[i] = unique
     return out
 
 
@@ -63,21 +96,26 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.figures import save_image_pictures
     from cerberus_core.eval.images import load_images
     from cerberus_core.eval.viewer import write_reconstruction_viewer
-    from cerberus_core.lock import folder_lock
-    from cerberus_core.train.checkpoint import load_run, model_scene
+    from cerberus_core.train.checkpoint import load_run, looks_like_path, model_scene
 
     # Every argument checked, the model, scene and images loaded, before anything is written.
     if args.model is not None:
-        args.run, args.images = args.model, list(args.inputs)
+        if looks_like_path(args.model):
+            raise ConfigError(f"--model {printable(args.model)}: takes a shipped model's name (see `cerberus "
+                              "models`); give a run folder or model file as the first argument instead")
+        from cerberus_core.zoo import model_path
+
+        args.run, args.images = model_path(args.model), [Path(p) for p in args.inputs]
     elif len(args.inputs) < 2:
         raise ConfigError("give a run folder (or --model NAME) and at least one image, e.g. "
                           "`cerberus reconstruct --model human photo.png`")
     else:
-        args.run, args.images = args.inputs[0], list(args.inputs[1:])
+        args.run, args.images = args.inputs[0], [Path(p) for p in args.inputs[1:]]
     if args.viewer_images < 0:
         raise ConfigError(f"--viewer-images {args.viewer_images}: must be >= 0 (0: no viewer)")
     check_device(args.device)
-    out = output_folder(args.out)
+    keep = list(args.images) + ([Path(args.run)] if looks_like_path(args.run) else [])
+    out = result_folder(args.out, overwrite=args.overwrite, keep=keep)
     model, config, saved_scene = load_run(args.run, args.device)
     scene = model_scene(config, args.data, saved_scene)
     size = int(config.data.image_size or 64)
@@ -87,19 +125,20 @@ def run(args: argparse.Namespace) -> int:
     camera = scene.cameras([args.azimuth] * len(images), size)
     with torch.no_grad():
         recon = model.reconstruct(images.to(args.device), camera.to(args.device)).to("cpu")
-    with folder_lock(out, "cerberus reconstruct"):
-        written = export_reconstruction(recon, out, stems)
+    with writing_results(out, "cerberus reconstruct") as tmp:  # out is replaced only once all is written
+        written = export_reconstruction(recon, tmp, stems)
         for i, stem in enumerate(stems):
             donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
             written += save_image_pictures(renderer, images[i], recon.index([i]), camera.index([i]),
-                                           out, stem, pose_donor=donor, background=scene.background)
-        written += write_reconstruction_viewer(out, images, recon, camera, stems, limit=args.viewer_images,
-                                               limit_hint="--viewer-images", title=f"cerberus reconstruct: {args.run}",
+                                           tmp, stem, pose_donor=donor, background=scene.background)
+        written += write_reconstruction_viewer(tmp, images, recon, camera, stems, limit=args.viewer_images,
+                                               limit_hint="--viewer-images",
+                                               title=f"cerberus reconstruct: {printable(args.model or args.run)}",
                                                background=scene.background)
-    renamed = [f"{p} -> {s}" for p, s in zip(args.images, stems, strict=True) if p.stem != s]
+    renamed = [f"{printable(p)} -> {s}" for p, s in zip(args.images, stems, strict=True) if p.stem != s]
     if renamed:
-        print("same-named inputs written under distinct names: " + ", ".join(renamed))
-    print(f"wrote {len(set(written))} files for {len(stems)} image(s) to {out}")
+        print("inputs whose outputs would share or could not take their own name, written as: " + ", ".join(renamed))
+    print(f"wrote {len(set(written))} files for {len(stems)} image(s) to {printable(out)}")
     if args.viewer_images > 0:
-        print(f"3D viewer: {out / 'index.html'}")
+        print(f"3D viewer: {printable(out / 'index.html')}")
     return 0

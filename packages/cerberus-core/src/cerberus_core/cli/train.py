@@ -64,8 +64,9 @@ def _check_config_file(path: Path) -> None:
     import yaml
 
     if not path.is_file():
-        raise ConfigError(f"--config {path}: no such file" + (" (it is a folder)" if path.is_dir() else "") +
-                          "; pass a YAML config, or --preset NAME")
+        what = ("is a folder" if path.is_dir() else "is not a regular file (a FIFO or device?)" if path.exists()
+                else "no such file")
+        raise ConfigError(f"--config {path}: {what}; pass a YAML config, or --preset NAME")
     try:
         raw = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:

@@ -34,6 +34,7 @@ from cerberus_core.datasets.format import (
 )
 from cerberus_core.datasets.plan import generate_command
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import ConfigError
 from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
@@ -215,7 +216,11 @@ class _Base(Dataset):
         """The scene set-up (cameras of view records, light, background, albedo); the manifest's
         ``scene`` read with :meth:`SceneSetup.from_dict`."""
         if self._scene is None:
-            self._scene = SceneSetup.from_dict(self.manifest["scene"])
+            try:
+                self._scene = SceneSetup.from_dict(self.manifest.get("scene"))
+            except ConfigError as exc:
+                raise DatasetError(f"{self._reader.root / 'manifest.json'}: invalid scene set-up ({exc}); the "
+                                   "manifest is damaged: regenerate the dataset with `cerberus data generate`") from None
         return self._scene
 
     @property

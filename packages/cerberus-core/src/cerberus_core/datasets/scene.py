@@ -175,15 +175,34 @@ class SceneSetup:
         """The set-up of a :meth:`to_dict` dict (missing keys take the defaults).
 
         Raises:
-            ConfigError: an unknown key or a light other than :attr:`LIGHT`.
+            ConfigError: not a mapping, an unknown key, a value of the wrong type (a number that is a
+                string, NaN, an RGB that is not 3 numbers), a value out of range, or a light other than
+                :attr:`LIGHT`.
         """
+        import numbers
+
+        if not isinstance(d, Mapping):
+            raise ConfigError(f"scene: expected a mapping of set-up keys, got {type(d).__name__}")
         keys = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - keys - {"light"})
         if unknown:
             raise ConfigError(f"scene: unknown key(s) {unknown}; valid keys: {sorted(keys)}")
         if "light" in d and d["light"] != cls.LIGHT:
             raise ConfigError(f"scene.light: only {cls.LIGHT} is supported, got {d['light']!r}")
-        return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})
+
+        def number(x) -> bool:
+            return isinstance(x, numbers.Real) and not isinstance(x, bool) and math.isfinite(x)
+
+        for k, v in d.items():
+            if k in ("albedo", "background"):
+                if not (isinstance(v, (list, tuple)) and len(v) == 3 and all(number(c) for c in v)):
+                    raise ConfigError(f"scene.{k} = {v!r}: expected 3 finite numbers (RGB in [0, 1])")
+            elif k in keys and not (number(v) or (v is None and k in ("distance", "fitted_radius"))):
+                raise ConfigError(f"scene.{k} = {v!r}: expected a finite number")
+        try:
+            return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})
+        except ValueError as exc:
+            raise ConfigError(f"scene: {exc}") from None
 
     def cameras(self, azimuth_deg: Tensor | np.ndarray | list[float], image_size: int,
                 device: torch.device | str | None = None) -> Camera:

@@ -33,6 +33,7 @@ import torch
 from PIL import Image, ImageOps, UnidentifiedImageError
 
 from cerberus_core.errors import CerberusError
+from cerberus_core.names import printable
 
 Tensor = torch.Tensor
 
@@ -67,26 +68,42 @@ class LoadedImage:
 
 
 def _open(path: Path) -> Image.Image:
-    if not path.exists():
-        raise ImageInputError(f"{path}: no such file; check the path")
-    if path.is_dir():
-        raise ImageInputError(f"{path}: is a folder, not an image file")
+    """Open ``path`` as an image; its type is checked first, so a FIFO or a device never blocks the read."""
+    import stat
+
+    shown = printable(path)
+    if len(shown) > 160:  # a path of thousands of characters: its start and its file name say enough
+        shown = f"{shown[:80]}...{shown[-60:]}"
+    try:
+        mode = path.stat().st_mode  # follows a symlink to what it names
+    except FileNotFoundError:
+        raise ImageInputError(f"{shown}: no such file; check the path") from None
+    except OSError as exc:
+        raise ImageInputError(f"{shown}: cannot be read ({exc.strerror or exc}); check the path and its "
+                              "permissions") from None
+    if stat.S_ISDIR(mode):
+        raise ImageInputError(f"{shown}: is a folder, not an image file")
+    if not stat.S_ISREG(mode):
+        kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+                else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+        raise ImageInputError(f"{shown}: is {kind}, not an image file; pass a PNG or JPEG file")
+    path = Path(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own bound applies below
             img = Image.open(path)
         if img.width * img.height > MAX_INPUT_PIXELS:
-            raise ImageInputError(f"{path}: {img.width}x{img.height} pixels is too large (the limit is "
+            raise ImageInputError(f"{shown}: {img.width}x{img.height} pixels is too large (the limit is "
                                   f"{MAX_INPUT_PIXELS:,} pixels); downscale it first, e.g. to 1024x1024")
         img.load()
     except Image.DecompressionBombError as exc:
-        raise ImageInputError(f"{path}: too large to decode safely ({exc}); downscale it first, e.g. to "
+        raise ImageInputError(f"{shown}: too large to decode safely ({exc}); downscale it first, e.g. to "
                               "1024x1024") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
-        raise ImageInputError(f"{path}: cannot be read as an image ({type(exc).__name__}: {exc}); "
+        raise ImageInputError(f"{shown}: cannot be read as an image ({type(exc).__name__}: {printable(exc)}); "
                               "pass a PNG or JPEG file") from exc
     if img.width == 0 or img.height == 0:
-        raise ImageInputError(f"{path}: the image is empty ({img.width}x{img.height})")
+        raise ImageInputError(f"{shown}: the image is empty ({img.width}x{img.height})")
     return img
 
 
@@ -100,12 +117,12 @@ def _to_rgb_float(img: Image.Image, background: np.ndarray, path: Path, notes: l
     if mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
         arr = np.asarray(img, dtype=np.float64)
         if arr.min() < 0 or arr.max() > 65535:
-            raise ImageInputError(f"{path}: {mode} image with values outside 0..65535 is not supported; "
+            raise ImageInputError(f"{printable(path)}: {mode} image with values outside 0..65535 is not supported; "
                                   "save it as an 8-bit PNG")
         notes.append(f"16-bit grayscale ({mode}) scaled to [0, 1] and repeated into RGB")
         return np.repeat((arr / 65535.0)[..., None], 3, axis=2)
     if mode == "F":
-        raise ImageInputError(f"{path}: 32-bit float image (mode F) has no defined value range; "
+        raise ImageInputError(f"{printable(path)}: 32-bit float image (mode F) has no defined value range; "
                               "save it as an 8-bit RGB PNG")
     if mode in ("1", "L"):
         notes.append("grayscale image repeated into RGB")
@@ -182,7 +199,7 @@ def load_image(path: str | Path, image_size: int, background: Sequence[float] = 
     arr = _square_resize(arr, int(image_size), notes)
     if warn:
         for note in notes:
-            warnings.warn(f"{path}: {note}", ImageInputWarning, stacklevel=2)
+            warnings.warn(f"{printable(path)}: {note}", ImageInputWarning, stacklevel=2)
     tensor = torch.from_numpy(np.ascontiguousarray(arr.transpose(2, 0, 1))).float()
     return LoadedImage(path, tensor, original, notes)
 

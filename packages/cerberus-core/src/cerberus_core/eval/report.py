@@ -6,8 +6,10 @@ work from the JSON form (:meth:`EvaluationResult.to_dict`), so a report can be r
 """
 from __future__ import annotations
 
+import html
 import json
 import math
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -15,6 +17,17 @@ from typing import Any
 from cerberus_core.atomic import atomic_write_text
 from cerberus_core.eval.runner import EvaluationResult
 from cerberus_core.eval.visibility import visibility_line
+from cerberus_core.names import printable
+
+_MD_SPECIAL = re.compile(r"([\\`|\[\]*])")
+
+
+def md_text(text: object) -> str:
+    """A name (subject, part, path) as Markdown text that shows it literally: control characters and
+    undecodable bytes escaped (:func:`cerberus_core.names.printable`), ``& < >`` as HTML character
+    references (no raw HTML reaches a renderer), and ``\\ ` | [ ] *`` backslash-escaped (no code span,
+    link, emphasis or broken table cell)."""
+    return _MD_SPECIAL.sub(r"\\\1", html.escape(printable(text), quote=False))
 
 
 def _finite(obj: Any) -> Any:
@@ -51,12 +64,12 @@ def _fmt(v: Any, digits: int = 4) -> str:
         return "-"
     if isinstance(v, float):
         return f"{v:.{digits}f}"
-    return str(v)
+    return md_text(v)
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]], digits: int = 4) -> str:
     """A GitHub-flavoured Markdown table; floats get ``digits`` decimals, ``None``/NaN show as ``-``."""
-    lines = ["| " + " | ".join(str(h) for h in header) + " |",
+    lines = ["| " + " | ".join(md_text(h) for h in header) + " |",
              "|" + "|".join(":---" if i == 0 else "---:" for i in range(len(header))) + "|"]
     lines += ["| " + " | ".join(_fmt(v, digits) for v in row) + " |" for row in rows]
     return "\n".join(lines)
@@ -80,7 +93,7 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
     IoU per ground-truth part); part visibility gets a table of its own when part quality was not run."""
     r = to_jsonable(result)
     std, hard = r["standard"], r.get("hard")
-    out = [f"# {title}", "",
+    out = [f"# {md_text(title)}", "",
            f"Voxel IoU, protocol `{r['protocol']}` at {r['resolution']}^3, union of parts; "
            f"{std['count']} images ({r.get('seconds', 0):.0f} s).", ""]
     groups = sorted(set(std["per_group"]) | set((hard or {}).get("per_group", {})))
@@ -93,7 +106,7 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
             notes.append(f"{name}: {s['clipped']} predictions clamped into the grid, {s['failed']} rejected "
                          "by the metric (scored 0).")
     if hard:
-        notes.append("Hard Human shapes from images " + ", ".join(f"{s}: #{i}" for s, i in r["canonical"].items())
+        notes.append("Hard Human shapes from images " + ", ".join(f"{md_text(s)}: #{i}" for s, i in r["canonical"].items())
                      + f"; {hard['count']} images scored.")
     out += [*(f"- {n}" for n in notes), ""] if notes else []
     pq, vis = r.get("part_quality"), r.get("part_visibility")

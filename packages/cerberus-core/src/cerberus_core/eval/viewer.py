@@ -37,6 +37,7 @@ from PIL import Image
 
 from cerberus_core.atomic import atomic_write, atomic_write_text
 from cerberus_core.eval.export import export_parts
+from cerberus_core.names import printable
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION
@@ -205,12 +206,12 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
     data_entries, cards = [], []
     for i, e in enumerate(shown):
         models = [(k, getattr(e, k)) for k in ("reconstruction", "ground_truth", "new_pose") if getattr(e, k)]
-        data_entries.append({"index": i, "name": e.name, "camera": e.camera,
+        data_entries.append({"index": i, "name": printable(e.name), "camera": e.camera,
                              "models": [{"key": k, "label": MODEL_LABELS[k], "glb": _b64(p)} for k, p in models]})
         mime, png = _image_png(e.image)
-        note = f'<p class="meta">{html.escape(e.note)}</p>' if e.note else ""
-        cards.append(f'<section class="card" data-index="{i}"><h2>{html.escape(e.name)}</h2>{note}'
-                     f'<div class="row"><figure><img alt="input picture of {html.escape(e.name)}" '
+        note = f'<p class="meta">{_html(e.note)}</p>' if e.note else ""
+        cards.append(f'<section class="card" data-index="{i}"><h2>{_html(e.name)}</h2>{note}'
+                     f'<div class="row"><figure><img alt="input picture of {_html(e.name)}" '
                      f'src="data:{mime};base64,{base64.b64encode(png).decode()}"><figcaption>Input</figcaption>'
                      f'</figure><div class="view"></div></div></section>')
     data = {"canvas_size": CANVAS_SIZE, "background": [float(c) for c in background], "lights": LIGHTS,
@@ -218,7 +219,7 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
     count = (f"All {total} image(s)." if len(shown) == total else
              f"The first {len(shown)} of {total} images" + (f" ({limit_hint} sets how many)." if limit_hint else "."))
     page = _PAGE.format(
-        title=html.escape(title), count=html.escape(count), version=THREE_VERSION,
+        title=_html(title), count=_html(count), version=THREE_VERSION,
         css=(ASSETS / "viewer.css").read_text(encoding="utf-8"),
         importmap=_script_json(import_map()), data=_script_json(data), cards="\n".join(cards),
         js=(ASSETS / "viewer.js").read_text(encoding="utf-8"))
@@ -227,9 +228,19 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
     return path
 
 
+def _html(text: object) -> str:
+    """Text for HTML content or a quoted attribute: control characters and undecodable bytes shown as
+    escapes (:func:`cerberus_core.names.printable`), then ``& < > " '`` as character references."""
+    return html.escape(printable(text), quote=True)
+
+
 def _script_json(obj) -> str:
-    """JSON safe inside a ``<script>`` element."""
-    return json.dumps(obj, separators=(",", ":")).replace("</", "<\\/")
+    """JSON safe inside a ``<script>`` element: ``<``, ``>`` and ``&`` as ``\\u`` escapes, so no data can
+    close the element (``</script>``), open a comment (``<!--``) or a script (``<script``), whatever
+    names it holds; non-ASCII (U+2028 too) is escaped by ``json.dumps``. ``JSON.parse`` reads it back
+    unchanged."""
+    text = json.dumps(obj, separators=(",", ":"), ensure_ascii=True)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 _PAGE = """<!doctype html>

@@ -176,8 +176,47 @@ class _StopRequest:
             signal.signal(sig, handler)
 
 
+#: What a training writes before its first checkpoint: a run folder holding only these (``config.yaml``
+#: among them) and no checkpoint or ``model.safetensors`` is a start that never reached a checkpoint.
+UNFINISHED_START_NAMES = frozenset({"config.yaml", "metrics.csv", "tensorboard", "images", "checkpoints",
+                                    "loss_curves.png"})
+
+
+def unfinished_start(run_dir: Path) -> list[Path]:
+    """The entries of ``run_dir`` when it holds a training that stopped (crashed, was killed) before its
+    first checkpoint, else ``[]``: ``config.yaml`` and only names of :data:`UNFINISHED_START_NAMES`,
+    no ``model.safetensors``, and a ``checkpoints/`` folder (if any) holding no file but an atomic
+    writer's hidden temporary. Nothing there can be resumed, so a fresh run may clear it."""
+    if not (run_dir / "config.yaml").is_file():
+        return []
+    entries = [p for p in run_dir.iterdir() if not is_lock_file(p)]
+    if any(p.name not in UNFINISHED_START_NAMES for p in entries):
+        return []
+    ckdir = checkpoint_dir(run_dir)
+    if ckdir.exists() and (not ckdir.is_dir() or any(not (p.name.startswith(".") and p.name.endswith(".tmp"))
+                                                      for p in ckdir.iterdir())):
+        return []
+    return entries
+
+
+def _clear_unfinished_start(run_dir: Path, entries: list[Path]) -> None:
+    """Remove what a start that never checkpointed left (``config.yaml`` last: until it goes, the folder
+    still reads as such a start to a rank that looks meanwhile)."""
+    import warnings
+
+    names = ", ".join(sorted(p.name for p in entries))
+    warnings.warn(f"{run_dir} holds a training that stopped before its first checkpoint ({names}); nothing there "
+                  "can be resumed, so it is cleared and the training starts again", UserWarning, stacklevel=3)
+    for p in sorted(entries, key=lambda p: p.name == "config.yaml"):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink(missing_ok=True)
+
+
 def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False) -> None:
-    """A fresh run needs a new or empty folder; a resumed one a checkpoint (checked before the lock is
+    """A fresh run needs a new or empty folder, or one holding only a start that never reached a
+    checkpoint (:func:`unfinished_start`); a resumed one a checkpoint (checked before the lock is
     taken, so a refused run does not even touch the folder, and again under the lock)."""
     last = checkpoint_dir(run_dir) / LAST
     if run_dir.exists() and not run_dir.is_dir():
@@ -189,19 +228,26 @@ def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False)
             raise RunExistsError(f"{run_dir} already holds a training run ({last}); pass --resume to continue it "
                                  "or --out to start a new run elsewhere")
         held = sorted(p.name for p in run_dir.iterdir() if not is_lock_file(p)) if run_dir.is_dir() else []
-        if held:
+        if held and not unfinished_start(run_dir):
             shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
             raise RunExistsError(f"{run_dir} is not empty (it holds {shown}) and is not a resumable run; training "
                                  "starts only in a new or empty folder: pass another --out")
         return
     if not last.exists():
+        if run_dir.is_dir() and unfinished_start(run_dir):
+            raise NoCheckpointError(f"--resume: the training in {run_dir} stopped before its first checkpoint, so "
+                                    "there is nothing to resume; run the same command without --resume to start it "
+                                    "again (what it left is cleared)")
         raise NoCheckpointError(f"--resume: no checkpoint at {last}; run without --resume to start training")
 
 
-def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig) -> dict[str, Any] | None:
-    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``)."""
+def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: bool = True) -> dict[str, Any] | None:
+    """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``).
+    A fresh run clears what a start that never checkpointed left (``clear``: the main process only)."""
     check_run_folder(run_dir, resume, holding_lock=True)
     if not resume:
+        if clear and run_dir.is_dir() and (entries := unfinished_start(run_dir)):
+            _clear_unfinished_start(run_dir, entries)
         return None
     last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
@@ -331,7 +377,7 @@ class _Trainer:
 
     def _run(self, resume: bool) -> TrainResult:
         cfg, info, loop = self.config, self.info, self.config.train
-        payload = prepare_run_dir(self.run_dir, resume, cfg)
+        payload = prepare_run_dir(self.run_dir, resume, cfg, clear=info.is_main)
         barrier(info)  # every rank has checked the folder before rank 0 writes into it
         start = self._build(payload)
         self.config_yaml = cfg.to_yaml()

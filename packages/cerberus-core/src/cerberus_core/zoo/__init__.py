@@ -61,12 +61,54 @@ class PretrainedModel:
         return ZOO_DIR / self.card
 
 
+def _entry(path: Path) -> PretrainedModel:
+    """One registry entry, checked: JSON of the :class:`PretrainedModel` fields with the right types, its
+    ``weights`` and ``card`` plain file names in the zoo folder (never a path elsewhere).
+
+    Raises:
+        ZooError: naming the entry, what is wrong and the fix (a damaged install: reinstall cerberus-core).
+    """
+    from dataclasses import fields
+
+    from cerberus_core.names import printable
+
+    fix = "the install is damaged or was edited: reinstall cerberus-core"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ZooError(f"model registry entry {path}: not readable JSON ({printable(exc)}); {fix}") from None
+    if not isinstance(data, dict):
+        raise ZooError(f"model registry entry {path}: expected a JSON object, got {type(data).__name__}; {fix}")
+    names = {f.name for f in fields(PretrainedModel)}
+    missing = sorted(names - set(data) - {"results", "data"})
+    unknown = sorted(set(data) - names)
+    if missing or unknown:
+        raise ZooError(f"model registry entry {path}: " + "; ".join(
+            ([f"missing {missing}"] if missing else []) + ([f"unknown {printable(unknown)}"] if unknown else []))
+            + f"; {fix}")
+    for key in ("name", "summary", "weights", "sha256", "card"):
+        if not isinstance(data[key], str):
+            raise ZooError(f"model registry entry {path}: {key!r} must be a string; {fix}")
+    for key in ("results", "data"):
+        if not isinstance(data.get(key, {}), dict):
+            raise ZooError(f"model registry entry {path}: {key!r} must be a JSON object; {fix}")
+    for key, suffix in (("weights", ".safetensors"), ("card", ".md")):
+        value = data[key]
+        if Path(value).name != value or value in ("", ".", "..") or "\\" in value or not value.endswith(suffix):
+            raise ZooError(f"model registry entry {path}: {key!r} is {printable(repr(value))}; it must name a "
+                           f"{suffix} file beside the entry (no folders); {fix}")
+    return PretrainedModel(**data)
+
+
 def available() -> dict[str, PretrainedModel]:
-    """Every shipped model by name (read from the ``*.json`` entries; cheap, no weights loaded)."""
+    """Every shipped model by name (read from the ``*.json`` entries; cheap, no weights loaded).
+
+    Raises:
+        ZooError: an entry is not valid JSON, lacks a field, or names a file outside the zoo folder.
+    """
     out: dict[str, PretrainedModel] = {}
     for entry in sorted(ZOO_DIR.glob("*.json")):
-        data = json.loads(entry.read_text())
-        model = PretrainedModel(**data)
+        model = _entry(entry)
         out[model.name] = model
     return out
 
