@@ -28,7 +28,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         description="Generate a dataset into --out. Rerunning the same command resumes an interrupted "
                         "run without redoing finished shards; a folder holding anything else is refused unless "
                         "--overwrite.\n\nsizes (bundled presets, cerberus_core/configs/data/<dataset>_<size>.yaml):\n"
-                        "  human:      paper (19,500 train pairs / 5 subjects;\n"
+                        "  human:      large (19,500 train pairs / 200 subjects; small's test split: the data of\n"
+                        "              the shipped human model and Table 1, about half an hour on 2 cores),\n"
+                        "              paper (19,500 train pairs / 5 subjects;\n"
                         "              810 test poses x 4 views / 2 subjects),\n"
                         "              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds)\n"
                         "  animal:     paper (41 species x 47 poses x 4 views, 38,540 quadruplets; 984 test views),\n"
@@ -40,7 +42,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "splits.<split>.<field>, e.g. --set splits.train.pairs=2000 --set scene.elevation=20")
     g.add_argument("--dataset", choices=_DATASETS, required=True, help="body source")
     g.add_argument("--size", default=None, metavar="NAME",
-                   help="size preset: paper, small, tiny (folder: pairs, grid); default small (folder: pairs)")
+                   help="size preset: large (human), paper, small, tiny (folder: pairs, grid); default small (folder: pairs)")
     g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
