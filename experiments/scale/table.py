@@ -1,0 +1,71 @@
+"""The data-scale table of docs/results.md ("Learning at scale"): test IoU, IoU on the run's own
+training images, their gap, and paired differences between runs scored on the same test images.
+
+    python experiments/scale/table.py NAME=RUN [NAME=RUN ...] [--pair A-B ...]
+
+Each RUN holds ``eval/results.json`` (``cerberus eval RUN --data TEST``: the unseen test subjects)
+and, if it was measured, ``eval_train/results.json`` (``cerberus eval RUN --data TRAIN --split train
+--limit K``: the first K of its own training images); ``metrics.csv`` gives the training time.
+``--pair A-B`` prints ``A − B`` per test image (mean ± s.e., images where A is better), e.g.
+``--pair cer_s200-nmr_s200`` for the Cerberus − NMRr margin.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
+from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
+
+
+def load(path: Path) -> dict | None:
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def summary(run: Path) -> dict:
+    test, train = load(run / "eval" / "results.json"), load(run / "eval_train" / "results.json")
+    rows = list(csv.DictReader((run / "metrics.csv").open())) if (run / "metrics.csv").is_file() else []
+    pq = (test or {}).get("part_quality") or {}
+    vis = (test or {}).get("part_visibility") or {}
+    limbs = ", ".join(f"{p['label']} ({p['agreement']:.2f})" for p in pq.get("parts", [])
+                      if p.get("label", "").split(".")[0] in ("head", "shin", "thigh", "upper_arm", "lower_arm")
+                      and p["agreement"] >= 0.3)
+    return {"test": test and test["standard"]["mean"], "hard": test and (test.get("hard") or {}).get("mean"),
+            "train": train and train["standard"]["mean"], "train_n": train and train["standard"]["count"],
+            "steps": int(rows[-1]["step"]) if rows else None,
+            "minutes": float(rows[-1]["elapsed_s"]) / 60 if rows else None,
+            "limbs": limbs or "-", "hidden": vis.get("parts_hidden_in_most_images"), "results": test}
+
+
+def fmt(x: float | None, digits: int = 3) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", metavar="NAME=RUN")
+    ap.add_argument("--pair", action="append", default=[], metavar="A-B")
+    args = ap.parse_args(argv)
+    runs = {}
+    for item in args.runs:
+        name, _, path = item.partition("=")
+        runs[name] = summary(Path(path))
+    print("| run | test IoU | Hard Human | own training images (n) | gap | steps | minutes | head / limb parts "
+          "(agreement) | parts hidden in most images |")
+    print("| :--- | ---: | ---: | ---: | ---: | ---: | ---: | :--- | ---: |")
+    for name, s in runs.items():
+        gap = None if s["test"] is None or s["train"] is None else s["train"] - s["test"]
+        print(f"| {name} | {fmt(s['test'], 4)} | {fmt(s['hard'], 4)} | {fmt(s['train'], 4)} ({s['train_n'] or '-'}) | "
+              f"{fmt(gap)} | {s['steps'] or '-'} | {fmt(s['minutes'], 0)} | {s['limbs']} | {s['hidden'] if s['hidden'] is not None else '-'} |")
+    for pair in args.pair:
+        a, _, b = pair.partition("-")
+        d = paired(runs[a]["results"], runs[b]["results"])
+        print(f"\n{a} − {b}: " + ("-" if d is None else f"{d[0]:+.3f} ± {d[1]:.3f} ({d[2]} images)"))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
