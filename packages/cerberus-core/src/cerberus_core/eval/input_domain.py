@@ -216,17 +216,17 @@ def background_check(image: np.ndarray | torch.Tensor, scene) -> tuple[bool, str
     near = lambda px: np.abs(px - bg).max(-1) <= BACKGROUND_TOLERANCE  # noqa: E731
     fraction = float(near(ring).mean())
     spread = float(ring.std(0).max())
+    touched = [s for s, px in sides.items() if 1 - near(px).mean() > MAX_SIDE_FOREGROUND]
     reasons = []
     if fraction < MIN_BACKGROUND_FRACTION:
         reasons.append(f"its border is not the training background {_colour(bg)} (only {fraction:.0%} of it is, "
                        f"training images {MIN_BACKGROUND_FRACTION:.0%} or more)")
+    elif touched:  # the background is there, but something crosses the frame's edge
+        reasons.append(f"something runs along its {' and '.join(touched)} edge: the body may be cut off by the "
+                       "frame (training bodies are whole)")
     if spread > MAX_BORDER_SPREAD:
         reasons.append(f"its border varies in colour (spread {spread:.2f}, training images at most "
                        f"{MAX_BORDER_SPREAD:.2f})")
-    touched = [s for s, px in sides.items() if 1 - near(px).mean() > MAX_SIDE_FOREGROUND]
-    if touched and not reasons:
-        reasons.append(f"something runs along its {' and '.join(touched)} edge: the body may be cut off by the "
-                       "frame (training bodies are whole)")
     return not reasons, "; ".join(reasons)
 
 
