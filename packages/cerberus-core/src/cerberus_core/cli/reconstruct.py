@@ -124,7 +124,9 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
     loaded = [prepare_input(p, size, scene, m) for p, m in zip(paths, masks, strict=True)]
     out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
     if out:
-        named = "; ".join(f"{printable(li.path.name)}: {li.out_of_domain}" for li, _ in out[:3])
+        shown = [printable(li.path.name) for li, _ in out[:3]]
+        shown = [f"{n[:40]}...{n[-20:]}" if len(n) > 64 else n for n in shown]  # a 300-character name: its ends
+        named = "; ".join(f"{n}: {li.out_of_domain}" for n, (li, _) in zip(shown, out, strict=False))
         more = f" (and {len(out) - 3} more)" if len(out) > 3 else ""
         fix = ("give an RGBA cut-out (transparent background) or --mask MASK.png (white on the body) for each"
                if any(m is None for _, m in out) else "give images of the whole body")
