@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -30,21 +31,32 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "as named nodes, each a distinct colour) and OBJ files, and PNGs: the input, the reconstruction, the parts "
         "in colours, a turntable, a new lighting direction, and a new pose (this image's parts posed with the "
         "rotations and translations predicted from the next image), and index.html, an interactive 3D viewer of "
-        "them that works offline. Images of another size are centre-cropped and resized (with a warning); an alpha "
-        "channel is composited over the training background.\n\n"
+        "them that works offline. Images of another size are centre-cropped and resized (with a warning).\n\n"
+        "The model knows one whole body on the training background (black for the default look), framed by the "
+        "training camera. An RGBA cut-out's alpha channel, or a --mask image, is the body's silhouette: the body is "
+        "composited onto the training background and framed like the training images. Without either, an image "
+        "whose border does not look like the training background (a photo) is still reconstructed, with one "
+        "warning naming the fix, and its figure and viewer card say it is out of the training domain; so is a "
+        "body cut off by the image's edge (a portrait).\n\n"
         "The results replace --out whole, in one step, when they are all written: an error or Ctrl-C leaves --out "
         "as it was. --out may hold earlier results; a folder holding other files needs --overwrite, and one holding "
         "an input is refused.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  cerberus reconstruct --model human person.png          # a shipped model (cerberus models)\n"
         "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run\n"
-        "  cerberus reconstruct ./human a.png                       # a run folder called human (not the model)")
+        "  cerberus reconstruct ./human a.png                       # a run folder called human (not the model)\n"
+        "  cerberus reconstruct --model human a.jpg --mask a_mask.png   # a photo and its silhouette\n"
+        "  cerberus reconstruct --model human photos/*.jpg --mask masks/  # masks/<name>.png for each photo")
     p.add_argument("inputs", nargs="+", metavar="[RUN] IMAGE",
                    help="a run folder, model.safetensors or checkpoint .pt (unless --model is given), then the input "
                    "image files (PNG, JPEG, ...). A bare name that a shipped model has (human) is that model: "
                    "write a folder of that name as ./human")
     p.add_argument("--model", help="a shipped pretrained model instead of a run (see `cerberus models`), e.g. human; "
                    "always the shipped model, never a local folder of that name")
+    p.add_argument("--mask", action="append", type=Path, metavar="MASK",
+                   help="the body's silhouette: an image of the input's size, white on the body and black elsewhere "
+                   "(or its alpha channel). Give it once per input image, in the same order, or once as a folder "
+                   "holding NAME.png for each input NAME.jpg/.png. Without it, an RGBA input's alpha is used")
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="images in the interactive 3D viewer OUT/index.html (default: the first 12; 0: no viewer)")
     p.add_argument("--out", type=Path, default=Path("out/reconstruct"),
@@ -91,10 +103,41 @@ def output_names(paths: Sequence[Path]) -> list[str]:
     return out
 
 
+def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Path | None]:
+    """The ``--mask`` of each image: ``None`` each without ``--mask``; one per image, in order; or, for one
+    folder, ``FOLDER/<image stem>.png``."""
+    if not masks:
+        return [None] * len(images)
+    if len(masks) == 1 and masks[0].is_dir():
+        return [masks[0] / f"{Path(p).stem}.png" for p in images]
+    if len(masks) != len(images):
+        raise ConfigError(f"--mask given {len(masks)} time(s) for {len(images)} image(s); give one mask per image, in "
+                          "the images' order, or one folder holding NAME.png for each image NAME")
+    return list(masks)
+
+
+def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene) -> tuple[torch.Tensor, list[str]]:
+    """The model's input images and, per image, its out-of-domain note (``""`` when in domain); one warning
+    names the images out of the training domain and the fix."""
+    from cerberus_core.eval.input_domain import domain_note, prepare_input
+
+    loaded = [prepare_input(p, size, scene, m) for p, m in zip(paths, masks, strict=True)]
+    out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
+    if out:
+        shown = [printable(li.path.name) for li, _ in out[:3]]
+        shown = [f"{n[:40]}...{n[-20:]}" if len(n) > 64 else n for n in shown]  # a 300-character name: its ends
+        named = "; ".join(f"{n}: {li.out_of_domain}" for n, (li, _) in zip(shown, out, strict=False))
+        more = f" (and {len(out) - 3} more)" if len(out) > 3 else ""
+        fix = ("give an RGBA cut-out (transparent background) or --mask MASK.png (white on the body) for each"
+               if any(m is None for _, m in out) else "give images of the whole body")
+        warnings.warn(f"{len(out)} of {len(loaded)} image(s) are out of the training domain, so their reconstructions "
+                      f"are unreliable: {named}{more}; {fix}", UserWarning, stacklevel=1)
+    return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded]
+
+
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.eval.export import export_reconstruction
     from cerberus_core.eval.figures import save_image_pictures
-    from cerberus_core.eval.images import load_images
     from cerberus_core.eval.viewer import write_reconstruction_viewer
     from cerberus_core.train.checkpoint import load_run, looks_like_path, model_scene
 
@@ -114,12 +157,13 @@ def run(args: argparse.Namespace) -> int:
     if args.viewer_images < 0:
         raise ConfigError(f"--viewer-images {args.viewer_images}: must be >= 0 (0: no viewer)")
     check_device(args.device)
-    keep = list(args.images) + ([Path(args.run)] if looks_like_path(args.run) else [])
+    masks = mask_paths(args.mask, args.images)
+    keep = list(args.images) + [m for m in masks if m is not None] + ([Path(args.run)] if looks_like_path(args.run) else [])
     out = result_folder(args.out, overwrite=args.overwrite, keep=keep)
     model, config, saved_scene = load_run(args.run, args.device)
     scene = model_scene(config, args.data, saved_scene)
     size = int(config.data.image_size or 64)
-    images, _ = load_images(args.images, size, scene.background)
+    images, notes = load_inputs(args.images, masks, size, scene)
     renderer = make_renderer(args.renderer or config.renderer)
     stems = output_names(list(args.images))
     camera = scene.cameras([args.azimuth] * len(images), size)
@@ -130,8 +174,8 @@ def run(args: argparse.Namespace) -> int:
         for i, stem in enumerate(stems):
             donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
             written += save_image_pictures(renderer, images[i], recon.index([i]), camera.index([i]),
-                                           tmp, stem, pose_donor=donor, background=scene.background)
-        written += write_reconstruction_viewer(tmp, images, recon, camera, stems, limit=args.viewer_images,
+                                           tmp, stem, pose_donor=donor, background=scene.background, note=notes[i])
+        written += write_reconstruction_viewer(tmp, images, recon, camera, stems, limit=args.viewer_images, notes=notes,
                                                limit_hint="--viewer-images",
                                                title=f"cerberus reconstruct: {printable(args.model or args.run)}",
                                                background=scene.background)

@@ -211,12 +211,34 @@ def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartSet, camera:
     return {k: v.cpu() for k, v in panels.items()}
 
 
-def figure_one(panels: Mapping[str, Tensor], scale: int = 2, columns: int = 3) -> Image.Image:
-    """Lay the panels of :func:`figure_one_panels` out in rows of ``columns`` with captions above."""
+def note_banner(text: str, width: int) -> Image.Image:
+    """``text`` in dark red on white, wrapped to ``width`` pixels (a warning above a figure)."""
+    font = _font(11)
+    probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    lines, line = [], ""
+    for word in text.split():
+        candidate = f"{line} {word}".strip()
+        if line and probe.textlength(candidate, font=font) > width - 2 * PAD:
+            lines.append(line)
+            candidate = word
+        line = candidate
+    lines.append(line)
+    out = Image.new("RGB", (width, 14 * len(lines) + PAD), "white")
+    draw = ImageDraw.Draw(out)
+    for k, text_line in enumerate(lines):
+        draw.text((PAD, PAD // 2 + 14 * k), text_line, fill=(160, 0, 0), font=font)
+    return out
+
+
+def figure_one(panels: Mapping[str, Tensor], scale: int = 2, columns: int = 3, note: str = "") -> Image.Image:
+    """Lay the panels of :func:`figure_one_panels` out in rows of ``columns`` with captions above, and
+    ``note`` (e.g. that the input is out of the training domain) in red above them all."""
     keys = [k for k in FIGURE_ONE_TITLES if k in panels]
     rows = [keys[i:i + columns] for i in range(0, len(keys), columns)]
     images = [labelled_grid([[panels[k] for k in row]], [FIGURE_ONE_TITLES[k] for k in row], scale=scale)
               for row in rows]
+    if note:
+        images.insert(0, note_banner(note, max(im.width for im in images)))
     width = max(im.width for im in images)
     out = Image.new("RGB", (width, sum(im.height for im in images)), "white")
     y = 0
@@ -269,12 +291,13 @@ def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: 
 def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camera: Camera,
                         out_dir: str | Path, stem: str, *, n_views: int = 8,
                         pose_donor: PartSet | None = None, scale: int = 2,
-                        background: RGB = DEFAULT_BACKGROUND) -> list[Path]:
+                        background: RGB = DEFAULT_BACKGROUND, note: str = "") -> list[Path]:
     """Every picture of one reconstruction, as PNGs named ``<stem>_<what>.png`` in ``out_dir``.
 
     Writes ``input``, ``reconstruction``, ``parts``, ``new_lighting``, ``turntable`` (two rows of
     ``n_views`` azimuths: shaded and parts), ``new_pose`` (if ``pose_donor`` is given) and ``figure1``
-    (all panels together). Single panels are ``H x W`` pixels; the others are upscaled by ``scale``.
+    (all panels together, ``note`` in red above them). Single panels are ``H x W`` pixels; the others
+    are upscaled by ``scale``.
     """
     panels = figure_one_panels(renderer, image, recon, camera, pose_donor=pose_donor, background=background)
     out_dir = Path(out_dir)
@@ -286,7 +309,7 @@ def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camer
     titles = [f"{round(k * 360 / n_views)}°" for k in range(n_views)]
     grid = labelled_grid([list(shaded), list(coloured)], titles, ["shaded", "parts"], scale=scale)
     written.append(save_png(grid, out_dir / f"{stem}_turntable.png"))
-    written.append(save_png(figure_one(panels, scale=scale), out_dir / f"{stem}_figure1.png"))
+    written.append(save_png(figure_one(panels, scale=scale, note=note), out_dir / f"{stem}_figure1.png"))
     return written
 
 

@@ -59,12 +59,15 @@ class LoadedImage:
         image: ``(3, S, S)`` float32 RGB in [0, 1].
         original_size: ``(width, height)`` in the file.
         notes: what was done to it (empty when it already matched).
+        out_of_domain: why it does not look like the training images (empty: it does, or it was not
+            checked); see :mod:`cerberus_core.eval.input_domain`.
     """
 
     path: Path
     image: Tensor
     original_size: tuple[int, int]
     notes: list[str] = field(default_factory=list)
+    out_of_domain: str = ""
 
 
 def _open(path: Path) -> Image.Image:
@@ -107,8 +110,8 @@ def _open(path: Path) -> Image.Image:
     return img
 
 
-def _to_rgb_float(img: Image.Image, background: np.ndarray, path: Path, notes: list[str]) -> np.ndarray:
-    """``(H, W, 3)`` float64 in [0, 1]."""
+def _to_rgba_float(img: Image.Image, path: Path, notes: list[str]) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(H, W, 3)`` float64 RGB in [0, 1] and the ``(H, W)`` alpha in [0, 1] (``None`` without one)."""
     mode = img.mode
     if mode == "P":
         img = img.convert("RGBA" if "transparency" in img.info else "RGB")
@@ -120,7 +123,7 @@ def _to_rgb_float(img: Image.Image, background: np.ndarray, path: Path, notes: l
             raise ImageInputError(f"{printable(path)}: {mode} image with values outside 0..65535 is not supported; "
                                   "save it as an 8-bit PNG")
         notes.append(f"16-bit grayscale ({mode}) scaled to [0, 1] and repeated into RGB")
-        return np.repeat((arr / 65535.0)[..., None], 3, axis=2)
+        return np.repeat((arr / 65535.0)[..., None], 3, axis=2), None
     if mode == "F":
         raise ImageInputError(f"{printable(path)}: 32-bit float image (mode F) has no defined value range; "
                               "save it as an 8-bit RGB PNG")
@@ -135,15 +138,17 @@ def _to_rgb_float(img: Image.Image, background: np.ndarray, path: Path, notes: l
     if img.mode == "RGBa":
         img = img.convert("RGBA")
     arr = np.asarray(img, dtype=np.float64) / 255.0
-    if img.mode == "RGBA":
-        alpha = arr[..., 3:4]
-        if (alpha < 1).any():
-            notes.append(f"alpha composited over the background colour {tuple(round(float(b), 3) for b in background)}")
-        return arr[..., :3] * alpha + background * (1 - alpha)
-    return arr[..., :3]
+    return arr[..., :3], (arr[..., 3] if img.mode == "RGBA" else None)
 
 
-def _square_resize(arr: np.ndarray, size: int, notes: list[str]) -> np.ndarray:
+def composite(image: np.ndarray, alpha: np.ndarray, background: Sequence[float]) -> np.ndarray:
+    """``image * alpha + background * (1 - alpha)``: ``(H, W, 3)`` RGB over one colour, ``alpha`` ``(H, W)``."""
+    a = np.asarray(alpha, dtype=np.float64)[..., None]
+    return image * a + np.asarray(background, dtype=np.float64).reshape(1, 1, 3) * (1 - a)
+
+
+def square_resize(arr: np.ndarray, size: int, notes: list[str]) -> np.ndarray:
+    """Centre-crop ``(H, W, C)`` to a square and resize it (Lanczos) to ``size``; each change in ``notes``."""
     h, w = arr.shape[:2]
     if h != w:
         s = min(h, w)
@@ -153,10 +158,75 @@ def _square_resize(arr: np.ndarray, size: int, notes: list[str]) -> np.ndarray:
     if arr.shape[0] != size:
         src = arr.shape[0]
         chans = [Image.fromarray(arr[..., c].astype(np.float32), mode="F").resize((size, size), Image.LANCZOS)
-                 for c in range(3)]
+                 for c in range(arr.shape[-1])]
         arr = np.clip(np.stack([np.asarray(c, dtype=np.float64) for c in chans], axis=-1), 0.0, 1.0)
         notes.append(f"resized from {src}x{src} to {size}x{size}")
     return arr
+
+
+def _check_background(background: Sequence[float]) -> np.ndarray:
+    bg = np.asarray(background, dtype=np.float64).reshape(-1)
+    if bg.shape != (3,) or (bg < 0).any() or (bg > 1).any():
+        raise ValueError(f"background must be 3 values in [0, 1], got {background!r}")
+    return bg
+
+
+def open_oriented(path: str | Path, notes: list[str]) -> Image.Image:
+    """The first frame of the image file ``path`` with its EXIF orientation applied (each step in ``notes``).
+
+    Raises:
+        ImageInputError: not a readable image file (see :func:`load_image`).
+    """
+    img = _open(Path(path))
+    if getattr(img, "n_frames", 1) > 1:
+        img.seek(0)
+        notes.append(f"{img.n_frames} frames: the first one is used")
+    orientation = img.getexif().get(0x0112, 1)
+    if orientation not in (0, 1):
+        notes.append(f"EXIF orientation {orientation} applied")
+        return ImageOps.exif_transpose(img)
+    return img
+
+
+@dataclass
+class RawImage:
+    """An image file read at (about) its own size, before it is made square.
+
+    Attributes:
+        rgb: ``(H, W, 3)`` float64 in [0, 1]; alpha: ``(H, W)`` in [0, 1], or ``None`` without one.
+        original_size: ``(width, height)`` in the file (after its EXIF orientation).
+        notes: what was done to it.
+    """
+
+    rgb: np.ndarray
+    alpha: np.ndarray | None
+    original_size: tuple[int, int]
+    notes: list[str] = field(default_factory=list)
+
+
+def read_image(path: str | Path, image_size: int) -> RawImage:
+    """Read ``path`` for a model of ``image_size`` pixels: oriented, converted to float RGB (and alpha), and
+    reduced by a whole factor (box filter, while still 8-bit) when it is 4 or more times the model's size.
+
+    Raises:
+        ImageInputError: see the table in the module docstring.
+    """
+    if int(image_size) <= 0:
+        raise ValueError(f"image_size must be positive, got {image_size}")
+    path = Path(path)
+    notes: list[str] = []
+    oriented = open_oriented(path, notes)
+    original = oriented.size
+    short = min(oriented.size)
+    if short >= 4 * int(image_size):  # shrink while still 8-bit: a float64 copy of a huge image is gigabytes
+        factor = short // (2 * int(image_size))
+        try:
+            oriented = oriented.reduce(factor)
+            notes.append(f"downscaled {factor}x (box filter) from {original[0]}x{original[1]} before conversion")
+        except (ValueError, NotImplementedError):  # a mode reduce() does not support: convert at full size
+            pass
+    rgb, alpha = _to_rgba_float(oriented, path, notes)
+    return RawImage(rgb, alpha, original, notes)
 
 
 def load_image(path: str | Path, image_size: int, background: Sequence[float] = (1.0, 1.0, 1.0), *,
@@ -172,36 +242,26 @@ def load_image(path: str | Path, image_size: int, background: Sequence[float] = 
         ImageInputError: see the table in the module docstring.
     """
     path = Path(path)
-    if int(image_size) <= 0:
-        raise ValueError(f"image_size must be positive, got {image_size}")
-    bg = np.asarray(background, dtype=np.float64).reshape(-1)
-    if bg.shape != (3,) or (bg < 0).any() or (bg > 1).any():
-        raise ValueError(f"background must be 3 values in [0, 1], got {background!r}")
-    img = _open(path)
-    notes: list[str] = []
-    if getattr(img, "n_frames", 1) > 1:
-        img.seek(0)
-        notes.append(f"{img.n_frames} frames: the first one is used")
-    orientation = img.getexif().get(0x0112, 1)
-    oriented = ImageOps.exif_transpose(img) if orientation not in (0, 1) else img
-    if orientation not in (0, 1):
-        notes.append(f"EXIF orientation {orientation} applied")
-    original = oriented.size
-    short = min(oriented.size)
-    if short >= 4 * int(image_size):  # shrink while still 8-bit: a float64 copy of a huge image is gigabytes
-        factor = short // (2 * int(image_size))
-        try:
-            oriented = oriented.reduce(factor)
-            notes.append(f"downscaled {factor}x (box filter) from {original[0]}x{original[1]} before conversion")
-        except (ValueError, NotImplementedError):  # a mode reduce() does not support: convert at full size
-            pass
-    arr = _to_rgb_float(oriented, bg, path, notes)
-    arr = _square_resize(arr, int(image_size), notes)
+    bg = _check_background(background)
+    raw = read_image(path, image_size)
+    notes = raw.notes
+    arr = raw.rgb
+    if raw.alpha is not None:
+        if (raw.alpha < 1).any():
+            notes.append(f"alpha composited over the background colour {tuple(round(float(b), 3) for b in bg)}")
+        arr = composite(arr, raw.alpha, bg)
+    arr = square_resize(arr, int(image_size), notes)
+    return finish(path, arr, raw.original_size, notes, warn=warn)
+
+
+def finish(path: Path, arr: np.ndarray, original_size: tuple[int, int], notes: list[str], *,
+           warn: bool = True) -> LoadedImage:
+    """The :class:`LoadedImage` of a prepared ``(S, S, 3)`` array; each note a warning (``warn``)."""
     if warn:
         for note in notes:
-            warnings.warn(f"{printable(path)}: {note}", ImageInputWarning, stacklevel=2)
+            warnings.warn(f"{printable(path)}: {note}", ImageInputWarning, stacklevel=3)
     tensor = torch.from_numpy(np.ascontiguousarray(arr.transpose(2, 0, 1))).float()
-    return LoadedImage(path, tensor, original, notes)
+    return LoadedImage(path, tensor, original_size, notes)
 
 
 def load_images(paths: Sequence[str | Path], image_size: int, background: Sequence[float] = (1.0, 1.0, 1.0), *,

@@ -281,7 +281,8 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
                                 camera: Camera, stems: Sequence[str], *, bodies: Sequence | None = None,
                                 limit: int = DEFAULT_LIMIT, limit_hint: str = "",
                                 title: str = "Cerberus reconstructions",
-                                background: Sequence[float] = (1.0, 1.0, 1.0)) -> list[Path]:
+                                background: Sequence[float] = (1.0, 1.0, 1.0),
+                                notes: Sequence[str] | None = None) -> list[Path]:
     """Export the meshes of the first ``limit`` images and write ``out_dir/index.html``.
 
     For image ``i`` named ``stems[i]`` writes ``<stem>.glb`` (the reconstruction), ``<stem>_new_pose.glb``
@@ -292,10 +293,14 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
     Args:
         images: ``(N, 3, H, W)`` the inputs in [0, 1]; camera: their ``N`` cameras; recon: batch ``N``.
         limit: cards on the page (``0``: write nothing).
+        notes: a line per image for its card (e.g. that the input is out of the training domain), ``""``
+            for none.
     Returns:
         The files written, the page last.
     """
     n = recon.batch_size
+    if notes is not None and len(notes) != n:
+        raise ValueError(f"write_reconstruction_viewer: {n} reconstructions but {len(notes)} notes")
     if len(stems) != n or images.shape[0] != n or camera.batch_size != n or (bodies is not None and len(bodies) != n):
         raise ValueError(f"write_reconstruction_viewer: {n} reconstructions but {images.shape[0]} images, "
                          f"{camera.batch_size} cameras, {len(stems)} names"
@@ -318,6 +323,8 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
             written += export_parts(posed, faces, out_dir, f"{stem}_new_pose", formats=("glb",))
             entry.new_pose = out_dir / f"{stem}_new_pose.glb"
             entry.note = f"New pose: these parts with the rotations and translations predicted from {stems[j]}."
+        if notes is not None and notes[i]:
+            entry.note = f"{notes[i][:1].upper()}{notes[i][1:]}. {entry.note}".strip()
         entries.append(entry)
     written.append(write_viewer(out_dir, entries, title=title, limit=limit, total=n, limit_hint=limit_hint,
                                 background=background))

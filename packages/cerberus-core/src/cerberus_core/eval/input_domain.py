@@ -1,0 +1,304 @@
+"""Input the model was not trained for: named, not silently reconstructed.
+
+A model learns from renders of one whole body on a plain background (the dataset's
+``SceneSetup.background``), framed by the scene's fixed camera. A photo (a cluttered background, a
+half-body portrait) is not such an image, and the model answers it with a full body regardless.
+``cerberus reconstruct`` therefore prepares each input in one of two ways:
+
+* **with a silhouette** (an RGBA cut-out's alpha channel, or a ``--mask`` image: white on the body):
+  the body is composited onto the training background (:func:`composite`) and, unless it already sits
+  in the frame as the training bodies do, cropped or padded around the silhouette so that it fills
+  the frame as they do (:func:`frame_to_training`). A silhouette that runs along an image edge means a
+  body cut off by the frame (a portrait): out of the training domain (:func:`cut_off_sides`).
+* **without one**: the image is used as before (centre-cropped and resized), and
+  :func:`background_check` says whether its border looks like the training background.
+
+The thresholds below were measured on generated images (``docs/evaluation.md``, "Input outside the
+training domain"): every test and training image of the human ``small`` set passes, as do the same
+images saved as JPEG (quality 75) or at 4x the size; noise, gradient and photo-like textured
+backgrounds, a white background for a black-background model, and a body cut off at the bottom fail.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+
+from cerberus_core.bodies.body import FILL
+from cerberus_core.eval.images import (
+    ImageInputError,
+    LoadedImage,
+    RawImage,
+    composite,
+    finish,
+    open_oriented,
+    read_image,
+    square_resize,
+)
+from cerberus_core.names import printable
+
+#: Width in pixels of the model-size image's outer ring that :func:`background_check` looks at.
+BORDER_WIDTH = 2
+#: A ring pixel is background when each of its channels is within this of the training background.
+BACKGROUND_TOLERANCE = 0.1
+#: Least fraction of the ring that must be background (generated images: 0.986 and above).
+MIN_BACKGROUND_FRACTION = 0.9
+#: Largest colour spread (standard deviation of the ring, largest over channels; generated: 0.063 at most).
+MAX_BORDER_SPREAD = 0.15
+#: Largest fraction of one side of the ring that may differ from the background (a body touching the
+#: frame's edge; generated: 0.055 at most) and of one side of a silhouette image that may be body.
+MAX_SIDE_FOREGROUND = 0.1
+#: Where a training body's silhouette sits: its longest bounding-box side over the projected size of the
+#: normalised body size (:func:`projected_extent`), median (human ``small``) and range (human ``small``,
+#: the paper's look, animal ``tiny``), and how far (fraction of the frame) its bounding-box centre may
+#: stray from the frame's centre.
+FRAMING_MEDIAN = 0.89
+FRAMING_RANGE = (0.55, 1.1)
+CENTRE_TOLERANCE = 0.1
+#: Largest fraction of a mask's non-black pixels (above 0.1) that may be grey (below 0.9): a mask is
+#: black and white, its grey pixels the anti-aliased edge (a box-filtered 32 px mask of a thin body: 0.46;
+#: a rendered picture given as a mask: 1.0).
+MAX_MASK_GREY = 0.75
+#: An alpha or mask value at or above this is the body.
+SILHOUETTE_THRESHOLD = 0.5
+
+SIDES = ("top", "bottom", "left", "right")
+OUT_OF_DOMAIN = "out of the training domain"
+
+
+def projected_extent(scene) -> float:
+    """Fraction of the frame that a body of the normalised size ``FILL`` at the origin spans (whatever
+    volume the scene's camera distance was fitted to)."""
+    return float(FILL / (2 * scene.distance * math.tan(math.radians(scene.fov_y) / 2)))
+
+
+def _colour(rgb: Sequence[float]) -> str:
+    return "(" + ", ".join(f"{float(c):.2g}" for c in rgb) + ")"
+
+
+# ------------------------------------------------------------------ silhouettes
+def silhouette_from(image_rgba: np.ndarray | None = None, mask: np.ndarray | None = None, *,
+                    name: str = "mask") -> np.ndarray | None:
+    """The ``(H, W)`` silhouette in [0, 1] (1: body) of an RGBA image's alpha or of a mask.
+
+    Args:
+        image_rgba: ``(H, W, 4)`` in [0, 1]: its alpha; ``None`` (no silhouette) when the alpha is opaque
+            everywhere or marks nothing out (every value at least :data:`SILHOUETTE_THRESHOLD`).
+        mask: ``(H, W)``, ``(H, W, 1)`` or grey ``(H, W, 3)`` in [0, 1]; used when given.
+        name: what the messages call it.
+    Raises:
+        ImageInputError: a mask in colour, mostly grey, or one that marks no pixel or every pixel as the body;
+            an alpha channel transparent everywhere.
+    """
+    if mask is not None:
+        m = np.asarray(mask, dtype=np.float64)
+        if m.ndim == 3 and m.shape[-1] == 3:
+            spread = m.max(-1) - m.min(-1)
+            if (spread > 0.1).mean() > 0.01:
+                raise ImageInputError(f"{name}: is a colour image, not a mask; give a black-and-white image, "
+                                      "white on the body and black elsewhere")
+            m = m.mean(-1)
+        m = m.reshape(m.shape[:2])
+        lit = m > 0.1
+        if lit.any() and (m[lit] < 0.9).mean() > MAX_MASK_GREY:
+            raise ImageInputError(f"{name}: is not a mask (most of its non-black pixels are grey: a picture?); give a "
+                                  "black-and-white image, white on the body and black elsewhere")
+        body = m >= SILHOUETTE_THRESHOLD
+        if not body.any():
+            raise ImageInputError(f"{name}: marks no pixel as the body (no value is 50% white or more); the mask "
+                                  "must be white on the body and black elsewhere")
+        if body.all():
+            raise ImageInputError(f"{name}: marks every pixel as the body; the mask must be white on the body and "
+                                  "black elsewhere")
+        return m
+    if image_rgba is None or np.asarray(image_rgba).shape[-1] != 4:
+        return None
+    alpha = np.asarray(image_rgba, dtype=np.float64)[..., 3]
+    if (alpha >= SILHOUETTE_THRESHOLD).all():
+        return None
+    if not (alpha >= SILHOUETTE_THRESHOLD).any():
+        raise ImageInputError(f"{name}: the alpha channel is transparent everywhere: there is no body to "
+                              "reconstruct; give the cut-out with the body opaque")
+    return alpha
+
+
+def _bbox(silhouette: np.ndarray) -> tuple[int, int, int, int]:
+    """``(top, left, bottom, right)`` of the body pixels, bottom and right exclusive."""
+    body = silhouette >= SILHOUETTE_THRESHOLD
+    rows, cols = np.nonzero(body.any(1))[0], np.nonzero(body.any(0))[0]
+    return int(rows[0]), int(cols[0]), int(rows[-1]) + 1, int(cols[-1]) + 1
+
+
+def cut_off_sides(silhouette: np.ndarray) -> list[str]:
+    """The image sides along which the body runs (more than :data:`MAX_SIDE_FOREGROUND` of the side):
+    a body cut off by the frame, which the model never saw."""
+    body = silhouette >= SILHOUETTE_THRESHOLD
+    edges = (body[0], body[-1], body[:, 0], body[:, -1])
+    return [side for side, edge in zip(SIDES, edges, strict=True) if edge.mean() > MAX_SIDE_FOREGROUND]
+
+
+# ------------------------------------------------------------------ framing
+def training_window(silhouette: np.ndarray, scene) -> tuple[int, int, int] | None:
+    """The square ``(top, left, side)`` (pixels, may reach outside the image) that frames the silhouette as
+    the training images frame their bodies: its bounding box centred, its longest side
+    :data:`FRAMING_MEDIAN` of the scene's :func:`projected_extent`. ``None`` when the image's own
+    centre square already does (the body's size within :data:`FRAMING_RANGE`, its centre within
+    :data:`CENTRE_TOLERANCE`): the image is then used exactly as without a silhouette."""
+    h, w = silhouette.shape
+    top, left, bottom, right = _bbox(silhouette)
+    longest = max(bottom - top, right - left)
+    proj = projected_extent(scene)
+    s = min(h, w)
+    t0, l0 = (h - s) // 2, (w - s) // 2
+    inside = top >= t0 and left >= l0 and bottom <= t0 + s and right <= l0 + s
+    off = max(abs((top + bottom) / 2 - t0 - s / 2), abs((left + right) / 2 - l0 - s / 2)) / s
+    if inside and FRAMING_RANGE[0] <= longest / s / proj <= FRAMING_RANGE[1] and off <= CENTRE_TOLERANCE:
+        return None
+    side = max(1, round(longest / (FRAMING_MEDIAN * proj)))
+    return round((top + bottom - side) / 2), round((left + right - side) / 2), side
+
+
+def _crop_padded(arr: np.ndarray, top: int, left: int, side: int, fill: Sequence[float]) -> np.ndarray:
+    """The ``side`` square of ``(H, W, C)`` at ``(top, left)``, ``fill`` where it reaches outside."""
+    h, w, c = arr.shape
+    out = np.empty((side, side, c), dtype=np.float64)
+    out[:] = np.asarray(fill, dtype=np.float64).reshape(1, 1, c)
+    t, lf = max(top, 0), max(left, 0)
+    b, r = min(top + side, h), min(left + side, w)
+    if b > t and r > lf:
+        out[t - top:b - top, lf - left:r - left] = arr[t:b, lf:r]
+    return out
+
+
+def frame_to_training(image: np.ndarray, silhouette: np.ndarray, scene, size: int,
+                      notes: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Crop or pad ``(H, W, 3)`` ``image`` (already over the training background) and its silhouette to the
+    :func:`training_window`, then resize both to ``size``.
+
+    Returns:
+        ``(size, size, 3)`` image and ``(size, size)`` silhouette; each change is appended to ``notes``.
+    """
+    notes = [] if notes is None else notes
+    window = training_window(silhouette, scene)
+    if window is not None:
+        top, left, side = window
+        image = _crop_padded(image, top, left, side, scene.background)
+        silhouette = _crop_padded(silhouette[..., None], top, left, side, (0.0,))[..., 0]
+        notes.append(f"framed to its silhouette like the training images (a {side}x{side} square around the body, "
+                     "padded with the training background where it leaves the image)")
+    return square_resize(image, size, notes), square_resize(silhouette[..., None], size, [])[..., 0]
+
+
+# ------------------------------------------------------------------ no silhouette
+def _ring(image: np.ndarray, width: int) -> dict[str, np.ndarray]:
+    return {"top": image[:width].reshape(-1, 3), "bottom": image[-width:].reshape(-1, 3),
+            "left": image[:, :width].reshape(-1, 3), "right": image[:, -width:].reshape(-1, 3)}
+
+
+def background_check(image: np.ndarray | torch.Tensor, scene) -> tuple[bool, str]:
+    """Whether an image's border looks like the training background, and if not, why.
+
+    Args:
+        image: ``(3, S, S)`` tensor or ``(S, S, 3)`` array in [0, 1], as the model sees it.
+        scene: the training :class:`~cerberus_core.datasets.scene.SceneSetup` (its ``background``).
+    Returns:
+        ``(in_domain, reason)``; the reason is empty when in domain.
+    """
+    arr = image.detach().cpu().numpy().transpose(1, 2, 0) if isinstance(image, torch.Tensor) else np.asarray(image)
+    arr = arr.astype(np.float64)
+    bg = np.asarray(scene.background, dtype=np.float64)
+    sides = _ring(arr, BORDER_WIDTH)
+    ring = np.concatenate(list(sides.values()))
+    near = lambda px: np.abs(px - bg).max(-1) <= BACKGROUND_TOLERANCE  # noqa: E731
+    fraction = float(near(ring).mean())
+    spread = float(ring.std(0).max())
+    touched = [s for s, px in sides.items() if 1 - near(px).mean() > MAX_SIDE_FOREGROUND]
+    reasons = []
+    if fraction < MIN_BACKGROUND_FRACTION:
+        reasons.append(f"its border is not the training background {_colour(bg)} (only {fraction:.0%} of it is, "
+                       f"training images {MIN_BACKGROUND_FRACTION:.0%} or more)")
+    elif touched:  # the background is there, but something crosses the frame's edge
+        reasons.append(f"something runs along its {' and '.join(touched)} edge: the body may be cut off by the "
+                       "frame (training bodies are whole)")
+    if spread > MAX_BORDER_SPREAD:
+        reasons.append(f"its border varies in colour (spread {spread:.2f}, training images at most "
+                       f"{MAX_BORDER_SPREAD:.2f})")
+    return not reasons, "; ".join(reasons)
+
+
+# ------------------------------------------------------------------ one input
+def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.ndarray:
+    """The mask image ``path`` for the image ``image_path`` (read as ``raw``), as an array the size of
+    ``raw.rgb``: an alpha channel that varies, else its grey level.
+
+    Raises:
+        ImageInputError: not a readable image, not the image's size.
+    """
+    shown = printable(path)
+    try:
+        img = open_oriented(path, [])
+    except ImageInputError as exc:
+        raise ImageInputError(f"mask {exc}") from None
+    if img.size != raw.original_size:
+        raise ImageInputError(f"mask {shown}: is {img.size[0]}x{img.size[1]} but its image {printable(image_path)} is "
+                              f"{raw.original_size[0]}x{raw.original_size[1]}; give a mask of the image's size")
+    if img.mode in ("P", "PA", "LA", "RGBa"):
+        img = img.convert("RGBA")
+    if img.mode not in ("1", "L", "RGB", "RGBA"):
+        img = img.convert("RGB")
+    arr = np.asarray(img, dtype=np.float64) / (1.0 if img.mode == "1" else 255.0)
+    if arr.ndim == 3 and arr.shape[-1] == 4:
+        alpha = arr[..., 3]
+        arr = alpha if alpha.min() < alpha.max() else arr[..., :3]
+    h, w = raw.rgb.shape[:2]
+    if arr.shape[:2] != (h, w):  # the image was reduced on reading: the mask follows
+        chans = arr if arr.ndim == 3 else arr[..., None]
+        arr = np.stack([np.asarray(Image.fromarray(chans[..., c].astype(np.float32), mode="F").resize((w, h), Image.BOX))
+                        for c in range(chans.shape[-1])], -1).astype(np.float64)
+    return silhouette_from(mask=arr, name=f"mask {shown}")
+
+
+def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = None, *,
+                  warn: bool = True) -> LoadedImage:
+    """Read one image for a model of ``size`` pixels trained on ``scene`` (see the module docstring).
+
+    Returns:
+        The :class:`LoadedImage`; its ``out_of_domain`` holds the reason when the image does not look like
+        the training images (empty otherwise).
+    Raises:
+        ImageInputError: an unreadable image or a bad mask (one line naming the file and the fix).
+    """
+    path = Path(path)
+    raw = read_image(path, size)
+    notes = raw.notes
+    if mask is not None:
+        silhouette = read_mask(mask, raw, path)
+        if raw.alpha is not None:
+            notes.append("the --mask is used instead of the image's alpha channel")
+    else:
+        silhouette = silhouette_from(np.concatenate([raw.rgb, raw.alpha[..., None]], -1)
+                                     if raw.alpha is not None else None, name=printable(path))
+    if silhouette is None:
+        arr = raw.rgb if raw.alpha is None else composite(raw.rgb, raw.alpha, scene.background)
+        arr = square_resize(arr, size, notes)
+        ok, reason = background_check(arr, scene)
+    else:
+        notes.append(f"{'mask' if mask is not None else 'alpha'} composited over the training background "
+                     f"{_colour(scene.background)}")
+        cut = cut_off_sides(silhouette)
+        arr, _ = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size, notes)
+        ok = not cut
+        reason = (f"the body runs along the image's {' and '.join(cut)} edge: it looks cut off (a portrait?), "
+                  "and the model was trained on whole bodies" if cut else "")
+    loaded = finish(path, arr, raw.original_size, notes, warn=warn)
+    loaded.out_of_domain = "" if ok else reason
+    return loaded
+
+
+def domain_note(loaded: LoadedImage) -> str:
+    """``"out of the training domain: <reason>"`` for an image that is, else ``""``."""
+    return f"{OUT_OF_DOMAIN}: {loaded.out_of_domain}" if loaded.out_of_domain else ""

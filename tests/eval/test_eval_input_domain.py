@@ -1,0 +1,192 @@
+"""Issue 20 (5): input the model was not trained for is named, not silently reconstructed.
+
+Generated test images are in the training domain and reach the model exactly as before; the same body on
+a cluttered background is named out of the domain (one warning, the figure, the viewer card) and, with
+its silhouette (a ``--mask`` or an RGBA cut-out's alpha), composited back onto the training background;
+a body cut off by the image's edge is named too; a bad mask is one line.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from cerberus_core.cli import main
+from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.eval import input_domain as D
+from cerberus_core.eval.images import load_image
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory):
+    """The human ``tiny`` test images as PNG files, their silhouettes, and the scene."""
+    root = tmp_path_factory.mktemp("input_domain")
+    assert main(["data", "generate", "--dataset", "human", "--size", "tiny", "--set", "splits.train.pairs=1",
+                 "--out", str(root / "data"), "--quiet"]) == 0
+    ds = ViewDataset(root / "data", split="test")
+    images = [ds[i]["images"].numpy().transpose(1, 2, 0) for i in range(len(ds))]
+    paths = []
+    for i, a in enumerate(images):
+        paths.append(root / f"gen{i}.png")
+        Image.fromarray(_u8(a)).save(paths[-1])
+    silhouettes = [(np.abs(a - np.asarray(ds.scene.background)).max(-1) > 0.5 / 255) for a in images]
+    return {"root": root, "scene": ds.scene, "images": images, "paths": paths, "silhouettes": silhouettes}
+
+
+def _u8(a: np.ndarray) -> np.ndarray:
+    return (np.clip(a, 0, 1) * 255).round().astype(np.uint8)
+
+
+def _clutter(n: int, seed: int = 0) -> np.ndarray:
+    """A photo-like background: smooth colour blobs."""
+    low = (np.random.default_rng(seed).random((6, 6, 3)) * 255).astype(np.uint8)
+    return np.asarray(Image.fromarray(low).resize((n, n), Image.BICUBIC)) / 255.0
+
+
+def _on_clutter(generated, i: int = 0) -> np.ndarray:
+    a, m = generated["images"][i], generated["silhouettes"][i][..., None]
+    return a * m + _clutter(a.shape[0]) * (1 - m)
+
+
+def test_generated_images_are_in_domain_and_unchanged(generated):
+    scene = generated["scene"]
+    for path in generated["paths"]:
+        new = D.prepare_input(path, 64, scene, warn=False)
+        assert new.out_of_domain == "", (path, new.out_of_domain)
+        before = load_image(path, 64, scene.background, warn=False)
+        assert torch.equal(new.image, before.image)  # so the model reconstructs it exactly as before
+    ok, reason = D.background_check(load_image(generated["paths"][0], 64, scene.background).image, scene)
+    assert ok and reason == ""
+
+
+def test_generated_image_reconstructs_as_before(generated):
+    from cerberus_core.train.checkpoint import load_run, model_scene
+    from cerberus_core.zoo import model_path
+
+    model, config, saved = load_run(model_path("human"), "cpu")
+    scene = model_scene(config, None, saved)
+    path = generated["paths"][0]
+    cam = scene.cameras([0.0], 64)
+    with torch.no_grad():
+        before = model.reconstruct(load_image(path, 64, scene.background, warn=False).image[None], cam).posed()
+        after = model.reconstruct(D.prepare_input(path, 64, scene, warn=False).image[None], cam).posed()
+    torch.testing.assert_close(after, before, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("make", [
+    lambda a: np.random.default_rng(1).random(a.shape),  # noise
+    lambda a: np.broadcast_to(np.linspace(0, 1, a.shape[1])[None, :, None], a.shape),  # a gradient
+    lambda a: _clutter(a.shape[0], 2),  # photo-like blobs
+    lambda a: np.ones_like(a),  # white, for a model trained on black
+], ids=["noise", "gradient", "blobs", "white"])
+def test_cluttered_backgrounds_fail_the_background_check(generated, make):
+    a, m = generated["images"][1], generated["silhouettes"][1][..., None]
+    ok, reason = D.background_check(a * m + make(a) * (1 - m), generated["scene"])
+    assert not ok and "border" in reason
+
+
+def test_cluttered_photo_warns_once_and_the_mask_composites_it_back(generated):
+    root = generated["root"]
+    photo, mask = root / "photo.png", root / "photo_mask.png"
+    Image.fromarray(_u8(_on_clutter(generated))).save(photo)
+    Image.fromarray(generated["silhouettes"][0].astype(np.uint8) * 255).save(mask)
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", str(photo), str(generated["paths"][1]),
+                     "--out", str(root / "plain")]) == 0
+    named = [str(w.message) for w in caught if "out of the training domain" in str(w.message)]
+    assert len(named) == 1 and "1 of 2 image(s)" in named[0], named  # one warning, naming the photo only
+    assert "photo.png: its border is not the training background" in named[0] and "gen1" not in named[0]
+    assert "--mask" in named[0] and "RGBA" in named[0] and "\n" not in named[0]
+    html = (root / "plain" / "index.html").read_text()
+    assert html.count("Out of the training domain: its border") == 1  # the photo's card, not gen1's
+    assert (root / "plain" / "photo_figure1.png").is_file()
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", str(photo), "--mask", str(mask), "--out", str(root / "masked")]) == 0
+    assert not [w for w in caught if "training domain" in str(w.message)]
+    assert "training domain" not in (root / "masked" / "index.html").read_text()
+    seen = np.asarray(Image.open(root / "masked" / "photo_input.png"), dtype=np.int16)
+    assert np.abs(seen - _u8(generated["images"][0])).max() <= 1  # the body back on the training background
+    # a figure with the note is taller than one without (the note is a banner above the panels)
+    assert Image.open(root / "plain" / "photo_figure1.png").height > Image.open(root / "masked" / "photo_figure1.png").height
+
+
+def test_rgba_cutout_uses_its_alpha(generated):
+    root = generated["root"]
+    rgba = np.concatenate([_u8(_on_clutter(generated)), generated["silhouettes"][0][..., None].astype(np.uint8) * 255], -1)
+    Image.fromarray(rgba, "RGBA").save(root / "cutout.png")
+    li = D.prepare_input(root / "cutout.png", 64, generated["scene"], warn=False)
+    assert li.out_of_domain == "" and any("alpha composited" in n for n in li.notes)
+    assert np.abs(li.image.numpy().transpose(1, 2, 0) - _u8(generated["images"][0]) / 255).max() <= 1 / 255 + 1e-6
+
+
+def test_small_off_centre_cutout_is_framed_like_the_training_images(generated):
+    root, scene = generated["root"], generated["scene"]
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    canvas = np.zeros((200, 300, 4), np.uint8)  # the body a quarter of the frame high, off to one side
+    body = np.concatenate([_u8(a), m[..., None].astype(np.uint8) * 255], -1)
+    canvas[120:184, 20:84] = body
+    Image.fromarray(canvas, "RGBA").save(root / "small.png")
+    li = D.prepare_input(root / "small.png", 64, scene, warn=False)
+    assert li.out_of_domain == "" and any("framed to its silhouette" in n for n in li.notes)
+    fg = np.abs(li.image.numpy()).max(0) > 0.1
+    rows, cols = np.nonzero(fg.any(1))[0], np.nonzero(fg.any(0))[0]
+    longest = max(rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1) / 64
+    assert longest == pytest.approx(D.FRAMING_MEDIAN * D.projected_extent(scene), abs=0.05)
+    assert abs((rows[0] + rows[-1] + 1) / 2 - 32) <= 2 and abs((cols[0] + cols[-1] + 1) / 2 - 32) <= 2
+
+
+def test_a_body_cut_off_by_the_frame_is_out_of_domain(generated):
+    root, scene = generated["root"], generated["scene"]
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    rows = np.nonzero(m.any(1))[0]
+    cut = (rows[0] + rows[-1]) // 2  # a portrait: head to waist, the body running along the bottom edge
+    top = np.ascontiguousarray(a[:cut])
+    Image.fromarray(_u8(top)).save(root / "portrait.png")
+    Image.fromarray(m[:cut].astype(np.uint8) * 255).save(root / "portrait_mask.png")
+    plain = D.prepare_input(root / "portrait.png", 64, scene, warn=False)
+    assert "runs along its bottom" in plain.out_of_domain
+    masked = D.prepare_input(root / "portrait.png", 64, scene, root / "portrait_mask.png", warn=False)
+    assert "bottom" in masked.out_of_domain and "cut off" in masked.out_of_domain
+    assert D.domain_note(masked).startswith("out of the training domain: ")
+
+
+def test_bad_masks_are_one_line(generated, capsys):
+    root, photo = generated["root"], generated["paths"][0]
+    Image.fromarray(np.zeros((32, 32), np.uint8)).save(root / "small_mask.png")
+    Image.fromarray(np.zeros((64, 64), np.uint8)).save(root / "black_mask.png")
+    cases = [
+        (["--mask", str(root / "small_mask.png")], "is 32x32 but its image"),
+        (["--mask", str(root / "missing.png")], "missing.png: no such file"),
+        (["--mask", str(photo)], "is not a mask"),  # a rendered picture
+        (["--mask", str(root / "black_mask.png")], "marks no pixel as the body"),
+        (["--mask", str(root / "black_mask.png"), "--mask", str(root / "black_mask.png")], "--mask given 2 time(s)"),
+    ]
+    for extra, expected in cases:
+        out = root / "bad_out"
+        assert main(["reconstruct", "--model", "human", str(photo), *extra, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert expected in err and err.count("\n") == 1 and "Traceback" not in err, err
+        assert not out.exists()  # nothing half-written
+
+
+def test_mask_folder_gives_each_image_its_mask(generated, capsys):
+    root = generated["root"]
+    folder = root / "masks"
+    folder.mkdir()
+    for path, m in zip(generated["paths"][:2], generated["silhouettes"][:2], strict=True):
+        Image.fromarray(m.astype(np.uint8) * 255).save(folder / path.name)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", *map(str, generated["paths"][:2]), "--mask", str(folder),
+                     "--out", str(root / "folder_out"), "--viewer-images", "0"]) == 0
+    assert not [w for w in caught if "training domain" in str(w.message)]
+    assert main(["reconstruct", "--model", "human", str(generated["paths"][2]), "--mask", str(folder),
+                 "--out", str(root / "folder_out2"), "--viewer-images", "0"]) == 2
+    assert "gen2.png: no such file" in capsys.readouterr().err
