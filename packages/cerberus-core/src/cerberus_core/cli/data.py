@@ -191,14 +191,14 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from cerberus_core.datasets.format import read_manifest, split_info
+    from cerberus_core.datasets.format import Manifest
     from cerberus_core.datasets.show import save_contact_sheet
     from cerberus_core.plugins import AUTO_RENDERER, RENDERER_GROUP, get_plugin
 
     for option, value, most in (("--count", args.count, MAX_SHOW_COUNT), ("--scale", args.scale, MAX_SHOW_SCALE)):
         if value > most:
             raise ConfigError(f"{option} {value}: at most {most}")
-    split_info(read_manifest(args.root), args.split, args.root)
+    Manifest.read(args.root).split(args.split)
     out = output_file(args.out or args.root / f"contact_{args.split}.png")
     if args.renderer != AUTO_RENDERER:
         get_plugin(RENDERER_GROUP, args.renderer)  # a known backend, even without --parts

@@ -26,12 +26,12 @@ from cerberus_core.datasets.format import (
     FORMAT_VERSION,
     MANIFEST,
     DatasetError,
+    Manifest,
     atomic_write_json,
     check_shard_files,
     clean_temporaries,
     config_hash,
     pack_meshes,
-    read_manifest,
     write_shard,
 )
 from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
@@ -257,7 +257,7 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | 
         raise DatasetError(f"{out} exists and is not a folder; choose another --out")
     if (out / MANIFEST).exists():
         try:
-            old = read_manifest(out)
+            old = Manifest.read(out).raw
         except DatasetError as exc:
             if not overwrite:
                 raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass --overwrite to "
