@@ -70,6 +70,18 @@ class GenerationJob:
     plan: DatasetPlan
     peak_bytes: int
 
+    def plan_lines(self) -> list[str]:
+        """What ``cerberus data generate --dry-run`` prints: the dataset, its memory and scene, then
+        the counts of each split."""
+        config, plan = self.config, self.plan
+        lines = [f"{config.dataset}/{config.preset}: {len(plan.subjects)} subjects, renderer {config.renderer}, "
+                 f"about {self.peak_bytes / 2**30:.2f} GiB of memory per shard, scene {config.scene.to_dict()}"]
+        for split in config.splits:
+            t = plan.totals(split)
+            lines.append(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} "
+                         f"quadruplets {t['meshes']:>7} meshes")
+        return lines
+
 
 def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
     """``(what, bytes or None if unknown, holds the render buffers)`` for each memory a generation uses:
