@@ -188,3 +188,29 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
     assert main(["data", "check", str(root)]) == 1
     out = capsys.readouterr()
     assert "render empty" in out.err and "1 problem(s)" in out.out
+
+
+def test_the_manifest_is_one_typed_object(pairs_dataset, tmp_path):
+    from cerberus_core import Manifest
+    from cerberus_core.datasets.readers import ViewDataset
+    from cerberus_core.datasets.scene import SceneSetup
+
+    m = Manifest.read(pairs_dataset)
+    raw = json.loads((pairs_dataset / MANIFEST).read_text())
+    assert dict(m) == raw and m["splits"] == raw["splits"] and m.get("nothing") is None  # reads like its JSON
+    assert m.root == pairs_dataset and m.path == pairs_dataset / MANIFEST and m.complete
+    assert m.splits == raw["splits"] and m.image_size == raw["image_size"] and m.part_names == raw["part_names"]
+    assert m.subjects == raw["subjects"] and m.subject_names == [s["name"] for s in raw["subjects"]]
+    assert m.source == raw["source"] and m.dataset == raw["dataset"] and m.config == raw["config"]
+    assert isinstance(m.scene, SceneSetup) and m.scene == SceneSetup.from_dict(raw["scene"])
+    assert m.split("test") == raw["splits"]["test"] and repr(m).startswith("Manifest(")
+    with pytest.raises(DatasetError, match="no split 'val'"):
+        m.split("val")
+    assert read_manifest(pairs_dataset) == m  # the function form
+    assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
+
+    ds = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, ds)
+    (ds / MANIFEST).write_text(json.dumps(raw | {"scene": raw["scene"] | {"elevation": "high"}}))
+    with pytest.raises(DatasetError, match="invalid scene set-up.*regenerate"):
+        Manifest.read(ds).scene  # noqa: B018

@@ -121,6 +121,151 @@ class _Builder:
         self.prims.append(Ellipsoid(np.asarray(centre, float), np.asarray(axes, float), r, group, float(blend)))
 
 
+@dataclass(frozen=True)
+class _Trunk:
+    """Where the trunk is: the root (centre of the torso), its frame and those of the front and back
+    halves (the spine bends between them), and the torso's size."""
+
+    root: np.ndarray
+    r_root: np.ndarray
+    r_front: np.ndarray
+    r_back: np.ndarray
+    length: float
+    height: float
+    width: float
+
+
+def _trunk(p: dict[str, float], pose: AnimalPose) -> _Trunk:
+    r_root = pitch_up(pose.body_pitch)
+    return _Trunk(
+        root=np.array([0.0, p["leg_length"] + p["torso_height"], 0.0]),  # belly bottom at y = leg_length
+        r_root=r_root,
+        r_front=r_root @ yaw(0.5 * pose.spine_yaw) @ pitch_up(0.5 * pose.spine_pitch),
+        r_back=r_root @ yaw(-0.5 * pose.spine_yaw) @ pitch_up(-0.5 * pose.spine_pitch),
+        length=p["torso_length"], height=p["torso_height"], width=p["torso_width"],
+    )
+
+
+def _torso(b: _Builder, p: dict[str, float], t: _Trunk) -> None:
+    """Three ellipsoids: the middle, the chest (``chest_scale``) and the rump."""
+    lt, h, w, cs = t.length, t.height, t.width, p["chest_scale"]
+    k_torso = 0.4 * h
+    b.ellipsoid(t.root, t.r_root, np.array([w, h, 0.36 * lt]), TORSO, 0.0)
+    chest, rump = t.root + t.r_front @ [0.0, 0.05 * h, 0.22 * lt], t.root + t.r_back @ [0.0, 0.03 * h, -0.22 * lt]
+    b.ellipsoid(chest, t.r_front, np.array([w * cs, h * cs, 0.28 * lt]), TORSO, k_torso)
+    b.ellipsoid(rump, t.r_back, np.array([0.95 * w, 0.97 * h, 0.28 * lt]), TORSO, k_torso)
+
+
+def _neck_and_head(b: _Builder, p: dict[str, float], pose: AnimalPose, t: _Trunk) -> None:
+    """The neck (a cone), the cranium, the snout, then each side's ear and horn."""
+    lt, h = t.length, t.height
+    nl, nr = p["neck_length"], p["neck_radius"]
+    neck_base = t.root + t.r_front @ [0.0, 0.3 * h, 0.36 * lt]
+    r_neck = t.r_front @ yaw(pose.neck_yaw) @ pitch_up(p["neck_angle"] + pose.neck_raise)
+    neck_end = neck_base + r_neck @ [0.0, 0.0, nl]
+    b.cone(neck_base, neck_end, nr, 0.72 * nr, NECK, 0.6 * nr)
+
+    hs = p["head_size"]
+    r_head = t.r_front @ yaw(pose.neck_yaw + pose.head_yaw) @ pitch_up(-0.35 + 0.4 * pose.neck_raise + pose.head_pitch)
+    cranium = neck_end + r_head @ [0.0, 0.2 * hs, 0.3 * hs]
+    b.ellipsoid(cranium, r_head, np.array([0.85 * hs, 0.9 * hs, 1.05 * hs]), HEAD, 0.5 * min(nr, hs))
+    sl, sw = p["snout_length"] * hs, p["snout_width"] * hs
+    snout_base = cranium + r_head @ [0.0, -0.15 * hs, 0.35 * hs]
+    snout_tip = cranium + r_head @ [0.0, -0.25 * hs - 0.1 * sl, 0.4 * hs + sl]
+    b.cone(snout_base, snout_tip, sw, 0.8 * sw, HEAD, 0.4 * sw)
+    for side in (1.0, -1.0):
+        _ear(b, p, cranium, r_head, side)
+        _horn(b, p, cranium, r_head, side)
+
+
+def _ear(b: _Builder, p: dict[str, float], cranium: np.ndarray, r_head: np.ndarray, side: float) -> None:
+    """A flat ellipsoid between pricked up (``ear_droop`` 0) and hanging (1)."""
+    hs = p["head_size"]
+    el, droop = p["ear_length"] * hs, p["ear_droop"]
+    up = _unit(np.array([0.45 * side, 1.0, -0.35]))
+    hang = _unit(np.array([0.75 * side, -0.8, 0.1]))
+    d = _unit((1 - droop) * up + droop * hang)
+    face = (1 - droop) * np.array([0.0, 0.0, 1.0]) + droop * np.array([side, 0.0, 0.0])
+    thin = _unit(face - (face @ d) * d)
+    wide = np.cross(d, thin)
+    half_w = 0.5 * p["ear_width"] * el
+    centre = np.array([0.5 * side * hs, 0.7 * hs, -0.2 * hs]) + 0.45 * el * d
+    b.ellipsoid(
+        cranium + r_head @ centre,
+        r_head @ np.stack([wide, d, thin], axis=1),
+        np.array([half_w, 0.5 * el, max(0.22 * half_w, 0.1 * hs)]),
+        HEAD,
+        0.25 * half_w,
+    )
+
+
+def _horn(b: _Builder, p: dict[str, float], cranium: np.ndarray, r_head: np.ndarray, side: float) -> None:
+    """Two cones curving up and back (none when ``horn_length`` is 0)."""
+    hs = p["head_size"]
+    horn = p["horn_length"] * hs
+    if horn > 0:
+        h0 = np.array([0.35 * side * hs, 0.75 * hs, 0.05 * hs])
+        h1 = h0 + 0.5 * horn * _unit(np.array([0.35 * side, 0.85, -0.45]))
+        h2 = h1 + 0.5 * horn * _unit(np.array([0.3 * side, 0.3, -0.9]))
+        b.cone(cranium + r_head @ h0, cranium + r_head @ h1, 0.16 * hs, 0.1 * hs, HEAD, 0.05 * hs)
+        b.cone(cranium + r_head @ h1, cranium + r_head @ h2, 0.1 * hs, 0.04 * hs, HEAD, 0.02 * hs)
+
+
+def _leg(b: _Builder, p: dict[str, float], pose: AnimalPose, t: _Trunk, leg: int, group: int) -> None:
+    """Leg ``leg`` (0, 1 front; 2, 3 hind; even: left): three tapered cones and a paw."""
+    lt, h, w = t.length, t.height, t.width
+    lr, taper, hz = p["leg_radius"], p["leg_taper"], p["hind_angle"]
+    r_paw = lr * taper * p["paw_size"]
+    front = leg < 2
+    side = 1.0 if leg % 2 == 0 else -1.0
+    swing, bend, abduct = pose.legs[leg]
+    if front:
+        frame, joint_local = t.r_front, np.array([0.55 * side * w, -0.1 * h, 0.25 * lt])
+        rest, frac, fold = np.array([0.0, -0.05, 0.3]), np.array([0.48, 0.38, 0.14]), -0.7
+        radii = [min(1.6 * lr, 0.45 * h), 0.5 * (1 + taper) * lr, taper * lr, 0.9 * taper * lr]
+    else:
+        frame, joint_local = t.r_back, np.array([0.5 * side * w, 0.1 * h, -0.27 * lt])
+        rest, frac, fold = np.array([0.45, -0.6, 0.12]) * hz, np.array([0.42, 0.34, 0.24]), 1.0
+        radii = [min(2.1 * lr, 0.5 * h), 0.6 * (1 + taper) * lr, taper * lr, 0.9 * taper * lr]
+    # segment lengths chosen so that the rest pose stands on y = 0
+    joint_height = t.root[1] + joint_local[1]
+    scale = (joint_height - 0.7 * r_paw) / float(frac @ np.cos(rest))
+    lengths = scale * frac
+    a1 = rest[0] + swing
+    a2 = a1 + (rest[1] - rest[0]) - bend
+    a3 = a2 + (rest[2] - rest[1]) + fold * bend
+    r_leg = frame @ roll(side * abduct)
+    pos = t.root + frame @ joint_local
+    blends = [(0.7 if front else 0.8) * lr, 0.25 * lr, 0.2 * lr]
+    for i, ang in enumerate((a1, a2, a3)):
+        nxt = pos + r_leg @ pitch_up(ang) @ [0.0, -lengths[i], 0.0]
+        b.cone(pos, nxt, radii[i], radii[i + 1], group, blends[i])
+        pos = nxt
+    r_foot = r_leg @ pitch_up(a3 - rest[2])
+    paw = pos + r_foot @ [0.0, 0.0, 0.3 * r_paw]
+    b.ellipsoid(paw, r_foot, np.array([0.9, 0.7, 1.25]) * r_paw, group, 0.3 * taper * lr)
+
+
+def _tail(b: _Builder, p: dict[str, float], pose: AnimalPose, t: _Trunk) -> None:
+    """:data:`N_TAIL_SEGMENTS` cones that thin (and bush out with ``tail_bush``), droop and curl."""
+    tl, tr, bush = p["tail_length"], p["tail_radius"], p["tail_bush"]
+    seg = tl / N_TAIL_SEGMENTS
+    pos = t.root + t.r_back @ [0.0, 0.45 * t.height, -0.45 * t.length]
+    r_t = t.r_back @ yaw(-pose.tail_yaw / N_TAIL_SEGMENTS) @ pitch_up(p["tail_droop"] - pose.tail_lift)
+    curl = -(0.25 * p["tail_droop"] + pose.tail_curl) / N_TAIL_SEGMENTS
+
+    def tail_r(u: float) -> float:
+        return tr * (1 - 0.55 * u) * (1 + 0.8 * bush * np.sin(np.pi * u))
+
+    for i in range(N_TAIL_SEGMENTS):
+        if i > 0:
+            r_t = r_t @ yaw(-pose.tail_yaw / N_TAIL_SEGMENTS) @ pitch_up(curl)
+        nxt = pos + r_t @ [0.0, 0.0, -seg]
+        t0, t1 = i / N_TAIL_SEGMENTS, (i + 1) / N_TAIL_SEGMENTS
+        b.cone(pos, nxt, tail_r(t0), tail_r(t1), TAIL, (0.8 if i == 0 else 0.4) * tr)
+        pos = nxt
+
+
 def animal_primitives(params: dict[str, float], pose: AnimalPose, min_radius: float = 0.0) -> list[Primitive]:
     """Posed primitives of one animal, in smooth-union merge order.
 
@@ -133,110 +278,11 @@ def animal_primitives(params: dict[str, float], pose: AnimalPose, min_radius: fl
     Returns:
         primitives in body units (torso first, then neck, head, legs, tail).
     """
-    p = params
-    lt, h, w = p["torso_length"], p["torso_height"], p["torso_width"]
     b = _Builder(min_radius)
-
-    # --- torso ----------------------------------------------------------------------------------
-    root = np.array([0.0, p["leg_length"] + h, 0.0])  # belly bottom at y = leg_length
-    r_root = pitch_up(pose.body_pitch)
-    r_front = r_root @ yaw(0.5 * pose.spine_yaw) @ pitch_up(0.5 * pose.spine_pitch)
-    r_back = r_root @ yaw(-0.5 * pose.spine_yaw) @ pitch_up(-0.5 * pose.spine_pitch)
-    cs = p["chest_scale"]
-    k_torso = 0.4 * h
-    b.ellipsoid(root, r_root, np.array([w, h, 0.36 * lt]), TORSO, 0.0)
-    chest, rump = root + r_front @ [0.0, 0.05 * h, 0.22 * lt], root + r_back @ [0.0, 0.03 * h, -0.22 * lt]
-    b.ellipsoid(chest, r_front, np.array([w * cs, h * cs, 0.28 * lt]), TORSO, k_torso)
-    b.ellipsoid(rump, r_back, np.array([0.95 * w, 0.97 * h, 0.28 * lt]), TORSO, k_torso)
-
-    # --- neck and head --------------------------------------------------------------------------
-    nl, nr = p["neck_length"], p["neck_radius"]
-    neck_base = root + r_front @ [0.0, 0.3 * h, 0.36 * lt]
-    r_neck = r_front @ yaw(pose.neck_yaw) @ pitch_up(p["neck_angle"] + pose.neck_raise)
-    neck_end = neck_base + r_neck @ [0.0, 0.0, nl]
-    b.cone(neck_base, neck_end, nr, 0.72 * nr, NECK, 0.6 * nr)
-
-    hs = p["head_size"]
-    r_head = r_front @ yaw(pose.neck_yaw + pose.head_yaw) @ pitch_up(-0.35 + 0.4 * pose.neck_raise + pose.head_pitch)
-    cranium = neck_end + r_head @ [0.0, 0.2 * hs, 0.3 * hs]
-    b.ellipsoid(cranium, r_head, np.array([0.85 * hs, 0.9 * hs, 1.05 * hs]), HEAD, 0.5 * min(nr, hs))
-    sl, sw = p["snout_length"] * hs, p["snout_width"] * hs
-    snout_base = cranium + r_head @ [0.0, -0.15 * hs, 0.35 * hs]
-    snout_tip = cranium + r_head @ [0.0, -0.25 * hs - 0.1 * sl, 0.4 * hs + sl]
-    b.cone(snout_base, snout_tip, sw, 0.8 * sw, HEAD, 0.4 * sw)
-    el, droop = p["ear_length"] * hs, p["ear_droop"]
-    for side in (1.0, -1.0):
-        up = _unit(np.array([0.45 * side, 1.0, -0.35]))
-        hang = _unit(np.array([0.75 * side, -0.8, 0.1]))
-        d = _unit((1 - droop) * up + droop * hang)
-        face = (1 - droop) * np.array([0.0, 0.0, 1.0]) + droop * np.array([side, 0.0, 0.0])
-        thin = _unit(face - (face @ d) * d)
-        wide = np.cross(d, thin)
-        half_w = 0.5 * p["ear_width"] * el
-        centre = np.array([0.5 * side * hs, 0.7 * hs, -0.2 * hs]) + 0.45 * el * d
-        b.ellipsoid(
-            cranium + r_head @ centre,
-            r_head @ np.stack([wide, d, thin], axis=1),
-            np.array([half_w, 0.5 * el, max(0.22 * half_w, 0.1 * hs)]),
-            HEAD,
-            0.25 * half_w,
-        )
-        horn = p["horn_length"] * hs
-        if horn > 0:
-            h0 = np.array([0.35 * side * hs, 0.75 * hs, 0.05 * hs])
-            h1 = h0 + 0.5 * horn * _unit(np.array([0.35 * side, 0.85, -0.45]))
-            h2 = h1 + 0.5 * horn * _unit(np.array([0.3 * side, 0.3, -0.9]))
-            b.cone(cranium + r_head @ h0, cranium + r_head @ h1, 0.16 * hs, 0.1 * hs, HEAD, 0.05 * hs)
-            b.cone(cranium + r_head @ h1, cranium + r_head @ h2, 0.1 * hs, 0.04 * hs, HEAD, 0.02 * hs)
-
-    # --- legs -----------------------------------------------------------------------------------
-    lr, taper, hz = p["leg_radius"], p["leg_taper"], p["hind_angle"]
-    r_paw = lr * taper * p["paw_size"]
+    trunk = _trunk(params, pose)
+    _torso(b, params, trunk)
+    _neck_and_head(b, params, pose, trunk)
     for leg, group in enumerate(LEG_GROUPS):
-        front = leg < 2
-        side = 1.0 if leg % 2 == 0 else -1.0
-        swing, bend, abduct = pose.legs[leg]
-        if front:
-            frame, joint_local = r_front, np.array([0.55 * side * w, -0.1 * h, 0.25 * lt])
-            rest, frac, fold = np.array([0.0, -0.05, 0.3]), np.array([0.48, 0.38, 0.14]), -0.7
-            radii = [min(1.6 * lr, 0.45 * h), 0.5 * (1 + taper) * lr, taper * lr, 0.9 * taper * lr]
-        else:
-            frame, joint_local = r_back, np.array([0.5 * side * w, 0.1 * h, -0.27 * lt])
-            rest, frac, fold = np.array([0.45, -0.6, 0.12]) * hz, np.array([0.42, 0.34, 0.24]), 1.0
-            radii = [min(2.1 * lr, 0.5 * h), 0.6 * (1 + taper) * lr, taper * lr, 0.9 * taper * lr]
-        # segment lengths chosen so that the rest pose stands on y = 0
-        joint_height = root[1] + joint_local[1]
-        scale = (joint_height - 0.7 * r_paw) / float(frac @ np.cos(rest))
-        lengths = scale * frac
-        a1 = rest[0] + swing
-        a2 = a1 + (rest[1] - rest[0]) - bend
-        a3 = a2 + (rest[2] - rest[1]) + fold * bend
-        r_leg = frame @ roll(side * abduct)
-        pos = root + frame @ joint_local
-        blends = [(0.7 if front else 0.8) * lr, 0.25 * lr, 0.2 * lr]
-        for i, ang in enumerate((a1, a2, a3)):
-            nxt = pos + r_leg @ pitch_up(ang) @ [0.0, -lengths[i], 0.0]
-            b.cone(pos, nxt, radii[i], radii[i + 1], group, blends[i])
-            pos = nxt
-        r_foot = r_leg @ pitch_up(a3 - rest[2])
-        paw = pos + r_foot @ [0.0, 0.0, 0.3 * r_paw]
-        b.ellipsoid(paw, r_foot, np.array([0.9, 0.7, 1.25]) * r_paw, group, 0.3 * taper * lr)
-
-    # --- tail -----------------------------------------------------------------------------------
-    tl, tr, bush = p["tail_length"], p["tail_radius"], p["tail_bush"]
-    seg = tl / N_TAIL_SEGMENTS
-    pos = root + r_back @ [0.0, 0.45 * h, -0.45 * lt]
-    r_t = r_back @ yaw(-pose.tail_yaw / N_TAIL_SEGMENTS) @ pitch_up(p["tail_droop"] - pose.tail_lift)
-    curl = -(0.25 * p["tail_droop"] + pose.tail_curl) / N_TAIL_SEGMENTS
-
-    def tail_r(t: float) -> float:
-        return tr * (1 - 0.55 * t) * (1 + 0.8 * bush * np.sin(np.pi * t))
-
-    for i in range(N_TAIL_SEGMENTS):
-        if i > 0:
-            r_t = r_t @ yaw(-pose.tail_yaw / N_TAIL_SEGMENTS) @ pitch_up(curl)
-        nxt = pos + r_t @ [0.0, 0.0, -seg]
-        t0, t1 = i / N_TAIL_SEGMENTS, (i + 1) / N_TAIL_SEGMENTS
-        b.cone(pos, nxt, tail_r(t0), tail_r(t1), TAIL, (0.8 if i == 0 else 0.4) * tr)
-        pos = nxt
+        _leg(b, params, pose, trunk, leg, group)
+    _tail(b, params, pose, trunk)
     return b.prims

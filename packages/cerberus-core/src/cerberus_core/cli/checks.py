@@ -1,22 +1,24 @@
-"""Argument checks shared by the sub-commands: argparse types for numbers, and path checks that raise
-:class:`~cerberus_core.errors.ConfigError` before a command writes anything (the device check is
+"""Argument checks shared by the sub-commands: argparse types for numbers, and (re-exported from
+:mod:`cerberus_core.outputs`) path checks that raise :class:`~cerberus_core.errors.ConfigError` before a
+command writes anything (the device check is
 :func:`cerberus_core.devices.check_device`, which library code uses too)."""
 from __future__ import annotations
 
 import argparse
-import contextlib
-import json
 import math
-import os
-import time
-from collections.abc import Iterator, Sequence
-from pathlib import Path
 
-from cerberus_core.errors import ConfigError
-
-MANIFEST_NAME = "manifest.json"
-#: Written last into every result folder (reconstruct, eval): marks a folder a later run may replace.
-RESULT_MARKER = ".cerberus-result.json"
+from cerberus_core.outputs import (  # noqa: F401 - re-exported: the sub-commands import them from here
+    MANIFEST_NAME,
+    NAME_MAX,
+    PATH_MAX,
+    RESULT_MARKER,
+    check_path_length,
+    is_dataset,
+    output_file,
+    output_folder,
+    result_folder,
+    writing_results,
+)
 
 
 def positive_int(text: str) -> int:
@@ -46,114 +48,3 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: {message}; see {self.prog} --help\n")
-
-
-#: The usual limits of a file name and of a whole path, in bytes (Linux's NAME_MAX and PATH_MAX).
-NAME_MAX, PATH_MAX = 255, 4096
-
-
-def check_path_length(path: Path, option: str = "--out") -> Path:
-    """:class:`ConfigError` when ``path`` or one of its names is longer than file systems allow (a name
-    over :data:`NAME_MAX` bytes, the whole over :data:`PATH_MAX`), before anything tries to use it.
-    Output names derived from it add at most a few dozen bytes."""
-    from cerberus_core.names import printable
-
-    def short(text: str) -> str:
-        text = printable(text)
-        return text if len(text) <= 40 else text[:37] + "..."
-
-    whole = len(os.fsencode(str(path.absolute())))
-    if whole > PATH_MAX - NAME_MAX:
-        raise ConfigError(f"{option} {short(str(path))}: the path is {whole} bytes long, more than file systems "
-                          f"allow for it and the names written inside it ({PATH_MAX - NAME_MAX}); choose a shorter path")
-    for part in path.parts:
-        if len(os.fsencode(part)) > NAME_MAX - 32:
-            raise ConfigError(f"{option}: the name {short(part)} is {len(os.fsencode(part))} bytes long; file systems "
-                              f"allow {NAME_MAX}, and a temporary name is added to it while writing: choose a name "
-                              f"under {NAME_MAX - 32} bytes")
-    return path
-
-
-def output_folder(path: Path, option: str = "--out", *, dataset_ok: bool = False) -> Path:
-    """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
-    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results;
-    nor a path too long to write (:func:`check_path_length`)."""
-    check_path_length(path, option)
-    for p in (path, *path.parents):
-        if p.exists():
-            if not p.is_dir():
-                what = "is a file" if p == path else f"is under {p}, which is a file"
-                raise ConfigError(f"{option} {path} {what}; pass a folder path")
-            break
-    if not dataset_ok and is_dataset(path):
-        raise ConfigError(f"{option} {path} is a dataset folder; write results to another folder")
-    return path
-
-
-def output_file(path: Path, option: str = "--out") -> Path:
-    """``path`` may be written as a file: not an existing folder, nor under a file, nor too long
-    (:func:`check_path_length`)."""
-    check_path_length(path, option)
-    if path.is_dir():
-        raise ConfigError(f"{option} {path} is a folder; pass a file path")
-    for p in path.parents:
-        if p.exists():
-            if not p.is_dir():
-                raise ConfigError(f"{option} {path} is under {p}, which is a file; pass a path inside a folder")
-            break
-    return path
-
-
-def is_dataset(path: Path) -> bool:
-    return (Path(path) / MANIFEST_NAME).is_file()
-
-
-def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
-                  keep: Sequence[Path] = (), earlier: frozenset[str] = frozenset()) -> Path:
-    """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
-
-    Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
-    folder that is, or holds, one of ``keep`` (the inputs, the run, the dataset) or the current
-    directory, even with ``--overwrite``; a non-empty folder that is not an earlier result
-    (no :data:`RESULT_MARKER`, nor only the names in ``earlier``: what an older version wrote) unless
-    ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
-    writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
-    """
-    from cerberus_core.errors import OutputError
-    from cerberus_core.lock import check_unlocked, is_lock_file
-    from cerberus_core.names import printable
-
-    output_folder(path, option)
-    where = path.resolve()
-    for kept in [*keep, Path.cwd()]:
-        k = Path(kept).resolve()
-        if k == where or where in k.parents:
-            what = "the current directory" if kept == Path.cwd() else printable(kept)
-            raise ConfigError(f"{option} {printable(path)} holds {what}, and a result folder is replaced whole; "
-                              f"write the results to a folder of their own, e.g. {option} "
-                              f"{printable(path / 'results')}")
-    if path.is_dir():
-        check_unlocked(path)
-        held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))
-        earlier_result = (path / RESULT_MARKER).is_file() or (earlier and set(held) <= earlier)
-        if held and not earlier_result and not overwrite:
-            shown = ", ".join(printable(n) for n in held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
-            raise ConfigError(f"{option} {printable(path)} is not empty (it holds {shown}) and holds no earlier "
-                              f"Cerberus results; pass --overwrite to replace everything in it, or another {option}")
-    existing = next(p for p in (path.parent.absolute(), *path.parent.absolute().parents) if p.exists())
-    if not os.access(existing, os.W_OK | os.X_OK):  # also false on a read-only file system, even for root
-        raise OutputError(f"cannot write {printable(path)}: {printable(existing)} is not writable (read-only "
-                          f"file system or no permission); choose a writable {option}")
-    return path
-
-
-@contextlib.contextmanager
-def writing_results(path: Path, command: str) -> Iterator[Path]:
-    """Write a result folder whole: yields a temporary folder beside ``path`` to write into; when the
-    block ends it gets :data:`RESULT_MARKER` and replaces ``path`` in one rename
-    (:func:`cerberus_core.atomic.atomic_folder`). An error or a signal leaves ``path`` as it was."""
-    from cerberus_core.atomic import atomic_folder, atomic_write_text
-
-    with atomic_folder(path) as tmp:
-        yield tmp
-        atomic_write_text(tmp / RESULT_MARKER, json.dumps({"command": command, "written": time.time()}) + "\n")

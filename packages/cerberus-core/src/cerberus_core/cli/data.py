@@ -155,20 +155,13 @@ def run_generate(args: argparse.Namespace) -> int:
     if args.out.is_dir():
         check_unlocked(args.out)  # a live writer: refused before the lock file is even attempted
     if args.dry_run:
-        plan = job.plan
-        print(f"{args.dataset}/{config.preset}: {len(plan.subjects)} subjects, renderer {job.config.renderer}, "
-              f"about {job.peak_bytes / 2**30:.2f} GiB of memory per shard, scene {config.scene.to_dict()}")
-        for split in config.splits:
-            t = plan.totals(split)
-            print(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} quadruplets "
-                  f"{t['meshes']:>7} meshes")
+        print("\n".join(job.plan_lines()))
         return 0
     with folder_lock(args.out, "cerberus data generate"):  # one writer per dataset folder
         manifest = generate(config, args.out, source=job.source, source_options=options, overwrite=args.overwrite,
                             device=args.device, batch_size=args.batch_size, progress=not args.quiet)
-    for split, info in manifest["splits"].items():
-        print(f"{split:<6} {info['planned_images']:>8} images {info['planned_quadruplets']:>8} quadruplets")
-    print(f"dataset written to {args.out}")
+    print(*(f"{split:<6} {info['planned_images']:>8} images {info['planned_quadruplets']:>8} quadruplets"
+            for split, info in manifest["splits"].items()), f"dataset written to {args.out}", sep="\n")
     return 0
 
 
@@ -193,14 +186,14 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from cerberus_core.datasets.format import read_manifest, split_info
+    from cerberus_core.datasets.format import Manifest
     from cerberus_core.datasets.show import save_contact_sheet
     from cerberus_core.plugins import AUTO_RENDERER, RENDERER_GROUP, get_plugin
 
     for option, value, most in (("--count", args.count, MAX_SHOW_COUNT), ("--scale", args.scale, MAX_SHOW_SCALE)):
         if value > most:
             raise ConfigError(f"{option} {value}: at most {most}")
-    split_info(read_manifest(args.root), args.split, args.root)
+    Manifest.read(args.root).split(args.split)
     out = output_file(args.out or args.root / f"contact_{args.split}.png")
     if args.renderer != AUTO_RENDERER:
         get_plugin(RENDERER_GROUP, args.renderer)  # a known backend, even without --parts

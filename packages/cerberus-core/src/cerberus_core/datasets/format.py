@@ -18,13 +18,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cerberus_core.atomic import atomic_write
-from cerberus_core.errors import DatasetError  # re-exported: the format's readers raise it
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import ConfigError, DatasetError  # DatasetError re-exported: the format's readers raise it
 
 FORMAT_NAME = "cerberus-dataset"
 FORMAT_VERSION = 1
@@ -109,41 +111,146 @@ def resolve_inside(root: Path, rel: str) -> Path:
 
 
 # ------------------------------------------------------------------------------------ manifest
-def read_manifest(root: Path) -> dict:
-    """Load and validate ``root/manifest.json`` (format name and version, required keys).
+_REQUIRED = ("dataset", "config", "scene", "image_size", "part_names", "subjects", "splits")
 
-    Raises:
-        DatasetError: a missing or unreadable manifest, another format or another format version.
+
+class Manifest(Mapping[str, Any]):
+    """A dataset's ``manifest.json`` as one typed, read-only object.
+
+    It reads like the JSON it holds (``manifest["splits"]``, ``manifest.get("source")``: a
+    :class:`~collections.abc.Mapping`) and names what callers use: :attr:`splits`, :attr:`scene` (a
+    checked :class:`~cerberus_core.datasets.scene.SceneSetup`), :attr:`subjects`, :attr:`image_size`,
+    :attr:`source`, :attr:`part_names`, :meth:`split`. Read one with :meth:`read`.
     """
-    root = Path(root)
-    path = root / MANIFEST
-    if root.exists() and not root.is_dir():
-        raise DatasetError(f"{root} is a file, not a dataset folder; pass the folder that holds {MANIFEST}")
-    if not root.is_dir():
-        raise DatasetError(f"dataset folder {root} does not exist; generate one with "
-                           f"`cerberus data generate --out {root}`")
-    if not path.is_file():
-        raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset "
-                           f"(generate one with `cerberus data generate --out {root}`)")
-    try:
-        manifest = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
-    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
-        found = manifest.get("format") if isinstance(manifest, dict) else None
-        raise DatasetError(f"{path} is not a {FORMAT_NAME} manifest (format={found!r})")
-    version = manifest.get("format_version")
-    if version != FORMAT_VERSION:
-        raise DatasetError(f"{path} has format version {version!r}, this cerberus-core reads version {FORMAT_VERSION}; "
-                           "regenerate the dataset with this version (`cerberus data generate ... --overwrite`) or "
-                           "install the cerberus-core release that wrote it")
-    for key in ("dataset", "config", "scene", "image_size", "part_names", "subjects", "splits"):
-        if key not in manifest:
-            raise DatasetError(f"{path} lacks the required key {key!r}; the dataset is corrupt — regenerate it")
-    return manifest
+
+    def __init__(self, data: dict[str, Any], root: str | Path) -> None:
+        self.raw = data
+        self.root = Path(root)
+
+    @classmethod
+    def read(cls, root: str | Path) -> Manifest:
+        """Load and validate ``root/manifest.json`` (format name and version, required keys).
+
+        Raises:
+            DatasetError: a missing or unreadable manifest, another format or another format version.
+        """
+        root = Path(root)
+        path = root / MANIFEST
+        if root.exists() and not root.is_dir():
+            raise DatasetError(f"{root} is a file, not a dataset folder; pass the folder that holds {MANIFEST}")
+        if not root.is_dir():
+            raise DatasetError(f"dataset folder {root} does not exist; generate one with "
+                               f"`cerberus data generate --out {root}`")
+        if not path.is_file():
+            raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset "
+                               f"(generate one with `cerberus data generate --out {root}`)")
+        try:
+            manifest = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
+        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+            found = manifest.get("format") if isinstance(manifest, dict) else None
+            raise DatasetError(f"{path} is not a {FORMAT_NAME} manifest (format={found!r})")
+        version = manifest.get("format_version")
+        if version != FORMAT_VERSION:
+            raise DatasetError(f"{path} has format version {version!r}, this cerberus-core reads version "
+                               f"{FORMAT_VERSION}; regenerate the dataset with this version (`cerberus data generate "
+                               "... --overwrite`) or install the cerberus-core release that wrote it")
+        for key in _REQUIRED:
+            if key not in manifest:
+                raise DatasetError(f"{path} lacks the required key {key!r}; the dataset is corrupt — regenerate it")
+        return cls(manifest, root)
+
+    # the Mapping protocol: the JSON as read
+    def __getitem__(self, key: str) -> Any:
+        return self.raw[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.raw)
+
+    def __len__(self) -> int:
+        return len(self.raw)
+
+    def __repr__(self) -> str:
+        return f"Manifest({str(self.root)!r}: {self.dataset}/{self.preset}, splits {sorted(self.splits)})"
+
+    @property
+    def path(self) -> Path:
+        """The ``manifest.json`` file."""
+        return self.root / MANIFEST
+
+    @property
+    def dataset(self) -> str:
+        """The body source's name: ``human``, ``animal``, ``primitives``, ``folder``."""
+        return str(self.raw["dataset"])
+
+    @property
+    def preset(self) -> str | None:
+        """The size preset it was generated with."""
+        return self.raw.get("preset")
+
+    @property
+    def config(self) -> dict[str, Any]:
+        """The resolved generation config (:meth:`GenerationConfig.to_dict` form)."""
+        return self.raw["config"]
+
+    @property
+    def image_size(self) -> int:
+        return int(self.raw["image_size"])
+
+    @property
+    def part_names(self) -> list[str]:
+        """The ground-truth semantic part names."""
+        return list(self.raw["part_names"])
+
+    @property
+    def subjects(self) -> list[dict[str, Any]]:
+        """One record per subject (:meth:`cerberus_core.bodies.sources.Subject.from_dict` reads one)."""
+        return self.raw["subjects"]
+
+    @property
+    def subject_names(self) -> list[str]:
+        return [s["name"] for s in self.subjects]
+
+    @property
+    def source(self) -> dict[str, Any]:
+        """The body source a reader rebuilds bodies with: ``{"name": ..., "options": {...}}``."""
+        return self.raw.get("source") or {}
+
+    @property
+    def splits(self) -> dict[str, dict[str, Any]]:
+        """``{split: its record}`` (planned counts, listed shards)."""
+        return self.raw["splits"]
+
+    @property
+    def complete(self) -> bool:
+        """Whether the generation finished."""
+        return bool(self.raw.get("complete", False))
+
+    @property
+    def scene(self) -> SceneSetup:
+        """The scene set-up the images were rendered with (checked).
+
+        Raises:
+            DatasetError: the record is not a valid scene set-up (the manifest is damaged).
+        """
+        try:
+            return SceneSetup.from_dict(self.raw.get("scene"))
+        except ConfigError as exc:
+            raise DatasetError(f"{self.path}: invalid scene set-up ({exc}); the manifest is damaged: regenerate the "
+                               "dataset with `cerberus data generate`") from None
+
+    def split(self, name: str) -> dict[str, Any]:
+        """The record of split ``name`` (:func:`split_info`)."""
+        return split_info(self, name, self.root)
 
 
-def split_info(manifest: dict, split: str, root: Path) -> dict:
+def read_manifest(root: str | Path) -> Manifest:
+    """:meth:`Manifest.read`, as a function."""
+    return Manifest.read(root)
+
+
+def split_info(manifest: Mapping[str, Any], split: str, root: Path) -> dict:
     """The manifest entry of ``split`` or a :class:`DatasetError` naming the available splits."""
     splits = manifest["splits"]
     if split not in splits:
@@ -203,7 +310,7 @@ this fraction of the image (at least 1 pixel) renders empty: :func:`empty_views`
 most of the frame (:mod:`cerberus_core.datasets.scene`), so a sound view has thousands of times more."""
 
 
-def empty_views(root: Path, manifest: dict, split: str, shard: dict, chunk: int = 256) -> list[str]:
+def empty_views(root: Path, manifest: Mapping[str, Any], split: str, shard: dict, chunk: int = 256) -> list[str]:
     """One problem line for a shard with views that render empty (no body on the background), or none.
 
     Args:

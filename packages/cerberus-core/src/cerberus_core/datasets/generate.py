@@ -26,12 +26,12 @@ from cerberus_core.datasets.format import (
     FORMAT_VERSION,
     MANIFEST,
     DatasetError,
+    Manifest,
     atomic_write_json,
     check_shard_files,
     clean_temporaries,
     config_hash,
     pack_meshes,
-    read_manifest,
     write_shard,
 )
 from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
@@ -69,6 +69,18 @@ class GenerationJob:
     source: BodySource
     plan: DatasetPlan
     peak_bytes: int
+
+    def plan_lines(self) -> list[str]:
+        """What ``cerberus data generate --dry-run`` prints: the dataset, its memory and scene, then
+        the counts of each split."""
+        config, plan = self.config, self.plan
+        lines = [f"{config.dataset}/{config.preset}: {len(plan.subjects)} subjects, renderer {config.renderer}, "
+                 f"about {self.peak_bytes / 2**30:.2f} GiB of memory per shard, scene {config.scene.to_dict()}"]
+        for split in config.splits:
+            t = plan.totals(split)
+            lines.append(f"  {split:<6} {t['shards']:>5} shards {t['images']:>8} images {t['quadruplets']:>8} "
+                         f"quadruplets {t['meshes']:>7} meshes")
+        return lines
 
 
 def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
@@ -257,7 +269,7 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | 
         raise DatasetError(f"{out} exists and is not a folder; choose another --out")
     if (out / MANIFEST).exists():
         try:
-            old = read_manifest(out)
+            old = Manifest.read(out).raw
         except DatasetError as exc:
             if not overwrite:
                 raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass --overwrite to "

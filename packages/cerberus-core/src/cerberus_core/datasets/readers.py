@@ -24,17 +24,15 @@ from cerberus_core.bodies.sources import Subject, make_source
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
+    Manifest,
     check_shard_files,
     empty_views,
-    read_manifest,
     resolve_inside,
     split_complete,
-    split_info,
     unpack_mesh,
 )
 from cerberus_core.datasets.plan import generate_command
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import ConfigError
 from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
@@ -97,7 +95,7 @@ def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False
     """
     root = Path(root)
     try:
-        manifest = read_manifest(root)
+        manifest = Manifest.read(root)
     except DatasetError as exc:
         return None, [str(exc)]
     problems: list[str] = []
@@ -115,8 +113,8 @@ class _SplitReader:
     def __init__(self, root: str | Path, split: str, *, allow_partial: bool = False, verify: bool = False) -> None:
         self.root = Path(root)
         self.split = split
-        self.manifest = read_manifest(self.root)
-        self.info = split_info(self.manifest, split, self.root)
+        self.manifest = Manifest.read(self.root)
+        self.info = self.manifest.split(split)
         if self.info.get("planned_shards") == 0:
             raise DatasetError(f"{self.root}: split {split!r} is empty: {empty_split_hint(self.manifest, split, self.root)}")
         if not allow_partial and not split_complete(self.info):
@@ -129,7 +127,7 @@ class _SplitReader:
                 raise DatasetError(problems[0] + more)
         self.image_offsets = np.concatenate([[0], np.cumsum([s["images"] for s in self.shards])]).astype(np.int64)
         self.quad_offsets = np.concatenate([[0], np.cumsum([s["quadruplets"] for s in self.shards])]).astype(np.int64)
-        self.image_size = int(self.manifest["image_size"])
+        self.image_size = self.manifest.image_size
         self._cache: dict[tuple[int, str], Any] = {}
 
     def __getstate__(self) -> dict:
@@ -203,7 +201,7 @@ class _Base(Dataset):
         return self._reader.split
 
     @property
-    def manifest(self) -> dict:
+    def manifest(self) -> Manifest:
         return self._reader.manifest
 
     @property
@@ -213,25 +211,20 @@ class _Base(Dataset):
 
     @property
     def scene(self) -> SceneSetup:
-        """The scene set-up (cameras of view records, light, background, albedo); the manifest's
-        ``scene`` read with :meth:`SceneSetup.from_dict`."""
+        """The scene set-up (cameras of view records, light, background, albedo): :attr:`Manifest.scene`."""
         if self._scene is None:
-            try:
-                self._scene = SceneSetup.from_dict(self.manifest.get("scene"))
-            except ConfigError as exc:
-                raise DatasetError(f"{self._reader.root / 'manifest.json'}: invalid scene set-up ({exc}); the "
-                                   "manifest is damaged: regenerate the dataset with `cerberus data generate`") from None
+            self._scene = self.manifest.scene
         return self._scene
 
     @property
     def part_names(self) -> list[str]:
         """Names of the ground-truth parts (evaluation only)."""
-        return list(self.manifest["part_names"])
+        return self.manifest.part_names
 
     @property
     def subject_names(self) -> list[str]:
         """Subject index → name (indices are global over the dataset's splits)."""
-        return [s["name"] for s in self.manifest["subjects"]]
+        return self.manifest.subject_names
 
     def cameras(self, batch: dict[str, Tensor], slot: int | None = None) -> Camera:
         """Cameras of a (collated) batch at this dataset's image size: :meth:`SceneSetup.view_cameras`.
@@ -380,14 +373,14 @@ class ViewDataset(_Base):
     def _regenerate(self, subject: int, pose: int) -> PosedBody:
         """Rebuild a body from the manifest alone: its source (name and options) and the subject's record."""
         if self._source is None:
-            src = self.manifest["source"]
+            src = self.manifest.source
             try:
                 self._source = make_source(src["name"], **src.get("options", {}))
             except Exception as exc:  # noqa: BLE001
                 raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and its source "
                                    f"{src['name']!r} cannot be rebuilt here ({exc})") from exc
         try:
-            return self._source.bodies(Subject.from_dict(self.manifest["subjects"][subject]), [pose])[0]
+            return self._source.bodies(Subject.from_dict(self.manifest.subjects[subject]), [pose])[0]
         except KeyError as exc:
             raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
 

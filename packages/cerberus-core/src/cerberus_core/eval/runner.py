@@ -3,7 +3,9 @@
 The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartSet``
 (world-frame output; the camera is the one the image was rendered with, which the model needs to
 unproject its translations); :meth:`cerberus_core.model.Cerberus.reconstruct` is one.
-``cerberus eval`` wraps a trained checkpoint into that and calls :func:`evaluate_dataset`.
+``cerberus eval`` (:meth:`cerberus_core.run.Run.evaluate`) wraps a trained checkpoint into that and calls
+:func:`evaluate_dataset`, whose one loop feeds the per-metric accumulators of
+:mod:`cerberus_core.eval.accumulators`.
 
 Dataset contract (:class:`cerberus_core.datasets.readers.ViewDataset` follows it): ``len(ds)``; ``ds[i]``
 a dict with ``images`` ``(3, H, W)`` float in [0, 1] (uint8 is accepted), ``azimuth``, ``elevation``
@@ -16,17 +18,23 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
+from cerberus_core.eval.accumulators import (
+    BatchResult,
+    HardHumanIoU,
+    MetricAccumulator,
+    PartQuality,
+    PartVisibility,
+    StandardIoU,
+)
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
-from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, Score, VoxelScorer, summarize
-from cerberus_core.eval.visibility import VisibilityAccumulator, visible_pixels
+from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.parts import PartSet
 from cerberus_core.plugins import make_renderer
 from cerberus_core.render.camera import Camera
@@ -159,121 +167,114 @@ def extract_canonical(dataset: Any, reconstruct: Reconstructor, indices: dict[st
     return CanonicalParts(shapes, indices)
 
 
-def evaluate_dataset(
-    dataset: Any,
-    reconstruct: Reconstructor,
-    *,
-    protocol: str = "kato",
-    resolution: int = 32,
-    hard: bool = True,
-    part_quality: bool = True,
-    visibility: bool = True,
-    renderer: Renderer | None = None,
-    canonical_view: int | None = None,
-    indices: Sequence[int] | None = None,
-    batch_size: int = 16,
-    device: torch.device | str = "cpu",
-    num_workers: int = 0,
-    scorer: VoxelScorer | None = None,
-    weighting: str = "area",
-    density: int = 4,
-    progress: bool = True,
-) -> EvaluationResult:
-    """Evaluate a model on a test set in one pass (one forward per image).
+@dataclass(frozen=True)
+class EvalConfig:
+    """What one evaluation measures and how (:func:`evaluate_dataset`).
 
-    Args:
-        dataset: see the module docstring.
-        reconstruct: ``(images, camera) -> PartSet`` in world coordinates.
+    Attributes:
         protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's).
         hard: also run the Hard Human test (needs ``is_canonical`` images).
         part_quality: also score the parts against the ground-truth semantic parts.
         visibility: also measure how often each part is wholly hidden in its input view (one
-            render per image, see :mod:`cerberus_core.eval.visibility`).
-        renderer: the backend for that render (default ``make_renderer("auto")``).
+            render per batch, see :mod:`cerberus_core.eval.visibility`).
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
-        indices: evaluate these dataset indices only (default all). Canonical images are looked
-            up in the whole dataset.
-        batch_size, device, num_workers: model batching, its device, data-loading workers.
-        scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
+        batch_size, num_workers: model batching, data-loading workers.
         weighting: part-quality vertex weights, ``"area"`` or ``"count"``.
         density: part-quality surface lattice steps per predicted triangle edge (see
             :mod:`cerberus_core.eval.part_quality`).
         progress: show a progress bar.
     """
+
+    protocol: str = "kato"
+    resolution: int = 32
+    hard: bool = True
+    part_quality: bool = True
+    visibility: bool = True
+    canonical_view: int | None = None
+    batch_size: int = 16
+    num_workers: int = 0
+    weighting: str = "area"
+    density: int = 4
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        if self.weighting not in ("area", "count"):
+            raise ValueError(f"evaluate_dataset: weighting must be 'area' or 'count', got {self.weighting!r}")
+
+
+def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalConfig, scorer: VoxelScorer,
+                        renderer: Renderer | None, device: torch.device | str) -> list[MetricAccumulator]:
+    """The accumulators ``config`` asks for, in the order they fill each record: standard IoU, part
+    visibility, Hard Human (its canonical shapes reconstructed now), part quality."""
+    hard = None
+    if config.hard and (chosen := select_canonical(dataset_metadata(dataset), config.canonical_view)):
+        hard = HardHumanIoU(scorer, extract_canonical(dataset, reconstruct, chosen, device, config.batch_size))
+    optional = [PartVisibility(renderer or make_renderer("auto")) if config.visibility else None, hard,
+                PartQuality(config.weighting, config.density) if config.part_quality else None]
+    return [StandardIoU(scorer), *(a for a in optional if a is not None)]
+
+
+def batch_result(dataset: Any, batch: dict[str, Any], batch_idx: list[int], recon: PartSet, camera: Camera,
+                 gt_memo: GroundTruthMemo) -> BatchResult:
+    """What every metric needs of one batch: each image's identity, ground truth and record."""
+    flags = batch.get("is_canonical", [False] * len(batch_idx))
+    items = [ItemMeta(idx, subject_label(dataset, batch["subject"][b]), int(batch["pose"][b]), int(batch["view"][b]),
+                      bool(flags[b])) for b, idx in enumerate(batch_idx)]
+    bodies = [gt_memo.get((m.subject, m.pose), m.index) for m in items]
+    records = [{"index": m.index, "subject": m.subject, "pose": m.pose, "view": m.view} for m in items]
+    return BatchResult(recon, camera, items, bodies, records)
+
+
+def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfig | None = None, *,
+                     renderer: Renderer | None = None, indices: Sequence[int] | None = None,
+                     device: torch.device | str = "cpu", scorer: VoxelScorer | None = None,
+                     **options: Any) -> EvaluationResult:
+    """Evaluate a model on a test set in one pass (one forward per image) that feeds one accumulator
+    per metric (:mod:`cerberus_core.eval.accumulators`).
+
+    Args:
+        dataset: see the module docstring.
+        reconstruct: ``(images, camera) -> PartSet`` in world coordinates.
+        config: what to measure (:class:`EvalConfig`; default: everything, the paper's protocol).
+        renderer: the backend of the part-visibility render (default ``make_renderer("auto")``).
+        indices: evaluate these dataset indices only (default all). Canonical images are looked
+            up in the whole dataset.
+        device: the model's device.
+        scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
+        options: :class:`EvalConfig` fields that replace ``config``'s (``hard=False``, ``batch_size=6``...).
+    """
     t0 = time.perf_counter()
-    scorer = scorer or VoxelScorer(protocol, resolution)
+    config = replace(config or EvalConfig(), **options)
+    scorer = scorer or VoxelScorer(config.protocol, config.resolution)
     indices = list(range(len(dataset))) if indices is None else [int(i) for i in indices]
     if not indices:
         raise ValueError("evaluate_dataset: no images to evaluate (empty dataset or index list)")
-    if weighting not in ("area", "count"):
-        raise ValueError(f"evaluate_dataset: weighting must be 'area' or 'count', got {weighting!r}")
     if not callable(getattr(dataset, "gt_mesh", None)):
         raise TypeError(f"{type(dataset).__name__} has no gt_mesh(i) method; evaluation needs the ground-truth meshes")
-
-    canonical: CanonicalParts | None = None
-    if hard:
-        chosen = select_canonical(dataset_metadata(dataset), canonical_view)
-        if chosen:
-            canonical = extract_canonical(dataset, reconstruct, chosen, device, batch_size)
-
-    if visibility and renderer is None:
-        renderer = make_renderer("auto")
+    accumulators = metric_accumulators(dataset, reconstruct, config, scorer, renderer, device)
+    standard = accumulators[0]  # StandardIoU, always first
     gt_memo = GroundTruthMemo(dataset.gt_mesh)
-    pq: PartQualityAccumulator | None = None
-    vis: VisibilityAccumulator | None = None
-    scores: list[Score] = []
-    hard_scores: list[Score] = []
-    groups: list[str] = []
-    hard_groups: list[str] = []
     records: list[dict[str, Any]] = []
-    bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not progress)
-    for batch_idx, batch, camera in iterate_batches(dataset, indices, batch_size, num_workers):
+    bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not config.progress)
+    for batch_idx, batch, camera in iterate_batches(dataset, indices, config.batch_size, config.num_workers):
         recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
-        shown = None
-        if visibility:
-            shown = visible_pixels(renderer, recon, camera.to(device))
-            vis = vis or VisibilityAccumulator(recon.num_parts, (camera.height, camera.width))
-            vis.add(shown)
-        canonical_flags = batch.get("is_canonical", [False] * len(batch_idx))
-        for b, idx in enumerate(batch_idx):
-            meta = ItemMeta(idx, subject_label(dataset, batch["subject"][b]), int(batch["pose"][b]),
-                            int(batch["view"][b]), bool(canonical_flags[b]))
-            body = gt_memo.get((meta.subject, meta.pose), idx)
-            gt = (body.vertices, body.faces)
-            one = recon.index(b)
-            score = scorer(one.part_meshes(0), gt)
-            scores.append(score)
-            groups.append(meta.subject)
-            rec: dict[str, Any] = {"index": idx, "subject": meta.subject, "pose": meta.pose, "view": meta.view,
-                                   "iou": score.iou, "clipped": score.clipped, "error": score.error}
-            if shown is not None:
-                rec["visible_pixels"] = shown[b].tolist()
-            if canonical is not None and canonical.applies_to(meta):
-                hs = scorer(canonical.pose(meta.subject, one).part_meshes(0), gt)
-                hard_scores.append(hs)
-                hard_groups.append(meta.subject)
-                rec.update(hard_iou=hs.iou, hard_clipped=hs.clipped, hard_error=hs.error)
-            if part_quality:
-                if pq is None:
-                    pq = PartQualityAccumulator(recon.num_parts, list(body.part_names))
-                elif list(body.part_names) != pq.gt_part_names:
-                    raise ValueError(f"item {idx}: ground-truth part names {body.part_names} differ from the "
-                                     f"first item's {pq.gt_part_names}; part quality needs one part vocabulary")
-                pq.add(image_overlap(one.posed()[0].numpy(), recon.faces.numpy(), body.vertices, body.faces,
-                                     body.vertex_parts, len(body.part_names), weighting=weighting,
-                                     density=density), meta.subject)
-            records.append(rec)
+        result = batch_result(dataset, batch, batch_idx, recon, camera.to(device), gt_memo)
+        for accumulator in accumulators:
+            accumulator.update(result)
+        records.extend(result.records)
         bar.update(len(batch_idx))
-        bar.set_postfix(iou=f"{np.mean([s.iou for s in scores]):.4f}")
+        bar.set_postfix(iou=f"{standard.running_mean():.4f}")
     bar.close()
+    found = {type(a): a for a in accumulators}
+    hard = found.get(HardHumanIoU)
     return EvaluationResult(
         protocol=scorer.protocol,
         resolution=scorer.resolution,
-        standard=summarize(scores, groups),
-        hard=summarize(hard_scores, hard_groups) if hard_scores else None,
-        canonical={} if canonical is None else dict(canonical.indices),
-        part_quality=None if pq is None else pq.summary(),
-        part_visibility=None if vis is None else vis.summary(),
+        standard=standard.summary(),
+        hard=None if hard is None else hard.summary(),
+        canonical={} if hard is None else dict(hard.canonical.indices),
+        part_quality=None if PartQuality not in found else found[PartQuality].summary(),
+        part_visibility=None if PartVisibility not in found else found[PartVisibility].summary(),
         records=records,
         seconds=time.perf_counter() - t0,
     )

@@ -30,7 +30,7 @@ from safetensors import safe_open
 from safetensors.torch import load_file, save
 
 from cerberus_core.atomic import atomic_write
-from cerberus_core.datasets.format import MANIFEST, read_manifest
+from cerberus_core.datasets.format import MANIFEST, Manifest
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.model.cerberus import Cerberus
@@ -381,12 +381,12 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
     if data is not None:
         if not (Path(data) / MANIFEST).is_file():
             raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
-        return scene_of(read_manifest(Path(data)).get("scene"), f"--data {data}",
+        return scene_of(Manifest.read(Path(data)).get("scene"), f"--data {data}",
                         "its manifest is damaged: regenerate it with `cerberus data generate`")
     if saved is not None:
         return scene_of(saved, "the model's recorded scene")
     root = Path(config.data.root)
     if (root / MANIFEST).is_file():
-        return scene_of(read_manifest(root).get("scene"), f"the run's training data {root}")
+        return scene_of(Manifest.read(root).get("scene"), f"the run's training data {root}")
     raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
                       "--data DATASET (the dataset it was trained on, or one rendered the same way)")

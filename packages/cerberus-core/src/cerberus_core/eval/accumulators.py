@@ -1,0 +1,158 @@
+"""Per-metric accumulators that the evaluation loop (:func:`cerberus_core.eval.runner.evaluate_dataset`) feeds.
+
+The loop runs the model once per batch and hands every accumulator the same :class:`BatchResult`
+(the reconstructions, the cameras, each image's identity and ground-truth mesh, and one record per
+image to which each metric adds its own fields). An accumulator follows :class:`MetricAccumulator`:
+``update(batch)`` then ``summary()``. One per metric:
+
+* :class:`StandardIoU`: voxel IoU of each reconstruction against its ground truth;
+* :class:`PartVisibility`: how often each part is wholly hidden in its input view (one render per batch);
+* :class:`HardHumanIoU`: the subject's canonical part shapes posed by each other image;
+* :class:`PartQuality`: the parts against the ground-truth semantic parts.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from cerberus_core.bodies.body import PosedBody
+from cerberus_core.eval.hard import CanonicalParts, ItemMeta
+from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
+from cerberus_core.eval.standard import IoUSummary, Score, VoxelScorer, summarize
+from cerberus_core.eval.visibility import VisibilityAccumulator, visible_pixels
+from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import Camera
+from cerberus_core.render.interface import Renderer
+
+
+@dataclass
+class BatchResult:
+    """One batch of model output and what every metric needs to score it.
+
+    Attributes:
+        recon: the reconstructions (``B`` images), on the CPU.
+        camera: the batch's cameras, on the model's device.
+        items: subject, pose, view and canonical flag of each image.
+        bodies: each image's ground-truth :class:`~cerberus_core.bodies.body.PosedBody`.
+        records: one dict per image (index, subject, pose, view), to which each metric adds its fields.
+        singles: ``recon.index(b)`` for each image (filled in on creation).
+    """
+
+    recon: PartSet
+    camera: Camera
+    items: list[ItemMeta]
+    bodies: list[PosedBody]
+    records: list[dict[str, Any]]
+    singles: list[PartSet] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.singles = [self.recon.index(b) for b in range(len(self.items))]
+
+    def scored(self):
+        """``(b, item, single reconstruction, ground-truth (vertices, faces), record)`` per image."""
+        for b, (item, one, body, rec) in enumerate(zip(self.items, self.singles, self.bodies, self.records,
+                                                        strict=True)):
+            yield b, item, one, (body.vertices, body.faces), rec
+
+
+class MetricAccumulator(Protocol):
+    """What the evaluation loop feeds: every batch in order, then one summary."""
+
+    def update(self, batch: BatchResult) -> None: ...
+
+    def summary(self) -> Any: ...
+
+
+class StandardIoU:
+    """Voxel IoU of each reconstruction (the union of its parts) against its ground-truth mesh; adds
+    ``iou``, ``clipped``, ``error`` to each record. :meth:`summary`: per image, per subject, overall."""
+
+    def __init__(self, scorer: VoxelScorer) -> None:
+        self.scorer = scorer
+        self.scores: list[Score] = []
+        self.groups: list[str] = []
+
+    def update(self, batch: BatchResult) -> None:
+        for _, item, one, gt, rec in batch.scored():
+            score = self.scorer(one.part_meshes(0), gt)
+            self.scores.append(score)
+            self.groups.append(item.subject)
+            rec.update(iou=score.iou, clipped=score.clipped, error=score.error)
+
+    def running_mean(self) -> float:
+        """The mean IoU so far (the progress bar shows it)."""
+        return float(np.mean([s.iou for s in self.scores]))
+
+    def summary(self) -> IoUSummary:
+        return summarize(self.scores, self.groups)
+
+
+class HardHumanIoU:
+    """The Hard Human test: each subject's canonical part shapes, posed by every other image of it,
+    scored like :class:`StandardIoU`; adds ``hard_iou``, ``hard_clipped``, ``hard_error`` to the
+    records it applies to. :meth:`summary` is ``None`` when it applied to none."""
+
+    def __init__(self, scorer: VoxelScorer, canonical: CanonicalParts) -> None:
+        self.scorer = scorer
+        self.canonical = canonical
+        self.scores: list[Score] = []
+        self.groups: list[str] = []
+
+    def update(self, batch: BatchResult) -> None:
+        for _, item, one, gt, rec in batch.scored():
+            if self.canonical.applies_to(item):
+                score = self.scorer(self.canonical.pose(item.subject, one).part_meshes(0), gt)
+                self.scores.append(score)
+                self.groups.append(item.subject)
+                rec.update(hard_iou=score.iou, hard_clipped=score.clipped, hard_error=score.error)
+
+    def summary(self) -> IoUSummary | None:
+        return summarize(self.scores, self.groups) if self.scores else None
+
+
+class PartVisibility:
+    """How often each learned part is wholly hidden in its input view (one render per batch, see
+    :mod:`cerberus_core.eval.visibility`); adds ``visible_pixels`` (per part) to each record."""
+
+    def __init__(self, renderer: Renderer) -> None:
+        self.renderer = renderer
+        self.counts: VisibilityAccumulator | None = None
+
+    def update(self, batch: BatchResult) -> None:
+        shown = visible_pixels(self.renderer, batch.recon, batch.camera)
+        if self.counts is None:
+            self.counts = VisibilityAccumulator(batch.recon.num_parts, (batch.camera.height, batch.camera.width))
+        self.counts.add(shown)
+        for b, rec in enumerate(batch.records):
+            rec["visible_pixels"] = shown[b].tolist()
+
+    def summary(self) -> dict[str, Any] | None:
+        return None if self.counts is None else self.counts.summary()
+
+
+class PartQuality:
+    """The learned parts against the ground-truth semantic parts (:mod:`cerberus_core.eval.part_quality`):
+    one overlap matrix per image, in one part vocabulary."""
+
+    def __init__(self, weighting: str = "area", density: int = 4) -> None:
+        self.weighting = weighting
+        self.density = density
+        self.overlaps: PartQualityAccumulator | None = None
+
+    def update(self, batch: BatchResult) -> None:
+        faces = batch.recon.faces.numpy()
+        for b, item, one, _, _ in batch.scored():
+            body = batch.bodies[b]
+            if self.overlaps is None:
+                self.overlaps = PartQualityAccumulator(batch.recon.num_parts, list(body.part_names))
+            elif list(body.part_names) != self.overlaps.gt_part_names:
+                raise ValueError(f"item {item.index}: ground-truth part names {body.part_names} differ from the "
+                                 f"first item's {self.overlaps.gt_part_names}; part quality needs one part vocabulary")
+            self.overlaps.add(image_overlap(one.posed()[0].numpy(), faces, body.vertices, body.faces,
+                                            body.vertex_parts, len(body.part_names), weighting=self.weighting,
+                                            density=self.density), item.subject)
+
+    def summary(self) -> dict[str, Any] | None:
+        return None if self.overlaps is None else self.overlaps.summary()

@@ -1,0 +1,283 @@
+"""A trained run as one object: :class:`Run`.
+
+``Run.load(path_or_name)`` opens a run folder, a ``model.safetensors`` export, a checkpoint ``.pt`` or a
+shipped model (``Run.load("human")``) and holds what belongs together: the model, its config, the
+weights file and the step it records (with the run's newer checkpoint, if any), the training data's
+root and scene set-up. Its operations are the ones the CLI calls, so a notebook does what a command
+does with the same call::
+
+    from cerberus_core import Run
+
+    run = Run.load("human")
+    run.evaluate(data="data/human", out="eval")       # what `cerberus eval human --data ...` does
+    parts = run.model.reconstruct(images, camera)
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+
+from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.devices import check_device
+from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.eval.figures import evaluation_figures
+from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
+from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
+from cerberus_core.eval.standard import MAX_RESOLUTION, SCORER_ENTRY_POINT
+from cerberus_core.eval.visibility import visibility_line
+from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.names import printable
+from cerberus_core.outputs import is_dataset, result_folder, writing_results
+from cerberus_core.plugins import get_metric, make_renderer
+from cerberus_core.train.checkpoint import (
+    WeightsInfo,
+    describe_weights,
+    load_model,
+    load_run,
+    looks_like_path,
+    model_scene,
+)
+from cerberus_core.train.config import TrainConfig
+
+#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without --overwrite.
+EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
+
+
+def check_protocol(name: str) -> str:
+    """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
+    anything runs)."""
+    try:
+        get_metric(SCORER_ENTRY_POINT)(protocol=name, resolution=32)
+    except (ValueError, KeyError) as exc:
+        raise ConfigError(f"--protocol {name!r}: {exc}") from None
+    return name
+
+
+def check_evaluation(*, resolution: int = 32, protocol: str = "kato", viewer_images: int = 12,
+                     device: str | torch.device = "cpu", data: str | Path | None = None) -> None:
+    """The options of :meth:`Run.evaluate` (and the device) checked before any model is opened
+    (:class:`ConfigError` naming the option); also that the metrics package is installed."""
+    if resolution > MAX_RESOLUTION:
+        raise ConfigError(f"--resolution {resolution}: at most {MAX_RESOLUTION} (the paper uses 32)")
+    check_protocol(protocol)
+    if viewer_images < 0:
+        raise ConfigError(f"--viewer-images {viewer_images}: must be >= 0 (0: no viewer)")
+    check_device(str(device))
+    if data is not None and not is_dataset(Path(data)):
+        raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no manifest.json)")
+    get_metric(SCORER_ENTRY_POINT)  # fail early, naming the package, if cerberus-metrics is missing
+
+
+def load_baselines(specs: Sequence[str], device: str) -> dict[str, Cerberus]:
+    """``NAME=RUN`` specs → ``{name: model}``, every one loaded before the evaluation starts."""
+    out = {}
+    for spec in specs:
+        name, _, path = spec.partition("=")
+        if not name or not path:
+            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}")
+        if name in out:
+            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
+        try:
+            out[name] = load_model(path, device)[0]
+        except CerberusError as exc:
+            raise ConfigError(f"--baseline {name}={path}: {exc}") from None
+    return out
+
+
+@dataclass
+class Evaluation:
+    """What :meth:`Run.evaluate` measured and wrote.
+
+    Attributes:
+        result: the scores (:class:`~cerberus_core.eval.runner.EvaluationResult`).
+        out: the result folder (``results.json``, ``results.md``, ``table2.png``, ``pictures/``).
+        weights: which weights were scored (step, newer checkpoint).
+        hard_requested: whether the Hard Human test was asked for.
+        folder_dataset: whether the data is a ``--dataset folder`` dataset (the hint names its fix).
+        viewer: whether ``pictures/index.html`` was written.
+    """
+
+    result: EvaluationResult
+    out: Path
+    weights: WeightsInfo
+    hard_requested: bool = True
+    folder_dataset: bool = False
+    viewer: bool = True
+
+    def lines(self) -> list[str]:
+        """The summary ``cerberus eval`` prints: the scores, then where the results are."""
+        result, weights, out = self.result, self.weights, self.out
+        line = (f"voxel IoU ({result.protocol}, {result.resolution}^3) over {result.standard.count} images: "
+                f"{result.standard.mean:.4f}")
+        if result.hard is not None:
+            line += f"; Hard Human: {result.hard.mean:.4f}"
+        elif self.hard_requested:
+            line += "; Hard Human: not run (no canonical-pose images in this split"
+            if self.folder_dataset:
+                line += "; name each subject's canonical pose with `cerberus data generate --dataset folder --canonical POSE`"
+            line += ")"
+        lines = [line]
+        if result.part_visibility is not None:
+            lines.append(visibility_line(result.part_visibility))
+        if weights.stale_warning():  # said again under the scores, where it is read
+            lines.append(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
+                         f"{printable(weights.newer)} (step {weights.newer_step})")
+        lines.append(f"results: {printable(out / 'results.json')}, {printable(out / 'results.md')}; figures: "
+                     f"{printable(out / 'table2.png')}, {printable(out / 'pictures')}")
+        if self.viewer:
+            lines.append(f"3D viewer: {printable(out / 'pictures' / 'index.html')}")
+        return lines
+
+
+class Run:
+    """A trained run: its model, config and weights, loaded once (:meth:`load`).
+
+    Attributes:
+        model: the :class:`~cerberus_core.model.Cerberus` model, in eval mode on :attr:`device`.
+        config: its :class:`~cerberus_core.train.config.TrainConfig`.
+        weights_info: which file was loaded, its step and the run's newer checkpoint, if any
+            (:meth:`~cerberus_core.train.checkpoint.WeightsInfo.stale_warning`).
+        source: the argument it was loaded from (a path, or a shipped model's name).
+        recorded_scene: the training data's scene set-up as the weights record it (``None``: none).
+        device: where the model is.
+    """
+
+    def __init__(self, model: Cerberus, config: TrainConfig, weights_info: WeightsInfo, *,
+                 source: str | Path | None = None, recorded_scene: dict | None = None,
+                 device: str | torch.device = "cpu") -> None:
+        self.model = model
+        self.config = config
+        self.weights_info = weights_info
+        self.source = weights_info.path if source is None else source
+        self.recorded_scene = recorded_scene
+        self.device = device
+
+    @classmethod
+    def load(cls, path: str | Path, device: str | torch.device = "cpu") -> Run:
+        """Load a run folder (its ``model.safetensors``, else ``checkpoints/last.pt``), a ``.safetensors``
+        export, a ``.pt`` checkpoint or a shipped model by name (``cerberus models``; a bare name a
+        shipped model has is that model: see :func:`~cerberus_core.train.checkpoint.resolve_weights`).
+
+        Raises:
+            ConfigError: an unknown device.
+            CheckpointError: what :func:`~cerberus_core.train.checkpoint.load_run` refuses.
+            ZooError: a shipped model's file is missing or damaged.
+        """
+        check_device(str(device))
+        weights = describe_weights(path)
+        model, config, scene = load_run(weights.path, device)
+        return cls(model, config, weights, source=path, recorded_scene=scene, device=device)
+
+    def __repr__(self) -> str:
+        at = "" if self.step is None else f", step {self.step}"
+        return f"Run({printable(self.path)}{at})"
+
+    @property
+    def path(self) -> Path:
+        """The weights file loaded (``RUN/model.safetensors``, a checkpoint, a shipped model's file)."""
+        return self.weights_info.path
+
+    @property
+    def step(self) -> int | None:
+        """The training step the weights record (``None``: none recorded)."""
+        return self.weights_info.step
+
+    @property
+    def data_root(self) -> Path:
+        """The dataset the run was trained on (it may not be on this machine)."""
+        return Path(self.config.data.root)
+
+    @property
+    def scene(self) -> SceneSetup:
+        """The scene set-up the model was trained with: :meth:`scene_for` without a dataset."""
+        return self.scene_for(None)
+
+    def scene_for(self, data: str | Path | None = None) -> SceneSetup:
+        """The scene set-up of ``data`` (a dataset folder), else the one the weights record, else the
+        training data's (:func:`~cerberus_core.train.checkpoint.model_scene`; ConfigError naming
+        ``--data`` when none is known)."""
+        return model_scene(self.config, data, self.recorded_scene)
+
+    def default_out(self, folder: str = "eval") -> Path:
+        """``RUN/<folder>`` for a run folder, beside a model file, or ``./<folder>`` for a shipped name."""
+        given = Path(self.source)
+        return (given if given.is_dir() and looks_like_path(self.source) else given.parent) / folder
+
+    def evaluate(self, data: str | Path | None = None, split: str = "test", out: str | Path | None = None, *,
+                 overwrite: bool = False, protocol: str = "kato", resolution: int = 32, hard: bool = True,
+                 part_quality: bool = True, limit: int | None = None, baselines: Sequence[str] = (),
+                 figure_images: int = 5, viewer_images: int = 12, renderer: str | None = None,
+                 verbose: bool = True) -> Evaluation:
+        """Score the run on a split and write the results folder: what ``cerberus eval`` does.
+
+        Voxel IoU, the Hard Human test, part quality and part visibility in one pass
+        (:func:`~cerberus_core.eval.runner.evaluate_dataset`), then ``results.json``, ``results.md``,
+        the figure ``table2.png`` and ``pictures/`` (with the 3D viewer), all replacing ``out`` in one
+        step once written (an error leaves it as it was).
+
+        Args:
+            data: dataset folder (default: the run's training data root).
+            split: the split to score.
+            out: the result folder (default :meth:`default_out`); replaced whole, refused when it
+                holds other files unless ``overwrite``.
+            protocol, resolution: the voxel-IoU protocol and grid (``kato``, 32: the paper's).
+            hard, part_quality: run the Hard Human test, part quality.
+            limit: only the first ``limit`` images.
+            baselines: ``NAME=RUN`` specs of other runs drawn beside this one in the figure.
+            figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
+            renderer: backend for the figure and the visibility render (default: the run's).
+            verbose: print what is scored and the summary (:meth:`Evaluation.lines`).
+        """
+        check_evaluation(resolution=resolution, protocol=protocol, viewer_images=viewer_images, device=self.device,
+                         data=data)
+        data = None if data is None else Path(data)
+        keep = [Path(self.source)] if looks_like_path(self.source) else []
+        out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=overwrite,
+                            keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS)
+        baseline_models = load_baselines(baselines, str(self.device))
+        if data is None and not is_dataset(self.data_root):
+            raise ConfigError(f"the run's training data {self.data_root} is not a dataset folder from here; "
+                              "pass --data DATASET")
+        dataset = ViewDataset(data or self.data_root, split)
+        dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
+        backend = make_renderer(renderer or self.config.renderer)
+        weights, at_step = self.weights_info, "" if self.step is None else f" at step {self.step}"
+        if verbose:
+            print(f"evaluating {printable(self.path)}{at_step}")
+        if weights.stale_warning():
+            warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
+        with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
+            indices = range(min(limit, len(dataset))) if limit else None
+            result = evaluate_dataset(dataset, self.model.reconstruct, EvalConfig(
+                protocol=protocol, resolution=resolution, hard=hard, part_quality=part_quality),
+                indices=indices, renderer=backend, device=self.device)
+            self._write_report(result, tmp, at_step)
+            evaluation_figures(backend, dataset, self.model, tmp, n_images=figure_images, baselines=baseline_models,
+                               device=self.device, viewer_images=viewer_images,
+                               title=f"cerberus eval: {printable(self.source)}{at_step} ({split} split)")
+        evaluation = Evaluation(result, out, weights, hard_requested=hard, viewer=viewer_images > 0,
+                                folder_dataset=dataset.manifest.config["dataset"] == "folder")
+        if verbose:
+            print("\n".join(evaluation.lines()))
+        return evaluation
+
+    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str) -> None:
+        """``results.json`` (the scores and which weights) and ``results.md`` (with the stale warning)."""
+        weights = self.weights_info
+        record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
+                                                  "newer_checkpoint": None if weights.newer is None else
+                                                  {"path": str(weights.newer), "step": weights.newer_step}}}
+        write_json(record, folder / "results.json")
+        report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}")
+        if weights.stale_warning():
+            title, _, rest = report.partition("\n")
+            report = f"{title}\n\n> **Warning:** {md_text(weights.stale_warning())}\n{rest}"
+        write_text(report, folder / "results.md")
+
+
+__all__ = ["EARLIER_RESULTS", "Evaluation", "Run", "check_evaluation", "load_baselines"]

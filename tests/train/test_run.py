@@ -1,0 +1,76 @@
+"""``Run``: a trained run as one object, and the one call ``cerberus eval`` makes (``Run.evaluate``)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+from cerberus_core import Run
+from cerberus_core.errors import ConfigError
+from cerberus_core.train import train
+from cerberus_core.train.checkpoint import CheckpointError, load_run
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tiny_root, tmp_path_factory):
+    from cerberus_core.train.config import load_config
+
+    config = load_config(preset="tiny", overrides=[f"data.root={tiny_root}", "train.tensorboard=false",
+                                                    "train.steps=2", "train.progress=false"])
+    run = tmp_path_factory.mktemp("run") / "run"
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        train(config, run)
+    finally:
+        torch.set_num_threads(threads)
+    return run
+
+
+def test_a_run_folder_loads_as_one_object(tiny_run, tiny_root):
+    run = Run.load(tiny_run)
+    model, config, scene = load_run(tiny_run)
+    assert run.path == tiny_run / "model.safetensors" and run.step == 2 and run.weights_info.newer is None
+    assert run.data_root == tiny_root and run.config.to_dict() == config.to_dict()
+    for (k, a), (_, b) in zip(run.model.state_dict().items(), model.state_dict().items(), strict=True):
+        assert torch.equal(a, b), k
+    assert not run.model.training and run.recorded_scene == scene
+    assert run.scene.to_dict() == run.scene_for(tiny_root).to_dict()  # recorded, or read from the data
+    assert run.default_out() == tiny_run / "eval" and repr(run) == f"Run({run.path}, step 2)"
+    last = Run.load(tiny_run / "checkpoints" / "last.pt")
+    assert last.path.name == "last.pt" and last.step == 2 and last.default_out() == tiny_run / "checkpoints" / "eval"
+
+
+def test_load_refuses_what_load_run_refuses(tmp_path):
+    with pytest.raises(CheckpointError, match="does not exist"):
+        Run.load(tmp_path / "nothing")
+    with pytest.raises(ConfigError, match="--device"):
+        Run.load(tmp_path / "nothing", device="tpu")
+
+
+def test_the_shipped_human_model_loads_by_name():
+    run = Run.load("human")
+    assert run.path.name == "human.safetensors" and run.step is not None and run.step > 0
+    assert run.model.config.num_parts == run.config.model.num_parts and run.scene.fov_y > 0
+    assert run.default_out().name == "eval"
+
+
+def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, capsys):
+    from cerberus_core.cli import main
+
+    options = dict(limit=3, part_quality=False, figure_images=1, viewer_images=0, renderer="torch")
+    evaluation = Run.load(tiny_run).evaluate(tiny_root, "test", tmp_path / "lib", **options)
+    printed = capsys.readouterr().out
+    assert printed.startswith(f"evaluating {tiny_run / 'model.safetensors'} at step 2\n")
+    assert printed.endswith("\n".join(evaluation.lines()) + "\n") and evaluation.out == tmp_path / "lib"
+    assert evaluation.result.standard.count == 3 and evaluation.weights.step == 2
+    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--out", str(tmp_path / "cli"), "--limit", "3",
+                 "--no-part-quality", "--figure-images", "1", "--viewer-images", "0", "--renderer", "torch"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == printed.splitlines()[-1].replace("/lib/", "/cli/")
+    lib, cli = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("lib", "cli"))
+    assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
+    for name in ("results.md", "table2.png", ".cerberus-result.json"):
+        assert (tmp_path / "lib" / name).is_file(), name
+    with pytest.raises(ConfigError, match="--resolution 999: at most 256"):
+        Run.load(tiny_run).evaluate(tiny_root, out=tmp_path / "lib", resolution=999)
