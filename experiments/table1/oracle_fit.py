@@ -261,10 +261,10 @@ def part_checks(verts: Tensor, faces: Tensor, dihedral: Tensor) -> dict:
 
 
 def part_voxels(parts: list[tuple[np.ndarray, np.ndarray]], scorer: VoxelScorer) -> list[np.ndarray]:
-    """Each part's solid voxels on the evaluation grid (``kato``, 32^3), as boolean arrays."""
-    clipped, _ = scorer.scorer.clip(parts)
+    """Each part's solid voxels on the evaluation grid (``kato``, 32^3), as boolean arrays; the voxels of
+    a part leaving the grid are dropped (``outside="clamp"``), as ``cerberus eval`` does."""
     return [voxelize(p, scorer.protocol, scorer.resolution, check_self_intersections=False,
-                     open_mesh="close").occupancy for p in clipped]
+                     open_mesh="close", outside="clamp").occupancy for p in parts]
 
 
 # ------------------------------------------------------------------ picture

@@ -29,18 +29,15 @@ from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.eval.runner import iterate_batches, reconstruct_batch
 from cerberus_core.train.checkpoint import load_model
 from cerberus_metrics.api import voxelize
-from cerberus_metrics.scoring import VoxelIoUScorer
 
 SCALES = np.linspace(0.8, 1.25, 10)
 STRETCHES = (0.5, 0.7, 0.85, 1.0, 1.2, 1.5, 2.0, 2.5)
-CLAMP = VoxelIoUScorer()  # its clip(): what the evaluation does to a prediction leaving the grid
 
 
 def _iou(parts, gt_grid) -> tuple[float, float, float, float]:
-    """(IoU, precision, recall, volume ratio) of parts against a ground-truth grid; parts leaving the
-    grid are clamped into it, as ``cerberus eval`` does."""
-    parts, _ = CLAMP.clip(parts)
-    grid = voxelize(parts, frame=gt_grid.frame, check_self_intersections=False)
+    """(IoU, precision, recall, volume ratio) of parts against a ground-truth grid; the voxels of parts
+    leaving the grid are dropped (``outside="clamp"``), as ``cerberus eval`` does."""
+    grid = voxelize(parts, frame=gt_grid.frame, check_self_intersections=False, outside="clamp")
     pred, true = grid.occupancy, gt_grid.occupancy
     inter = float((pred & true).sum())
     return (inter / max(1.0, float((pred | true).sum())), inter / max(1.0, float(pred.sum())),
