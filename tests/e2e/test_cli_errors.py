@@ -387,7 +387,7 @@ def _tree(folder: Path) -> dict[str, bytes]:
 def test_outputs_of_one_input_never_take_another_inputs_name(place, tmp_path, capsys):
     """x.png writes x_new_pose.glb (the viewer's new pose), which is also the GLB of x_new_pose.png:
     each input keeps every one of its outputs, under names that share nothing."""
-    from cerberus_core.cli.reconstruct import OUTPUT_PATTERNS, output_names
+    from cerberus_core.eval.reconstruct import OUTPUT_PATTERNS, output_names
 
     inputs = [_image(tmp_path / "x.png"), _image(tmp_path / "x_new_pose.png", (10, 10, 200)),
               _image(tmp_path / "X_parts.png", (10, 200, 10))]

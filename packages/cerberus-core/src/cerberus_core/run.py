@@ -26,6 +26,7 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.eval.figures import evaluation_figures
+from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
 from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
 from cerberus_core.eval.standard import MAX_RESOLUTION, SCORER_ENTRY_POINT
@@ -265,6 +266,35 @@ class Run:
         if verbose:
             print("\n".join(evaluation.lines()))
         return evaluation
+
+    def reconstruct_images(self, images: Sequence[str | Path], out: str | Path, *,
+                           masks: Sequence[str | Path] | None = None, overwrite: bool = False,
+                           data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
+                           viewer_images: int = 12) -> Reconstruction:
+        """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
+        the 3D viewer; :func:`cerberus_core.eval.reconstruct.reconstruct_images`).
+
+        Args:
+            images: the input files.
+            out: the result folder, replaced whole once everything is written; refused when it holds an
+                input or mask, or other files unless ``overwrite``.
+            masks: the body's silhouette per image (or one folder of ``NAME.png``); an RGBA input's
+                alpha is used without one.
+            data: a dataset whose scene set-up the images follow (default: the run's recorded one).
+            azimuth: the camera azimuth assumed for the inputs, degrees.
+            renderer: the backend for the pictures (default: the run's).
+            viewer_images: cards in ``out/index.html`` (0: no viewer).
+        """
+        if viewer_images < 0:
+            raise ConfigError(f"--viewer-images {viewer_images}: must be >= 0 (0: no viewer)")
+        images = [Path(p) for p in images]
+        mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
+        keep = images + [m for m in mask_list if m is not None] + ([Path(self.source)] if looks_like_path(self.source) else [])
+        out = result_folder(Path(out), overwrite=overwrite, keep=keep)
+        return reconstruct_images(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
+                                  renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
+                                  viewer_images=viewer_images, device=self.device,
+                                  title=f"cerberus reconstruct: {printable(self.source)}")
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str) -> None:
         """``results.json`` (the scores and which weights) and ``results.md`` (with the stale warning)."""

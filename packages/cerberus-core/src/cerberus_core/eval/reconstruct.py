@@ -1,0 +1,160 @@
+"""Reconstruction of image files with a trained model: what ``cerberus reconstruct`` does, as one call
+(:meth:`cerberus_core.run.Run.reconstruct_images` or :func:`reconstruct_images`).
+
+For each image: the posed part meshes (GLB, OBJ), the pictures of the paper's Figure 1 and a card of the
+offline 3D viewer, all written into one result folder that replaces ``out`` only once everything is
+written (:func:`cerberus_core.outputs.writing_results`). Inputs out of the training domain are named
+(:mod:`cerberus_core.eval.input_domain`), and every input keeps its own output names
+(:func:`output_names`).
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import ConfigError
+from cerberus_core.eval.export import export_reconstruction
+from cerberus_core.eval.figures import save_image_pictures
+from cerberus_core.eval.input_domain import domain_note, prepare_input
+from cerberus_core.eval.viewer import write_reconstruction_viewer
+from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.names import printable, safe_stem
+from cerberus_core.outputs import RESULT_MARKER, writing_results
+from cerberus_core.plugins import make_renderer
+
+#: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
+#: :func:`cerberus_core.eval.export.export_reconstruction`, pictures of
+#: :func:`cerberus_core.eval.figures.save_image_pictures`, the viewer's new-pose GLB), and the names
+#: of the folder itself. :func:`output_names` keeps every image's set apart from every other's.
+OUTPUT_PATTERNS = ("{}.glb", "{}.obj", "{}_parts", "{}_input.png", "{}_reconstruction.png", "{}_parts.png",
+                   "{}_new_lighting.png", "{}_new_pose.png", "{}_turntable.png", "{}_figure1.png",
+                   "{}_new_pose.glb")
+FOLDER_NAMES = ("index.html", RESULT_MARKER)
+
+
+def _outputs(stem: str) -> list[str]:
+    return [pattern.format(stem) for pattern in OUTPUT_PATTERNS]
+
+
+def output_names(paths: Sequence[Path]) -> list[str]:
+    """One output name per input, such that no two inputs' files share a name.
+
+    The name is the file stem made safe (:func:`cerberus_core.names.safe_stem`: valid UTF-8, no control
+    characters, short enough for every derived name); stems that repeat get the parent folder's name
+    (``a/x.png b/x.png`` → ``a_x``, ``b_x``). Names are then claimed shortest first, and one whose files
+    (:data:`OUTPUT_PATTERNS`) would meet names already claimed gets a counter: ``x.png`` keeps ``x``
+    and ``x_new_pose.png`` becomes ``x_new_pose_2``, since ``x`` writes ``x_new_pose.glb``. Names are
+    compared without case, as case-insensitive file systems do.
+    """
+    stems = [safe_stem(Path(p).stem) for p in paths]
+    counts: dict[str, int] = {}
+    for s in stems:
+        counts[s.casefold()] = counts.get(s.casefold(), 0) + 1
+    names = [s if counts[s.casefold()] == 1 else safe_stem(f"{Path(p).resolve().parent.name or 'root'}_{s}")
+             for p, s in zip(paths, stems, strict=True)]
+    claimed = {n.casefold() for n in FOLDER_NAMES}
+    out: list[str] = [""] * len(names)
+    for i in sorted(range(len(names)), key=lambda i: (len(names[i]), i)):
+        unique, k = names[i], 2
+        while any(o.casefold() in claimed for o in _outputs(unique)):
+            unique, k = f"{names[i]}_{k}", k + 1
+        claimed.update(o.casefold() for o in _outputs(unique))
+        out[i] = unique
+    return out
+
+
+def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Path | None]:
+    """The ``--mask`` of each image: ``None`` each without ``--mask``; one per image, in order; or, for one
+    folder, ``FOLDER/<image stem>.png``."""
+    if not masks:
+        return [None] * len(images)
+    if len(masks) == 1 and masks[0].is_dir():
+        return [masks[0] / f"{Path(p).stem}.png" for p in images]
+    if len(masks) != len(images):
+        raise ConfigError(f"--mask given {len(masks)} time(s) for {len(images)} image(s); give one mask per image, in "
+                          "the images' order, or one folder holding NAME.png for each image NAME")
+    return list(masks)
+
+
+def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene) -> tuple[torch.Tensor, list[str]]:
+    """The model's input images and, per image, its out-of-domain note (``""`` when in domain); one warning
+    names the images out of the training domain and the fix."""
+    loaded = [prepare_input(p, size, scene, m) for p, m in zip(paths, masks, strict=True)]
+    out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
+    if out:
+        shown = [printable(li.path.name) for li, _ in out[:3]]
+        shown = [f"{n[:40]}...{n[-20:]}" if len(n) > 64 else n for n in shown]  # a 300-character name: its ends
+        named = "; ".join(f"{n}: {li.out_of_domain}" for n, (li, _) in zip(shown, out, strict=False))
+        more = f" (and {len(out) - 3} more)" if len(out) > 3 else ""
+        fix = ("give an RGBA cut-out (transparent background) or --mask MASK.png (white on the body) for each"
+               if any(m is None for _, m in out) else "give images of the whole body")
+        warnings.warn(f"{len(out)} of {len(loaded)} image(s) are out of the training domain, so their reconstructions "
+                      f"are unreliable: {named}{more}; {fix}", UserWarning, stacklevel=1)
+    return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded]
+
+
+@dataclass
+class Reconstruction:
+    """What :func:`reconstruct_images` wrote.
+
+    Attributes:
+        out: the result folder.
+        stems: each input's output name (:func:`output_names`).
+        written: the files written, relative to ``out``.
+        renamed: ``"INPUT -> NAME"`` for inputs whose outputs could not take the input's own name.
+        notes: each input's out-of-domain note (``""`` when in the training domain).
+    """
+
+    out: Path
+    stems: list[str]
+    written: list[str]
+    renamed: list[str]
+    notes: list[str]
+
+    def lines(self, viewer: bool) -> list[str]:
+        """What ``cerberus reconstruct`` prints."""
+        lines = ["inputs whose outputs would share or could not take their own name, written as: " +
+                 ", ".join(self.renamed)] if self.renamed else []
+        lines.append(f"wrote {len(set(self.written))} files for {len(self.stems)} image(s) to {printable(self.out)}")
+        return lines + ([f"3D viewer: {printable(self.out / 'index.html')}"] if viewer else [])
+
+
+def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
+                       out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
+                       viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "") -> Reconstruction:
+    """Reconstruct image files and write the result folder ``out`` (checked by the caller with
+    :func:`cerberus_core.outputs.result_folder`; replaced whole once everything is written).
+
+    Args:
+        model: the trained model (on ``device``, in eval mode).
+        scene: the scene set-up the images follow (camera elevation, distance, fov; background).
+        image_size: the model's input size in pixels.
+        renderer: the backend for the pictures.
+        images: the input files; masks: each one's ``--mask`` (or ``None``).
+        azimuth: the camera azimuth assumed for every input, degrees.
+        viewer_images: cards in ``out/index.html`` (0: no viewer).
+        title: the viewer's title.
+    """
+    masks = list(masks) if masks is not None else [None] * len(images)
+    pictures, notes = load_inputs(images, masks, image_size, scene)
+    backend = make_renderer(renderer)
+    stems = output_names(list(images))
+    camera = scene.cameras([azimuth] * len(pictures), image_size)
+    with torch.no_grad():
+        recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
+    with writing_results(out, "cerberus reconstruct") as tmp:  # out is replaced only once all is written
+        written = export_reconstruction(recon, tmp, stems)
+        for i, stem in enumerate(stems):
+            donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
+            written += save_image_pictures(backend, pictures[i], recon.index([i]), camera.index([i]), tmp, stem,
+                                           pose_donor=donor, background=scene.background, note=notes[i])
+        written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems, limit=viewer_images, notes=notes,
+                                               limit_hint="--viewer-images", title=title,
+                                               background=scene.background)
+    renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
+    return Reconstruction(out, stems, written, renamed, notes)
