@@ -1,4 +1,5 @@
-"""User-facing rendering: validate a scene, rasterize with a backend, shade, composite.
+"""User-facing rendering: validate a scene, rasterize with a backend, shade, composite (the ops of
+:mod:`cerberus_core.render.ops`, composed).
 
 >>> from cerberus_core import Camera, Light, make_renderer, render_parts, icosphere
 >>> r = make_renderer("torch")
@@ -15,6 +16,7 @@ from collections.abc import Sequence
 
 import torch
 
+from cerberus_core.render import ops
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 
@@ -87,15 +89,14 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
         raise ValueError(f"render: light has batch {light.direction.shape[0]}, scene has {bsz}")
     alb = _per_vertex(albedo, bsz, nverts, vertices, "albedo")
     clip = camera.world_to_clip(vertices)
-    with torch.no_grad():
-        face_id = renderer.rasterize(clip.detach(), faces, camera.height, camera.width, camera.near)
-    normals = renderer.vertex_normals(vertices, faces)
-    rgb, depth = renderer.shade(clip, faces, face_id, normals, alb, light)
+    face_id = ops.rasterize(renderer, clip, faces, (camera.height, camera.width), camera.near)
+    normals = ops.vertex_normals(renderer, vertices, faces)
+    rgb, depth = ops.shade(renderer, clip, faces, face_id, normals, alb, light)
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
     bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
     image = rgb + (1 - alpha) * bg
     if antialias:
-        blended = renderer.antialias(torch.cat([image, alpha], dim=-1), clip, faces, face_id)
+        blended = ops.antialias(renderer, torch.cat([image, alpha], dim=-1), clip, faces, face_id)
         image, alpha = blended[..., :3], blended[..., 3:]
     if face_part is None:
         part_id = torch.where(face_id >= 0, torch.zeros_like(face_id), face_id)

@@ -1,0 +1,96 @@
+"""The rendering ops as free functions over a backend context, after nvdiffrast: one op per function.
+
+``ctx`` is a renderer backend (:class:`~cerberus_core.render.interface.Renderer`, from
+:func:`cerberus_core.make_renderer`); each op validates its inputs, calls the backend's kernel for it
+(or the shared torch reference the backend inherits) and returns plain tensors, channels last like
+nvdiffrast's. :func:`cerberus_core.render.render` is these ops composed:
+
+>>> import torch
+>>> from cerberus_core import Camera, Light, icosphere, make_renderer
+>>> from cerberus_core.render import ops
+>>> ctx = make_renderer("torch")
+>>> cam = Camera.look_at(30.0, 10.0, 2.5, image_size=32)
+>>> sphere = icosphere(2)
+>>> v = 0.4 * sphere.vertices[None]
+>>> clip = cam.world_to_clip(v)
+>>> face_id = ops.rasterize(ctx, clip, sphere.faces, (32, 32), cam.near)
+>>> normals = ops.vertex_normals(ctx, v, sphere.faces)
+>>> rgb, depth = ops.shade(ctx, clip, sphere.faces, face_id, normals, torch.full_like(v, 0.8), Light.following(cam))
+>>> xyz = ops.interpolate(v, clip, sphere.faces, face_id)  # (1, 32, 32, 3) surface points
+>>> rgba = ops.antialias(ctx, torch.cat([rgb, (face_id >= 0).float()[..., None]], -1), clip, sphere.faces, face_id)
+
+Shapes: ``clip`` ``(B, V, 4)`` clip-space vertices (:meth:`Camera.world_to_clip`), ``faces`` ``(F, 3)``
+int64, ``face_id`` ``(B, H, W)`` int64 (-1 on background), images ``(B, H, W, C)``.
+"""
+from __future__ import annotations
+
+import torch
+
+from cerberus_core.render.interface import Renderer
+from cerberus_core.render.light import Light
+from cerberus_core.render.shading import foreground, homogeneous_barycentrics, pixel_ndc
+from cerberus_core.render.shading import interpolate as interpolate_at
+
+Tensor = torch.Tensor
+
+
+def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int, int], near: float) -> Tensor:
+    """The visible face of every pixel (not differentiable: the barycentrics are recomputed by the
+    differentiable ops from ``clip`` and these ids). The rule is the contract of
+    :mod:`cerberus_core.render.interface`.
+
+    Args:
+        resolution: ``(H, W)`` pixels. near: triangles with a vertex at ``w <= near`` are not drawn.
+    Returns:
+        ``(B, H, W)`` int64 face ids, -1 on background.
+    """
+    height, width = resolution
+    with torch.no_grad():
+        return ctx.rasterize(clip.detach(), faces, int(height), int(width), float(near))
+
+
+def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
+    """Per-vertex attributes at every covered pixel, perspective-correct and differentiable w.r.t.
+    ``attr`` and ``clip`` (the barycentric gradients of Genova et al.).
+
+    Args:
+        attr: ``(B, V, C)`` per-vertex attributes.
+    Returns:
+        ``(B, H, W, C)``, 0 on background.
+    """
+    bsz, height, width = face_id.shape
+    b, r, c, f = foreground(face_id)
+    bary, _ = homogeneous_barycentrics(pixel_ndc(height, width, r, c, clip.dtype), clip[b.unsqueeze(-1), faces[f]])
+    values = interpolate_at(attr, faces, b, f, bary)
+    flat = (b * height + r) * width + c
+    out = values.new_zeros(bsz * height * width, attr.shape[-1]).index_put((flat,), values)
+    return out.view(bsz, height, width, attr.shape[-1])
+
+
+def vertex_normals(ctx: Renderer, vertices: Tensor, faces: Tensor) -> Tensor:
+    """``(B, V, 3)`` area-weighted unit vertex normals of ``(B, V, 3)`` world vertices (differentiable;
+    the backend's kernel or the shared torch code)."""
+    return ctx.vertex_normals(vertices, faces)
+
+
+def shade(ctx: Renderer, clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo: Tensor,
+          light: Light) -> tuple[Tensor, Tensor]:
+    """Lambertian shading of the visible surface (differentiable).
+
+    Args:
+        normals: ``(B, V, 3)`` unit world-space vertex normals; albedo: ``(B, V, 3)``.
+    Returns:
+        ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)`` (distance along the view axis), both 0 on
+        background.
+    """
+    return ctx.shade(clip, faces, face_id, normals, albedo, light)
+
+
+def antialias(ctx: Renderer, color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
+    """Analytic anti-aliasing of silhouette and occlusion edges (visibility gradients): ``(B, H, W, C)``
+    colours blended across the edges, differentiable w.r.t. ``color`` and ``clip``
+    (:mod:`cerberus_core.render.antialias`)."""
+    return ctx.antialias(color, clip, faces, face_id)
+
+
+__all__ = ["antialias", "interpolate", "rasterize", "shade", "vertex_normals"]
