@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import torch
 
-from cerberus_core.render import ops
+import cerberus_core.render.ops as ops
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 
