@@ -60,7 +60,7 @@ def test_generate_takes_set_overrides_with_the_training_configs_validation(tmp_p
     assert cfg["preset"] == "tiny" and cfg["dataset"] == "primitives"
     for flags, message in ((["--set", "splits.train.pair=3"], "did you mean 'splits.train.pairs'"),
                            (["--set", "splits.train.layout=pair"], "splits.train.layout: must be one of 'pairs'"),
-                           (["--set", "scene.fov_y=200"], "scene: SceneSetup.fov_y must lie in"),
+                           (["--set", "scene.fov_y=200"], r"scene.fov_y = 200.0: must be a number in \(0, 180\)"),
                            (["--set", "seed"], "section.key=value"),
                            (["--size", "tiniest"], "unknown preset 'tiniest' for dataset 'primitives'.*tiny")):
         assert main([*base, *flags, "--dry-run"]) == 2

@@ -155,7 +155,8 @@ def test_splits_must_not_share_subjects():
 def test_every_bundled_dataset_preset_loads():
     from cerberus_core.datasets.plan import DATASETS, load_generation_config, sizes
 
-    assert sizes("human") == sizes("animal") == ["paper", "small", "small128", "small_faithful", "tiny"]
+    assert sizes("human") == ["large", "paper", "small", "small128", "small_faithful", "tiny"]
+    assert sizes("animal") == ["paper", "small", "small128", "small_faithful", "tiny"]
     assert sizes("primitives") == ["paper", "small", "tiny"]
     assert sizes("folder") == ["grid", "pairs"]
     for dataset in DATASETS:
@@ -248,7 +249,7 @@ def test_framed_distance_fits_a_vertical_cylinder_tightly(radius):
     assert float(uv2.min()) < 0 or float(uv2.max()) > 64
     assert SceneSetup.from_dict(scene.to_dict()) == scene and scene.to_dict()["fitted_radius"] == radius
     assert "fitted_radius" not in SceneSetup().to_dict()  # the paper's set-up keeps its stored form
-    with pytest.raises(ValueError, match="fitted_radius must be positive"):
+    with pytest.raises(ValueError, match=r"scene.fitted_radius = 0.0: must be a number > 0"):
         SceneSetup(fitted_radius=0.0)
 
 
@@ -271,5 +272,5 @@ def test_supersampled_images_blend_edges_and_keep_the_coverage(tmp_path):
     assert abs(float(soft.astype(np.float64).sum()) / float(hard.astype(np.float64).sum()) - 1) < 0.05
     cfg = preset_config("primitives", "tiny")
     assert "supersample" not in cfg.to_dict() and replace(cfg, supersample=4).to_dict()["supersample"] == 4
-    with pytest.raises(ValueError, match="supersample must be an integer"):
+    with pytest.raises(ValueError, match=r"supersample = .*: must be an integer in \[1, 8\]"):
         replace(cfg, supersample=0)

@@ -366,5 +366,5 @@ def test_one_registry_of_loss_terms_names_the_config_weights_the_objective_the_l
     for term, row in zip(LOSS_TERMS, rows, strict=True):
         assert term.function.__module__ == "cerberus_core.losses" and f"`{term.function.__name__}`" in row
         assert (" yes " in row) == term.paper and term.summary.split(" (")[0] in row
-    with pytest.raises(ValueError, match="losses.hidden is a loss weight"):
+    with pytest.raises(ValueError, match=r"losses.hidden = nan: must be a number >= 0"):
         LossConfig(hidden=float("nan")).validate()

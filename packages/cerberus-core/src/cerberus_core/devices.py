@@ -6,6 +6,13 @@ from __future__ import annotations
 from cerberus_core.errors import ConfigError
 
 
+def is_device_name(name: object) -> bool:
+    """Whether ``name`` is written as a device: ``auto``, ``cpu``, ``cuda`` or ``cuda:N`` (whether that
+    device exists here is :func:`check_device`'s question, asked where it is used)."""
+    return isinstance(name, str) and (name in ("auto", "cpu", "cuda") or
+                                      (name.startswith("cuda:") and name[5:].isdigit()))
+
+
 def check_device(name: str, option: str = "--device") -> str:
     """``cpu``, ``cuda`` or ``cuda:N`` that exists here, or ``auto``; returns ``name``.
 
@@ -18,15 +25,16 @@ def check_device(name: str, option: str = "--device") -> str:
     cpu = f"{option} cpu" if option.startswith("--") else f"--set {option}=cpu"
     if name in ("auto", "cpu"):
         return name
-    if name == "cuda" or name.startswith("cuda:"):
+    if not is_device_name(name):
+        raise ConfigError(f"{option} {name!r}: expected cpu, cuda or cuda:N (or auto)")
+    if name.startswith("cuda"):
         if not torch.cuda.is_available():
             raise ConfigError(f"{option} {name}: CUDA is not available on this machine; use {cpu}")
         index = name.partition(":")[2]
-        if index and (not index.isdigit() or int(index) >= torch.cuda.device_count()):
+        if index and int(index) >= torch.cuda.device_count():
             raise ConfigError(f"{option} {name}: no such GPU (this machine has {torch.cuda.device_count()}); "
                               f"use {option} cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
-        return name
-    raise ConfigError(f"{option} {name!r}: expected cpu, cuda or cuda:N (or auto)")
+    return name
 
 
 def cpu_flags() -> frozenset[str]:

@@ -26,13 +26,15 @@ that give the paper's variants (Free Cerberus: ``pose_consistency: false``).
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import torch
 
+from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import pose_parts
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
@@ -64,7 +66,7 @@ class LossTerm:
 
 
 @dataclass
-class LossConfig:
+class LossConfig(Checked):
     """Loss weights and consistency switches (the ``losses:`` section of a training config).
 
     Attributes:
@@ -95,26 +97,19 @@ class LossConfig:
             (:func:`background_mask`).
     """
 
-    recon: float = 1.0
-    translation: float = 1.0
-    background: float = 1.0
-    smoothness: float = 0.0001
-    silhouette: float = 0.0
-    chamfer: float = 0.0
-    hidden: float = 0.0
+    SECTION = "losses"
+
+    recon: float = ranged(1.0, ge=0)
+    translation: float = ranged(1.0, ge=0)
+    background: float = ranged(1.0, ge=0)
+    smoothness: float = ranged(0.0001, ge=0)
+    silhouette: float = ranged(0.0, ge=0)
+    chamfer: float = ranged(0.0, ge=0)
+    hidden: float = ranged(0.0, ge=0)
     pose_consistency: bool = True
     viewpoint_consistency: bool = True
-    render_background: str = "black"
-    background_tolerance: float = 0.02
-
-    def validate(self) -> None:
-        for name in TERMS:
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise ValueError(f"losses.{name} is a loss weight and must be a finite number >= 0, got {getattr(self, name)}")
-        if self.render_background not in ("black", "dataset"):
-            raise ValueError(f"losses.render_background must be 'black' or 'dataset', got {self.render_background!r}")
-        if not 0 <= self.background_tolerance < 1:
-            raise ValueError(f"losses.background_tolerance must be in [0, 1), got {self.background_tolerance}")
+    render_background: Literal["black", "dataset"] = "black"
+    background_tolerance: float = ranged(0.02, ge=0, lt=1)
 
     def weight(self, name: str) -> float:
         """The weight ``lambda`` of the term ``name`` of :data:`LOSS_TERMS`."""
@@ -146,8 +141,7 @@ def reconstruction_loss(rendered: Tensor, target: Tensor) -> Tensor:
     Returns:
         ``(...)`` one loss per image (sum over channels, mean over pixels).
     """
-    if rendered.shape != target.shape:
-        raise ValueError(f"reconstruction_loss: rendered {tuple(rendered.shape)} vs target {tuple(target.shape)}")
+    check_shapes("reconstruction_loss", rendered=(rendered, "... 3 H W"), target=(target, "... 3 H W"))
     return (rendered - target).square().sum(dim=-3).mean(dim=(-2, -1))
 
 
@@ -160,8 +154,7 @@ def mix_shape_latents(latents: Tensor, generator: torch.Generator | None = None)
     Returns:
         ``mixed`` ``(B, S)`` with ``mixed[b, s] = latents[b, Z[b, s], s]``, and ``Z`` ``(B, S)`` int64.
     """
-    if latents.ndim != 3 or latents.shape[1] != 4:
-        raise ValueError(f"mix_shape_latents expects (B, 4, S) latents, got {tuple(latents.shape)}")
+    check_shapes("mix_shape_latents", latents=(latents, "B 4 S"))
     bsz, _, size = latents.shape
     choice = torch.randint(0, 4, (bsz, size), generator=generator).to(latents.device)
     mixed = latents.gather(1, choice.unsqueeze(1)).squeeze(1)
@@ -211,8 +204,7 @@ def translation_loss(translations: Tensor) -> Tensor:
     Returns:
         ``(B,)`` ``(L_t^a + L_t^b) / 2`` with ``L_t^a = 1/N sum_i ||T_i^a0 - T_i^a1||^2``.
     """
-    if translations.ndim != 4 or translations.shape[1] != 4:
-        raise ValueError(f"translation_loss expects (B, 4, N, 3), got {tuple(translations.shape)}")
+    check_shapes("translation_loss", translations=(translations, "B 4 N 3"))
     pose_a = (translations[:, 0] - translations[:, 1]).square().sum(-1).mean(-1)
     pose_b = (translations[:, 2] - translations[:, 3]).square().sum(-1).mean(-1)
     return 0.5 * (pose_a + pose_b)
@@ -285,8 +277,7 @@ def silhouette_loss(alpha: Tensor, foreground: Tensor) -> Tensor:
     Returns:
         ``(...)`` mean over pixels.
     """
-    if alpha.shape != foreground.shape:
-        raise ValueError(f"silhouette_loss: alpha {tuple(alpha.shape)} vs foreground {tuple(foreground.shape)}")
+    check_shapes("silhouette_loss", alpha=(alpha, "... 1 H W"), foreground=(foreground, "... 1 H W"))
     return (alpha - foreground).square().mean(dim=(-3, -2, -1))
 
 
@@ -368,8 +359,7 @@ def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512
     """
     fg = foreground.reshape(foreground.shape[0], *foreground.shape[-2:]) > 0.5
     n, height, _ = fg.shape
-    if points.ndim != 3 or points.shape[0] != n or points.shape[-1] != 2:
-        raise ValueError(f"silhouette_chamfer: points must be ({n}, M, 2), got {tuple(points.shape)}")
+    check_shapes("silhouette_chamfer", points=(points, "N M 2"), foreground=(fg, "N H W"))
     stride = max(1, -(-points.shape[1] // max_points))
     pts = points[:, ::stride]  # (N, M', 2)
     centres, valid = mask_pixel_centres(fg)  # (N, K, 2), (N, K)
@@ -401,9 +391,7 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
     """
     free = uncovered.reshape(uncovered.shape[0], *uncovered.shape[-2:]) > 0.5
     n, height, _ = free.shape
-    if points.ndim != 4 or points.shape[0] != n or points.shape[-1] != 2 or visible.shape != points.shape[:2]:
-        raise ValueError(f"hidden_part_pull: points must be ({n}, P, V, 2) and visible (N, P), got "
-                         f"{tuple(points.shape)} and {tuple(visible.shape)}")
+    check_shapes("hidden_part_pull", points=(points, "N P V 2"), visible=(visible, "N P"), uncovered=(free, "N H W"))
     has_free = free.flatten(1).any(1)
     image, part = torch.nonzero(~visible.bool() & has_free[:, None], as_tuple=True)  # the pulled parts
     out = points.new_zeros(n)

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from cerberus_core.shapes import check_shapes
+
 Tensor = torch.Tensor
 
 
@@ -52,19 +54,12 @@ class PartSet:
 
     def __post_init__(self) -> None:
         lv, f, r, t = self.local_vertices, self.faces, self.rotations, self.translations
-        if lv.ndim != 4 or lv.shape[-1] != 3:
-            raise ValueError(f"PartSet.local_vertices must be (B, P, V, 3), got {tuple(lv.shape)}")
-        b, p, v, _ = lv.shape
-        if f.ndim != 2 or f.shape[-1] != 3:
-            raise ValueError(f"PartSet.faces must be (F, 3), got {tuple(f.shape)}")
+        v = check_shapes("PartSet", local_vertices=(lv, "B P V 3"), faces=(f, "F 3"), rotations=(r, "B P 3 3"),
+                         translations=(t, "B P 3"))["V"]
         if f.dtype not in (torch.int32, torch.int64):
             raise ValueError(f"PartSet.faces must be an integer tensor, got {f.dtype}")
         if f.numel() and (int(f.min()) < 0 or int(f.max()) >= v):
             raise ValueError(f"PartSet.faces index vertices outside 0..{v - 1}")
-        if r.shape != (b, p, 3, 3):
-            raise ValueError(f"PartSet.rotations must be ({b}, {p}, 3, 3), got {tuple(r.shape)}")
-        if t.shape != (b, p, 3):
-            raise ValueError(f"PartSet.translations must be ({b}, {p}, 3), got {tuple(t.shape)}")
 
     # ------------------------------------------------------------------ construction
     @classmethod

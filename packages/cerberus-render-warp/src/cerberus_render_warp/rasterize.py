@@ -20,6 +20,7 @@ from typing import Any
 import torch
 
 from cerberus_core.render.camera import pixel_centres
+from cerberus_core.shapes import check_shapes
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
@@ -195,12 +196,9 @@ _RASTER = {
 
 def check_inputs(clip: Tensor, faces: Tensor) -> None:
     """Shape/dtype checks shared by the rasterizer and the shader."""
-    if clip.ndim != 3 or clip.shape[-1] != 4:
-        raise ValueError(f"warp renderer: clip must be (B, V, 4), got {tuple(clip.shape)}")
+    check_shapes("warp renderer", clip=(clip, "B V 4"), faces=(faces, "F 3"))
     if clip.dtype not in SUPPORTED_DTYPES:
         raise ValueError(f"warp renderer: clip must be float32 or float64, got {clip.dtype}")
-    if faces.ndim != 2 or faces.shape[-1] != 3:
-        raise ValueError(f"warp renderer: faces must be (F, 3), got {tuple(faces.shape)}")
     if faces.dtype not in (torch.int32, torch.int64):
         raise ValueError(f"warp renderer: faces must be an integer tensor, got {faces.dtype}")
     if faces.device != clip.device:

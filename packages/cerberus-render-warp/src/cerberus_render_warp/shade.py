@@ -21,6 +21,7 @@ from torch.autograd.function import once_differentiable
 from cerberus_core.render.camera import pixel_centres
 from cerberus_core.render.light import Light
 from cerberus_core.render.templates import NORMAL_EPS
+from cerberus_core.shapes import check_shapes
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, overloads, row_span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
@@ -323,16 +324,9 @@ def shade(clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo:
         ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)`` (world units), 0 on background.
     """
     check_inputs(clip, faces)
-    bsz, nverts = clip.shape[0], clip.shape[1]
-    if face_id.ndim != 3 or face_id.shape[0] != bsz:
-        raise ValueError(f"warp renderer: face_id must be ({bsz}, H, W), got {tuple(face_id.shape)}")
-    for name, t in (("normals", normals), ("albedo", albedo)):
-        if t.shape != (bsz, nverts, 3):
-            raise ValueError(f"warp renderer: {name} must be ({bsz}, {nverts}, 3), got {tuple(t.shape)}")
-    for name in ("direction", "ambient", "diffuse"):
-        t = getattr(light, name)
-        if t.shape != (bsz, 3):
-            raise ValueError(f"warp renderer: light.{name} must be ({bsz}, 3), got {tuple(t.shape)}")
+    check_shapes("warp renderer", clip=(clip, "B V 4"), face_id=(face_id, "B H W"), normals=(normals, "B V 3"),
+                 albedo=(albedo, "B V 3"), **{f"light.{name}": (getattr(light, name), "B 3")
+                                              for name in ("direction", "ambient", "diffuse")})
     tensors = [normals, albedo, light.direction, light.ambient, light.diffuse]
     if any(t.device != clip.device for t in [face_id, *tensors]):
         raise ValueError("warp renderer: clip, face_id, normals, albedo and light must be on one device")

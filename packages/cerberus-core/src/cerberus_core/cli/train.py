@@ -85,25 +85,22 @@ def resolve_config(args: argparse.Namespace, out: Path):
     from cerberus_core.train.config import TrainConfig, deep_merge, load_config, parse_overrides
 
     saved = out / "config.yaml"
-    try:
-        if args.resume and args.config is None and args.preset is None and saved.is_file():
-            # Resume from the run's own config plus --set overrides.
-            try:
-                raw = yaml.safe_load(saved.read_text())
-            except yaml.YAMLError as exc:
-                raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
-            config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(args.overrides)))
-            root = Path(config.data.root)
-            if not root.is_absolute() and not root.exists():
-                raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and "
-                                  f"does not exist from {Path.cwd()}; pass --set data.root=/absolute/path")
-        else:
-            if args.config is not None:
-                _check_config_file(args.config)
-            config = load_config(args.config, preset=None if args.config else (args.preset or ["paper"]),
-                                 overrides=args.overrides)
-    except ValueError as exc:  # the config's own checks (ConfigError is a ValueError): one line
-        raise (exc if isinstance(exc, ConfigError) else ConfigError(str(exc))) from None
+    if args.resume and args.config is None and args.preset is None and saved.is_file():
+        # Resume from the run's own config plus --set overrides.
+        try:
+            raw = yaml.safe_load(saved.read_text())
+        except yaml.YAMLError as exc:
+            raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
+        config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(args.overrides)))
+        root = Path(config.data.root)
+        if not root.is_absolute() and not root.exists():
+            raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and "
+                              f"does not exist from {Path.cwd()}; pass --set data.root=/absolute/path")
+    else:
+        if args.config is not None:
+            _check_config_file(args.config)
+        config = load_config(args.config, preset=None if args.config else (args.preset or ["paper"]),
+                             overrides=args.overrides)
     check_device(config.device, option="--device" if args.device is not None else "device")
     return config
 

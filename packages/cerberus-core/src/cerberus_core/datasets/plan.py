@@ -37,6 +37,7 @@ from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.errors import ConfigError
+from cerberus_core.fields import Checked, ranged
 
 LAYOUTS = ("pairs", "grid")
 POSE_PAIRS = ("independent", "motion")
@@ -137,7 +138,7 @@ class SplitConfig:
 
 
 @dataclass(frozen=True)
-class GenerationConfig:
+class GenerationConfig(Checked):
     """Everything that determines a dataset's content (its hash identifies the dataset).
 
     Attributes:
@@ -161,25 +162,17 @@ class GenerationConfig:
     dataset: str
     preset: str
     splits: dict[str, SplitConfig]
-    seed: int = 0
-    image_size: int = 64
+    seed: int = ranged(0, ge=0)
+    image_size: int = ranged(64, ge=8, le=MAX_IMAGE_SIZE)
     renderer: str = "auto"
     scene: SceneSetup = field(default_factory=SceneSetup)
-    shard_images: int = 1024
+    shard_images: int = ranged(1024, ge=4)
     source: dict[str, Any] = field(default_factory=dict)
-    supersample: int = 1
+    supersample: int = ranged(1, ge=1, le=8)
 
-    def __post_init__(self) -> None:
-        if not 8 <= self.image_size <= MAX_IMAGE_SIZE:
-            raise ValueError(f"image_size must lie in 8..{MAX_IMAGE_SIZE} pixels, got {self.image_size}")
-        if self.seed < 0:
-            raise ValueError(f"seed must be >= 0, got {self.seed}")
-        if not isinstance(self.supersample, int) or not 1 <= self.supersample <= 8:
-            raise ValueError(f"supersample must be an integer in 1..8 (samples per pixel side), got {self.supersample!r}")
-        if self.shard_images < 4:
-            raise ValueError(f"shard_images must be >= 4, got {self.shard_images}")
+    def validate(self) -> None:
         if not self.splits:
-            raise ValueError("a dataset needs at least one split")
+            raise ConfigError("a dataset needs at least one split; add a splits: section (e.g. train: and test:)")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (stored as the manifest's ``config``; keys added after format v1 only when

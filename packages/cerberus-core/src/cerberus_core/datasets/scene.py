@@ -20,7 +20,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 from functools import lru_cache
 
 import numpy as np
@@ -29,6 +29,7 @@ import torch
 from cerberus_core.bodies.body import FILL
 from cerberus_core.config import omit_defaults
 from cerberus_core.errors import ConfigError
+from cerberus_core.fields import check_fields, ranged
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 
@@ -118,45 +119,33 @@ class SceneSetup:
             :meth:`to_dict` when ``None``, so older manifests keep their hash.
     """
 
-    elevation: float = 15.0
-    fov_y: float = 30.0
+    elevation: float = ranged(15.0, gt=-90, lt=90)
+    fov_y: float = ranged(30.0, gt=0, lt=180)
     distance: float | None = None
-    ambient: float = 0.4
-    diffuse: float = 0.6
+    ambient: float = ranged(0.4, ge=0)
+    diffuse: float = ranged(0.6, ge=0)
     albedo: tuple[float, float, float] = (0.8, 0.8, 0.8)
     background: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    near: float = 0.05
+    near: float = ranged(0.05, gt=0)
     far: float = 100.0
-    fitted_extent: float = field(default=FILL)
-    fitted_radius: float | None = None
+    fitted_extent: float = ranged(FILL, gt=0)
+    fitted_radius: float | None = ranged(None, gt=0, integer=False)
 
     def __post_init__(self) -> None:
-        if not 0 < self.fov_y < 180:
-            raise ValueError(f"SceneSetup.fov_y must lie in (0, 180) degrees, got {self.fov_y}")
-        if not -90 < self.elevation < 90:
-            raise ValueError(f"SceneSetup.elevation must lie in (-90, 90) degrees, got {self.elevation}")
-        if not self.fitted_extent > 0:
-            raise ValueError(f"SceneSetup.fitted_extent must be > 0, got {self.fitted_extent}")
-        if self.fitted_radius is not None and not self.fitted_radius > 0:
-            raise ValueError(f"SceneSetup.fitted_radius must be positive or null, got {self.fitted_radius}")
+        check_fields(self, "scene")
         if self.distance is None:
             object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent,
                                                                radius=self.fitted_radius))
-        if not self.near > 0:
-            raise ValueError(f"SceneSetup.near must be > 0, got {self.near}")
         if self.distance <= self.near:
-            raise ValueError(f"SceneSetup.distance {self.distance} must exceed the near plane {self.near}")
+            raise ConfigError(f"scene.distance {self.distance} must exceed the near plane {self.near}")
         if self.far <= self.distance:
-            raise ValueError(f"SceneSetup.far {self.far} must exceed the distance {self.distance} (the body sits "
-                             "at the origin)")
-        for name in ("ambient", "diffuse"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"SceneSetup.{name} must be >= 0, got {getattr(self, name)}")
+            raise ConfigError(f"scene.far {self.far} must exceed the distance {self.distance} (the body sits "
+                              "at the origin)")
         object.__setattr__(self, "albedo", tuple(float(a) for a in self.albedo))
         object.__setattr__(self, "background", tuple(float(b) for b in self.background))
         for name in ("albedo", "background"):
             if not all(0.0 <= c <= 1.0 for c in getattr(self, name)):
-                raise ValueError(f"SceneSetup.{name} {list(getattr(self, name))}: RGB values must lie in [0, 1]")
+                raise ConfigError(f"scene.{name} {list(getattr(self, name))}: RGB values must lie in [0, 1]")
 
     LIGHT = {"type": "directional+ambient", "follows_camera": True, "colour": "white"}
     """The only light there is (stored in the manifest for readers of the JSON): white directional
@@ -199,10 +188,7 @@ class SceneSetup:
                     raise ConfigError(f"scene.{k} = {v!r}: expected 3 finite numbers (RGB in [0, 1])")
             elif k in keys and not (number(v) or (v is None and k in ("distance", "fitted_radius"))):
                 raise ConfigError(f"scene.{k} = {v!r}: expected a finite number")
-        try:
-            return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})
-        except ValueError as exc:
-            raise ConfigError(f"scene: {exc}") from None
+        return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})
 
     def cameras(self, azimuth_deg: Tensor | np.ndarray | list[float], image_size: int,
                 device: torch.device | str | None = None) -> Camera:

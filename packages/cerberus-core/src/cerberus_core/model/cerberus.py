@@ -18,17 +18,20 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from cerberus_core.errors import ConfigError
+from cerberus_core.fields import Checked, Range, ranged
 from cerberus_core.model.encoder import ResNet10, UpDecoder
 from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.templates import MeshTemplate, icosphere
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
 
 @dataclass
-class ModelConfig:
+class ModelConfig(Checked):
     """Architecture hyper-parameters (the ``model:`` section of a training config).
 
     Attributes:
@@ -54,42 +57,29 @@ class ModelConfig:
             world frame).
     """
 
-    num_parts: int = 9
-    sphere_level: int = 2
-    width: int = 64
-    shape_latent_dim: int = 256
-    init_scale: float = 0.12
-    displacement_scale: float = 0.05
-    vertex_bound: float | None = None
-    anchor_spread: float = 0.4
+    SECTION = "model"
+
+    num_parts: int = ranged(9, ge=1)
+    sphere_level: int = ranged(2, ge=0, le=5)
+    width: int = ranged(64, ge=1)
+    shape_latent_dim: int = ranged(256, ge=1)
+    init_scale: float = ranged(0.12, gt=0)
+    displacement_scale: float = ranged(0.05, gt=0)
+    vertex_bound: float | None = ranged(None, gt=0, integer=False)
+    anchor_spread: float = ranged(0.4, ge=0, lt=1)
     depth_offset: float | str = "auto"
     predict_rotation: bool = True
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the bad field and its allowed range."""
-        if not isinstance(self.num_parts, int) or self.num_parts < 1:
-            raise ValueError(f"model.num_parts must be a positive integer, got {self.num_parts!r}")
-        if not isinstance(self.sphere_level, int) or not 0 <= self.sphere_level <= 5:
-            raise ValueError(f"model.sphere_level must be an integer in 0..5, got {self.sphere_level!r}")
-        if not isinstance(self.width, int) or self.width < 1:
-            raise ValueError(f"model.width must be a positive integer, got {self.width!r}")
-        if not isinstance(self.shape_latent_dim, int) or self.shape_latent_dim < 1:
-            raise ValueError(f"model.shape_latent_dim must be a positive integer, got {self.shape_latent_dim!r}")
-        if not self.init_scale > 0:
-            raise ValueError(f"model.init_scale must be positive, got {self.init_scale!r}")
-        if not self.displacement_scale > 0:
-            raise ValueError(f"model.displacement_scale must be positive, got {self.displacement_scale!r}")
+        """The checks between fields (the ranges are declared above)."""
         if self.vertex_bound is not None and not self.vertex_bound > self.init_scale:
-            raise ValueError(f"model.vertex_bound must be null or larger than model.init_scale "
-                             f"({self.init_scale}), got {self.vertex_bound!r}")
-        if not 0 <= self.anchor_spread < 1:
-            raise ValueError(f"model.anchor_spread must be in [0, 1), got {self.anchor_spread!r}")
+            raise ConfigError(f"model.vertex_bound must be null or larger than model.init_scale "
+                              f"({self.init_scale}), got {self.vertex_bound!r}")
         if isinstance(self.depth_offset, str):
             if self.depth_offset != "auto":
-                raise ValueError(f"model.depth_offset must be a number or 'auto', got {self.depth_offset!r}")
-        elif not self.depth_offset > 0:
-            raise ValueError(f"model.depth_offset must be positive, got {self.depth_offset!r}")
-
+                raise ConfigError(f"model.depth_offset must be a number or 'auto', got {self.depth_offset!r}")
+        elif not Range(gt=0).admits(self.depth_offset):
+            raise ConfigError(f"model.depth_offset must be positive or 'auto', got {self.depth_offset!r}")
 
 @dataclass
 class Predictions:
@@ -124,7 +114,7 @@ class Cerberus(nn.Module):
 
     def __init__(self, config: ModelConfig) -> None:
         super().__init__()
-        config.validate()
+        config.check()
         if isinstance(config.depth_offset, str):
             raise ValueError("Cerberus: model.depth_offset is still 'auto'; set it to the camera distance "
                              "(the trainer does this from the dataset's scene)")
@@ -157,8 +147,7 @@ class Cerberus(nn.Module):
             mix: optional map ``(B, S) → (B, S)`` applied to the shape latents before they are
                 decoded into vertices (pose consistency, equation 3).
         """
-        if images.ndim != 4 or images.shape[1] != 3:
-            raise ValueError(f"Cerberus expects (B, 3, H, W) images, got {tuple(images.shape)}")
+        check_shapes("Cerberus", images=(images, "B 3 H W"))
         c4, features = self._cnn(images)
         object_latent = c4.mean(dim=(-2, -1))
         shape_latent = self.shape.latent(object_latent)

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from cerberus_core.shapes import check_shapes
+
 Tensor = torch.Tensor
 
 
@@ -104,8 +106,7 @@ class ResNet10(nn.Module):
 
     def forward(self, images: Tensor) -> FeaturePyramid:
         """``(B, in_channels, H, W)`` → :class:`FeaturePyramid`."""
-        if images.ndim != 4:
-            raise ValueError(f"ResNet10 expects (B, C, H, W) images, got shape {tuple(images.shape)}")
+        check_shapes("ResNet10", images=(images, "B C H W"))
         if min(images.shape[-2:]) < 32:
             raise ValueError(f"ResNet10 needs images of at least 32x32 pixels, got {tuple(images.shape[-2:])}")
         c1 = self.layer1(self.stem(images))

@@ -48,6 +48,7 @@ from __future__ import annotations
 import torch
 
 from cerberus_core.render.shading import homogeneous_barycentrics, pixel_ndc
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
@@ -70,8 +71,7 @@ def edge_neighbors(faces: Tensor) -> Tensor:
     The result is cached by the faces' content (an equality check per call), so calling it every
     render with freshly packed faces costs one comparison.
     """
-    if faces.ndim != 2 or faces.shape[-1] != 3:
-        raise ValueError(f"edge_neighbors: faces must be (F, 3), got {tuple(faces.shape)}")
+    check_shapes("edge_neighbors", faces=(faces, "F 3"))
     key = (str(faces.device), tuple(faces.shape))
     entries = _NEIGHBOR_CACHE.setdefault(key, [])
     for cached, nbrs in entries:
@@ -164,12 +164,8 @@ def check_antialias_inputs(color: Tensor, clip: Tensor, faces: Tensor, face_id: 
     if color.ndim != 4:
         raise ValueError(f"{who}: color must be (B, H, W, C) channels-last, got {tuple(color.shape)}; "
                          "permute a (B, C, H, W) image with .permute(0, 2, 3, 1)")
-    if face_id.ndim != 3 or tuple(face_id.shape) != tuple(color.shape[:3]):
-        raise ValueError(f"{who}: face_id must be (B, H, W) = {tuple(color.shape[:3])}, got {tuple(face_id.shape)}")
-    if clip.ndim != 3 or clip.shape[-1] != 4 or clip.shape[0] != color.shape[0]:
-        raise ValueError(f"{who}: clip must be ({color.shape[0]}, V, 4), got {tuple(clip.shape)}")
-    if faces.ndim != 2 or faces.shape[-1] != 3:
-        raise ValueError(f"{who}: faces must be (F, 3), got {tuple(faces.shape)}")
+    check_shapes(who, color=(color, "B H W C"), face_id=(face_id, "B H W"), clip=(clip, "B V 4"),
+                 faces=(faces, "F 3"))
     if len({color.device, clip.device, faces.device, face_id.device}) != 1:
         raise ValueError(f"{who}: color, clip, faces and face_id must be on one device")
 

@@ -19,6 +19,7 @@ import torch
 import cerberus_core.render.ops as ops
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
@@ -27,10 +28,7 @@ MAX_COORDINATE = 1e8
 
 
 def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
-    if vertices.ndim != 3 or vertices.shape[-1] != 3:
-        raise ValueError(f"render: vertices must be (B, V, 3), got {tuple(vertices.shape)}")
-    if faces.ndim != 2 or faces.shape[-1] != 3:
-        raise ValueError(f"render: faces must be (F, 3), got {tuple(faces.shape)}")
+    check_shapes("render", vertices=(vertices, "B V 3"), faces=(faces, "F 3"))
     if faces.dtype not in (torch.int32, torch.int64):
         raise ValueError(f"render: faces must be an integer tensor, got {faces.dtype}")
     if vertices.shape[0] != camera.batch_size:
@@ -140,8 +138,7 @@ def render_parts(renderer: Renderer, part_vertices: Tensor, faces: Tensor, camer
         albedo: ``(3,)``, ``(P, 3)`` / ``(B, P, 3)`` per part, or ``(B, P, V, 3)`` per vertex.
         Others as in :func:`render`.
     """
-    if part_vertices.ndim != 4 or part_vertices.shape[-1] != 3:
-        raise ValueError(f"render_parts: part_vertices must be (B, P, V, 3), got {tuple(part_vertices.shape)}")
+    check_shapes("render_parts", part_vertices=(part_vertices, "B P V 3"))
     bsz, nparts, nverts, _ = part_vertices.shape
     vertices, packed_faces, face_part = pack_parts(part_vertices, faces)
     alb = torch.as_tensor(albedo, dtype=vertices.dtype, device=vertices.device)

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import torch
 
+from ..shapes import check_shapes
+
 Tensor = torch.Tensor
 
 
@@ -116,14 +118,9 @@ class Camera:
     far: float = 100.0
 
     def __post_init__(self) -> None:
-        if self.rotation.ndim != 3 or self.rotation.shape[-2:] != (3, 3):
-            raise ValueError(f"Camera.rotation must be (B, 3, 3), got {tuple(self.rotation.shape)}")
-        b = self.rotation.shape[0]
-        if self.translation.shape != (b, 3):
-            raise ValueError(f"Camera.translation must be ({b}, 3), got {tuple(self.translation.shape)}")
+        b = check_shapes("Camera", rotation=(self.rotation, "B 3 3"), translation=(self.translation, "B 3"))["B"]
         self.fov_y_deg = _as_batch(self.fov_y_deg, b, dtype=self.rotation.dtype, device=self.rotation.device)
-        if self.fov_y_deg.shape != (b,):
-            raise ValueError(f"Camera.fov_y_deg must be a scalar or ({b},), got {tuple(self.fov_y_deg.shape)}")
+        check_shapes("Camera (fov_y_deg: a scalar or one per camera)", fov_y_deg=(self.fov_y_deg, f"{b}"))
         if not bool(((self.fov_y_deg > 0) & (self.fov_y_deg < 180)).all()):
             raise ValueError("Camera.fov_y_deg must lie strictly between 0 and 180 degrees")
         if self.height <= 0 or self.width <= 0:

@@ -22,7 +22,9 @@ from typing import Any, Literal
 import yaml
 
 from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, parse_overrides
+from cerberus_core.devices import is_device_name
 from cerberus_core.errors import ConfigError
+from cerberus_core.fields import Checked, Range, ranged
 from cerberus_core.losses import LossConfig
 from cerberus_core.model.cerberus import ModelConfig
 from cerberus_core.train.speed import SpeedConfig
@@ -32,7 +34,7 @@ __all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "RenderConf
 
 
 @dataclass
-class DataConfig:
+class DataConfig(Checked):
     """Attributes:
         root: dataset folder (read by ``cerberus_core.datasets.readers.QuadrupletDataset``).
         split: the split to train on.
@@ -41,14 +43,16 @@ class DataConfig:
         num_workers: DataLoader worker processes (0: load in the training process).
     """
 
+    SECTION = "data"
+
     root: str = "data/human"
     split: str = "train"
-    image_size: int | None = None
-    num_workers: int = 0
+    image_size: int | None = ranged(None, ge=32, integer=True)
+    num_workers: int = ranged(0, ge=0)
 
 
 @dataclass
-class OptimConfig:
+class OptimConfig(Checked):
     """Adam and its learning-rate schedule.
 
     Attributes:
@@ -60,18 +64,24 @@ class OptimConfig:
         min_lr_ratio: final learning rate of the cosine schedule, relative to ``lr``.
     """
 
-    lr: float = 0.0005
+    SECTION = "optim"
+
+    lr: float = ranged(0.0005, gt=0)
     betas: list[float] = field(default_factory=lambda: [0.9, 0.999])
-    eps: float = 1e-8
-    weight_decay: float = 0.0
-    grad_clip: float | None = None
+    eps: float = ranged(1e-8, gt=0)
+    weight_decay: float = ranged(0.0, ge=0)
+    grad_clip: float | None = ranged(None, gt=0, integer=False)
     schedule: Literal["constant", "cosine"] = "constant"
-    warmup_steps: int = 0
-    min_lr_ratio: float = 0.0
+    warmup_steps: int = ranged(0, ge=0)
+    min_lr_ratio: float = ranged(0.0, ge=0, le=1)
+
+    def validate(self) -> None:
+        if len(self.betas) != 2 or not all(Range(ge=0, lt=1).admits(b) for b in self.betas):
+            raise ConfigError(f"optim.betas must be two numbers in [0, 1), got {self.betas} (--set optim.betas=[0.9,0.999])")
 
 
 @dataclass
-class LoopConfig:
+class LoopConfig(Checked):
     """The training loop.
 
     Attributes:
@@ -88,14 +98,16 @@ class LoopConfig:
         progress: show a progress bar.
     """
 
-    steps: int = 100_000
-    batch_size: int = 16
-    checkpoint_every: int = 1000
-    keep_every: int = 0
-    log_every: int = 10
-    image_every: int = 1000
+    SECTION = "train"
+
+    steps: int = ranged(100_000, ge=1)
+    batch_size: int = ranged(16, ge=1)
+    checkpoint_every: int = ranged(1000, ge=1)
+    keep_every: int = ranged(0, ge=0)
+    log_every: int = ranged(10, ge=1)
+    image_every: int = ranged(1000, ge=0)
     on_nonfinite: Literal["stop", "skip"] = "stop"
-    max_consecutive_skips: int = 20
+    max_consecutive_skips: int = ranged(20, ge=1)
     tensorboard: bool = True
     progress: bool = True
 
@@ -123,7 +135,7 @@ class DebugConfig:
 
 
 @dataclass
-class TrainConfig:
+class TrainConfig(Checked):
     """The whole training configuration (see the module docstring).
 
     Attributes:
@@ -138,9 +150,9 @@ class TrainConfig:
         render: how training renders (:class:`RenderConfig`).
     """
 
-    seed: int = 0
+    seed: int = ranged(0, ge=0)
     device: str = "auto"
-    threads: int | None = None
+    threads: int | None = ranged(None, ge=1, integer=True)
     renderer: str = "auto"
     data: DataConfig = field(default_factory=DataConfig)
     model: ModelConfig = field(default_factory=ModelConfig)
@@ -152,35 +164,14 @@ class TrainConfig:
     speed: SpeedConfig = field(default_factory=SpeedConfig)
 
     def validate(self) -> None:
-        """Raise :class:`ConfigError` (a ``ValueError``) naming the bad key and what is allowed."""
-        self.model.validate()
-        self.losses.validate()
-        self.speed.validate()
-        t, o = self.train, self.optim
+        """The checks between sections (each section checks its own ranges and choices when made)."""
+        for section in (self.data, self.model, self.losses, self.optim, self.train, self.speed):
+            section.check()
         if self.losses.silhouette > 0 and not self.render.antialias:
             raise ConfigError("losses.silhouette needs render.antialias: true (the paper's renderer gives the coverage "
                               "no gradient); add --set render.antialias=true, or --set losses.silhouette=0")
-        if t.steps < 1 or t.batch_size < 1:
-            raise ConfigError(f"train.steps and train.batch_size must be positive, got {t.steps}, {t.batch_size}")
-        if t.on_nonfinite not in ("stop", "skip"):
-            raise ConfigError(f"train.on_nonfinite must be 'stop' or 'skip', got {t.on_nonfinite!r}")
-        for key in ("checkpoint_every", "log_every"):
-            if getattr(t, key) < 1:
-                raise ConfigError(f"train.{key} must be >= 1, got {getattr(t, key)}")
-        if t.image_every < 0 or t.keep_every < 0:
-            raise ConfigError("train.image_every and train.keep_every must be >= 0 (0 switches them off)")
-        if o.lr <= 0 or len(o.betas) != 2:
-            raise ConfigError(f"optim.lr must be positive and optim.betas two numbers, got {o.lr}, {o.betas}")
-        if o.schedule not in ("constant", "cosine"):
-            raise ConfigError(f"optim.schedule must be 'constant' or 'cosine', got {o.schedule!r}")
-        if o.grad_clip is not None and o.grad_clip <= 0:
-            raise ConfigError(f"optim.grad_clip must be positive or null, got {o.grad_clip}")
-        if self.device != "auto" and self.device != "cpu" and not self.device.startswith("cuda"):
-            raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda[:N]', got {self.device!r}")
-        if self.threads is not None and self.threads < 1:
-            raise ConfigError(f"threads must be a positive integer or null, got {self.threads}")
-        if self.data.image_size is not None and self.data.image_size < 32:
-            raise ConfigError(f"data.image_size must be >= 32 (or null), got {self.data.image_size}")
+        if not is_device_name(self.device):
+            raise ConfigError(f"device must be 'auto', 'cpu', 'cuda' or 'cuda:N', got {self.device!r} (--set device=cpu)")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -15,10 +15,12 @@ resumed run is exact when its switches match the interrupted run's.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import torch
 
 from cerberus_core.devices import native_bf16
+from cerberus_core.fields import Checked
 from cerberus_core.model.cerberus import Cerberus
 
 AUTOCAST_DTYPES = {"bf16": torch.bfloat16}
@@ -41,7 +43,7 @@ def resolve_autocast(value: str | None, device: torch.device | str) -> tuple[str
 
 
 @dataclass
-class SpeedConfig:
+class SpeedConfig(Checked):
     """Attributes:
         autocast: ``bf16``: run the encoder and decoder under ``torch.autocast(dtype=bfloat16)``
             (heads, geometry, rendering and losses stay float32); ``null``: off; ``auto``: ``bf16``
@@ -56,15 +58,12 @@ class SpeedConfig:
             float rounding (:func:`cerberus_core.train.objective.smoothness_term`).
     """
 
-    autocast: str | None = None
+    SECTION = "speed"
+
+    autocast: Literal["auto", "bf16"] | None = None
     channels_last: bool = False
     compile: bool = False
     smoothness_once: bool = False
-
-    def validate(self) -> None:
-        if self.autocast is not None and self.autocast != "auto" and self.autocast not in AUTOCAST_DTYPES:
-            raise ValueError(f"speed.autocast must be null, auto or one of {sorted(AUTOCAST_DTYPES)}, got "
-                             f"{self.autocast!r}")
 
 
 def apply_speed(model: Cerberus, speed: SpeedConfig) -> Cerberus:
@@ -73,7 +72,7 @@ def apply_speed(model: Cerberus, speed: SpeedConfig) -> Cerberus:
     Call it after moving the model to its device. Parameters keep their identity (an optimiser
     built before or after sees the same tensors) and the state dict keeps its keys and dtypes.
     """
-    speed.validate()
+    speed.check()
     autocast, _ = resolve_autocast(speed.autocast, next(model.parameters()).device)
     trunk = (model.encoder, model.decoder)
     if speed.channels_last:

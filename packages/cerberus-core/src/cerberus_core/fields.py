@@ -1,0 +1,134 @@
+"""Config fields whose allowed values are declared as data, checked where the object is made.
+
+A settings dataclass declares each field's type with its hint (``Literal`` for a choice, which
+:func:`cerberus_core.config.build` enforces when a YAML file or ``--set`` is read) and each number's
+range with :func:`ranged` in the field's metadata. Deriving from :class:`Checked` checks every
+range and every ``Literal`` when the object is constructed, from a file or from Python, and raises
+:class:`~cerberus_core.errors.ConfigError` there, at the source, naming the dotted key, the value,
+the range and the ``--set`` that fixes it::
+
+    @dataclass
+    class OptimConfig(Checked):
+        SECTION: ClassVar[str] = "optim"
+        lr: float = ranged(0.0005, gt=0)
+
+    OptimConfig(lr=0)
+    # ConfigError: optim.lr = 0: must be > 0 (--set optim.lr=VALUE)
+
+Checks that relate two fields stay in the class's ``validate()``, which :meth:`Checked.check` calls
+after the ranges; they raise :class:`ConfigError` too. Call ``check()`` again after changing a field
+in place. Nothing here imports torch.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import numbers
+import types
+import typing
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar
+
+from cerberus_core.errors import ConfigError
+
+__all__ = ["Checked", "Range", "check_fields", "ranged"]
+
+RANGE = "cerberus.range"
+"""The ``dataclasses.field`` metadata key that holds a field's :class:`Range`."""
+
+
+@dataclass(frozen=True)
+class Range:
+    """An interval of allowed numbers; ``integer`` also demands a whole number (not a bool).
+
+    ``None`` bounds are open; a value of ``None`` always passes (whether ``null`` is allowed is the
+    type hint's business).
+    """
+
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    integer: bool = False
+
+    def admits(self, value: Any) -> bool:
+        if value is None:
+            return True
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+            return False
+        if self.integer and not isinstance(value, numbers.Integral):
+            return False
+        return not ((self.ge is not None and value < self.ge) or (self.gt is not None and value <= self.gt)
+                    or (self.le is not None and value > self.le) or (self.lt is not None and value >= self.lt))
+
+    def describe(self) -> str:
+        """``"an integer >= 1"``, ``"a number in [0, 1)"``, ``"a number > 0"``..."""
+        kind = "an integer" if self.integer else "a number"
+        low = (f"[{self.ge:g}" if self.ge is not None else f"({self.gt:g}" if self.gt is not None else None)
+        high = (f"{self.le:g}]" if self.le is not None else f"{self.lt:g})" if self.lt is not None else None)
+        if low and high:
+            return f"{kind} in {low}, {high}"
+        if low:
+            return f"{kind} {'>=' if self.ge is not None else '>'} {low[1:]}"
+        if high:
+            return f"{kind} {'<=' if self.le is not None else '<'} {high[:-1]}"
+        return f"a finite {kind.split()[-1]}"
+
+
+def ranged(default: Any, *, ge: float | None = None, gt: float | None = None, le: float | None = None,
+           lt: float | None = None, integer: bool | None = None) -> Any:
+    """A dataclass field with a default and a declared range (``integer`` defaults to whether the
+    default is an ``int``)."""
+    whole = isinstance(default, int) and not isinstance(default, bool) if integer is None else integer
+    return field(default=default, metadata={RANGE: Range(ge, gt, le, lt, whole)})
+
+
+@functools.cache
+def _choices(cls: type) -> dict[str, tuple]:
+    """``{field: allowed values}`` of the fields whose hint is a ``Literal`` (or ``Literal | None``)."""
+    out = {}
+    for name, hint in typing.get_type_hints(cls).items():
+        options = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
+        literals = [o for o in options if typing.get_origin(o) is typing.Literal]
+        if literals and all(o is type(None) or typing.get_origin(o) is typing.Literal for o in options):
+            out[name] = tuple(v for o in literals for v in typing.get_args(o)) + \
+                ((None,) if type(None) in options else ())
+    return out
+
+
+def check_fields(obj: Any, section: str = "") -> None:
+    """Raise :class:`ConfigError` for the first field of the dataclass ``obj`` outside its range or
+    its ``Literal`` choices.
+
+    Args:
+        section: the dotted prefix of the keys in messages (``"model"`` → ``model.width``).
+    """
+    prefix = f"{section}." if section else ""
+    choices = _choices(type(obj))
+    for f in fields(obj):
+        if f.name in choices and getattr(obj, f.name) not in choices[f.name]:
+            allowed = ", ".join("null" if c is None else repr(c) for c in choices[f.name])
+            raise ConfigError(f"{prefix}{f.name} = {getattr(obj, f.name)!r}: must be one of {allowed} "
+                              f"(--set {prefix}{f.name}=VALUE)")
+        rng = f.metadata.get(RANGE)
+        value = getattr(obj, f.name)
+        if rng is not None and not rng.admits(value):
+            raise ConfigError(f"{prefix}{f.name} = {value!r}: must be {rng.describe()} (--set {prefix}{f.name}=VALUE)")
+
+
+class Checked:
+    """Mixin of a settings dataclass: ranges (:func:`ranged`) and then ``validate()`` (the checks
+    between fields) run on construction. ``SECTION`` is the config section the keys live under."""
+
+    SECTION: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        self.check()
+
+    def check(self) -> None:
+        """Check the ranges, then :meth:`validate` (again after changing a field in place)."""
+        check_fields(self, self.SECTION)
+        self.validate()
+
+    def validate(self) -> None:
+        """Checks between fields (override); raise :class:`ConfigError` naming the keys and the fix."""
