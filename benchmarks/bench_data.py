@@ -24,7 +24,7 @@ from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.generate import generate, render_views
 from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
 from cerberus_core.datasets.readers import QuadrupletDataset
-from cerberus_core.plugins import available_renderers, make_renderer
+from cerberus_core.render.backends import available_renderers, make_renderer
 
 CPU = {"wall": 0.0, "cpu": 0.0}
 """Totals of wall-clock and process CPU seconds over every timed call (to report machine contention)."""

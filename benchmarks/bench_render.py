@@ -35,8 +35,8 @@ import numpy as np
 import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
-from cerberus_core.plugins import available_renderers, make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.demo import demo_scene
 from cerberus_core.render.interface import Light

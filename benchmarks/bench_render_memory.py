@@ -20,7 +20,7 @@ import numpy as np
 from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.generate import build_bodies, render_views
 from cerberus_core.datasets.plan import make_plan, preset_config
-from cerberus_core.plugins import make_renderer
+from cerberus_core.render.backends import make_renderer
 name, size, views = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 config = preset_config("primitives", "tiny", image_size=size)
 source = make_source("primitives")
@@ -39,7 +39,7 @@ print(f"{name:<6} {size:>5} px {views:>3} views  {grown / 2**20:8.1f} MiB  {grow
 
 
 def main() -> None:
-    from cerberus_core.plugins import available_renderers
+    from cerberus_core.render.backends import available_renderers
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[256, 512])

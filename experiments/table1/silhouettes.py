@@ -17,8 +17,8 @@ import torch
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.eval.runner import collate
 from cerberus_core.losses import background_mask
-from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.train.checkpoint import load_model
 
 TOLERANCE = 0.02

@@ -1,7 +1,7 @@
 """Fixtures of the conformance suite: one parametrisation per installed renderer backend.
 
 * ``backend_name`` / ``renderer``: every backend found by
-  :func:`cerberus_core.plugins.available_renderers` (narrowed by ``--renderer`` or
+  :func:`cerberus_core.render.backends.available_renderers` (narrowed by ``--renderer`` or
   ``CERBERUS_RENDERERS``); a test that takes ``renderer`` runs once per backend.
 * ``other_backend_name``: every selected backend except the reference one (``torch``), for the
   cross-backend comparisons; those tests are skipped when only one backend is installed.
@@ -14,8 +14,9 @@ import os
 import pytest
 import torch
 
-from cerberus_core.plugins import RENDERER_GROUP, PluginError, available_renderers, get_plugin, make_renderer
+from cerberus_core.plugins import RENDERER_GROUP, PluginError, get_plugin
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import available_renderers, make_renderer
 
 from .scenes import body_scene, double_camera
 

@@ -13,12 +13,11 @@ from cerberus_core.plugins import (
     PluginError,
     PluginLoadError,
     UnknownPluginError,
-    available_renderers,
     discover,
     get_plugin,
-    make_renderer,
     plugin_table,
 )
+from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.interface import Renderer
 
 BROKEN = {"fake_broken_backend": "raise ImportError('libfake.so: cannot open shared object file')\n"}
@@ -108,7 +107,7 @@ def test_backend_options_are_checked() -> None:
 
 
 def test_auto_picks_warp_then_torch_then_others_skipping_broken_ones(fake_dist, monkeypatch, tmp_path) -> None:
-    from cerberus_core.plugins import resolve_renderer
+    from cerberus_core.render.backends import resolve_renderer
 
     assert resolve_renderer("torch") == "torch"  # a plain name is taken as it is
     expected = "warp" if "warp" in available_renderers() else "torch"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import pack_parts, render, render_parts
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 from cerberus_core.render.shading import lambert

@@ -4,8 +4,8 @@ import pytest
 import torch
 
 from cerberus_core import Camera, Light, icosphere, make_renderer
-from cerberus_core.plugins import available_renderers
 from cerberus_core.render import ops, render
+from cerberus_core.render.backends import available_renderers
 
 
 @pytest.mark.parametrize("backend", available_renderers())

@@ -146,8 +146,8 @@ def test_stored_images_match_a_fresh_render_of_the_stored_mesh(pairs_dataset):
     import torch
 
     from cerberus_core.datasets.readers import ViewDataset
-    from cerberus_core.plugins import make_renderer
     from cerberus_core.render.api import render
+    from cerberus_core.render.backends import make_renderer
 
     views = ViewDataset(pairs_dataset, "train")
     renderer = make_renderer("torch")

@@ -258,7 +258,7 @@ def test_supersampled_images_blend_edges_and_keep_the_coverage(tmp_path):
     while the body's total brightness matches the hard render's; stored only when not 1."""
     from cerberus_core.bodies.body import PosedBody
     from cerberus_core.datasets.generate import render_views
-    from cerberus_core.plugins import make_renderer
+    from cerberus_core.render.backends import make_renderer
     from cerberus_core.render.templates import icosphere
 
     sphere = icosphere(3)

@@ -13,8 +13,9 @@ import torch
 
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.parts import PartSet
-from cerberus_core.plugins import PluginError, get_metric, make_renderer
+from cerberus_core.plugins import PluginError, get_metric
 from cerberus_core.render.api import render
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 

@@ -4,8 +4,8 @@ import torch
 
 from cerberus_core.model import Cerberus, ModelConfig
 from cerberus_core.parts import PartSet, pose_parts
-from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
 
 

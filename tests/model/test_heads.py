@@ -40,6 +40,7 @@ def test_bounded_shape_head_starts_at_the_template_and_never_leaves_the_box():
     v.sum().backward()
     assert torch.isfinite(head.to_displacement.weight.grad).all()
     # Small displacements pass almost unchanged (slope 1 - (t/b)^2 of tanh at the template).
+    torch.manual_seed(0)  # the draw below must not depend on which tests ran before
     unbounded = ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, displacement_scale=0.05)
     bounded = ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, displacement_scale=0.05, vertex_bound=0.5)
     bounded.load_state_dict(unbounded.state_dict())

@@ -19,8 +19,8 @@ from cerberus_core.losses import (
     viewpoint_scenes,
 )
 from cerberus_core.model import Cerberus, ModelConfig
-from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.templates import icosphere
 from cerberus_core.train.data import QuadrupletBatch
 from cerberus_core.train.objective import partner_cameras, quadruplet_mixer, quadruplet_objective

@@ -11,8 +11,8 @@ The two objects a notebook starts from: :class:`~cerberus_core.run.Run` (a train
 import importlib
 from typing import Any
 
-from cerberus_core.plugins import available_renderers, make_renderer, resolve_renderer
 from cerberus_core.render.api import render, render_parts
+from cerberus_core.render.backends import available_renderers, make_renderer, resolve_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 from cerberus_core.render.templates import MeshTemplate, icosphere

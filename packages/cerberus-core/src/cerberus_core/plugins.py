@@ -1,4 +1,5 @@
-"""Entry-point discovery of renderer backends and metrics.
+"""Entry-point discovery of renderer backends and metrics (building a renderer by name is
+:func:`cerberus_core.render.backends.make_renderer`).
 
 Backends register under the ``cerberus.renderers`` group, metrics under ``cerberus.metrics``, in the
 ``[project.entry-points]`` table of their package. Discovery uses the ``entrypoints`` package; core
@@ -20,7 +21,6 @@ from typing import Any
 import entrypoints
 
 from cerberus_core.errors import CerberusError
-from cerberus_core.render.interface import Renderer
 
 RENDERER_GROUP = "cerberus.renderers"
 METRIC_GROUP = "cerberus.metrics"
@@ -150,54 +150,6 @@ def plugin_table(group: str, path: list[str] | None = None) -> list[dict[str, st
         rows.append({"name": name, "package": info.distribution, "version": info.version,
                      "target": info.target, "status": status})
     return rows
-
-
-def available_renderers(path: list[str] | None = None) -> list[str]:
-    """Names of renderer backends that are installed and import cleanly."""
-    return [r["name"] for r in plugin_table(RENDERER_GROUP, path) if r["status"] == "ok"]
-
-
-AUTO_RENDERER = "auto"
-"""The renderer name that means "the best installed backend" (the default everywhere)."""
-
-RENDERER_PREFERENCE = ("warp", "torch")
-"""The order in which ``auto`` picks a backend: Warp's compiled kernels first (several times faster
-on a CPU, see ``benchmarks/bench_render.py``), then pure PyTorch, then any other by name. Backends
-agree to 1e-5 (the conformance suite), so the choice changes speed, not results."""
-
-
-def resolve_renderer(name: str = AUTO_RENDERER, path: list[str] | None = None) -> str:
-    """The backend a renderer name stands for: ``name`` itself, or, for ``"auto"``, the first backend
-    in :data:`RENDERER_PREFERENCE` order that is installed and imports cleanly.
-
-    Raises:
-        UnknownPluginError: ``"auto"`` with no working backend installed.
-    """
-    if name != AUTO_RENDERER:
-        return name
-    ok = available_renderers(path)
-    order = [n for n in RENDERER_PREFERENCE if n in ok] + sorted(n for n in ok if n not in RENDERER_PREFERENCE)
-    if not order:
-        packages = " or ".join(f"`pip install {p}`" for p in KNOWN_PACKAGES[RENDERER_GROUP].values())
-        raise UnknownPluginError(f"renderer 'auto': no renderer backend is installed and working "
-                                 f"(`cerberus renderers` shows why); install one: {packages}.")
-    return order[0]
-
-
-def make_renderer(name: str = AUTO_RENDERER, **options: Any):
-    """Build a renderer backend by name (as a config file or ``--renderer`` flag names it).
-
-    Args:
-        name: entry-point name, e.g. ``"torch"`` or ``"warp"``, or ``"auto"``
-            (:func:`resolve_renderer`: Warp if it works, else torch).
-        **options: passed to the backend's constructor.
-    """
-    name = resolve_renderer(name)
-    cls = get_plugin(RENDERER_GROUP, name)
-    renderer = cls(**options)
-    if not isinstance(renderer, Renderer):
-        raise PluginLoadError(f"renderer plugin '{name}' built {type(renderer).__name__}, which is not a cerberus_core Renderer")
-    return renderer
 
 
 def get_metric(name: str) -> Callable[..., Any]:

@@ -34,7 +34,8 @@ from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.names import printable
 from cerberus_core.outputs import is_dataset, result_folder, writing_results
-from cerberus_core.plugins import get_metric, make_renderer
+from cerberus_core.plugins import get_metric
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.train.checkpoint import (
     WeightsInfo,
     describe_weights,

@@ -10,14 +10,11 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.camera import centre_range, pixel_centres
 from cerberus_core.render.interface import Renderer
 
 Tensor = torch.Tensor
 
-BBOX_EPS = 1e-3
-"""Widening of each triangle's pixel bounding box, in pixels, so that rounding never drops a
-covered pixel; coverage itself is decided by the edge functions."""
 
 
 def _triangle_setup(clip: Tensor, faces: Tensor, height: int, width: int, near: float):
@@ -36,11 +33,8 @@ def _triangle_setup(clip: Tensor, faces: Tensor, height: int, width: int, near: 
     # Clamp before converting to integers so huge coordinates cannot overflow.
     u = u.clamp(-2.0, width + 2.0)
     vv = vv.clamp(-2.0, height + 2.0)
-    # Pixel centres j + 0.5 inside [min u, max u], widened by BBOX_EPS pixels against rounding.
-    col0 = torch.ceil(u.amin(-1) - 0.5 - BBOX_EPS).clamp_min(0).long()
-    col1 = torch.floor(u.amax(-1) - 0.5 + BBOX_EPS).clamp_max(width - 1).long()
-    row0 = torch.ceil(vv.amin(-1) - 0.5 - BBOX_EPS).clamp_min(0).long()
-    row1 = torch.floor(vv.amax(-1) - 0.5 + BBOX_EPS).clamp_max(height - 1).long()
+    col0, col1 = centre_range(u.amin(-1), u.amax(-1), width)
+    row0, row1 = centre_range(vv.amin(-1), vv.amax(-1), height)
     drawable = drawable & (col1 >= col0) & (row1 >= row0)
     return drawable, cross, det, row0, row1, col0, col1
 

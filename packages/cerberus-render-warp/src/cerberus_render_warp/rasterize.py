@@ -19,7 +19,7 @@ from typing import Any
 
 import torch
 
-from cerberus_core.render.camera import pixel_centres
+from cerberus_core.render.camera import BBOX_EPS, PIXEL_CENTRE, pixel_centres
 from cerberus_core.shapes import check_shapes
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
@@ -27,21 +27,18 @@ from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
 
 wp.set_module_options(KERNEL_OPTIONS)
 
-BBOX_EPS = 1e-3
-"""Widening of each triangle's pixel bounding box, in pixels (as in the torch backend); coverage is
-decided by the edge functions, so this only guards against rounding in the box itself."""
-
 SUPPORTED_DTYPES = (torch.float32, torch.float64)
 
 
 @wp.func
 def _pixel_bound(lo: Any, hi: Any, size: int):
-    """Inclusive index range of pixel centres ``k + 0.5`` inside ``[lo, hi]`` (pixels), clipped to
-    ``0 .. size - 1``. Coordinates are clamped before the integer conversion (huge values are safe)."""
+    """The kernel form of :func:`cerberus_core.render.camera.centre_range`: the inclusive index range
+    of pixel centres ``k + PIXEL_CENTRE`` inside ``[lo, hi]`` (pixels), widened by ``BBOX_EPS``,
+    clipped to ``0 .. size - 1``. Coordinates are clamped before the integer conversion."""
     lo_c = wp.clamp(lo, type(lo)(-2.0), type(lo)(size) + type(lo)(2.0))
     hi_c = wp.clamp(hi, type(lo)(-2.0), type(lo)(size) + type(lo)(2.0))
-    first = wp.max(int(wp.ceil(lo_c - type(lo)(0.5) - type(lo)(BBOX_EPS))), 0)
-    last = wp.min(int(wp.floor(hi_c - type(lo)(0.5) + type(lo)(BBOX_EPS))), size - 1)
+    first = wp.max(int(wp.ceil(lo_c - type(lo)(PIXEL_CENTRE) - type(lo)(BBOX_EPS))), 0)
+    last = wp.min(int(wp.floor(hi_c - type(lo)(PIXEL_CENTRE) + type(lo)(BBOX_EPS))), size - 1)
     return first, last
 
 

@@ -188,7 +188,8 @@ def run_check(args: argparse.Namespace) -> int:
 def run_show(args: argparse.Namespace) -> int:
     from cerberus_core.datasets.format import Manifest
     from cerberus_core.datasets.show import save_contact_sheet
-    from cerberus_core.plugins import AUTO_RENDERER, RENDERER_GROUP, get_plugin
+    from cerberus_core.plugins import RENDERER_GROUP, get_plugin
+    from cerberus_core.render.backends import AUTO_RENDERER
 
     for option, value, most in (("--count", args.count, MAX_SHOW_COUNT), ("--scale", args.scale, MAX_SHOW_SCALE)):
         if value > most:

@@ -7,8 +7,8 @@ from pathlib import Path
 
 from cerberus_core.cli.checks import output_folder, positive_int
 from cerberus_core.errors import ConfigError
-from cerberus_core.plugins import available_renderers, make_renderer
 from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.demo import demo_scene
 from cerberus_core.render.interface import Light
 from cerberus_core.viz import part_colors, save_image_grid

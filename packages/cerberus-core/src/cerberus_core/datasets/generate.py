@@ -39,8 +39,8 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.lock import is_lock_file
-from cerberus_core.plugins import make_renderer, resolve_renderer
 from cerberus_core.render.api import render
+from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.render.interface import Renderer
 
 ShardCallback = Callable[[str, dict], None]

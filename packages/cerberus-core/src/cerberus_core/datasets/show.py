@@ -11,8 +11,8 @@ from PIL import Image
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, _SplitReader
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import DatasetError
-from cerberus_core.plugins import make_renderer
 from cerberus_core.render.api import render
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.viz import atomic_save_png, image_grid, part_colors
 
 Tensor = torch.Tensor

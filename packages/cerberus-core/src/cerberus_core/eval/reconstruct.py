@@ -25,7 +25,7 @@ from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.names import printable, safe_stem
 from cerberus_core.outputs import RESULT_MARKER, writing_results
-from cerberus_core.plugins import make_renderer
+from cerberus_core.render.backends import make_renderer
 
 #: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
 #: :func:`cerberus_core.eval.export.export_reconstruction`, pictures of

@@ -36,7 +36,7 @@ from cerberus_core.eval.accumulators import (
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.parts import PartSet
-from cerberus_core.plugins import make_renderer
+from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 

@@ -28,7 +28,7 @@ from kornia.geometry.conversions import quaternion_to_rotation_matrix
 from kornia.geometry.subpix import spatial_expectation2d
 from torch import nn
 
-from cerberus_core.render.camera import Camera, pixel_centres
+from cerberus_core.render.camera import PIXEL_CENTRE, Camera, pixel_centres
 
 Tensor = torch.Tensor
 
@@ -209,7 +209,7 @@ def expectation(prob: Tensor, depth_map: Tensor) -> KeypointMaps:
         prob: ``(B, N, H, W)`` maps summing to 1.
         depth_map: ``(B, N, H, W)``.
     """
-    uv = spatial_expectation2d(prob, normalized_coordinates=False) + 0.5  # pixel centres at j + 0.5
+    uv = spatial_expectation2d(prob, normalized_coordinates=False) + PIXEL_CENTRE  # cell j is centred at j + 0.5
     depth = (prob * depth_map).sum(dim=(-2, -1))
     return KeypointMaps(prob, depth_map, uv, depth)
 

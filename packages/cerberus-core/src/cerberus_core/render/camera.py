@@ -80,6 +80,25 @@ def spherical_to_eye(azimuth_deg: Tensor, elevation_deg: Tensor, distance: Tenso
     )
 
 
+PIXEL_CENTRE = 0.5
+"""Pixel ``j`` spans ``[j, j + 1)`` in pixel units and is sampled at ``j + PIXEL_CENTRE`` (module
+docstring, "Pixels"): the offset every pixel-unit computation uses (keypoint expectations, the
+backends' bounding boxes)."""
+
+BBOX_EPS = 1e-3
+"""Widening of each triangle's pixel bounding box, in pixels, in every backend's rasterizer, so that
+rounding never drops a covered pixel; coverage itself is decided by the edge functions."""
+
+
+def centre_range(lo: Tensor, hi: Tensor, size: int) -> tuple[Tensor, Tensor]:
+    """Inclusive index range ``(first, last)`` (int64) of the pixel centres ``k + PIXEL_CENTRE``
+    inside ``[lo, hi]`` (pixel units, any shape), widened by :data:`BBOX_EPS` and clipped to
+    ``0 .. size - 1``; empty where ``first > last``. Clamp huge coordinates before calling."""
+    first = torch.ceil(lo - PIXEL_CENTRE - BBOX_EPS).clamp_min(0).long()
+    last = torch.floor(hi - PIXEL_CENTRE + BBOX_EPS).clamp_max(size - 1).long()
+    return first, last
+
+
 def pixel_centres(height: int, width: int, dtype: torch.dtype = torch.float32,
                   device: torch.device | str | None = None) -> tuple[Tensor, Tensor]:
     """NDC coordinates of the pixel centres (module docstring, "Pixels"; the rasterization rule of

@@ -49,7 +49,7 @@ from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.lock import LockedError, acquire, check_unlocked, is_lock_file
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plugins import make_renderer, resolve_renderer
+from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.signals import interrupt_for
 from cerberus_core.train.checkpoint import (
     LAST,
