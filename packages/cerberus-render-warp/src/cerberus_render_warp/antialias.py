@@ -173,27 +173,66 @@ def _pair(clip: wp.array2d(dtype=Any), faces: wp.array(dtype=wp.vec3i), nbrs: wp
 
 
 @wp.func
+def _blend_weight(r_in: int, c_in: int, r_out: int, c_out: int, t: Any):
+    """Which pixel of a pair moves (``rm, cm``) towards which (``rs, cs``), by how much (``w``), and
+    ``dw = dw/dt``: the pixel holding the edge (``t`` from the inner centre) moves by ``|t - 1/2|``."""
+    half = type(t)(0.5)
+    if t > half:
+        return r_out, c_out, r_in, c_in, t - half, type(t)(1.0)
+    return r_in, c_in, r_out, c_out, half - t, type(t)(-1.0)
+
+
+@wp.func
 def _blend(color: wp.array4d(dtype=Any), out: wp.array4d(dtype=Any), b: int, r_in: int, c_in: int, r_out: int,
            c_out: int, t: Any):
     """Add one pair's blend to ``out`` (see the contract: the pixel holding the edge moves towards the other)."""
-    half = type(t)(0.5)
-    rm = r_in
-    cm = c_in
-    rs = r_out
-    cs = c_out
-    w = half - t
-    if t > half:
-        rm = r_out
-        cm = c_out
-        rs = r_in
-        cs = c_in
-        w = t - half
+    rm, cm, rs, cs, w, dw = _blend_weight(r_in, c_in, r_out, c_out, t)
     for ch in range(color.shape[3]):
         wp.atomic_add(out, b, rm, cm, ch, w * (color[b, rs, cs, ch] - color[b, rm, cm, ch]))
 
 
+@wp.func
+def _blend_adjoint(clip: wp.array2d(dtype=Any), px_of_col: wp.array(dtype=Any), py_of_row: wp.array(dtype=Any),
+                   color: wp.array4d(dtype=Any), grad_out: wp.array4d(dtype=Any), grad_color: wp.array4d(dtype=Any),
+                   grad_clip: wp.array2d(dtype=Any), need_color: int, need_clip: int, fused: int, b: int,
+                   r_in: int, c_in: int, r_out: int, c_out: int, ia: int, ib: int):
+    """Adjoint of :func:`_blend` for one pair: into ``grad_color`` (both pixels) and ``grad_clip``
+    (the two vertices of the silhouette edge)."""
+    zero = px_of_col.dtype(0.0)
+    one = px_of_col.dtype(1.0)
+    # recompute t from the edge alone, as the reference's differentiable part does
+    va = _xyw(clip[b, ia])
+    vb = _xyw(clip[b, ib])
+    line = cross(va, vb, fused)
+    pix = px_of_col[c_in]
+    piy = py_of_row[r_in]
+    pox = px_of_col[c_out]
+    poy = py_of_row[r_out]
+    e_in = _dot_p(pix, piy, line)
+    e_out = _dot_p(pox, poy, line)
+    inv = one / (e_in - e_out)
+    t = e_in * inv
+    rm, cm, rs, cs, w, dw = _blend_weight(r_in, c_in, r_out, c_out, t)
+    g_w = zero
+    for ch in range(color.shape[3]):
+        g = grad_out[b, rm, cm, ch]
+        g_w += g * (color[b, rs, cs, ch] - color[b, rm, cm, ch])
+        if need_color != 0:
+            wp.atomic_add(grad_color, b, rs, cs, ch, w * g)
+            wp.atomic_add(grad_color, b, rm, cm, ch, -(w * g))
+    if need_clip != 0:
+        g_t = g_w * dw
+        g_in = -g_t * e_out * inv * inv
+        g_out = g_t * e_in * inv * inv
+        g_line = wp.vector(pix, piy, one) * g_in + wp.vector(pox, poy, one) * g_out
+        g_va = wp.cross(vb, g_line)
+        g_vb = wp.cross(g_line, va)
+        wp.atomic_add(grad_clip, b, ia, wp.vector(g_va[0], g_va[1], zero, g_va[2]))
+        wp.atomic_add(grad_clip, b, ib, wp.vector(g_vb[0], g_vb[1], zero, g_vb[2]))
+
+
 @wp.kernel
-def _aa_forward_kernel(
+def _aa_kernel(
     clip: wp.array2d(dtype=Any),
     faces: wp.array(dtype=wp.vec3i),
     nbrs: wp.array(dtype=wp.vec3i),
@@ -204,8 +243,16 @@ def _aa_forward_kernel(
     cols_per_thread: int,
     color: wp.array4d(dtype=Any),
     out: wp.array4d(dtype=Any),
+    grad_out: wp.array4d(dtype=Any),
+    grad_color: wp.array4d(dtype=Any),
+    grad_clip: wp.array2d(dtype=Any),
+    adjoint: int,
+    need_color: int,
+    need_clip: int,
 ):
-    """Thread ``t``: the right and lower pairs of columns ``k * cols_per_thread ..`` of one row."""
+    """Thread ``t``: the right and lower pairs of columns ``k * cols_per_thread ..`` of one row.
+    ``adjoint`` 0: blend ``color`` into ``out`` (which arrives holding ``color``); 1: the adjoint over
+    the same pairs (``grad_color`` arrives holding ``grad_out``, the identity part)."""
     height = face_id.shape[1]
     width = face_id.shape[2]
     b, r, c_first, c_last = row_span(wp.tid(), height, width, cols_per_thread)
@@ -219,92 +266,17 @@ def _aa_forward_kernel(
                     keep, r_in, c_in, r_out, c_out, ia, ib, t = _pair(
                         clip, faces, nbrs, face_id, px_of_col, py_of_row, b, r, c, r1, c1, fused)
                     if keep != 0:
-                        _blend(color, out, b, r_in, c_in, r_out, c_out, t)
-
-
-@wp.kernel
-def _aa_backward_kernel(
-    clip: wp.array2d(dtype=Any),
-    faces: wp.array(dtype=wp.vec3i),
-    nbrs: wp.array(dtype=wp.vec3i),
-    face_id: wp.array3d(dtype=wp.int64),
-    px_of_col: wp.array(dtype=Any),
-    py_of_row: wp.array(dtype=Any),
-    fused: int,
-    cols_per_thread: int,
-    color: wp.array4d(dtype=Any),
-    grad_out: wp.array4d(dtype=Any),
-    grad_color: wp.array4d(dtype=Any),
-    grad_clip: wp.array2d(dtype=Any),
-    need_color: int,
-    need_clip: int,
-):
-    """Adjoint of :func:`_aa_forward_kernel` over the same thread layout (``grad_color`` arrives
-    holding ``grad_out``, the identity part)."""
-    height = face_id.shape[1]
-    width = face_id.shape[2]
-    b, r, c_first, c_last = row_span(wp.tid(), height, width, cols_per_thread)
-    zero = px_of_col.dtype(0.0)
-    half = px_of_col.dtype(0.5)
-    one = px_of_col.dtype(1.0)
-    for c in range(c_first, c_last):
-        f = face_id[b, r, c]
-        for d in range(2):
-            r1 = r + d
-            c1 = c + 1 - d
-            if r1 < height and c1 < width:
-                if face_id[b, r1, c1] != f:
-                    keep, r_in, c_in, r_out, c_out, ia, ib, t_sel = _pair(
-                        clip, faces, nbrs, face_id, px_of_col, py_of_row, b, r, c, r1, c1, fused)
-                    if keep != 0:
-                        # recompute t from the edge alone, as the reference's differentiable part does
-                        va = _xyw(clip[b, ia])
-                        vb = _xyw(clip[b, ib])
-                        line = cross(va, vb, fused)
-                        pix = px_of_col[c_in]
-                        piy = py_of_row[r_in]
-                        pox = px_of_col[c_out]
-                        poy = py_of_row[r_out]
-                        e_in = _dot_p(pix, piy, line)
-                        e_out = _dot_p(pox, poy, line)
-                        inv = one / (e_in - e_out)
-                        t = e_in * inv
-                        rm = r_in
-                        cm = c_in
-                        rs = r_out
-                        cs = c_out
-                        w = half - t
-                        dw = -one
-                        if t > half:
-                            rm = r_out
-                            cm = c_out
-                            rs = r_in
-                            cs = c_in
-                            w = t - half
-                            dw = one
-                        g_w = zero
-                        for ch in range(color.shape[3]):
-                            g = grad_out[b, rm, cm, ch]
-                            g_w += g * (color[b, rs, cs, ch] - color[b, rm, cm, ch])
-                            if need_color != 0:
-                                wp.atomic_add(grad_color, b, rs, cs, ch, w * g)
-                                wp.atomic_add(grad_color, b, rm, cm, ch, -(w * g))
-                        if need_clip != 0:
-                            g_t = g_w * dw
-                            g_in = -g_t * e_out * inv * inv
-                            g_out = g_t * e_in * inv * inv
-                            g_line = wp.vector(pix, piy, one) * g_in + wp.vector(pox, poy, one) * g_out
-                            g_va = wp.cross(vb, g_line)
-                            g_vb = wp.cross(g_line, va)
-                            wp.atomic_add(grad_clip, b, ia, wp.vector(g_va[0], g_va[1], zero, g_va[2]))
-                            wp.atomic_add(grad_clip, b, ib, wp.vector(g_vb[0], g_vb[1], zero, g_vb[2]))
+                        if adjoint == 0:
+                            _blend(color, out, b, r_in, c_in, r_out, c_out, t)
+                        else:
+                            _blend_adjoint(clip, px_of_col, py_of_row, color, grad_out, grad_color, grad_clip,
+                                           need_color, need_clip, fused, b, r_in, c_in, r_out, c_out, ia, ib)
 
 
 _SCALAR = {"px_of_col": wp.array, "py_of_row": wp.array}
-_FORWARD = overloads(_aa_forward_kernel, {}, {"clip": wp.array2d},
-                      {**_SCALAR, "color": wp.array4d, "out": wp.array4d})
-_BACKWARD = overloads(_aa_backward_kernel, {}, {"clip": wp.array2d, "grad_clip": wp.array2d},
-                       {**_SCALAR, "color": wp.array4d, "grad_out": wp.array4d, "grad_color": wp.array4d})
+_KERNEL = overloads(_aa_kernel, {}, {"clip": wp.array2d, "grad_clip": wp.array2d},
+                    {**_SCALAR, "color": wp.array4d, "out": wp.array4d, "grad_out": wp.array4d,
+                     "grad_color": wp.array4d})
 
 
 def _inputs(b0: int, b1: int, clip, faces, nbrs, face_id, px, py, fused: int, cols: int) -> list[Any]:
@@ -330,9 +302,9 @@ class WarpAntialias(torch.autograd.Function):
         out = color.clone()
         cols = items_per_thread(width, device)
         fused = torch_cross_is_fused(clip.device, clip.dtype)
-        launch_scenes(_FORWARD[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
+        launch_scenes(_KERNEL[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
             *_inputs(b0, b1, clip, faces, nbrs, face_id, px, py, fused, cols), as_warp(color[b0:b1]),
-            as_warp(out[b0:b1])], device, launch_stream(clip.device))
+            as_warp(out[b0:b1]), None, None, None, 0, 0, 0], device, launch_stream(clip.device))
         ctx.save_for_backward(color, clip, faces, nbrs, face_id)
         ctx.set_materialize_grads(False)
         return out
@@ -352,10 +324,10 @@ class WarpAntialias(torch.autograd.Function):
         px, py = pixel_centres(height, width, clip.dtype, clip.device)
         cols = items_per_thread(width, device)
         fused = torch_cross_is_fused(clip.device, clip.dtype)
-        launch_scenes(_BACKWARD[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
-            *_inputs(b0, b1, clip, faces, nbrs, face_id, px, py, fused, cols), as_warp(color[b0:b1]),
+        launch_scenes(_KERNEL[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
+            *_inputs(b0, b1, clip, faces, nbrs, face_id, px, py, fused, cols), as_warp(color[b0:b1]), None,
             as_warp(grad_out[b0:b1]), None if grad_color is None else as_warp(grad_color[b0:b1]),
-            None if grad_clip is None else vec_view(grad_clip[b0:b1]), int(need_color), int(need_clip)],
+            None if grad_clip is None else vec_view(grad_clip[b0:b1]), 1, int(need_color), int(need_clip)],
             device, launch_stream(clip.device))
         return grad_color, grad_clip, None, None, None
 

@@ -74,7 +74,7 @@ def _unit_normal(n: Any, ldir: Any):
 
 
 @wp.kernel
-def _shade_forward_kernel(
+def _shade_kernel(
     clip: wp.array2d(dtype=Any),
     faces: wp.array(dtype=wp.vec3i),
     face_id: wp.array3d(dtype=wp.int64),
@@ -89,45 +89,6 @@ def _shade_forward_kernel(
     cols_per_thread: int,
     rgb: wp.array3d(dtype=Any),
     depth: wp.array3d(dtype=Any),
-):
-    """Thread ``t``: columns ``k * cols_per_thread ..`` of one image row (see :func:`~cerberus_render_warp._common.row_span`)."""
-    b, r, c_first, c_last = row_span(wp.tid(), face_id.shape[1], face_id.shape[2], cols_per_thread)
-    zero = px_of_col.dtype(0.0)
-    zero3 = wp.vector(zero, zero, zero)
-    py = py_of_row[r]
-    ldir = direction[b]
-    amb = ambient[b]
-    dif = diffuse[b]
-    for c in range(c_first, c_last):
-        f = int(face_id[b, r, c])
-        if f < 0:
-            rgb[b, r, c] = zero3
-            depth[b, r, c] = zero
-            continue
-        tri = faces[f]
-        v0, v1, v2, b0, b1, b2, inv_s = _barycentrics(clip, b, tri, px_of_col[c], py, fused)
-        depth[b, r, c] = b0 * v0[2] + b1 * v1[2] + b2 * v2[2]
-        n = _lerp3(normals[b, tri[0]], normals[b, tri[1]], normals[b, tri[2]], b0, b1, b2)
-        a = _lerp3(albedo[b, tri[0]], albedo[b, tri[1]], albedo[b, tri[2]], b0, b1, b2)
-        length, den, nh, cos_raw = _unit_normal(n, ldir)
-        cos = wp.max(cos_raw, zero)
-        rgb[b, r, c] = wp.cw_mul(a, amb + dif * cos)
-
-
-@wp.kernel
-def _shade_backward_kernel(
-    clip: wp.array2d(dtype=Any),
-    faces: wp.array(dtype=wp.vec3i),
-    face_id: wp.array3d(dtype=wp.int64),
-    px_of_col: wp.array(dtype=Any),
-    py_of_row: wp.array(dtype=Any),
-    normals: wp.array2d(dtype=Any),
-    albedo: wp.array2d(dtype=Any),
-    direction: wp.array(dtype=Any),
-    ambient: wp.array(dtype=Any),
-    diffuse: wp.array(dtype=Any),
-    fused: int,
-    cols_per_thread: int,
     grad_rgb: wp.array4d(dtype=Any),
     grad_depth: wp.array3d(dtype=Any),
     has_grad_rgb: int,
@@ -138,12 +99,15 @@ def _shade_backward_kernel(
     grad_direction: wp.array(dtype=Any),
     grad_ambient: wp.array(dtype=Any),
     grad_diffuse: wp.array(dtype=Any),
+    adjoint: int,
     need_clip: int,
     need_normals: int,
     need_albedo: int,
     need_light: int,
 ):
-    """Adjoint of :func:`_shade_forward_kernel` over the same thread layout."""
+    """Thread ``t``: columns ``k * cols_per_thread ..`` of one image row (see
+    :func:`~cerberus_render_warp._common.row_span`). ``adjoint`` 0: write ``rgb`` and ``depth``;
+    1: recompute them and accumulate the adjoints of the inputs flagged by ``need_*`` instead."""
     b, r, c_first, c_last = row_span(wp.tid(), face_id.shape[1], face_id.shape[2], cols_per_thread)
     zero = px_of_col.dtype(0.0)
     one = px_of_col.dtype(1.0)
@@ -159,14 +123,10 @@ def _shade_backward_kernel(
     for c in range(c_first, c_last):
         f = int(face_id[b, r, c])
         if f < 0:
+            if adjoint == 0:
+                rgb[b, r, c] = zero3
+                depth[b, r, c] = zero
             continue
-        g = zero3
-        if has_grad_rgb != 0:
-            g = wp.vector(grad_rgb[b, r, c, 0], grad_rgb[b, r, c, 1], grad_rgb[b, r, c, 2])
-        gd = zero
-        if has_grad_depth != 0:
-            gd = grad_depth[b, r, c]
-        # ---- forward recomputation
         px = px_of_col[c]
         tri = faces[f]
         v0, v1, v2, b0, b1, b2, inv_s = _barycentrics(clip, b, tri, px, py, fused)
@@ -180,47 +140,57 @@ def _shade_backward_kernel(
         a = _lerp3(a0, a1, a2, b0, b1, b2)
         length, den, nh, cos_raw = _unit_normal(n, ldir)
         cos = wp.max(cos_raw, zero)
-        # ---- adjoints: rgb = a * (amb + dif * cos)
-        g_a = wp.cw_mul(g, amb + dif * cos)
-        g_light = wp.cw_mul(g, a)
-        acc_amb += g_light
-        acc_dif += g_light * cos
-        g_cos = wp.dot(g_light, dif)
-        if not (cos_raw >= zero):  # clamp_min(0) passes the gradient only where its input >= 0
-            g_cos = zero
-        acc_dir += nh * g_cos
-        # nh = n / max(|n|, eps): the max passes the gradient where |n| >= eps
-        g_nh = ldir * g_cos
-        inv_den = one / den
-        g_n = g_nh * inv_den
-        if length >= eps:
-            g_n -= n * (wp.dot(g_nh, n) * inv_den * inv_den / length)
-        if need_normals != 0:
-            wp.atomic_add(grad_normals, b, tri[0], g_n * b0)
-            wp.atomic_add(grad_normals, b, tri[1], g_n * b1)
-            wp.atomic_add(grad_normals, b, tri[2], g_n * b2)
-        if need_albedo != 0:
-            wp.atomic_add(grad_albedo, b, tri[0], g_a * b0)
-            wp.atomic_add(grad_albedo, b, tri[1], g_a * b1)
-            wp.atomic_add(grad_albedo, b, tri[2], g_a * b2)
-        if need_clip != 0:
-            # depth, normal and albedo are all linear in the barycentrics b_k = c_k / s
-            gb0 = gd * v0[2] + wp.dot(g_n, n0) + wp.dot(g_a, a0)
-            gb1 = gd * v1[2] + wp.dot(g_n, n1) + wp.dot(g_a, a1)
-            gb2 = gd * v2[2] + wp.dot(g_n, n2) + wp.dot(g_a, a2)
-            g_s = -(gb0 * b0 + gb1 * b1 + gb2 * b2) * inv_s
-            p = wp.vector(px, py, one)
-            ge0 = p * (gb0 * inv_s + g_s)
-            ge1 = p * (gb1 * inv_s + g_s)
-            ge2 = p * (gb2 * inv_s + g_s)
-            # c_k = p . e_k with e0 = v1 x v2, e1 = v2 x v0, e2 = v0 x v1; depth adds w_k b_k
-            gv0 = wp.cross(ge1, v2) + wp.cross(v1, ge2)
-            gv1 = wp.cross(v2, ge0) + wp.cross(ge2, v0)
-            gv2 = wp.cross(ge0, v1) + wp.cross(v0, ge1)
-            wp.atomic_add(grad_clip, b, tri[0], wp.vector(gv0[0], gv0[1], zero, gv0[2] + gd * b0))
-            wp.atomic_add(grad_clip, b, tri[1], wp.vector(gv1[0], gv1[1], zero, gv1[2] + gd * b1))
-            wp.atomic_add(grad_clip, b, tri[2], wp.vector(gv2[0], gv2[1], zero, gv2[2] + gd * b2))
-    if need_light != 0:
+        if adjoint == 0:
+            depth[b, r, c] = b0 * v0[2] + b1 * v1[2] + b2 * v2[2]
+            rgb[b, r, c] = wp.cw_mul(a, amb + dif * cos)
+        else:
+            g = zero3
+            if has_grad_rgb != 0:
+                g = wp.vector(grad_rgb[b, r, c, 0], grad_rgb[b, r, c, 1], grad_rgb[b, r, c, 2])
+            gd = zero
+            if has_grad_depth != 0:
+                gd = grad_depth[b, r, c]
+            # ---- adjoints: rgb = a * (amb + dif * cos)
+            g_a = wp.cw_mul(g, amb + dif * cos)
+            g_light = wp.cw_mul(g, a)
+            acc_amb += g_light
+            acc_dif += g_light * cos
+            g_cos = wp.dot(g_light, dif)
+            if not (cos_raw >= zero):  # clamp_min(0) passes the gradient only where its input >= 0
+                g_cos = zero
+            acc_dir += nh * g_cos
+            # nh = n / max(|n|, eps): the max passes the gradient where |n| >= eps
+            g_nh = ldir * g_cos
+            inv_den = one / den
+            g_n = g_nh * inv_den
+            if length >= eps:
+                g_n -= n * (wp.dot(g_nh, n) * inv_den * inv_den / length)
+            if need_normals != 0:
+                wp.atomic_add(grad_normals, b, tri[0], g_n * b0)
+                wp.atomic_add(grad_normals, b, tri[1], g_n * b1)
+                wp.atomic_add(grad_normals, b, tri[2], g_n * b2)
+            if need_albedo != 0:
+                wp.atomic_add(grad_albedo, b, tri[0], g_a * b0)
+                wp.atomic_add(grad_albedo, b, tri[1], g_a * b1)
+                wp.atomic_add(grad_albedo, b, tri[2], g_a * b2)
+            if need_clip != 0:
+                # depth, normal and albedo are all linear in the barycentrics b_k = c_k / s
+                gb0 = gd * v0[2] + wp.dot(g_n, n0) + wp.dot(g_a, a0)
+                gb1 = gd * v1[2] + wp.dot(g_n, n1) + wp.dot(g_a, a1)
+                gb2 = gd * v2[2] + wp.dot(g_n, n2) + wp.dot(g_a, a2)
+                g_s = -(gb0 * b0 + gb1 * b1 + gb2 * b2) * inv_s
+                p = wp.vector(px, py, one)
+                ge0 = p * (gb0 * inv_s + g_s)
+                ge1 = p * (gb1 * inv_s + g_s)
+                ge2 = p * (gb2 * inv_s + g_s)
+                # c_k = p . e_k with e0 = v1 x v2, e1 = v2 x v0, e2 = v0 x v1; depth adds w_k b_k
+                gv0 = wp.cross(ge1, v2) + wp.cross(v1, ge2)
+                gv1 = wp.cross(v2, ge0) + wp.cross(ge2, v0)
+                gv2 = wp.cross(ge0, v1) + wp.cross(v0, ge1)
+                wp.atomic_add(grad_clip, b, tri[0], wp.vector(gv0[0], gv0[1], zero, gv0[2] + gd * b0))
+                wp.atomic_add(grad_clip, b, tri[1], wp.vector(gv1[0], gv1[1], zero, gv1[2] + gd * b1))
+                wp.atomic_add(grad_clip, b, tri[2], wp.vector(gv2[0], gv2[1], zero, gv2[2] + gd * b2))
+    if adjoint != 0 and need_light != 0:
         wp.atomic_add(grad_direction, b, acc_dir)
         wp.atomic_add(grad_ambient, b, acc_amb)
         wp.atomic_add(grad_diffuse, b, acc_dif)
@@ -229,19 +199,17 @@ def _shade_backward_kernel(
 _VEC3_IN = {"normals": wp.array2d, "albedo": wp.array2d, "direction": wp.array, "ambient": wp.array,
             "diffuse": wp.array}
 _SCALAR_IN = {"px_of_col": wp.array, "py_of_row": wp.array}
-_FORWARD = overloads(_shade_forward_kernel, {**_VEC3_IN, "rgb": wp.array3d}, {"clip": wp.array2d},
-                      {**_SCALAR_IN, "depth": wp.array3d})
-_BACKWARD = overloads(
-    _shade_backward_kernel,
-    {**_VEC3_IN, "grad_normals": wp.array2d, "grad_albedo": wp.array2d, "grad_direction": wp.array,
-     "grad_ambient": wp.array, "grad_diffuse": wp.array},
+_KERNEL = overloads(
+    _shade_kernel,
+    {**_VEC3_IN, "rgb": wp.array3d, "grad_normals": wp.array2d, "grad_albedo": wp.array2d,
+     "grad_direction": wp.array, "grad_ambient": wp.array, "grad_diffuse": wp.array},
     {"clip": wp.array2d, "grad_clip": wp.array2d},
-    {**_SCALAR_IN, "grad_rgb": wp.array4d, "grad_depth": wp.array3d})
+    {**_SCALAR_IN, "depth": wp.array3d, "grad_rgb": wp.array4d, "grad_depth": wp.array3d})
 
 
 def _scene_inputs(b0: int, b1: int, clip, faces, face_id, px, py, normals, albedo, direction, ambient,
                   diffuse) -> list[Any]:
-    """Kernel arguments shared by the forward and backward kernels, for scenes ``b0 .. b1 - 1``."""
+    """The kernel's scene arguments (both directions), for scenes ``b0 .. b1 - 1``."""
     sl = slice(b0, b1)
     return [vec_view(clip[sl]), as_warp(faces, wp.vec3i), as_warp(face_id[sl]), as_warp(px), as_warp(py),
             *[vec_view(t[sl]) for t in (normals, albedo, direction, ambient, diffuse)]]
@@ -271,9 +239,9 @@ class WarpShade(torch.autograd.Function):
         cols = items_per_thread(width, device)
         fused = torch_cross_is_fused(clip.device, clip.dtype)
         tensors = (clip, faces, face_id, px, py, normals, albedo, direction, ambient, diffuse)
-        launch_scenes(_FORWARD[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
-            *_scene_inputs(b0, b1, *tensors), fused, cols, vec_view(rgb[b0:b1]), as_warp(depth[b0:b1])],
-            device, launch_stream(clip.device))
+        launch_scenes(_KERNEL[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
+            *_scene_inputs(b0, b1, *tensors), fused, cols, vec_view(rgb[b0:b1]), as_warp(depth[b0:b1]),
+            None, None, 0, 0, *[None] * 6, 0, 0, 0, 0, 0], device, launch_stream(clip.device))
         ctx.save_for_backward(clip, faces, face_id, normals, albedo, direction, ambient, diffuse)
         ctx.set_materialize_grads(False)
         return rgb, depth
@@ -300,10 +268,10 @@ class WarpShade(torch.autograd.Function):
             fused = torch_cross_is_fused(clip.device, clip.dtype)
             flags = [int(need[0]), int(need[3]), int(need[4]), int(need_light)]
             tensors = (clip, faces, face_id, px, py, normals, albedo, direction, ambient, diffuse)
-            launch_scenes(_BACKWARD[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
-                *_scene_inputs(b0, b1, *tensors), fused, cols, _sliced(grad_rgb, b0, b1),
+            launch_scenes(_KERNEL[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
+                *_scene_inputs(b0, b1, *tensors), fused, cols, None, None, _sliced(grad_rgb, b0, b1),
                 _sliced(grad_depth, b0, b1), int(grad_rgb is not None), int(grad_depth is not None),
-                *[_sliced(g, b0, b1, vec=True) for g in grads], *flags], device, launch_stream(clip.device))
+                *[_sliced(g, b0, b1, vec=True) for g in grads], 1, *flags], device, launch_stream(clip.device))
         g_clip, g_normals, g_albedo, g_dir, g_amb, g_dif = grads
         return (g_clip, None, None, g_normals, g_albedo,
                 g_dir if need[5] else None, g_amb if need[6] else None, g_dif if need[7] else None)
