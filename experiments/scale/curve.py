@@ -1,0 +1,112 @@
+"""The learning curve of docs/results.md ("Learning at scale"): test IoU and IoU on the run's own
+training images at every kept checkpoint of one or more runs, as a table and a plot.
+
+    python experiments/scale/curve.py NAME=RUN [NAME=RUN ...] --test TEST_DATA --train TRAIN_DATA \\
+        [--train-limit 416] [--plot docs/images/results/learning_curve.png]
+
+A RUN trained with ``train.keep_every`` (the ``cpu_long`` preset keeps one every 5,000 steps) holds
+``checkpoints/step_XXXXXXX.pt``; each is scored with ``cerberus eval CKPT --data TEST_DATA`` (the
+unseen test subjects) and ``cerberus eval CKPT --data TRAIN_DATA --split train --limit K`` (its own
+first K training images), into ``RUN/curve/step_XXXXXXX/{test,train}``; scores already there are
+reused, so the script can run while a training goes on and again when it ends. Part quality, the
+Hard Human test and the 3D viewer are skipped: the curve needs the IoU only.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+
+def score(ckpt: Path, data: str, out: Path, extra: list[str]) -> float:
+    """Mean voxel IoU of ``ckpt`` on ``data`` (evaluated once, then read from ``out``)."""
+    results = out / "results.json"
+    if not results.is_file():
+        cmd = ["cerberus", "eval", str(ckpt), "--data", data, "--out", str(out), "--no-part-quality", "--no-hard",
+               "--viewer-images", "0", "--figure-images", "1", *extra]
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    return json.loads(results.read_text())["standard"]["mean"]
+
+
+def curve(run: Path, test: str, train: str, limit: int) -> list[tuple[int, float, float]]:
+    """``[(step, test IoU, train IoU)]`` over the run's kept checkpoints, in step order."""
+    rows = []
+    for ckpt in sorted((run / "checkpoints").glob("step_*.pt")):
+        step = int(ckpt.stem.split("_")[1])
+        folder = run / "curve" / ckpt.stem
+        rows.append((step, score(ckpt, test, folder / "test", []),
+                     score(ckpt, train, folder / "train", ["--split", "train", "--limit", str(limit)])))
+    return rows
+
+
+def plot(curves: dict[str, list[tuple[int, float, float]]], path: Path, size: tuple[int, int] = (760, 420)) -> None:
+    """Test IoU (solid, dots) and own-training-image IoU (thin, squares) against the step, with PIL."""
+    from PIL import Image, ImageDraw
+
+    from cerberus_core.viz import atomic_save_png
+
+    w, h = size
+    left, right, top, bottom = 60, 250, 20, 40
+    img = Image.new("RGB", size, "white")
+    draw = ImageDraw.Draw(img)
+    draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
+    steps = [r[0] for rows in curves.values() for r in rows] or [0, 1]
+    values = [v for rows in curves.values() for r in rows for v in r[1:]] or [0.0, 1.0]
+    s1 = max(steps)
+    y0, y1 = (int(min(values) * 50) - 1) / 50, (int(max(values) * 50) + 2) / 50  # a 0.02 grid around the data
+    sx = lambda s: left + s / s1 * (w - left - right)  # noqa: E731
+    sy = lambda v: h - bottom - (v - y0) / (y1 - y0) * (h - top - bottom)  # noqa: E731
+    k = 0
+    while y0 + k * 0.02 <= y1 + 1e-9:
+        y = sy(y0 + k * 0.02)
+        draw.line([left, y, w - right, y], fill=(228, 228, 228))
+        draw.text((8, y - 6), f"{y0 + k * 0.02:.2f}", fill=(0, 0, 0))
+        k += 1
+    for s in sorted(set(steps)):
+        draw.text((sx(s) - 14, h - bottom + 6), f"{s // 1000}k", fill=(0, 0, 0))
+    draw.text(((w - right + left) // 2 - 40, h - 16), "training step", fill=(0, 0, 0))
+    draw.text((left + 6, top + 4), "voxel IoU (32^3)", fill=(0, 0, 0))
+    colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40)]
+    legend = 0
+    for (name, rows), col in zip(curves.items(), colours, strict=False):
+        for index, label, width, marker in ((1, "test (unseen subjects)", 3, "o"), (2, "own training images", 1, "s")):
+            xy = [(sx(r[0]), sy(r[index])) for r in rows]
+            if len(xy) > 1:
+                draw.line(xy, fill=col, width=width)
+            for x, y in xy:
+                box = [x - 3, y - 3, x + 3, y + 3]
+                draw.ellipse(box, fill=col) if marker == "o" else draw.rectangle(box, outline=col)
+            ly = top + 10 + 18 * legend
+            draw.line([w - right + 10, ly, w - right + 30, ly], fill=col, width=width)
+            draw.text((w - right + 36, ly - 6), f"{name}: {label}", fill=(0, 0, 0))
+            legend += 1
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_save_png(img, path)
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", metavar="NAME=RUN")
+    ap.add_argument("--test", required=True, help="dataset whose test split holds the unseen subjects")
+    ap.add_argument("--train", required=True, help="the runs' training dataset")
+    ap.add_argument("--train-limit", type=int, default=416, help="own training images scored (default 416)")
+    ap.add_argument("--plot", type=Path, help="write the curves to this PNG")
+    args = ap.parse_args(argv)
+    curves = {}
+    for item in args.runs:
+        name, _, path = item.partition("=")
+        curves[name] = curve(Path(path), args.test, args.train, args.train_limit)
+    print("| run | step | test IoU | own training images | gap |")
+    print("| :--- | ---: | ---: | ---: | ---: |")
+    for name, rows in curves.items():
+        for step, test, train in rows:
+            print(f"| {name} | {step:,} | {test:.4f} | {train:.4f} | {train - test:+.3f} |")
+    if args.plot:
+        plot(curves, args.plot)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
