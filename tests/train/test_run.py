@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 import torch
@@ -42,6 +43,13 @@ def test_a_run_folder_loads_as_one_object(tiny_run, tiny_root):
     assert last.path.name == "last.pt" and last.step == 2 and last.default_out() == tiny_run / "checkpoints" / "eval"
 
 
+def test_a_run_named_bare_from_its_parent_writes_into_itself(tiny_run, monkeypatch):
+    # `cerberus eval myrun` (no ./, not a shipped name) must write myrun/eval, not ./eval
+    monkeypatch.chdir(tiny_run.parent)
+    run = Run.load(tiny_run.name)
+    assert not run.shipped and run.default_out() == Path(tiny_run.name) / "eval"
+
+
 def test_load_refuses_what_load_run_refuses(tmp_path):
     with pytest.raises(CheckpointError, match="does not exist"):
         Run.load(tmp_path / "nothing")
@@ -53,7 +61,7 @@ def test_the_shipped_human_model_loads_by_name():
     run = Run.load("human")
     assert run.path.name == "human.safetensors" and run.step is not None and run.step > 0
     assert run.model.config.num_parts == run.config.model.num_parts and run.scene.fov_y > 0
-    assert run.default_out().name == "eval"
+    assert run.shipped and run.default_out() == Path("eval")
 
 
 def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, capsys):

@@ -45,6 +45,7 @@ from cerberus_core.train.checkpoint import (
     model_scene,
 )
 from cerberus_core.train.config import TrainConfig
+from cerberus_core.zoo import available
 
 #: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without --overwrite.
 EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
@@ -206,9 +207,17 @@ class Run:
         return model_scene(self.config, data, self.recorded_scene)
 
     def default_out(self, folder: str = "eval") -> Path:
-        """``RUN/<folder>`` for a run folder, beside a model file, or ``./<folder>`` for a shipped name."""
+        """``RUN/<folder>`` for a run folder (``runs/a`` or a bare ``a``), beside a model file, or
+        ``./<folder>`` for a shipped model's name."""
+        if self.shipped:
+            return Path(folder)
         given = Path(self.source)
-        return (given if given.is_dir() and looks_like_path(self.source) else given.parent) / folder
+        return (given if given.is_dir() else given.parent) / folder
+
+    @property
+    def shipped(self) -> bool:
+        """Whether the run was loaded by a shipped model's name (``Run.load("human")``), not a path."""
+        return not looks_like_path(self.source) and str(self.source) in available()
 
     def evaluate(self, data: str | Path | None = None, split: str = "test", out: str | Path | None = None, *,
                  overwrite: bool = False, protocol: str = "kato", resolution: int = 32, hard: bool = True,
@@ -238,7 +247,7 @@ class Run:
         check_evaluation(resolution=resolution, protocol=protocol, viewer_images=viewer_images, device=self.device,
                          data=data)
         data = None if data is None else Path(data)
-        keep = [Path(self.source)] if looks_like_path(self.source) else []
+        keep = [] if self.shipped else [Path(self.source)]
         out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=overwrite,
                             keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS)
         baseline_models = load_baselines(baselines, str(self.device))
@@ -290,7 +299,7 @@ class Run:
             raise ConfigError(f"--viewer-images {viewer_images}: must be >= 0 (0: no viewer)")
         images = [Path(p) for p in images]
         mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
-        keep = images + [m for m in mask_list if m is not None] + ([Path(self.source)] if looks_like_path(self.source) else [])
+        keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(Path(out), overwrite=overwrite, keep=keep)
         return reconstruct_images(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                   renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
