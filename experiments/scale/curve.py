@@ -26,7 +26,9 @@ def score(ckpt: Path, data: str, out: Path, extra: list[str]) -> float:
     if not results.is_file():
         cmd = ["cerberus", "eval", str(ckpt), "--data", data, "--out", str(out), "--no-part-quality", "--no-hard",
                "--viewer-images", "0", "--figure-images", "1", *extra]
-        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if done.returncode != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr[-2000:]}")
     return json.loads(results.read_text())["standard"]["mean"]
 
 
