@@ -55,4 +55,5 @@ def test_evaluate_pair_parts_and_precision_recall(helpers):
     r = evaluate_pair(parts, gt, ["voxel_iou", "chamfer_l2", "fscore"], n_samples=10_000, threshold=0.02,
                       protocol="gt_bbox")
     assert r["recall"] > 0.99 and r["precision"] < 0.99
-    assert set(r) == {"voxel_iou", "chamfer_l2", "fscore", "precision", "recall"}
+    assert set(r) == {"voxel_iou", "clamped_parts", "chamfer_l2", "fscore", "precision", "recall"}
+    assert r["clamped_parts"] == 0  # the gt_bbox grid spans both meshes: nothing to clamp
