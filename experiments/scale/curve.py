@@ -2,14 +2,15 @@
 training images at every kept checkpoint of one or more runs, as a table and a plot.
 
     python experiments/scale/curve.py NAME=RUN [NAME=RUN ...] --test TEST_DATA --train TRAIN_DATA \\
-        [--train-limit 416] [--plot docs/images/results/learning_curve.png]
+        [--train-limit 416] [--plot docs/images/results/learning_curve.png] [--pair A-B]
 
 A RUN trained with ``train.keep_every`` (the ``cpu_long`` preset keeps one every 5,000 steps) holds
 ``checkpoints/step_XXXXXXX.pt``; each is scored with ``cerberus eval CKPT --data TEST_DATA`` (the
 unseen test subjects) and ``cerberus eval CKPT --data TRAIN_DATA --split train --limit K`` (its own
 first K training images), into ``RUN/curve/step_XXXXXXX/{test,train}``; scores already there are
 reused, so the script can run while a training goes on and again when it ends. Part quality, the
-Hard Human test and the 3D viewer are skipped: the curve needs the IoU only.
+Hard Human test and the 3D viewer are skipped: the curve needs the IoU only. ``--pair A-B`` prints
+``A − B`` on the test images at every step both runs kept (mean ± s.e., images where A is better).
 """
 from __future__ import annotations
 
@@ -18,6 +19,9 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
+from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 
 def score(ckpt: Path, data: str, out: Path, extra: list[str]) -> float:
@@ -95,6 +99,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--train", required=True, help="the runs' training dataset")
     ap.add_argument("--train-limit", type=int, default=416, help="own training images scored (default 416)")
     ap.add_argument("--plot", type=Path, help="write the curves to this PNG")
+    ap.add_argument("--pair", action="append", default=[], metavar="A-B", help="paired test differences A - B")
     args = ap.parse_args(argv)
     curves = {}
     for item in args.runs:
@@ -105,6 +110,14 @@ def main(argv: list[str]) -> int:
     for name, rows in curves.items():
         for step, test, train in rows:
             print(f"| {name} | {step:,} | {test:.4f} | {train:.4f} | {train - test:+.3f} |")
+    paths = dict(item.partition("=")[::2] for item in args.runs)
+    for pair in args.pair:
+        a, _, b = pair.partition("-")
+        for step in sorted({r[0] for r in curves[a]} & {r[0] for r in curves[b]}):
+            res = [json.loads((Path(paths[n]) / "curve" / f"step_{step:07d}" / "test" / "results.json").read_text())
+                   for n in (a, b)]
+            mean, sem, wins = paired(*res)
+            print(f"{a} - {b} at step {step:,}: {mean:+.4f} ± {sem:.4f} ({wins} images favour {a})")
     if args.plot:
         plot(curves, args.plot)
     return 0
