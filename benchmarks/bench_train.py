@@ -52,8 +52,8 @@ def make_data(root: Path, image_size: int) -> Path:
 
 def setup(preset: str, renderer_name: str, data_root: Path, batch_size: int | None):
     """The preset's config (depth offset resolved), the scene, one batch and the renderer."""
-    from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core import make_renderer, resolve_renderer
+    from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
 
