@@ -27,13 +27,12 @@ def check_device(name: str, option: str = "--device") -> str:
         return name
     if not is_device_name(name):
         raise ConfigError(f"{option} {name!r}: expected cpu, cuda or cuda:N (or auto)")
-    if name.startswith("cuda"):
-        if not torch.cuda.is_available():
-            raise ConfigError(f"{option} {name}: CUDA is not available on this machine; use {cpu}")
-        index = name.partition(":")[2]
-        if index and int(index) >= torch.cuda.device_count():
-            raise ConfigError(f"{option} {name}: no such GPU (this machine has {torch.cuda.device_count()}); "
-                              f"use {option} cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
+    if not torch.cuda.is_available():  # name is cuda or cuda:N from here on
+        raise ConfigError(f"{option} {name}: CUDA is not available on this machine; use {cpu}")
+    index = name.partition(":")[2]
+    if index and int(index) >= torch.cuda.device_count():
+        raise ConfigError(f"{option} {name}: no such GPU (this machine has {torch.cuda.device_count()}); "
+                          f"use {option} cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
     return name
 
 

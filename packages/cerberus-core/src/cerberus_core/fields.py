@@ -9,11 +9,11 @@ the range and the ``--set`` that fixes it::
 
     @dataclass
     class OptimConfig(Checked):
-        SECTION: ClassVar[str] = "optim"
+        SECTION = "optim"
         lr: float = ranged(0.0005, gt=0)
 
     OptimConfig(lr=0)
-    # ConfigError: optim.lr = 0: must be > 0 (--set optim.lr=VALUE)
+    # ConfigError: optim.lr = 0: must be a number > 0 (--set optim.lr=VALUE)
 
 Checks that relate two fields stay in the class's ``validate()``, which :meth:`Checked.check` calls
 after the ranges; they raise :class:`ConfigError` too. Call ``check()`` again after changing a field
@@ -106,12 +106,11 @@ def check_fields(obj: Any, section: str = "") -> None:
     prefix = f"{section}." if section else ""
     choices = _choices(type(obj))
     for f in fields(obj):
-        if f.name in choices and getattr(obj, f.name) not in choices[f.name]:
-            allowed = ", ".join("null" if c is None else repr(c) for c in choices[f.name])
-            raise ConfigError(f"{prefix}{f.name} = {getattr(obj, f.name)!r}: must be one of {allowed} "
-                              f"(--set {prefix}{f.name}=VALUE)")
-        rng = f.metadata.get(RANGE)
         value = getattr(obj, f.name)
+        if f.name in choices and value not in choices[f.name]:
+            allowed = ", ".join("null" if c is None else repr(c) for c in choices[f.name])
+            raise ConfigError(f"{prefix}{f.name} = {value!r}: must be one of {allowed} (--set {prefix}{f.name}=VALUE)")
+        rng = f.metadata.get(RANGE)
         if rng is not None and not rng.admits(value):
             raise ConfigError(f"{prefix}{f.name} = {value!r}: must be {rng.describe()} (--set {prefix}{f.name}=VALUE)")
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import torch
 
-from ..shapes import check_shapes
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 

@@ -181,9 +181,7 @@ class TrainConfig(Checked):
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
-        cfg = build(cls, d)
-        cfg.validate()
-        return cfg
+        return build(cls, d)  # constructing it checks it (fields.Checked)
 
 
 # ------------------------------------------------------------------ presets, files, overrides

@@ -273,9 +273,9 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
     Raises:
         NonFiniteError: with ``train.on_nonfinite: stop``, when a step's loss or gradient is not finite.
     """
-    config = dataclasses.replace(config)  # shallow copy: the caller's object is not mutated below
+    # Shallow copies (the caller's object is not mutated below); making them checks them (fields.Checked).
+    config = dataclasses.replace(config)
     config.model = dataclasses.replace(config.model)
-    config.validate()
     if dataset is None:  # stored absolute: eval, reconstruct and --resume work from any directory
         config.data = dataclasses.replace(config.data, root=str(Path(config.data.root).expanduser().resolve()))
     device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
