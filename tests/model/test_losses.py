@@ -72,6 +72,26 @@ def test_viewpoint_scenes_cross_uses_partner_translation_with_own_rotation():
         torch.testing.assert_close(cross[0, x], rotated + trans[0, partner].unsqueeze(-2))
 
 
+def test_viewpoint_scenes_own_cross_view_is_the_whole_model_seen_from_the_partner():
+    """cross_view='own': a0 -> a1 renders R^a0 V^a0 + T^a0 (image a0's own world model), so the
+    partner's image checks each part's own depth; an unknown mode is refused."""
+    g = torch.Generator().manual_seed(3)
+    local = torch.randn(1, 4, 2, 5, 3, generator=g)
+    rot = torch.linalg.qr(torch.randn(1, 4, 2, 3, 3, generator=g))[0]
+    trans = torch.randn(1, 4, 2, 3, generator=g)
+    own, cross = viewpoint_scenes(local, rot, trans, "own")
+    torch.testing.assert_close(cross, own)
+    torch.testing.assert_close(own, viewpoint_scenes(local, rot, trans)[0])
+    with pytest.raises(ValueError, match="cross_view"):
+        viewpoint_scenes(local, rot, trans, "mine")
+
+
+def test_cross_view_warmup_keeps_the_partner_translations_first():
+    cfg = LossConfig(cross_view="own", cross_view_warmup=300)
+    assert [cfg.cross_view_at(s) for s in (0, 299, 300, None)] == ["partner", "partner", "own", "own"]
+    assert LossConfig().cross_view_at(10_000) == "partner"  # the paper's equation 4 by default
+
+
 def test_viewpoint_reconstruction_halves_own_and_cross_then_averages():
     own = torch.tensor([[1.0, 2.0, 3.0, 4.0]])
     cross = torch.tensor([[3.0, 2.0, 1.0, 0.0]])
@@ -368,3 +388,104 @@ def test_one_registry_of_loss_terms_names_the_config_weights_the_objective_the_l
         assert (" yes " in row) == term.paper and term.summary.split(" (")[0] in row
     with pytest.raises(ValueError, match=r"losses.hidden = nan: must be a number >= 0"):
         LossConfig(hidden=float("nan")).validate()
+
+
+def test_reprojection_loss_pulls_the_projection_toward_the_partner_keypoint_only():
+    from cerberus_core.losses import reprojection_loss
+
+    projected = torch.zeros(1, 4, 2, 2, requires_grad=True)
+    keypoints = torch.zeros(1, 4, 2, 2, requires_grad=True)
+    with torch.no_grad():
+        keypoints[0, 0, 1] = torch.tensor([8.0, 0.0])  # one of 8 (image, part) pairs off by 8 px of 16
+    loss = reprojection_loss(projected, keypoints, 16)
+    torch.testing.assert_close(loss, torch.tensor([0.25 / 8]))
+    loss.sum().backward()
+    assert projected.grad[0, 0, 1, 0] < 0  # descending moves the projection right, onto the keypoint
+    assert keypoints.grad is None  # the partner's keypoint is a target, not pulled
+    with pytest.raises(ValueError, match="reprojection_loss"):
+        reprojection_loss(projected[0], keypoints, 16)
+
+
+def _depth_setup(cross_view="partner", **weights):
+    """Two views 90 degrees apart of one pose; the objective's gradient on the predicted depths."""
+    model, scene, batch, _ = _setup()
+    losses = LossConfig(**{"recon": 0, "translation": 0, "background": 0, "smoothness": 0, **weights},
+                        cross_view=cross_view)
+    return model, scene, batch, losses
+
+
+def test_objective_reprojection_is_the_translations_seen_by_the_partner_camera():
+    model, scene, batch, losses = _depth_setup(reprojection=1.0)
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    pred = model(batch.images[0], quadruplet_mixer(torch.Generator().manual_seed(0)))
+    _, trans, _, _ = model.world_pose(pred, batch.camera)
+    uv, _ = partner_cameras(batch.camera, 1).project(trans)
+    kp = pred.maps.uv[list(VIEW_PARTNER)]
+    expected = ((uv - kp) / 32).square().sum(-1).mean()
+    assert out.terms["reprojection"].item() == pytest.approx(expected.item(), rel=1e-4)
+    assert expected.item() > 0 and _grad_norm(model, out.total) > 0
+
+
+def test_reprojection_gradient_moves_a_part_along_its_ray_toward_the_triangulated_depth():
+    """A part seen at the right pixel of view 0 but at the wrong depth: the partner view (90 degrees
+    around) sees it off its keypoint, and descending the term moves view 0's depth to the truth."""
+    from cerberus_core.losses import reprojection_loss
+
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.tensor([0.0, 90.0]), 32)
+    truth = torch.tensor([[[0.2, 0.1, 0.0]]])  # (1, 1, 3) world point
+    uv0, d0 = cam.index([0]).project(truth)
+    uv1, _ = cam.index([1]).project(truth)
+    def loss_at(depth):
+        point = cam.index([0]).unproject(uv0, depth)  # stays on view 0's ray: view 0 unchanged
+        projected, _ = cam.index([1]).project(point)
+        return reprojection_loss(projected.reshape(1, 1, 1, 2).expand(1, 4, 1, 2),
+                                 uv1.reshape(1, 1, 1, 2).expand(1, 4, 1, 2), 32).sum()
+
+    for offset in (0.4, -0.4):  # too far, then too near, along view 0's ray
+        depth = (d0 + offset).clone().requires_grad_(True)
+        (grad,) = torch.autograd.grad(loss_at(depth), depth)
+        assert float(grad.sign()) == (1.0 if offset > 0 else -1.0)  # descending moves it toward the truth
+        opt = torch.optim.Adam([depth], lr=0.01)
+        for _ in range(150):
+            opt.zero_grad()
+            loss_at(depth).backward()
+            opt.step()
+        assert abs(float(depth.detach() - d0)) < 0.01
+    assert float(loss_at(d0)) < 1e-10
+
+
+def test_cross_pulls_average_the_partner_view_pull_with_the_input_view_pull():
+    model, scene, batch, _ = _setup()
+    renderer, gen = make_renderer("torch"), torch.Generator
+    kw = dict(recon=0, translation=0, background=0, smoothness=0, chamfer=1.0, cross_view="own")
+    own_only = quadruplet_objective(model, renderer, batch, scene, LossConfig(**kw), gen().manual_seed(0))
+    both = quadruplet_objective(model, renderer, batch, scene, LossConfig(**kw, cross_pulls=True), gen().manual_seed(0))
+    from cerberus_core.losses import silhouette_chamfer
+    parts = own_only.parts.flatten(0, 1).flatten(1, 2)  # own cross view: the same world parts
+    uv_cross, _ = partner_cameras(batch.camera, 1).project(parts)
+    fg = 1 - background_mask(batch.images[0], scene.background, 0.02)
+    cross = silhouette_chamfer(uv_cross, fg[list(VIEW_PARTNER)]).mean()
+    expected = 0.5 * (own_only.terms["chamfer"] + cross)
+    assert both.terms["chamfer"].item() == pytest.approx(expected.item(), rel=1e-5)
+    assert cross.item() != pytest.approx(own_only.terms["chamfer"].item(), rel=1e-3)
+
+
+def test_objective_own_cross_view_renders_each_model_whole_from_the_partner_camera():
+    model, scene, batch, _ = _setup()
+    renderer = make_renderer("torch")
+    losses = LossConfig(cross_view="own", cross_view_warmup=5)
+    warm = quadruplet_objective(model, renderer, batch, scene, losses, torch.Generator().manual_seed(3), step=4)
+    paper = quadruplet_objective(model, renderer, batch, scene, LossConfig(), torch.Generator().manual_seed(3))
+    assert warm.terms["recon"].item() == paper.terms["recon"].item()  # partner translations in the warm-up
+    after = quadruplet_objective(model, renderer, batch, scene, losses, torch.Generator().manual_seed(3), step=5)
+    parts = after.parts[0]  # (4, N, V, 3) world parts, the same ones seen from the partner camera
+    targets = batch.images.clone()
+    targets[..., :8, :] = 0.0
+    cams = partner_cameras(batch.camera, 1)
+    cross = render_parts(renderer, parts, model.faces, cams, scene.light(cams), albedo=scene.albedo,
+                         background=(0.0, 0.0, 0.0)).image
+    own = reconstruction_loss(after.renders[0], targets[0])
+    expected = 0.5 * (own + reconstruction_loss(cross, targets[0, list(VIEW_PARTNER)]))
+    assert after.terms["recon"].item() == pytest.approx(expected.mean().item(), rel=1e-5)
+    assert after.terms["recon"].item() != pytest.approx(paper.terms["recon"].item(), rel=1e-4)

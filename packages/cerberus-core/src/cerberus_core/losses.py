@@ -80,10 +80,24 @@ class LossConfig(Checked):
             foreground pixels, every vertex visible or not); beyond the paper, 0 there.
         hidden: weight of :func:`hidden_part_pull` (parts wholly hidden in their input view pulled
             toward the foreground no part covers); beyond the paper, 0 there.
+        reprojection: weight of :func:`reprojection_loss` (each part's translation projected into
+            the partner camera against the partner's keypoint, in image heights); beyond the paper,
+            0 there.
+        cross_pulls: apply the chamfer and hidden-part pulls to the cross view as well (the
+            rendering of :func:`viewpoint_scenes` seen by the partner camera, against the partner's
+            foreground), averaged with the input view's like equation 4; off: the input view only.
         pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses
             its own shape latent — "Free Cerberus").
-        viewpoint_consistency: also render each image's rotated mesh from the other viewpoint with
-            that viewpoint's translation (equation 4); off: only the image's own viewpoint.
+        viewpoint_consistency: also render each image's rotated mesh from the other viewpoint
+            (equation 4); off: only the image's own viewpoint.
+        cross_view: which translations that second rendering uses (:func:`viewpoint_scenes`):
+            ``partner`` (the paper's equation 4: the partner viewpoint's translations, so a part's
+            own depth never meets the partner's image) or ``own`` (the image's whole 3D model, its
+            own world translations, seen from the partner camera: a part at the wrong depth lands
+            in the wrong place of the partner's image). Beyond the paper; ``partner`` there.
+        cross_view_warmup: with ``cross_view: own``, the first this many steps still use
+            ``partner``, so that early training, whose depths are still arbitrary, cannot lose the
+            body off the partner's screen (:meth:`cross_view_at`).
         render_background: ``black`` (default) or ``dataset``: the background colour of the
             reconstruction loss. With ``black`` the input image's background pixels (mask ``b``) are
             set to black in the target and the renderings are composited over black. The barycentric
@@ -106,10 +120,20 @@ class LossConfig(Checked):
     silhouette: float = ranged(0.0, ge=0)
     chamfer: float = ranged(0.0, ge=0)
     hidden: float = ranged(0.0, ge=0)
+    reprojection: float = ranged(0.0, ge=0)
+    cross_pulls: bool = False
     pose_consistency: bool = True
     viewpoint_consistency: bool = True
+    cross_view: Literal["partner", "own"] = "partner"
+    cross_view_warmup: int = ranged(0, ge=0)
     render_background: Literal["black", "dataset"] = "black"
     background_tolerance: float = ranged(0.02, ge=0, lt=1)
+
+    def cross_view_at(self, step: int | None) -> Literal["partner", "own"]:
+        """The cross view's translations at training step ``step`` (``None``: after any warm-up)."""
+        if self.cross_view == "own" and step is not None and step < self.cross_view_warmup:
+            return "partner"
+        return self.cross_view
 
     def weight(self, name: str) -> float:
         """The weight ``lambda`` of the term ``name`` of :data:`LOSS_TERMS`."""
@@ -161,23 +185,33 @@ def mix_shape_latents(latents: Tensor, generator: torch.Generator | None = None)
     return mixed, choice
 
 
-def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -> tuple[Tensor, Tensor]:
+def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Tensor,
+                     cross_view: Literal["partner", "own"] = "partner") -> tuple[Tensor, Tensor]:
     """The posed meshes rendered for equation 4 (all in world coordinates).
 
     Image ``x`` of the quadruplet contributes its rotated mesh ``R^x V^x`` twice: translated by its
-    own translation (rendered from its own viewpoint, compared with image ``x``) and translated by
-    the translation predicted from its viewpoint partner ``x'`` (:data:`VIEW_PARTNER`; rendered from
-    ``x'``'s viewpoint, compared with image ``x'``): ``a0 -> a1`` is ``R^a0 V^a0 + T^a1``.
+    own translation (rendered from its own viewpoint, compared with image ``x``) and, for the cross
+    view (rendered from ``x'``'s viewpoint, compared with image ``x'``, :data:`VIEW_PARTNER`):
+
+    * ``partner`` (the paper): translated by the translation predicted from ``x'``:
+      ``a0 -> a1`` is ``R^a0 V^a0 + T^a1``;
+    * ``own`` (beyond the paper): translated by its own translation, i.e. image ``x``'s whole 3D
+      model seen from ``x'``: ``R^a0 V^a0 + T^a0``, so every part's depth is checked by ``x'``.
 
     Args:
         local_vertices: ``(B, 4, N, V, 3)`` deformed parts (local frames).
         rotations: ``(B, 4, N, 3, 3)`` world rotations.
         translations: ``(B, 4, N, 3)`` world translations.
+        cross_view: ``partner`` or ``own`` (:attr:`LossConfig.cross_view`).
     Returns:
         ``own`` and ``cross``, both ``(B, 4, N, V, 3)``; ``cross[:, x]`` is to be rendered with the
         camera of image ``VIEW_PARTNER[x]`` and compared with that image.
     """
     own = pose_parts(local_vertices, rotations, translations)
+    if cross_view == "own":
+        return own, own
+    if cross_view != "partner":
+        raise ValueError(f"viewpoint_scenes: cross_view must be 'partner' or 'own', got {cross_view!r}")
     cross = pose_parts(local_vertices, rotations, translations[:, list(VIEW_PARTNER)])
     return own, cross
 
@@ -208,6 +242,26 @@ def translation_loss(translations: Tensor) -> Tensor:
     pose_a = (translations[:, 0] - translations[:, 1]).square().sum(-1).mean(-1)
     pose_b = (translations[:, 2] - translations[:, 3]).square().sum(-1).mean(-1)
     return 0.5 * (pose_a + pose_b)
+
+
+def reprojection_loss(projected: Tensor, keypoints: Tensor, height: int) -> Tensor:
+    """Depth checked in the partner's image: a reprojection form of equation 5 (beyond the paper).
+
+    Part ``i``'s world translation predicted from image ``x``, projected into the camera of its
+    viewpoint partner ``x'``, should land on the keypoint ``k_i^{x'}`` that ``x'`` predicts for it.
+    Only ``x``'s side learns (the keypoint is detached), and a translation lies on its own camera
+    ray through its own keypoint, so the error it corrects is mostly ``x``'s depth: unlike
+    :func:`translation_loss` it does not drag the partner's keypoint off its image.
+
+    Args:
+        projected: ``(B, 4, N, 2)`` pixels: ``projected[:, x, i]`` is ``pi_{x'}(T_i^x)``.
+        keypoints: ``(B, 4, N, 2)`` pixels: ``keypoints[:, x, i]`` is ``k_i^{x'}`` (detached here).
+        height: the image height in pixels; distances are in image heights.
+    Returns:
+        ``(B,)`` ``1/4 sum_x 1/N sum_i ||pi_{x'}(T_i^x) - k_i^{x'}||^2 / H^2``.
+    """
+    check_shapes("reprojection_loss", projected=(projected, "B 4 N 2"), keypoints=(keypoints, "B 4 N 2"))
+    return ((projected - keypoints.detach()) / height).square().sum(-1).mean(dim=(-2, -1))
 
 
 def background_loss(prob: Tensor, mask: Tensor) -> Tensor:
@@ -421,6 +475,8 @@ LOSS_TERMS: tuple[LossTerm, ...] = (
              "2-D chamfer distance between the projected part vertices and the foreground pixels"),
     LossTerm("hidden", hidden_part_pull, "lambda_h L_h", False,
              "pull of the parts an image does not show toward the foreground no part covers"),
+    LossTerm("reprojection", reprojection_loss, "lambda_p L_p", False,
+             "each part's translation projected into the partner camera against the partner's keypoint"),
 )
 """Every term of the training objective, in logging order: the one list the config (a weight per
 name), the objective, ``metrics.csv`` and the docs (docs/training.md, checked by a test) read."""

@@ -25,6 +25,7 @@ from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
 from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
@@ -127,6 +128,8 @@ class Evaluation:
         lines = [line]
         if result.part_visibility is not None:
             lines.append(visibility_line(result.part_visibility))
+        if result.depth is not None:
+            lines.append("depth: " + depth_line(result.depth))
         if weights.stale_warning():  # said again under the scores, where it is read
             lines.append(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
                          f"{printable(weights.newer)} (step {weights.newer_step})")

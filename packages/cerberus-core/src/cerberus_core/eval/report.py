@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from cerberus_core.atomic import atomic_write_text
+from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.runner import EvaluationResult
 from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.names import printable
@@ -133,6 +134,12 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
         vrow = [[p, *vis_cells(p), px] for p, px in enumerate(vis["mean_visible_pixels"])]
         out += ["## Part visibility", "", _visibility_sentence(vis), "",
                 markdown_table(["Learned part", *vis_header, "Visible pixels"], vrow, 3), ""]
+    depth = r.get("depth")
+    if depth:
+        labels = {p["part"]: p["label"] for p in pq["parts"]} if pq else {}
+        drow = [[p, labels.get(p) or "-", d] for p, d in enumerate(depth["translation_disagreement"])]
+        out += ["## Depth across views", "", depth_line(depth)[0].upper() + depth_line(depth)[1:] + ".", "",
+                markdown_table(["Learned part", "Majority GT part", "Translation disagreement"], drow, 3), ""]
     return "\n".join(out)
 
 

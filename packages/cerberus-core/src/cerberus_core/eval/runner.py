@@ -33,6 +33,7 @@ from cerberus_core.eval.accumulators import (
     PartVisibility,
     StandardIoU,
 )
+from cerberus_core.eval.depth import DepthAccumulator
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.parts import PartSet
@@ -125,6 +126,7 @@ class EvaluationResult:
         canonical: ``{subject: dataset index}`` of the images the Hard Human shapes came from.
         part_quality: :meth:`PartQualityAccumulator.summary` (``None`` if not run).
         part_visibility: :meth:`VisibilityAccumulator.summary` (``None`` if not run).
+        depth: :meth:`DepthAccumulator.summary` (``None`` if not run or no pose has two views).
         records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error,
             visible_pixels (per part, in the input view).
         seconds: wall time.
@@ -137,6 +139,7 @@ class EvaluationResult:
     canonical: dict[str, int]
     part_quality: dict[str, Any] | None
     part_visibility: dict[str, Any] | None = None
+    depth: dict[str, Any] | None = None
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -149,6 +152,7 @@ class EvaluationResult:
             "canonical": self.canonical,
             "part_quality": self.part_quality,
             "part_visibility": self.part_visibility,
+            "depth": self.depth,
             "seconds": round(self.seconds, 3),
             "records": self.records,
         }
@@ -177,6 +181,8 @@ class EvalConfig:
         part_quality: also score the parts against the ground-truth semantic parts.
         visibility: also measure how often each part is wholly hidden in its input view (one
             render per batch, see :mod:`cerberus_core.eval.visibility`).
+        depth: also measure depth across the views of each test pose (per-part translation
+            disagreement, turned-view silhouette IoU; :mod:`cerberus_core.eval.depth`).
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
         batch_size, num_workers: model batching, data-loading workers.
         weighting: part-quality vertex weights, ``"area"`` or ``"count"``.
@@ -190,6 +196,7 @@ class EvalConfig:
     hard: bool = True
     part_quality: bool = True
     visibility: bool = True
+    depth: bool = True
     canonical_view: int | None = None
     batch_size: int = 16
     num_workers: int = 0
@@ -205,12 +212,14 @@ class EvalConfig:
 def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalConfig, scorer: VoxelScorer,
                         renderer: Renderer | None, device: torch.device | str) -> list[MetricAccumulator]:
     """The accumulators ``config`` asks for, in the order they fill each record: standard IoU, part
-    visibility, Hard Human (its canonical shapes reconstructed now), part quality."""
+    visibility, Hard Human (its canonical shapes reconstructed now), part quality, depth."""
     hard = None
     if config.hard and (chosen := select_canonical(dataset_metadata(dataset), config.canonical_view)):
         hard = HardHumanIoU(scorer, extract_canonical(dataset, reconstruct, chosen, device, config.batch_size))
-    optional = [PartVisibility(renderer or make_renderer("auto")) if config.visibility else None, hard,
-                PartQuality(config.weighting, config.density) if config.part_quality else None]
+    renderer = renderer or (make_renderer("auto") if config.visibility or config.depth else None)
+    optional = [PartVisibility(renderer) if config.visibility else None, hard,
+                PartQuality(config.weighting, config.density) if config.part_quality else None,
+                DepthAccumulator(renderer) if config.depth else None]
     return [StandardIoU(scorer), *(a for a in optional if a is not None)]
 
 
@@ -275,6 +284,7 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
         canonical={} if hard is None else dict(hard.canonical.indices),
         part_quality=None if PartQuality not in found else found[PartQuality].summary(),
         part_visibility=None if PartVisibility not in found else found[PartVisibility].summary(),
+        depth=None if DepthAccumulator not in found else found[DepthAccumulator].summary(),
         records=records,
         seconds=time.perf_counter() - t0,
     )

@@ -33,6 +33,7 @@ from cerberus_core.losses import (
     hidden_part_pull,
     mix_shape_latents,
     reconstruction_loss,
+    reprojection_loss,
     silhouette_chamfer,
     silhouette_loss,
     smoothness_loss,
@@ -115,23 +116,27 @@ class QuadrupletRender:
             viewpoint (``None`` without viewpoint consistency); ``cross[:, x]`` is compared with
             image ``VIEW_PARTNER[x]``.
         parts_own: ``(B, 4, N, V, 3)`` the world-space parts of ``own``.
+        parts_cross: ``(B, 4, N, V, 3)`` the world-space parts of ``cross`` (``None`` without it).
     """
 
     own: RenderOutput
     cross: RenderOutput | None
     parts_own: Tensor
+    parts_cross: Tensor | None = None
 
 
 def render_quadruplets(renderer: Renderer, parts: PartSet, batch: QuadrupletBatch, scene: SceneSetup,
                        background: tuple[float, float, float], *, viewpoint_consistency: bool,
-                       antialias: bool) -> QuadrupletRender:
-    """Render ``parts`` (``4 B`` images' world-space parts) as equation 4 asks, in one renderer call."""
+                       antialias: bool, cross_view: str = "partner") -> QuadrupletRender:
+    """Render ``parts`` (``4 B`` images' world-space parts) as equation 4 asks, in one renderer call
+    (``cross_view``: :func:`cerberus_core.losses.viewpoint_scenes`)."""
     bsz = batch.num_quadruplets
 
     def quad(t: Tensor) -> Tensor:  # (4B, ...) -> (B, 4, ...)
         return t.reshape(bsz, 4, *t.shape[1:])
 
-    own, cross = viewpoint_scenes(quad(parts.local_vertices), quad(parts.rotations), quad(parts.translations))
+    own, cross = viewpoint_scenes(quad(parts.local_vertices), quad(parts.rotations), quad(parts.translations),
+                                  cross_view)
     style = dict(albedo=scene.albedo, background=background, antialias=antialias)
     if viewpoint_consistency:
         cameras = Camera.cat([batch.camera, partner_cameras(batch.camera, bsz)])
@@ -141,7 +146,9 @@ def render_quadruplets(renderer: Renderer, parts: PartSet, batch: QuadrupletBatc
     out = render_parts(renderer, verts, parts.faces, cameras, scene.light(cameras), **style)
     halves = [RenderOutput(**{f.name: quad(getattr(out, f.name)[k * 4 * bsz:(k + 1) * 4 * bsz]) for f in fields(out)})
               for k in range(2 if viewpoint_consistency else 1)]
-    return QuadrupletRender(halves[0], halves[1] if viewpoint_consistency else None, own)
+    if not viewpoint_consistency:
+        return QuadrupletRender(halves[0], None, own)
+    return QuadrupletRender(halves[0], halves[1], own, cross)
 
 
 @dataclass
@@ -167,7 +174,9 @@ class ObjectiveInputs:
     render: QuadrupletRender
     dihedral: Tensor
     smoothness_once: bool
+    cross_pulls: bool = False
     _uv: Tensor | None = field(default=None, repr=False)
+    _uv_cross: Tensor | None = field(default=None, repr=False)
 
     @property
     def foreground(self) -> Tensor:
@@ -180,6 +189,20 @@ class ObjectiveInputs:
         if self._uv is None:
             self._uv, _ = self.batch.camera.project(self.render.parts_own.flatten(0, 1).flatten(1, 2))
         return self._uv
+
+    @property
+    def uv_cross(self) -> Tensor:
+        """``(4 B, N V, 2)`` the cross-view parts' vertices projected into the partner cameras, in
+        pixels (row ``4 b + x`` is seen by image ``4 b + VIEW_PARTNER[x]``'s camera)."""
+        if self._uv_cross is None:
+            cams = partner_cameras(self.batch.camera, self.batch.num_quadruplets)
+            self._uv_cross, _ = cams.project(self.render.parts_cross.flatten(0, 1).flatten(1, 2))
+        return self._uv_cross
+
+    @property
+    def pulls_cross(self) -> bool:
+        """Whether the chamfer and hidden-part pulls also act on the cross view."""
+        return self.cross_pulls and self.render.cross is not None
 
 
 def _partner(t: Tensor) -> Tensor:
@@ -198,11 +221,35 @@ def _silhouette(x: ObjectiveInputs) -> Tensor:
     return viewpoint_reconstruction(own, cross)
 
 
-def _hidden(x: ObjectiveInputs) -> Tensor:
-    part_id = x.render.own.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
+def _per_image(values: Tensor, x: ObjectiveInputs) -> Tensor:  # (4B,) -> (B, 4)
+    return values.view(x.batch.num_quadruplets, 4)
+
+
+def _chamfer(x: ObjectiveInputs) -> Tensor:
+    own = _per_image(silhouette_chamfer(x.uv, x.foreground.flatten(0, 1)), x)
+    cross = (_per_image(silhouette_chamfer(x.uv_cross, _partner(x.foreground).flatten(0, 1)), x)
+             if x.pulls_cross else None)
+    return viewpoint_reconstruction(own, cross)
+
+
+def _hidden_in(render: RenderOutput, uv: Tensor, foreground: Tensor, x: ObjectiveInputs) -> Tensor:
+    part_id = render.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
     n, v = x.parts.num_parts, x.parts.num_vertices
-    uncovered = x.foreground.flatten(0, 1)[:, 0] * (part_id < 0)
-    return hidden_part_pull(x.uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered)
+    uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
+    return _per_image(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered), x)
+
+
+def _hidden(x: ObjectiveInputs) -> Tensor:
+    own = _hidden_in(x.render.own, x.uv, x.foreground, x)
+    cross = _hidden_in(x.render.cross, x.uv_cross, _partner(x.foreground), x) if x.pulls_cross else None
+    return viewpoint_reconstruction(own, cross)
+
+
+def _reprojection(x: ObjectiveInputs) -> Tensor:
+    bsz, n = x.batch.num_quadruplets, x.parts.num_parts
+    projected, _ = partner_cameras(x.batch.camera, bsz).project(x.parts.translations)  # (4B, N, 2)
+    keypoints = _partner(x.pred.maps.uv.view(bsz, 4, n, 2))
+    return reprojection_loss(projected.view(bsz, 4, n, 2), keypoints, x.batch.camera.height)
 
 
 TERM_VALUES: dict[str, Callable[[ObjectiveInputs], Tensor]] = {
@@ -212,8 +259,9 @@ TERM_VALUES: dict[str, Callable[[ObjectiveInputs], Tensor]] = {
     "smoothness": lambda x: smoothness_term(x.pred.local_vertices, x.dihedral, x.batch.num_quadruplets,
                                             x.smoothness_once),
     "silhouette": _silhouette,
-    "chamfer": lambda x: silhouette_chamfer(x.uv, x.foreground.flatten(0, 1)),
+    "chamfer": _chamfer,
     "hidden": _hidden,
+    "reprojection": _reprojection,
 }
 """How the objective computes each term of :data:`cerberus_core.losses.LOSS_TERMS` from its inputs
 (per image or per quadruplet; averaged over the batch)."""
@@ -224,7 +272,8 @@ ALWAYS_LOGGED = frozenset({"recon", "translation", "background", "smoothness", "
 
 def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: QuadrupletBatch, scene: SceneSetup,
                          losses: LossConfig, generator: torch.Generator | None = None, *,
-                         smoothness_once: bool = False, antialias: bool = False) -> ObjectiveOutput:
+                         smoothness_once: bool = False, antialias: bool = False,
+                         step: int | None = None) -> ObjectiveOutput:
     """Evaluate the training objective on a batch of quadruplets.
 
     Args:
@@ -240,6 +289,8 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
             the loss value is the same, gradients equal up to rounding (``speed.smoothness_once``).
         antialias: render with :meth:`Renderer.antialias` (``render.antialias``): visibility
             gradients for the reconstruction and silhouette terms.
+        step: the training step, which decides the cross view during its warm-up
+            (:meth:`LossConfig.cross_view_at`; ``None``: after the warm-up).
     """
     core = unwrap(model)
     images = batch.images.flatten(0, 1)  # (4B, 3, H, W)
@@ -254,9 +305,10 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
     black = losses.render_background == "black"
     targets = batch.images * (1 - mask.view_as(batch.images[:, :, :1])) if black else batch.images
     render = render_quadruplets(renderer, parts, batch, scene, (0.0, 0.0, 0.0) if black else scene.background,
-                                viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias)
+                                viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias,
+                                cross_view=losses.cross_view_at(step))
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
-                             smoothness_once and losses.pose_consistency)
+                             smoothness_once and losses.pose_consistency, losses.cross_pulls)
     values = {k: TERM_VALUES[k](inputs).mean() if k in ALWAYS_LOGGED or losses.weight(k) != 0
               else images.new_zeros(()) for k in TERMS}
     total = sum(losses.weight(k) * values[k] for k in TERMS if losses.weight(k) != 0)

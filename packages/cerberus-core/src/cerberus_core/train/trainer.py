@@ -459,7 +459,7 @@ class _Trainer:
         gen = step_generator(self.config.seed, step, self.info.rank)
         out = quadruplet_objective(self.net, self.renderer, batch, self.scene, self.config.losses, gen,
                                    smoothness_once=self.config.speed.smoothness_once,
-                                   antialias=self.config.render.antialias)
+                                   antialias=self.config.render.antialias, step=step)
         self.optimizer.zero_grad(set_to_none=True)
         grad_norm = float("nan")
         ok = not any_true(not out.finite, self.info, self.device)

@@ -1,0 +1,144 @@
+"""Depth seen from the other views: do a model's parts sit at the same 3D place whichever view it sees?
+
+A part can sit well in its input view and still lie at the wrong depth along its camera ray: the input
+view cannot tell, the voxel IoU can. The test split shows every pose from several views, so the
+evaluation can check depth without any 3D label of the parts. Over the test poses with two or more
+views (:class:`DepthAccumulator`):
+
+* **translation disagreement**, per part: the mean distance, in world units, between the part's world
+  translations predicted from two views of the same pose, over every pair of views (0: the part is
+  placed at the same 3D point from every view; a depth error shows up here as the views disagree);
+* **turned-view silhouette IoU**: each image's reconstruction rendered from the cameras of the *other*
+  views of its pose, against the ground-truth body's silhouette there, beside the same IoU in the
+  input view. A model right in its input view and wrong in depth scores high on the second and low on
+  the first.
+
+``experiments/depth/depth_oracle.py`` goes one step further and moves each part along its own ray to
+the depth its keypoints triangulate to, which bounds what better depth alone would add to the IoU.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+from typing import Any
+
+import torch
+
+from cerberus_core.parts import PartSet
+from cerberus_core.render.api import render_parts
+from cerberus_core.render.camera import Camera
+from cerberus_core.render.interface import Renderer
+from cerberus_core.shapes import check_shapes
+
+Tensor = torch.Tensor
+
+
+def translation_disagreement(translations: Tensor) -> Tensor:
+    """Mean distance between the translations one part gets from different views of one pose.
+
+    Args:
+        translations: ``(K, N, 3)`` world translations of ``N`` parts predicted from ``K >= 2`` views.
+    Returns:
+        ``(N,)`` per part, the mean over the ``K (K - 1) / 2`` pairs of views of ``||T^x - T^y||``
+        (world units).
+    """
+    check_shapes("translation_disagreement", translations=(translations, "K N 3"))
+    k = translations.shape[0]
+    if k < 2:
+        raise ValueError("translation_disagreement: needs the translations of at least 2 views of the pose")
+    pairs = torch.tensor(list(combinations(range(k), 2)))
+    return (translations[pairs[:, 0]] - translations[pairs[:, 1]]).norm(dim=-1).mean(0)
+
+
+def mask_iou(a: Tensor, b: Tensor) -> Tensor:
+    """``(...)`` intersection over union of two boolean masks ``(..., H, W)`` (1 where both are empty)."""
+    inter = (a & b).flatten(-2).sum(-1).float()
+    union = (a | b).flatten(-2).sum(-1).float()
+    return torch.where(union > 0, inter / union.clamp(min=1), torch.ones_like(union))
+
+
+@dataclass
+class _PoseViews:
+    """What one test pose's images gave: per view, the parts, the camera and the ground-truth body."""
+
+    parts: list[PartSet] = field(default_factory=list)
+    cameras: list[Camera] = field(default_factory=list)
+    body: tuple[Tensor, Tensor] | None = None
+
+
+def turned_view_ious(renderer: Renderer, parts: PartSet, cameras: Camera, body: tuple[Tensor, Tensor]) -> Tensor:
+    """Silhouette IoU of every view's reconstruction seen from every view of one pose.
+
+    Args:
+        renderer: a backend.
+        parts: ``K`` reconstructions (world frame), one per view of the pose.
+        cameras: the ``K`` views' cameras.
+        body: the pose's ground-truth mesh ``(vertices (Vg, 3), faces (Fg, 3))``, world frame.
+    Returns:
+        ``(K, K)``: entry ``[x, y]`` is reconstruction ``x`` rendered by camera ``y`` against the body's
+        silhouette in camera ``y`` (the diagonal: the input views).
+    """
+    k = parts.batch_size
+    if cameras.batch_size != k:
+        raise ValueError(f"turned_view_ious: {k} reconstructions but {cameras.batch_size} cameras")
+    seen_by = torch.arange(k).repeat(k)  # (x, y) pairs, x major
+    from_view = torch.arange(k).repeat_interleave(k)
+    posed = parts.posed()[from_view]  # (K K, N, V, 3)
+    with torch.no_grad():
+        pred = render_parts(renderer, posed, parts.faces, cameras.index(seen_by)).part_id >= 0
+        verts = torch.as_tensor(body[0], dtype=posed.dtype).unsqueeze(0).unsqueeze(0).expand(k, 1, -1, 3)
+        truth = render_parts(renderer, verts.contiguous(), torch.as_tensor(body[1], dtype=torch.long),
+                             cameras).part_id >= 0  # (K, H, W)
+    return mask_iou(pred, truth[seen_by]).view(k, k)
+
+
+class DepthAccumulator:
+    """Collects each test image's reconstruction by pose and measures depth across its views.
+
+    Feed it :class:`~cerberus_core.eval.accumulators.BatchResult` s (``update``); ``summary()``:
+    ``None`` when no pose has two views, else a dict with ``poses`` (the poses measured),
+    ``translation_disagreement`` (per part, world units, mean over poses), ``mean_translation_disagreement``,
+    ``input_view_silhouette_iou`` and ``turned_view_silhouette_iou`` (means over images and, for the
+    second, over every other view of the image's pose).
+    """
+
+    def __init__(self, renderer: Renderer) -> None:
+        self.renderer = renderer
+        self.poses: dict[tuple[str, int], _PoseViews] = {}
+
+    def update(self, batch: Any) -> None:
+        cameras = batch.camera.to("cpu")
+        for b, item, one, gt, _ in batch.scored():
+            views = self.poses.setdefault((item.subject, item.pose), _PoseViews())
+            views.parts.append(one)
+            views.cameras.append(cameras.index([b]))
+            views.body = (torch.as_tensor(gt[0]), torch.as_tensor(gt[1]))
+
+    def summary(self) -> dict[str, Any] | None:
+        disagreement, own, turned = [], [], []
+        for views in self.poses.values():
+            if len(views.parts) < 2:
+                continue
+            parts = PartSet.cat(views.parts)
+            disagreement.append(translation_disagreement(parts.translations))
+            ious = turned_view_ious(self.renderer, parts, Camera.cat(views.cameras), views.body)
+            off = ~torch.eye(len(views.parts), dtype=torch.bool)
+            own.append(ious.diagonal())
+            turned.append(ious[off])
+        if not disagreement:
+            return None
+        per_part = torch.stack(disagreement).mean(0)
+        return {"poses": len(disagreement),
+                "translation_disagreement": [round(float(v), 5) for v in per_part],
+                "mean_translation_disagreement": float(per_part.mean()),
+                "input_view_silhouette_iou": float(torch.cat(own).mean()),
+                "turned_view_silhouette_iou": float(torch.cat(turned).mean())}
+
+
+def depth_line(depth: dict[str, Any]) -> str:
+    """One sentence of a :meth:`DepthAccumulator.summary` for reports."""
+    return (f"over {depth['poses']} test poses seen from several views, each part's world translation differs "
+            f"between two views of one pose by {depth['mean_translation_disagreement']:.3f} on average (world "
+            f"units); the reconstruction covers the body's silhouette with IoU "
+            f"{depth['input_view_silhouette_iou']:.3f} in its input view and "
+            f"{depth['turned_view_silhouette_iou']:.3f} turned to the pose's other views")
