@@ -11,13 +11,14 @@ The two objects a notebook starts from: :class:`~cerberus_core.run.Run` (a train
 import importlib
 from typing import Any
 
+from cerberus_core.release import VERSION
 from cerberus_core.render.api import render, render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer, resolve_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 from cerberus_core.render.templates import MeshTemplate, icosphere
 
-__version__ = "0.1.0"
+__version__ = VERSION
 
 #: Exported names loaded on first use: they bring the data, model and evaluation stack (scipy, trimesh),
 #: and ``import cerberus_core.render`` must need torch alone (tests/core/test_core_imports.py).

@@ -7,13 +7,15 @@ Quick start::
     iou = voxel_iou("pred.ply", "gt.ply", protocol="gt_bbox", resolution=64)
 """
 
+from importlib.metadata import version as _version
+
 from .api import METRICS, chamfer_l2, evaluate_pair, fscore, inspect_mesh, voxel_iou, voxel_iou_clamped, voxelize
 from .cache import GridCache
 from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
 from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
 from .voxelize import VoxelGrid, grid_iou
 
-__version__ = "0.1.0"
+__version__ = _version("cerberus-metrics")
 
 __all__ = [
     "METRICS",

@@ -4,6 +4,16 @@ Rasterization and the differentiable shading (forward and backward) run as Warp 
 tensors' device (CPU, or the matching CUDA device), zero-copy with torch. Importing this package
 needs ``warp-lang``; the error names the package to install if it is missing.
 """
+from importlib.metadata import version as _version
+
+try:  # first: a `cerberus_core` of another project (same name on the public index) must fail in one line
+    from cerberus_core.release import require_lockstep
+except ImportError:
+    raise ImportError("cerberus-render-warp: the installed `cerberus-core` is not the Cerberus toolkit's (an unrelated project has "
+                      "that name on the public package index); pip uninstall cerberus-core, then install the toolkit's "
+                      "packages together from its wheelhouse (README, 'Installing with pip')") from None
+require_lockstep("cerberus-render-warp")
+
 from cerberus_render_warp.antialias import WarpAntialias, antialias
 from cerberus_render_warp.normals import WarpVertexNormals, vertex_normals
 from cerberus_render_warp.rasterize import rasterize
@@ -12,4 +22,4 @@ from cerberus_render_warp.shade import WarpShade, shade
 
 __all__ = ["WarpAntialias", "WarpRenderer", "WarpShade", "WarpVertexNormals", "antialias", "rasterize", "shade",
            "vertex_normals"]
-__version__ = "0.1.0"
+__version__ = _version("cerberus-render-warp")
