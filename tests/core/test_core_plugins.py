@@ -130,3 +130,27 @@ def test_plugin_errors_are_cerberus_errors() -> None:
     assert issubclass(UnknownPluginError, KeyError)
     with pytest.raises(CerberusError, match="unknown"):
         get_plugin(RENDERER_GROUP, "no_such_backend")
+
+
+def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, monkeypatch) -> None:
+    """core + a backend alone: `cerberus eval` / Run.evaluate say to install cerberus-metrics (issue 26),
+    not '--protocol ...: unknown plugin' for a flag nobody gave."""
+    import cerberus_core.run as run_module
+    from cerberus_core.plugins import get_plugin as real_get_plugin
+
+    monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
+    with pytest.raises(UnknownPluginError) as err:
+        run_module.check_evaluation()
+    assert "pip install cerberus-metrics" in str(err.value) and "--protocol" not in str(err.value)
+
+
+def test_a_missing_optional_package_is_a_toolkit_error_naming_the_extra(monkeypatch) -> None:
+    import sys
+
+    from cerberus_core.errors import CerberusError, MissingPackageError
+
+    monkeypatch.setitem(sys.modules, "anny", None)  # import anny -> ImportError
+    from cerberus_core.bodies.human import HumanBodySource
+    with pytest.raises(MissingPackageError, match=r"pip install 'cerberus-core\[human\]'") as err:
+        HumanBodySource()
+    assert isinstance(err.value, CerberusError) and isinstance(err.value, ImportError)

@@ -6,6 +6,8 @@ of them the same way, and one module, so that no layer imports another just for 
 * :class:`DatasetError` — a dataset folder or mesh folder is missing, corrupt, incomplete or of
   another format;
 * :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid;
+* :class:`MissingPackageError` — an optional package a feature needs is not installed (the message
+  names the ``pip install`` that brings it);
 * :class:`OutputError` — a result cannot be written (read-only, unwritable or full destination, a name
   the file system refuses); nothing half-written is left behind.
 
@@ -31,9 +33,14 @@ class ConfigError(CerberusError, ValueError):
     """An invalid configuration: the message names the key, the value and what is allowed."""
 
 
+class MissingPackageError(CerberusError, ImportError):
+    """An optional package is not installed: the message names what needs it and the ``pip install`` that
+    brings it (an ``ImportError`` too, for callers that catch one)."""
+
+
 class OutputError(CerberusError, OSError):
     """A file or folder of results cannot be written: the message names the path, the reason (permission,
     read-only or full file system, a name too long) and the fix."""
 
 
-__all__ = ["CerberusError", "ConfigError", "DatasetError", "OutputError"]
+__all__ = ["CerberusError", "ConfigError", "DatasetError", "MissingPackageError", "OutputError"]

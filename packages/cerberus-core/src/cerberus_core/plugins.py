@@ -28,7 +28,8 @@ METRIC_GROUP = "cerberus.metrics"
 #: Where the toolkit's own plugins live, for the "pip install ..." hint.
 KNOWN_PACKAGES: dict[str, dict[str, str]] = {
     RENDERER_GROUP: {"torch": "cerberus-render-torch", "warp": "cerberus-render-warp"},
-    METRIC_GROUP: {"voxel_iou": "cerberus-metrics", "chamfer_l2": "cerberus-metrics", "fscore": "cerberus-metrics"},
+    METRIC_GROUP: {"voxel_iou": "cerberus-metrics", "chamfer_l2": "cerberus-metrics", "fscore": "cerberus-metrics",
+                   "voxel_iou_scorer": "cerberus-metrics"},
 }
 
 
@@ -117,7 +118,7 @@ def _same_dist(a: str, b: str) -> bool:
 def _install_hint(group: str, name: str) -> str:
     pkg = KNOWN_PACKAGES.get(group, {}).get(name)
     if pkg:
-        return f"install it with `pip install {pkg}`"
+        return f"install it with `pip install {pkg}` (from the toolkit's wheelhouse: README, 'Installing with pip')"
     return "install the package that provides it"
 
 

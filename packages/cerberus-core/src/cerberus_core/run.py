@@ -55,8 +55,9 @@ EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictur
 def check_protocol(name: str) -> str:
     """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
     anything runs)."""
+    factory = get_metric(SCORER_ENTRY_POINT)  # first: a missing cerberus-metrics is named as such
     try:
-        get_metric(SCORER_ENTRY_POINT)(protocol=name, resolution=32)
+        factory(protocol=name, resolution=32)
     except (ValueError, KeyError) as exc:
         raise ConfigError(f"--protocol {name!r}: {exc}") from None
     return name

@@ -39,6 +39,7 @@ from cerberus_core.bodies.animal_sdf import group_distances, primitives_bounds, 
 from cerberus_core.bodies.animal_shape import AnimalSpecies, sample_species
 from cerberus_core.bodies.animal_skeleton import PART_GROUPS, animal_primitives
 from cerberus_core.bodies.body import FILL, PosedBody
+from cerberus_core.errors import MissingPackageError
 
 __all__ = [
     "ANIMAL_PART_NAMES",
@@ -149,7 +150,7 @@ def smooth_labels(
     try:
         from scipy.sparse import coo_matrix
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("the animal bodies need scipy: pip install 'cerberus-core[animal]'") from exc
+        raise MissingPackageError("the animal bodies need scipy: pip install 'cerberus-core[animal]'") from exc
     adj = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
     adj = ((adj + adj.T) > 0).astype(np.float64)
     eye = np.eye(n_parts)

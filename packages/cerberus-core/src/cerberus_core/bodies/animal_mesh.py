@@ -18,6 +18,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from cerberus_core.errors import MissingPackageError
+
 _CORNERS = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
 """``(8, 3)`` corner offsets of a cube; corner index ``c = x + 2 y + 4 z``."""
 
@@ -175,7 +177,10 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> tupl
     """
     if len(faces) <= target_faces:
         return vertices, faces
-    import pymeshlab  # local import: only needed when decimating
+    try:
+        import pymeshlab  # local import: only needed when decimating
+    except ImportError as exc:
+        raise MissingPackageError("the animal bodies need pymeshlab: pip install 'cerberus-core[animal]'") from exc
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(faces, np.int32)))

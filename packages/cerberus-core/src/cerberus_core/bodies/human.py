@@ -58,6 +58,7 @@ import numpy as np
 from cerberus_core.bodies import human_motion
 from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
+from cerberus_core.errors import MissingPackageError
 from cerberus_core.stdio import call_dropping_stderr
 
 if TYPE_CHECKING:
@@ -382,7 +383,7 @@ class HumanBodySource:
             import anny
             import torch
         except ImportError as exc:  # pragma: no cover - depends on the environment
-            raise ImportError("HumanBodySource needs the 'anny' package: pip install 'cerberus-core[human]'") from exc
+            raise MissingPackageError("HumanBodySource needs the 'anny' package: pip install 'cerberus-core[human]'") from exc
         _start_warp_quietly()  # anny skins with Warp: start it without the banner and the CUDA-driver note
         self._torch = torch
         self.device = torch.device(device)

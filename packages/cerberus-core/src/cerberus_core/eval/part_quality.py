@@ -41,6 +41,8 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from cerberus_core.errors import MissingPackageError
+
 
 def _np(x: Any, dtype=None) -> np.ndarray:
     if hasattr(x, "detach"):
@@ -89,7 +91,7 @@ def assign_to_parts(points: np.ndarray, part_vertices: np.ndarray, faces: np.nda
     try:
         from scipy.spatial import cKDTree
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("part-quality evaluation needs scipy: pip install 'cerberus-core[eval]', "
+        raise MissingPackageError("part-quality evaluation needs scipy: pip install 'cerberus-core[eval]', "
                           "or pass part_quality=False") from exc
 
     samples, part = surface_samples(part_vertices, faces, density)
