@@ -7,8 +7,10 @@
 #   bash experiments/ablation/run.sh                  # about 2 hours on the 2-core machine
 #   STEPS=1000 RUNS=runs/ablation_quick bash experiments/ablation/run.sh
 # VARIANTS names another variants file: experiments/ablation/beyond.txt holds the changes tried on top of the
-# default recipe (docs/results.md, "Beyond the default recipe"):
+# default recipe (docs/results.md, "Beyond the default recipe"), experiments/ablation/depth.txt the depth changes
+# of issue 24 (docs/results.md, "Depth the second view can see"):
 #   VARIANTS=experiments/ablation/beyond.txt STEPS=5000 RUNS=runs/beyond bash experiments/ablation/run.sh
+# A DATA column "@PATH" uses an existing dataset instead of generating one.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 JOBS=${JOBS:-2}; STEPS=${STEPS:-3000}
@@ -22,7 +24,10 @@ while IFS='|' read -r name data train; do
   name=$(echo "$name" | xargs); data=$(echo "$data" | xargs)
   if [ -z "$name" ] || [ "${name:0:1}" = "#" ]; then continue; fi
   key=$(echo "$data" | sha1sum | cut -c1-8)
-  if [ -z "${folder[$key]:-}" ]; then
+  if [ "${data:0:1}" = "@" ]; then  # @PATH: an existing dataset (e.g. @data/human_large)
+    folder[$key]="${data:1}"
+    [ -f "${data:1}/manifest.json" ] || { echo "$name: no dataset at ${data:1} (cerberus data generate ... --out ${data:1})" >&2; exit 1; }
+  elif [ -z "${folder[$key]:-}" ]; then
     folder[$key]="$DATA/$name"
     [ -f "$DATA/$name/manifest.json" ] && grep -q '"complete": true' "$DATA/$name/manifest.json" \
       || eval cerberus data generate --dataset human $data --renderer warp --out "$DATA/$name" --quiet

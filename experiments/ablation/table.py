@@ -6,7 +6,8 @@ Reads ``RUNS/plan.txt`` (the variants in order: ``NAME|DATA|TRAIN ARGS``), each 
 ``eval/results.json`` (``cerberus eval``) and ``metrics.csv`` (training speed). Prints one Markdown table:
 voxel IoU and Hard Human with the paired difference to the first variant (the baseline) over the same
 test images, part quality (consistency; the learned parts whose label is the head or a limb, with their
-agreement), how many parts are hidden in most test images (when ``cerberus eval`` measured it), and
+agreement), how many parts are hidden in most test images (when ``cerberus eval`` measured it), depth
+across views (the turned-view silhouette IoU and the mean translation disagreement, world units), and
 steps per second. A variant that is missing shows ``-``.
 """
 from __future__ import annotations
@@ -57,8 +58,9 @@ def main(argv: list[str]) -> int:
     loaded = {name: load(runs / name) for name, _, _ in plan}
     base = loaded[plan[0][0]][0]
     print("| variant | voxel IoU | vs baseline (mean ± s.e., images better) | Hard Human | part consistency | "
-          "head / limb parts (agreement) | parts hidden in most images | steps/s |")
-    print("| :--- | ---: | ---: | ---: | ---: | :--- | ---: | ---: |")
+          "head / limb parts (agreement) | parts hidden in most images | turned-view silhouette IoU | "
+          "translation disagreement | steps/s |")
+    print("| :--- | ---: | ---: | ---: | ---: | :--- | ---: | ---: | ---: | ---: |")
     for name, _, _ in plan:
         res, log = loaded[name]
         std = (res or {}).get("standard") or {}
@@ -67,9 +69,11 @@ def main(argv: list[str]) -> int:
         vis = (res or {}).get("part_visibility") or {}
         hidden = vis.get("parts_hidden_in_most_images")
         speed = f"{int(log[-1]['step']) / float(log[-1]['elapsed_s']):.2f}" if log else "-"
+        depth = (res or {}).get("depth") or {}
         print(f"| {name} | {fmt(std.get('mean'))} | {paired(res, base)} | {fmt(hard.get('mean'))} | "
               f"{fmt(pq.get('consistency'))} | {limb_parts(pq) if pq else '-'} | "
-              f"{'-' if hidden is None else hidden} | {speed} |")
+              f"{'-' if hidden is None else hidden} | {fmt(depth.get('turned_view_silhouette_iou'))} | "
+              f"{fmt(depth.get('mean_translation_disagreement'))} | {speed} |")
     return 0
 
 
