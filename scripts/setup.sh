@@ -17,7 +17,7 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "[setup] installing torch (CPU build) and the cerberus packages into $VENV"
   "${PIP[@]}" torch==2.13.0
   "${PIP[@]}" -e "$ROOT/packages/cerberus-core[all]" -e "$ROOT/packages/cerberus-render-torch" \
-      -e "$ROOT/packages/cerberus-render-warp" -e "$ROOT/packages/cerberus-metrics" pytest ruff
+      -e "$ROOT/packages/cerberus-render-warp" -e "$ROOT/packages/cerberus-metrics" pytest ruff setuptools
   echo "$WANT" > "$STAMP"
 else
   echo "[setup] $VENV is up to date"

@@ -11,6 +11,7 @@ from PIL import Image
 
 from cerberus_core.cli import main
 from cerberus_core.plugins import RENDERER_GROUP
+from cerberus_core.release import VERSION
 
 
 def test_renderers_table(capsys) -> None:
@@ -18,14 +19,14 @@ def test_renderers_table(capsys) -> None:
     out = capsys.readouterr().out
     assert out.startswith("renderers:") and "metrics:" in out
     line = next(line for line in out.splitlines() if line.strip().startswith("torch "))
-    assert "cerberus-render-torch" in line and "0.1.0" in line and line.rstrip().endswith("ok")
+    assert "cerberus-render-torch" in line and VERSION in line and line.rstrip().endswith("ok")
 
 
 def test_renderers_json(capsys) -> None:
     assert main(["renderers", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     torch_row = next(r for r in data["renderers"] if r["name"] == "torch")
-    assert torch_row == {"name": "torch", "package": "cerberus-render-torch", "version": "0.1.0",
+    assert torch_row == {"name": "torch", "package": "cerberus-render-torch", "version": VERSION,
                          "target": "cerberus_render_torch:TorchRenderer", "status": "ok"}
 
 

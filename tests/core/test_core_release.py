@@ -4,10 +4,10 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from cerberus_core import __version__
 from cerberus_core.release import DISTRIBUTIONS, VERSION, ReleaseMismatchError, require_lockstep

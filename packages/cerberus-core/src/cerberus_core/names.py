@@ -2,6 +2,7 @@
 
 * :func:`printable` — for a terminal or a one-line message: control characters (ANSI escapes, newlines,
   carriage returns) and undecodable bytes of a file name are shown as ``\\xNN`` escapes, never sent raw;
+* :func:`did_you_mean` — the hint after an unknown name: the closest known one, if any is close;
 * :func:`safe_stem` — for an output file name: valid UTF-8, no control or path characters, no leading
   dot, and short enough that every name derived from it stays within the file system's limit.
 
@@ -59,3 +60,16 @@ def safe_stem(stem: str, max_bytes: int = MAX_STEM_BYTES) -> str:
 
 
 __all__ = ["MAX_STEM_BYTES", "printable", "safe_stem"]
+
+
+def did_you_mean(name: str, known: list[str] | tuple[str, ...]) -> str | None:
+    """The known name closest to ``name`` (case ignored first, then :func:`difflib.get_close_matches`),
+    or ``None`` when none is close: for the "did you mean 'warp'?" of an error message."""
+    import difflib
+
+    lowered = {k.lower(): k for k in known}
+    match = lowered.get(str(name).lower())
+    if match is None:
+        close = difflib.get_close_matches(str(name).lower(), list(lowered), n=1, cutoff=0.6)
+        match = lowered[close[0]] if close else None
+    return match if match != name else None

@@ -21,6 +21,7 @@ from typing import Any
 import entrypoints
 
 from cerberus_core.errors import CerberusError
+from cerberus_core.names import did_you_mean
 
 RENDERER_GROUP = "cerberus.renderers"
 METRIC_GROUP = "cerberus.metrics"
@@ -133,6 +134,9 @@ def get_plugin(group: str, name: str, path: list[str] | None = None) -> Any:
     if name not in plugins:
         known = ", ".join(sorted(plugins)) or "none"
         kind = "renderer" if group == RENDERER_GROUP else "plugin"
+        close = did_you_mean(name, sorted(plugins))
+        if close:
+            raise UnknownPluginError(f"unknown {kind} '{name}' (group {group}); did you mean '{close}'? Installed: {known}.")
         raise UnknownPluginError(
             f"unknown {kind} '{name}' (group {group}); installed: {known}. To use '{name}', {_install_hint(group, name)}."
         )

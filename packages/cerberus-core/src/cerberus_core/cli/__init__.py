@@ -3,7 +3,10 @@
 
 * a typed error (:class:`cerberus_core.errors.CerberusError`, a plugin error) → one line
   ``cerberus COMMAND: message`` on standard error, exit status 2 (or the error's ``exit_code``);
-* Ctrl-C (SIGINT) → exit 130; SIGTERM → exit 143 (a training writes its checkpoint first);
+* any other ``OSError`` (a full disk, a read-only or missing folder, whatever its errno) → one line
+  naming the path and the system's reason, exit 2;
+* Ctrl-C (SIGINT) at any moment, imports included → exit 130; SIGTERM → exit 143 (a training writes
+  its checkpoint first);
 * warnings → one line ``cerberus COMMAND: warning: message``, without Python source lines.
 
 Sub-commands validate every argument before they write anything, and raise typed errors instead of
@@ -90,11 +93,33 @@ def _cli_environment(command: str) -> Iterator[None]:
             signal.signal(signal.SIGTERM, previous)
 
 
+def _os_error_line(exc: OSError) -> str:
+    """Any OSError as one line: what failed, on which path, and the system's reason."""
+    from cerberus_core.names import printable
+
+    where = " -> ".join(printable(f) for f in (exc.filename, exc.filename2) if f is not None)
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    return f"{reason}: {where}" if where else reason
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    command = args.command
+    """Run one command. Every way out is one line on standard error and an exit status: a typed error or
+    any OSError (2), Ctrl-C at any moment, even while the command's modules are still importing (130),
+    SIGTERM (143)."""
+    interrupted = []
+    previous = signal.getsignal(signal.SIGINT)
+
+    def on_int(signum, frame):  # noqa: ARG001 - remember it: an import it cut short may fail later otherwise
+        interrupted.append(True)
+        raise KeyboardInterrupt
+
+    command = "?"
+    with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
+        signal.signal(signal.SIGINT, on_int)
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = args.command
         with _cli_environment(command):
             return int(args.func(args) or 0)
     except _typed_errors() as exc:
@@ -106,6 +131,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"cerberus {command}: interrupted", file=sys.stderr)
         return EXIT_SIGINT
+    except OSError as exc:
+        print(f"cerberus {command}: {one_line(_os_error_line(exc))}", file=sys.stderr)
+        return EXIT_ERROR
+    except Exception:
+        if interrupted:  # e.g. a module whose import Ctrl-C cut short, failing later: it was the interrupt
+            print(f"cerberus {command}: interrupted", file=sys.stderr)
+            return EXIT_SIGINT
+        raise
+    finally:
+        with contextlib.suppress(ValueError, TypeError):
+            signal.signal(signal.SIGINT, previous)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from cerberus_core.cli.checks import output_folder
@@ -41,7 +42,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--config", type=Path, metavar="FILE", help="YAML training config")
     src.add_argument("--preset", choices=preset_names(), action="append", metavar="NAME",
-                     help=f"a bundled config, one of {', '.join(preset_names())} (default: paper); repeat to "
+                     help=f"a bundled config, one of {', '.join(preset_names())} (default: cpu, or paper when training "
+                     "runs on a GPU; the choice is printed); repeat to "
                      "merge left to right: --preset cpu --preset nmrr is the NMRr baseline on the CPU schedule")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set optim.lr=1e-4 (repeatable; values are YAML)")
@@ -99,16 +101,21 @@ def resolve_config(args: argparse.Namespace, out: Path):
     else:
         if args.config is not None:
             _check_config_file(args.config)
-        config = load_config(args.config, preset=None if args.config else (args.preset or ["paper"]),
-                             overrides=args.overrides)
+        config = load_config(args.config, preset=None if args.config else args.preset, overrides=args.overrides)
     check_device(config.device, option="--device" if args.device is not None else "device")
     return config
 
 
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.signals import interrupt_for
+    from cerberus_core.train.config import default_preset
     from cerberus_core.train.trainer import check_run_folder, train
 
+    if args.config is None and not args.preset and not (args.resume and args.out):
+        chosen, why = default_preset(args.device)
+        args.preset = [chosen]
+        print(f"no --preset or --config given: using the '{chosen}' preset ({why}); pass --preset NAME to choose",
+              file=sys.stderr)
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
     out = output_folder(args.out or Path("runs") / name)
     if args.device is not None:  # one mechanism: --device is the config key device

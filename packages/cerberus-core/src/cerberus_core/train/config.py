@@ -194,6 +194,21 @@ def preset_names() -> list[str]:
     return PRESETS.names()
 
 
+def default_preset(device: str | None = None) -> tuple[str, str]:
+    """The preset ``cerberus train`` uses when none is given, and why, for the device it will run on.
+
+    ``paper`` (100,000 steps at batch 16) where training runs on a GPU (``device`` ``cuda...``, or
+    ``auto``/``None`` with CUDA available), else ``cpu`` (the recipe every doc recommends on a CPU:
+    about an hour on 2 cores). Returns ``(name, reason)``.
+    """
+    import torch
+
+    wants_gpu = device is not None and str(device).startswith("cuda")
+    if wants_gpu or (device in (None, "auto") and torch.cuda.is_available()):
+        return "paper", "training runs on a GPU"
+    return "cpu", "no GPU: the paper preset's 100,000 steps at batch 16 would take days on a CPU"
+
+
 def load_config(path: str | Path | None = None, *, preset: str | list[str] | None = None,
                 overrides: list[str] | None = None) -> TrainConfig:
     """Build a :class:`TrainConfig` from a YAML file or bundled preset(s), plus ``--set`` overrides.
