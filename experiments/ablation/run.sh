@@ -21,6 +21,7 @@ VARIANTS=${VARIANTS:-experiments/ablation/variants.txt}
 # One dataset per distinct data-argument string (variants that share data share the folder).
 declare -A folder
 while IFS='|' read -r name data train; do
+  [[ "$name" =~ ^[[:space:]]*# ]] && continue  # a comment (before xargs, which chokes on an apostrophe)
   name=$(echo "$name" | xargs); data=$(echo "$data" | xargs)
   if [ -z "$name" ] || [ "${name:0:1}" = "#" ]; then continue; fi
   key=$(echo "$data" | sha1sum | cut -c1-8)

@@ -60,10 +60,11 @@ import numpy as np
 import torch
 from scipy.ndimage import distance_transform_edt
 
-from cerberus_core import Camera, make_renderer, render, render_parts
+from cerberus_core import Camera, make_renderer, render_parts
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.losses import dihedral_cosines, smoothness_loss
+from cerberus_core.render import render
 from cerberus_core.render.templates import MeshTemplate, icosphere
 from cerberus_core.viz import part_colors, save_image_grid
 from cerberus_metrics.api import voxelize

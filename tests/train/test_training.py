@@ -143,3 +143,33 @@ def test_interrupt_finishes_the_step_checkpoints_and_resumes(tiny_config, tiny_r
     straight = train(cfg, tmp_path / "straight", dataset=FirstItems(data, 4))
     assert resumed.step == 4 and not resumed.interrupted
     assert_same_weights(params(straight.model), params(resumed.model))
+
+
+def test_a_step_still_running_after_sigterm_is_abandoned_within_its_grace(tiny_config, tiny_root, tmp_path,
+                                                                          monkeypatch):
+    """Issue 26: the first SIGTERM is honoured within seconds even inside a long step; the run keeps its
+    last checkpoint."""
+    import os
+    import signal
+    import time
+
+    import cerberus_core.train.trainer as trainer_module
+    from cerberus_core.signals import Terminated
+
+    monkeypatch.setattr(trainer_module, "STEP_GRACE_S", 0.3)
+    original = trainer_module._Trainer._step
+
+    def slow_second_step(self, batch, step):
+        if step == 1:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(30)  # a step that would outlive any patience
+        return original(self, batch, step)
+
+    monkeypatch.setattr(trainer_module._Trainer, "_step", slow_second_step)
+    cfg = tiny_config("train.batch_size=1", "train.checkpoint_every=1", "train.image_every=0")
+    start = time.monotonic()
+    with pytest.raises(Terminated):
+        train(cfg, tmp_path / "run", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+    assert time.monotonic() - start < 20
+    assert load_checkpoint(checkpoint_dir(tmp_path / "run") / "last.pt")["step"] == 1
+    assert signal.getsignal(signal.SIGTERM) is not trainer_module._StopRequest._handle  # handlers restored

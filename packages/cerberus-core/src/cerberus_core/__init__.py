@@ -12,17 +12,22 @@ import importlib
 from typing import Any
 
 from cerberus_core.release import VERSION
-from cerberus_core.render.api import render, render_parts
-from cerberus_core.render.backends import available_renderers, make_renderer, resolve_renderer
-from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light, Renderer, RenderOutput
-from cerberus_core.render.templates import MeshTemplate, icosphere
 
 __version__ = VERSION
 
-#: Exported names loaded on first use: they bring the data, model and evaluation stack (scipy, trimesh),
-#: and ``import cerberus_core.render`` must need torch alone (tests/core/test_core_imports.py).
-_LAZY = {"Run": "cerberus_core.run", "Manifest": "cerberus_core.datasets.format"}
+#: Every exported name, loaded on first use: ``import cerberus_core`` itself imports nothing heavy (no
+#: torch), so the ``cerberus`` command can take charge of Ctrl-C before anything slow is imported, and
+#: ``import cerberus_core.render`` needs torch alone (tests/core/test_core_imports.py). The function
+#: ``render`` is ``cerberus_core.render.render`` (``cerberus_core.render`` is its sub-package).
+_LAZY = {
+    "render_parts": "cerberus_core.render.api",
+    "available_renderers": "cerberus_core.render.backends", "make_renderer": "cerberus_core.render.backends",
+    "resolve_renderer": "cerberus_core.render.backends", "Camera": "cerberus_core.render.camera",
+    "Light": "cerberus_core.render.interface", "Renderer": "cerberus_core.render.interface",
+    "RenderOutput": "cerberus_core.render.interface", "MeshTemplate": "cerberus_core.render.templates",
+    "icosphere": "cerberus_core.render.templates", "Run": "cerberus_core.run",
+    "Manifest": "cerberus_core.datasets.format",
+}
 
 
 def __getattr__(name: str) -> Any:
@@ -47,6 +52,5 @@ __all__ = [
     "icosphere",
     "make_renderer",
     "resolve_renderer",
-    "render",
     "render_parts",
 ]

@@ -31,7 +31,7 @@ import yaml
 from cerberus_core.errors import ConfigError
 
 __all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean", "flatten", "load_raw",
-           "omit_defaults", "parse_overrides", "yaml_problem"]
+           "load_yaml", "omit_defaults", "parse_overrides", "yaml_problem"]
 
 
 def did_you_mean(word: Any, options: Iterable[Any]) -> str:
@@ -68,6 +68,27 @@ def omit_defaults(d: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str
     and its hash (the dataset manifest's ``config_sha256``).
     """
     return {k: v for k, v in d.items() if not (k in defaults and v == defaults[k])}
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """A safe YAML loader that refuses a mapping with the same key twice (PyYAML keeps the last one
+    silently, so a config with ``steps`` written twice would train with whichever came last)."""
+
+    def construct_mapping(self, node, deep=False):  # noqa: ANN001 - PyYAML's signature
+        seen: dict[object, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"the key {key!r} is given twice (lines {seen[key] + 1} and "
+                    f"{key_node.start_mark.line + 1}); keep one", key_node.start_mark)
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
+
+
+def load_yaml(text: str) -> Any:
+    """``yaml.safe_load`` that refuses a key given twice in one mapping (:class:`yaml.YAMLError`)."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
 
 
 def yaml_problem(exc: BaseException, source: object) -> str:
@@ -179,7 +200,7 @@ def _layers(text: str, source: str, base_dir: Path | None, presets: Presets,
     if depth > 8:
         raise ConfigError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
     try:
-        raw = yaml.safe_load(text) or {}
+        raw = load_yaml(text) or {}
     except yaml.YAMLError as exc:
         raise ConfigError(yaml_problem(exc, source) + "; fix the file") from None
     if not isinstance(raw, dict):

@@ -13,8 +13,6 @@ A backend checks, when it is imported, that the ``cerberus-core`` it finds is th
 """
 from __future__ import annotations
 
-from importlib import metadata
-
 VERSION = "0.2.0+toolkit"
 """The version of every distribution of this release (``pyproject.toml`` of each package)."""
 
@@ -32,6 +30,8 @@ class ReleaseMismatchError(ImportError):
 
 def installed_version(distribution: str) -> str | None:
     """The installed version of ``distribution`` (``None`` if it is not installed)."""
+    from importlib import metadata  # here: `import cerberus_core` stays free of it (the CLI's first moments)
+
     try:
         return metadata.version(distribution)
     except metadata.PackageNotFoundError:

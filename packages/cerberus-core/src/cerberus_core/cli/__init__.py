@@ -22,9 +22,7 @@ import sys
 import warnings
 from collections.abc import Iterator
 
-from cerberus_core.cli.checks import OneLineParser
 from cerberus_core.errors import CerberusError
-from cerberus_core.plugins import PluginError
 from cerberus_core.signals import Terminated
 
 #: Modules that contribute sub-commands, in the order ``--help`` lists them.
@@ -44,6 +42,8 @@ EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
 
 
 def _typed_errors() -> tuple[type[BaseException], ...]:
+    from cerberus_core.plugins import PluginError
+
     errors: list[type[BaseException]] = [CerberusError, PluginError]
     with contextlib.suppress(ImportError):  # the dataset error class until it derives from CerberusError
         from cerberus_core.datasets.format import DatasetError
@@ -53,6 +53,8 @@ def _typed_errors() -> tuple[type[BaseException], ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from cerberus_core.cli.checks import OneLineParser
+
     parser = OneLineParser(
         prog="cerberus",
         description="Cerberus: a multi-headed derenderer. Learn 3D part-based models of articulated bodies "
@@ -113,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         interrupted.append(True)
         raise KeyboardInterrupt
 
-    command = "?"
+    command = next((a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("-")), "")
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         signal.signal(signal.SIGINT, on_int)
     try:
@@ -122,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         command = args.command
         with _cli_environment(command):
             return int(args.func(args) or 0)
-    except _typed_errors() as exc:
+    except CerberusError as exc:
         print(f"cerberus {command}: {one_line(exc)}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_ERROR))
     except Terminated:
@@ -134,7 +136,10 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"cerberus {command}: {one_line(_os_error_line(exc))}", file=sys.stderr)
         return EXIT_ERROR
-    except Exception:
+    except Exception as exc:
+        if isinstance(exc, _typed_errors()):
+            print(f"cerberus {command}: {one_line(exc)}", file=sys.stderr)
+            return int(getattr(exc, "exit_code", EXIT_ERROR))
         if interrupted:  # e.g. a module whose import Ctrl-C cut short, failing later: it was the interrupt
             print(f"cerberus {command}: interrupted", file=sys.stderr)
             return EXIT_SIGINT

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from cerberus_core.cli.checks import output_folder
-from cerberus_core.config import yaml_problem
+from cerberus_core.config import load_yaml, yaml_problem
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 
@@ -70,7 +70,7 @@ def _check_config_file(path: Path) -> None:
                 else "no such file")
         raise ConfigError(f"--config {path}: {what}; pass a YAML config, or --preset NAME")
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = load_yaml(path.read_text())
     except yaml.YAMLError as exc:
         raise ConfigError(yaml_problem(exc, path) + "; fix the file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -90,7 +90,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
     if args.resume and args.config is None and args.preset is None and saved.is_file():
         # Resume from the run's own config plus --set overrides.
         try:
-            raw = yaml.safe_load(saved.read_text())
+            raw = load_yaml(saved.read_text())
         except yaml.YAMLError as exc:
             raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
         config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(args.overrides)))

