@@ -10,6 +10,10 @@
 
 A write the file system refuses (permission, read-only, full, a name too long) raises
 :class:`~cerberus_core.errors.OutputError` naming the path and the fix.
+
+Temporary names carry the writer's process id (``.NAME.PID.XXXXXXXX.tmp``): a writer killed outright
+(SIGKILL, a power cut) cannot remove its temporary, so the next write beside it removes the
+temporaries of ``NAME`` whose process is gone (:func:`remove_stale`).
 """
 from __future__ import annotations
 
@@ -82,7 +86,8 @@ def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{_short(path.name)}.", suffix=".tmp")
+        remove_stale(path.parent, path.name)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=_temp_prefix(path.name), suffix=".tmp")
     except OSError as exc:
         raise output_error(exc, path) from None
     try:
@@ -99,6 +104,50 @@ def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None
         Path(tmp).unlink(missing_ok=True)
         raise
     _fsync_dir(path.parent)
+
+
+def _temp_prefix(name: str) -> str:
+    """``.NAME.PID.``: the start of a temporary's name beside ``name`` (see the module docstring)."""
+    return f".{_short(name)}.{os.getpid()}."
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: it exists, owned by someone else
+        return True
+    return True
+
+
+def remove_stale(folder: Path, name: str) -> list[Path]:
+    """Remove the temporaries of ``name`` in ``folder`` left by processes that no longer run.
+
+    Returns:
+        The removed paths. Temporaries of running processes, and names not in this module's pattern,
+        are left alone; a temporary that cannot be removed is skipped.
+    """
+    removed = []
+    prefix = f".{_short(name)}."
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        if not (entry.name.startswith(prefix) and entry.name.endswith((".tmp", ".old"))):
+            continue
+        pid = entry.name[len(prefix):].split(".", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+            continue
+        path = Path(entry.path)
+        with contextlib.suppress(OSError):
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+            removed.append(path)
+    return removed
 
 
 def _short(name: str, limit: int = 100) -> str:
@@ -167,7 +216,8 @@ def atomic_folder(target: str | Path) -> Iterator[Path]:
     parent = target.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{_short(target.name)}.", suffix=".tmp"))
+        remove_stale(parent, target.name)
+        tmp = Path(tempfile.mkdtemp(dir=parent, prefix=_temp_prefix(target.name), suffix=".tmp"))
         os.chmod(tmp, _DIR_MODE)  # mkdtemp creates 0700; results get the usual permissions
     except OSError as exc:
         raise output_error(exc, target) from None
@@ -197,7 +247,7 @@ def _swap_in(tmp: Path, target: Path) -> None:
     elif target.is_dir() and not target.is_symlink() and _exchange(tmp, target):
         shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old results
     else:  # two renames: the old folder steps aside under a hidden name, the new one takes its place
-        old = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{_short(target.name)}.", suffix=".old"))
+        old = Path(tempfile.mkdtemp(dir=target.parent, prefix=_temp_prefix(target.name), suffix=".old"))
         os.rename(target, old / "old")
         try:
             os.rename(tmp, target)
