@@ -62,6 +62,18 @@ def test_folder_batch_reports_every_failure(folders, tmp_path):
         assert len(list(csv.DictReader(fh))) == 7
 
 
+def test_a_stem_claimed_twice_is_refused_not_silently_picked(folders, helpers):
+    """Issue 26: `preds/c.obj` beside the part folder `preds/c/` (or two files `c.obj`, `c.ply`) scored one
+    of them silently; the pair now fails naming both."""
+    pred, gt = folders
+    helpers.box((-0.3, -0.3, -0.3), (0.2, 0.2, 0.2)).export(pred / "parts.obj")  # and the folder parts/
+    helpers.blob(30).export(gt / "s0.obj")  # two ground truths named s0
+    pairs = {p.id: p for p in pairs_from_folders(pred, gt)}
+    assert pairs["parts"].pred == () and "both 'parts.obj' and the part folder 'parts/'" in pairs["parts"].error
+    assert "both 's0.obj' and 's0.ply'" in pairs["s0"].error or "both 's0.ply' and 's0.obj'" in pairs["s0"].error
+    assert pairs["s1"].error is None
+
+
 def test_pairs_files_csv_and_json(folders, tmp_path):
     pred, gt = folders
     (tmp_path / "pairs.csv").write_text(

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import torch
 
+from cerberus_core.datasets.format import Manifest
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
@@ -210,6 +211,31 @@ class Run:
         ``--data`` when none is known)."""
         return model_scene(self.config, data, self.recorded_scene)
 
+    def training_kind(self) -> str | None:
+        """The kind of bodies the model was trained on (``human``, ``animal``...): a shipped model's name,
+        else its training data's manifest if that is still here; ``None`` when unknown."""
+        if self.shipped:
+            return str(self.source)
+        if is_dataset(self.data_root):
+            return str(Manifest.read(self.data_root).get("dataset") or "") or None
+        return None
+
+    def domain_notes(self, data: str | Path) -> list[str]:
+        """How the dataset ``data`` differs from what the model was trained on (the kind of bodies, the
+        camera and the look), one sentence each; empty when nothing known differs."""
+        notes = []
+        kind, theirs = self.training_kind(), Manifest.read(Path(data)).get("dataset")
+        if kind and theirs and kind != theirs:
+            notes.append(f"the model was trained on {kind} bodies and {printable(data)} holds {theirs} bodies")
+        if self.recorded_scene is not None:
+            mine, other = SceneSetup.from_dict(self.recorded_scene).to_dict(), self.scene_for(data).to_dict()
+            keys = ("distance", "elevation", "fov_y", "background", "albedo")
+            diff = [f"{k} {other[k]} (trained: {mine[k]})" for k in keys if mine.get(k) != other.get(k)]
+            if diff:
+                notes.append(f"the scene of {printable(data)} differs from the model's training scenes: "
+                             + ", ".join(diff))
+        return notes
+
     def default_out(self, folder: str = "eval") -> Path:
         """``RUN/<folder>`` for a run folder (``runs/a`` or a bare ``a``), beside a model file, or
         ``./<folder>`` for a shipped model's name."""
@@ -250,6 +276,8 @@ class Run:
         """
         check_evaluation(resolution=resolution, protocol=protocol, viewer_images=viewer_images, device=self.device,
                          data=data)
+        if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
+            raise ConfigError(f"Run.evaluate: limit={limit!r}: must be a whole number >= 1, or None for every image")
         data = None if data is None else Path(data)
         keep = [] if self.shipped else [Path(self.source)]
         out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=overwrite,
@@ -260,6 +288,8 @@ class Run:
                               "pass --data DATASET")
         dataset = ViewDataset(data or self.data_root, split)
         dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
+        for note in self.domain_notes(data or self.data_root):
+            warnings.warn(f"{note}: the scores measure the model outside what it learned", UserWarning, stacklevel=2)
         backend = make_renderer(renderer or self.config.renderer)
         weights, at_step = self.weights_info, "" if self.step is None else f" at step {self.step}"
         if verbose:

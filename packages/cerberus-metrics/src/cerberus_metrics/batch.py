@@ -144,17 +144,33 @@ def pairs_from_folders(pred_dir: str | os.PathLike, gt_dir: str | os.PathLike) -
             raise MeshInputError(f"{what} folder '{d}' does not exist or is not a folder")
     gts = {p.stem: p for p in iter_mesh_files(gt_dir)}
     preds: dict[str, tuple[str, ...]] = {p.stem: (str(p),) for p in iter_mesh_files(pred_dir)}
+    sources: dict[str, list[str]] = {}  # every file or part folder that claims a stem: more than one is ambiguous
+    for p in iter_mesh_files(pred_dir):
+        sources.setdefault(p.stem, []).append(f"'{p.name}'")
+    for p in iter_mesh_files(gt_dir):
+        sources.setdefault(f"gt:{p.stem}", []).append(f"'{p.name}'")
     for sub in sorted(q for q in pred_dir.iterdir() if q.is_dir()):
         preds.setdefault(sub.name, tuple(str(p) for p in iter_mesh_files(sub)))
+        sources.setdefault(sub.name, []).append(f"the part folder '{sub.name}/'")
     out = []
     for stem in sorted(set(gts) | set(preds)):
-        if stem not in preds or not preds[stem]:
-            out.append(PairSpec(stem, (), str(gts[stem]), f"no prediction named '{stem}' in '{pred_dir}'"))
-        elif stem not in gts:
-            out.append(PairSpec(stem, preds[stem], "", f"no ground truth named '{stem}' in '{gt_dir}'"))
+        for key, where in ((stem, pred_dir), (f"gt:{stem}", gt_dir)):
+            if len(sources.get(key, [])) > 1:
+                out.append(PairSpec(stem, (), str(gts.get(stem, "")), f"both {' and '.join(sources[key])} in '{where}' "
+                                    f"are named '{stem}': keep one, so that the score says which was scored"))
+                break
         else:
-            out.append(PairSpec(stem, preds[stem], str(gts[stem])))
+            out.append(_pair(stem, preds, gts, pred_dir, gt_dir))
     return out
+
+
+def _pair(stem: str, preds: dict[str, tuple[str, ...]], gts: dict[str, Path], pred_dir: Path, gt_dir: Path) -> PairSpec:
+    """The pair of one stem, or why it cannot be formed."""
+    if stem not in preds or not preds[stem]:
+        return PairSpec(stem, (), str(gts[stem]), f"no prediction named '{stem}' in '{pred_dir}'")
+    if stem not in gts:
+        return PairSpec(stem, preds[stem], "", f"no ground truth named '{stem}' in '{gt_dir}'")
+    return PairSpec(stem, preds[stem], str(gts[stem]))
 
 
 # --------------------------------------------------------------------------- workers

@@ -519,8 +519,9 @@ def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fil
 def grid_iou(pred: VoxelGrid | np.ndarray, gt: VoxelGrid | np.ndarray) -> float:
     """Intersection over union of two occupancy grids: |P & G| / |P | G|.
 
-    Either two bool arrays of the same shape, or two :class:`VoxelGrid` from the same frame
-    (grids with different extents are aligned by their origins). Raises when both are empty.
+    Either two bool arrays of the same shape (0/1 integer arrays too; a float grid is refused: which
+    values are occupied is the caller's threshold to choose), or two :class:`VoxelGrid` from the same
+    frame (grids with different extents are aligned by their origins). Raises when both are empty.
     """
     if isinstance(pred, VoxelGrid) != isinstance(gt, VoxelGrid):
         raise MeshInputError("grid_iou: pass two VoxelGrid or two bool arrays, not one of each")
@@ -532,6 +533,13 @@ def grid_iou(pred: VoxelGrid | np.ndarray, gt: VoxelGrid | np.ndarray) -> float:
             )
         a, ao, b, bo = pred.occupancy, pred.origin, gt.occupancy, gt.origin
     else:
+        for name, grid in (("pred", pred), ("gt", gt)):
+            arr = np.asarray(grid)
+            if arr.dtype != bool and not (np.issubdtype(arr.dtype, np.integer) and np.isin(arr, (0, 1)).all()):
+                raise MeshInputError(
+                    f"grid_iou: {name} is a {arr.dtype} grid, not occupancy; pass a bool array (e.g. probs >= 0.5) "
+                    "so that no threshold is guessed"
+                )
         a, b = np.asarray(pred, bool), np.asarray(gt, bool)
         if a.shape != b.shape:
             raise MeshInputError(f"grid_iou: grid shapes differ, {a.shape} vs {b.shape}; voxelize both alike")

@@ -105,6 +105,19 @@ class Predictions:
     maps: KeypointMaps
 
 
+def check_images(images: Tensor, what: str) -> None:
+    """The network's input contract: ``(B, 3, H, W)`` float32 in ``[0, 1]`` (:class:`ShapeError`/``ValueError``
+    naming the conversion otherwise; a uint8 or 0-255 image would silently give a wrong reconstruction)."""
+    check_shapes(what, images=(images, "B 3 H W"))
+    if images.dtype == torch.uint8:
+        raise ValueError(f"{what}: the images are uint8 (0-255); pass images.float() / 255 (float32 in [0, 1])")
+    if images.dtype != torch.float32:
+        raise ValueError(f"{what}: the images are {images.dtype}; pass images.float() (float32 in [0, 1])")
+    if images.numel() and float(images.detach().amax()) > 1.0 + 1e-3:
+        raise ValueError(f"{what}: image values reach {float(images.detach().amax()):.4g}, above 1; images are "
+                         "float32 in [0, 1] (divide 0-255 images by 255)")
+
+
 class Cerberus(nn.Module):
     """The multi-headed derenderer.
 
@@ -201,6 +214,7 @@ class Cerberus(nn.Module):
     def reconstruct(self, images: Tensor, camera: Camera) -> PartSet:
         """Images and their known cameras → posed parts in the world frame (differentiable; no mode
         change: call ``model.eval()`` first for inference)."""
+        check_images(images, "reconstruct")
         if camera.batch_size != images.shape[0]:
             raise ValueError(f"reconstruct: {images.shape[0]} images but {camera.batch_size} cameras")
         return self.pose(self(images), camera)
