@@ -190,3 +190,26 @@ def test_mask_folder_gives_each_image_its_mask(generated, capsys):
     assert main(["reconstruct", "--model", "human", str(generated["paths"][2]), "--mask", str(folder),
                  "--out", str(root / "folder_out2"), "--viewer-images", "0"]) == 2
     assert "gen2.png: no such file" in capsys.readouterr().err
+
+
+def test_a_coloured_or_textured_body_is_out_of_domain_even_as_a_cutout(generated):
+    """Issue 26: a clothed, coloured person, however well masked, is outside what the models learned; the
+    advice fits the input (no 'give an RGBA cut-out' for a cut-out)."""
+    root, scene = generated["root"], generated["scene"]
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    assert D.appearance_check(a, scene) == (True, "")
+    tinted = np.where(m[..., None], a * np.array([1.0, 0.7, 0.5]), a)
+    ok, reason = D.appearance_check(tinted, scene)
+    assert not ok and "coloured" in reason and "untextured grey" in reason
+    noisy = np.where(m[..., None], np.clip(a * (0.7 + 0.6 * np.random.default_rng(0).random(a.shape[:2] + (1,))), 0, 1), a)
+    ok, reason = D.appearance_check(noisy, scene)
+    assert not ok and "textured" in reason
+    rgba = np.concatenate([_u8(tinted), m[..., None].astype(np.uint8) * 255], -1)
+    Image.fromarray(rgba, "RGBA").save(root / "clothed.png")
+    li = D.prepare_input(root / "clothed.png", 64, scene, warn=False)
+    assert "coloured" in li.out_of_domain
+    assert "cut-out" not in li.advice and "coarse grey body" in li.advice
+    from cerberus_core.eval.reconstruct import load_inputs
+    with pytest.warns(UserWarning, match="out of the training domain") as caught:
+        load_inputs([root / "clothed.png"], [None], 64, scene)
+    assert "give an RGBA cut-out" not in str(caught[0].message)

@@ -61,6 +61,7 @@ class LoadedImage:
         notes: what was done to it (empty when it already matched).
         out_of_domain: why it does not look like the training images (empty: it does, or it was not
             checked); see :mod:`cerberus_core.eval.input_domain`.
+        advice: what would bring it closer to them, for that reason (empty with it).
     """
 
     path: Path
@@ -68,6 +69,7 @@ class LoadedImage:
     original_size: tuple[int, int]
     notes: list[str] = field(default_factory=list)
     out_of_domain: str = ""
+    advice: str = ""
 
 
 def _open(path: Path) -> Image.Image:

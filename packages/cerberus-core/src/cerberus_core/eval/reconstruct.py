@@ -91,8 +91,7 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
         shown = [f"{n[:40]}...{n[-20:]}" if len(n) > 64 else n for n in shown]  # a 300-character name: its ends
         named = "; ".join(f"{n}: {li.out_of_domain}" for n, (li, _) in zip(shown, out, strict=False))
         more = f" (and {len(out) - 3} more)" if len(out) > 3 else ""
-        fix = ("give an RGBA cut-out (transparent background) or --mask MASK.png (white on the body) for each"
-               if any(m is None for _, m in out) else "give images of the whole body")
+        fix = "; ".join(dict.fromkeys(li.advice for li, _ in out if li.advice))
         warnings.warn(f"{len(out)} of {len(loaded)} image(s) are out of the training domain, so their reconstructions "
                       f"are unreliable: {named}{more}; {fix}", UserWarning, stacklevel=1)
     return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded]
