@@ -1,20 +1,11 @@
-"""Repository-wide pytest set-up: the ``--renderer`` option that narrows the conformance suite.
-
-``pytest --renderer warp`` (repeatable) runs ``tests/conformance`` against the named backends only;
-the default is every backend found through the ``cerberus.renderers`` entry points. The environment
-variable ``CERBERUS_RENDERERS=warp,torch`` does the same where the command line is not at hand.
+"""Repository-wide pytest set-up. (The renderer conformance suite, and its ``--renderer`` option, ship in
+the core package: ``cerberus_core/testing``, collected by the suite through ``testpaths``.)
 
 The ``chromium`` fixture runs headless Chromium for the 3D viewer's tests (skipped where it is missing).
 """
 from __future__ import annotations
 
 import pytest
-
-
-def pytest_addoption(parser) -> None:
-    parser.addoption("--renderer", action="append", default=None, metavar="NAME",
-                     help="run the renderer conformance suite against this backend only (repeatable; "
-                     "default: every installed backend; env CERBERUS_RENDERERS=a,b does the same)")
 
 
 # ------------------------------------------------------------------ headless Chromium (the 3D viewer's tests)

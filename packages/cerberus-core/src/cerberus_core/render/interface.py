@@ -6,7 +6,7 @@ differentiable (vertex normals, perspective-correct barycentrics recomputed from
 interpolation of normals and albedo, Lambertian shading, depth) is done by
 :func:`cerberus_core.render.templates.vertex_normals` and :func:`cerberus_core.render.shading.shade` in plain
 torch, shared by all backends. A backend may override :meth:`Renderer.vertex_normals`,
-:meth:`Renderer.shade` and :meth:`Renderer.antialias` with fused kernels (forward and backward) when that is faster; the conformance suite in ``tests/conformance``
+:meth:`Renderer.shade` and :meth:`Renderer.antialias` with fused kernels (forward and backward) when that is faster; the conformance suite in :mod:`cerberus_core.testing`
 holds both paths to the same numbers.
 
 Rasterization rule (all backends, so that face ids agree):

@@ -1,4 +1,4 @@
-"""Every backend against the independent numpy reference (tests/conformance/reference.py)."""
+"""Every backend against the independent numpy reference (reference.py beside it)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,8 @@
 """Fixtures of the conformance suite: one parametrisation per installed renderer backend.
 
+* ``--renderer NAME`` (repeatable; or ``CERBERUS_RENDERERS=a,b``): the backends to check, default
+  every installed one;
+
 * ``backend_name`` / ``renderer``: every backend found by
   :func:`cerberus_core.render.backends.available_renderers` (narrowed by ``--renderer`` or
   ``CERBERUS_RENDERERS``); a test that takes ``renderer`` runs once per backend.
@@ -25,6 +28,12 @@ REFERENCE_BACKEND = "torch"
 
 
 _SELECTED = pytest.StashKey[list]()
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--renderer", action="append", default=None, metavar="NAME",
+                     help="run the renderer conformance suite against this backend only (repeatable; "
+                     "default: every installed backend; env CERBERUS_RENDERERS=a,b does the same)")
 
 
 def selected_backends(config: pytest.Config) -> list[str]:
