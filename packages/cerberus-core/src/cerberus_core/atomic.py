@@ -41,6 +41,9 @@ _OUTPUT_ERRNOS = {
     errno.EFBIG: "the file is larger than this file system or process allows: free space or raise the limit",
     errno.ENAMETOOLONG: "a file name is too long for this file system: use shorter input names or a shorter path",
     errno.EILSEQ: "the file system refuses a character of the name: rename the input with plain characters",
+    errno.ENOENT: "the folder cannot hold new files (a virtual file system such as /proc, or it vanished): "
+                  "choose a folder on a disk",
+    errno.ENOTDIR: "a part of the path is a file, not a folder: choose another path",
 }
 
 
