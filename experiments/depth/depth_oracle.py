@@ -12,7 +12,10 @@ and the moved reconstruction is scored like ``cerberus eval`` (32^3, ``kato``, u
 * **the moves**: median distance a part moves, and the predicted against the triangulated depth
   (least-squares slope and correlation over every part of every image: slope 1 and correlation 1
   mean the depths are already consistent across views);
-* **per part**: the mean absolute depth error (world units) and its majority ground-truth part.
+* **per part**: the mean absolute depth error (world units);
+* **flatness**: the median ratio of each part's smallest to middle extent (principal axes of its
+  vertices), for the predicted parts and for the ground-truth body parts: a part much flatter than the
+  body's would be a thin sheet, whatever its depth.
 
 A small gain (<= 0.02) says depth is learned; a large one says the parts sit right in their input
 view but not in 3D (``cerberus eval`` shows the same as the translation disagreement and the
@@ -47,6 +50,13 @@ def triangulate(origins: torch.Tensor, directions: torch.Tensor) -> torch.Tensor
     return torch.linalg.solve(lhs, rhs).squeeze(-1)
 
 
+def flatness(points: np.ndarray) -> float:
+    """Smallest over middle principal extent (standard deviation along the principal axes) of a point set."""
+    centred = points - points.mean(0)
+    s = np.sort(np.linalg.svd(centred, compute_uv=False))
+    return float(s[0] / s[1]) if s[1] > 0 else 0.0
+
+
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 2)[2],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -77,6 +87,7 @@ def main(argv: list[str]) -> int:
     scorer = VoxelScorer()
     before, after, moves, d_pred, d_tri = [], [], [], [], []
     errors = defaultdict(list)
+    flat_pred, flat_gt = [], []
     for views in poses:
         centres = torch.cat([cams[i].center for i in views])  # (K, 3)
         rays = torch.stack([cams[i].unproject(uv[i].unsqueeze(0), torch.ones(1, uv[i].shape[0]))[0] for i in views])
@@ -86,6 +97,10 @@ def main(argv: list[str]) -> int:
             body = dataset.gt_mesh(i)
             gt = (body.vertices, body.faces)
             one = recon[i]
+            flat_pred += [flatness(v.numpy()) for v in one.posed()[0]]
+            labels = np.asarray(body.vertex_parts)
+            flat_gt += [flatness(np.asarray(body.vertices)[labels == k]) for k in np.unique(labels)
+                        if (labels == k).sum() >= 4]
             _, target = cams[i].project(point.unsqueeze(0))  # (1, N) triangulated depth in this view
             scale = (target[0] / depth[i]).view(-1, 1)  # move along the own ray: c + s (T - c)
             centre = centres[k]
@@ -108,7 +123,8 @@ def main(argv: list[str]) -> int:
                "gain_se": float(diff.std(ddof=1) / np.sqrt(len(diff))) if len(diff) > 1 else 0.0,
                "improved": int((diff > 0).sum()), "median_move": float(np.median(moves)),
                "depth_slope": slope, "depth_correlation": corr,
-               "per_part_depth_error": [float(np.mean(errors[n])) for n in sorted(errors)]}
+               "per_part_depth_error": [float(np.mean(errors[n])) for n in sorted(errors)],
+               "median_flatness": float(np.median(flat_pred)), "median_flatness_gt_parts": float(np.median(flat_gt))}
     print(f"{figures['images']} images of {figures['poses']} poses: voxel IoU {figures['iou']:.4f} -> "
           f"{figures['oracle_iou']:.4f} with each part at its triangulated depth "
           f"({figures['gain']:+.4f} ± {figures['gain_se']:.4f}, better on {figures['improved']} / {figures['images']})")
@@ -116,6 +132,8 @@ def main(argv: list[str]) -> int:
           f"slope {slope:.2f}, correlation {corr:.2f}")
     print("per-part mean |depth error|: " + ", ".join(f"{n}: {e:.3f}" for n, e in
                                                       enumerate(figures["per_part_depth_error"])))
+    print(f"flatness (smallest / middle extent, median): predicted parts {figures['median_flatness']:.2f}, "
+          f"ground-truth body parts {figures['median_flatness_gt_parts']:.2f}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(figures, fh, indent=2)
