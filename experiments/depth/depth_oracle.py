@@ -15,7 +15,8 @@ and the moved reconstruction is scored like ``cerberus eval`` (32^3, ``kato``, u
 * **per part**: the mean absolute depth error (world units);
 * **flatness**: the median ratio of each part's smallest to middle extent (principal axes of its
   vertices), for the predicted parts and for the ground-truth body parts: a part much flatter than the
-  body's would be a thin sheet, whatever its depth.
+  body's would be a thin sheet, whatever its depth; and the parts' size in their local frames (the
+  largest local coordinate, against ``model.vertex_bound``, and the median largest extent).
 
 A small gain (<= 0.02) says depth is learned; a large one says the parts sit right in their input
 view but not in 3D (``cerberus eval`` shows the same as the translation disagreement and the
@@ -87,7 +88,7 @@ def main(argv: list[str]) -> int:
     scorer = VoxelScorer()
     before, after, moves, d_pred, d_tri = [], [], [], [], []
     errors = defaultdict(list)
-    flat_pred, flat_gt = [], []
+    flat_pred, flat_gt, local_max, extents = [], [], [], []
     for views in poses:
         centres = torch.cat([cams[i].center for i in views])  # (K, 3)
         rays = torch.stack([cams[i].unproject(uv[i].unsqueeze(0), torch.ones(1, uv[i].shape[0]))[0] for i in views])
@@ -98,6 +99,9 @@ def main(argv: list[str]) -> int:
             gt = (body.vertices, body.faces)
             one = recon[i]
             flat_pred += [flatness(v.numpy()) for v in one.posed()[0]]
+            local = one.local_vertices[0]  # (N, V, 3)
+            local_max.append(float(local.abs().max()))
+            extents += (local.amax(1) - local.amin(1)).amax(-1).tolist()
             labels = np.asarray(body.vertex_parts)
             flat_gt += [flatness(np.asarray(body.vertices)[labels == k]) for k in np.unique(labels)
                         if (labels == k).sum() >= 4]
@@ -124,7 +128,8 @@ def main(argv: list[str]) -> int:
                "improved": int((diff > 0).sum()), "median_move": float(np.median(moves)),
                "depth_slope": slope, "depth_correlation": corr,
                "per_part_depth_error": [float(np.mean(errors[n])) for n in sorted(errors)],
-               "median_flatness": float(np.median(flat_pred)), "median_flatness_gt_parts": float(np.median(flat_gt))}
+               "median_flatness": float(np.median(flat_pred)), "median_flatness_gt_parts": float(np.median(flat_gt)),
+               "largest_local_coordinate": max(local_max), "median_largest_extent": float(np.median(extents))}
     print(f"{figures['images']} images of {figures['poses']} poses: voxel IoU {figures['iou']:.4f} -> "
           f"{figures['oracle_iou']:.4f} with each part at its triangulated depth "
           f"({figures['gain']:+.4f} ± {figures['gain_se']:.4f}, better on {figures['improved']} / {figures['images']})")
@@ -133,7 +138,8 @@ def main(argv: list[str]) -> int:
     print("per-part mean |depth error|: " + ", ".join(f"{n}: {e:.3f}" for n, e in
                                                       enumerate(figures["per_part_depth_error"])))
     print(f"flatness (smallest / middle extent, median): predicted parts {figures['median_flatness']:.2f}, "
-          f"ground-truth body parts {figures['median_flatness_gt_parts']:.2f}")
+          f"ground-truth body parts {figures['median_flatness_gt_parts']:.2f}; local frames: largest |coordinate| "
+          f"{figures['largest_local_coordinate']:.3f}, median largest part extent {figures['median_largest_extent']:.3f}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(figures, fh, indent=2)
