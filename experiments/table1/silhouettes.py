@@ -19,7 +19,7 @@ from cerberus_core.eval.runner import collate
 from cerberus_core.losses import background_mask
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import make_renderer
-from cerberus_core.train.checkpoint import load_model
+from cerberus_core.run import Run
 
 TOLERANCE = 0.02
 """A pixel within this of the background colour in every channel is background (``losses.background_tolerance``)."""
@@ -31,7 +31,7 @@ def main(argv: list[str]) -> int:
         return 2
     run, data = argv
     torch.set_num_threads(1)
-    model, _ = load_model(run, "cpu")
+    model = Run.load(run).model
     ds = ViewDataset(data, "test")
     renderer = make_renderer()
     ratios: list[float] = []

@@ -27,7 +27,7 @@ import torch
 
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.eval.runner import iterate_batches, reconstruct_batch
-from cerberus_core.train.checkpoint import load_model
+from cerberus_core.run import Run
 from cerberus_metrics.api import voxelize
 
 SCALES = np.linspace(0.8, 1.25, 10)
@@ -64,7 +64,7 @@ def main(argv: list[str]) -> int:
         p.error(f"--images {args.images}: must be at least 1")
     torch.set_num_threads(1)
     warnings.simplefilter("ignore")  # mesh-quality warnings on predicted parts, as in cerberus eval
-    model, _ = load_model(args.run, "cpu")
+    model = Run.load(args.run).model
     dataset = ViewDataset(args.data, "test")
     indices = list(range(0, len(dataset), max(1, len(dataset) // args.images)))[:args.images]
     rows = []

@@ -16,7 +16,8 @@ import yaml
 
 from cerberus_core.atomic import atomic_write_text
 from cerberus_core.datasets.format import read_manifest
-from cerberus_core.train.checkpoint import export_weights, load_model
+from cerberus_core.run import Run
+from cerberus_core.train.checkpoint import export_weights
 from cerberus_core.zoo import ZOO_DIR, sha256_file
 
 
@@ -39,7 +40,8 @@ def main() -> None:
                     "'What changed' section)")
     args = ap.parse_args()
 
-    model, config = load_model(args.run)
+    run = Run.load(args.run)
+    model, config = run.model, run.config
     manifest = read_manifest(args.data)
     trained = read_manifest(args.train_data) if args.train_data else manifest
     size = args.size or manifest["config"]["preset"]

@@ -328,9 +328,10 @@ def test_the_scene_of_a_model_is_never_a_silent_default(place, tmp_path):
     from dataclasses import replace
 
     from cerberus_core.errors import ConfigError
-    from cerberus_core.train.checkpoint import load_run, model_scene
+    from cerberus_core.run import Run, model_scene
 
-    _, config, saved = load_run(place["run"])
+    run = Run.load(place["run"])
+    config, saved = run.config, run.recorded_scene
     assert saved is not None, "a run records its scene with its weights"
     trained_on = model_scene(config, None, None)  # the training data is still there
     assert model_scene(config, None, saved) == trained_on == model_scene(config, place["data"], None)
@@ -487,7 +488,7 @@ def test_a_shipped_name_is_never_a_local_folder(place, tmp_path, monkeypatch):
     import shutil
     import warnings
 
-    from cerberus_core.train.checkpoint import resolve_weights
+    from cerberus_core.run import resolve_weights
     from cerberus_core.zoo import ZOO_DIR
 
     monkeypatch.chdir(tmp_path)

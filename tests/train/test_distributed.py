@@ -32,7 +32,8 @@ def _worker(rank: int, world: int, port: int, root: str, run_dir: str, out: str)
 @pytest.mark.slow
 def test_two_processes_keep_identical_weights(tiny_root, tmp_path):
     from cerberus_core.model import Cerberus
-    from cerberus_core.train import load_config, load_model
+    from cerberus_core.run import Run
+    from cerberus_core.train import load_config
 
     mp.start_processes(_worker, args=(2, _free_port(), str(tiny_root), str(tmp_path / "run"), str(tmp_path)),
                        nprocs=2, join=True, start_method="spawn")
@@ -41,7 +42,7 @@ def test_two_processes_keep_identical_weights(tiny_root, tmp_path):
     assert a["step"] == b["step"] == 3 and a["skipped"] == b["skipped"] == 1
     for k in a["params"]:
         assert torch.equal(a["params"][k], b["params"][k]), k
-    saved, _ = load_model(tmp_path / "run")
+    saved = Run.load(tmp_path / "run").model
     for k, v in saved.named_parameters():
         assert torch.equal(v, a["params"][k]), k
     # training moved the weights away from the (seeded) initialisation

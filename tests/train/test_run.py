@@ -9,8 +9,9 @@ import torch
 
 from cerberus_core import Run
 from cerberus_core.errors import ConfigError
+from cerberus_core.run import _load_weights, resolve_weights
 from cerberus_core.train import train
-from cerberus_core.train.checkpoint import CheckpointError, load_run
+from cerberus_core.train.checkpoint import CheckpointError
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +32,7 @@ def tiny_run(tiny_root, tmp_path_factory):
 
 def test_a_run_folder_loads_as_one_object(tiny_run, tiny_root):
     run = Run.load(tiny_run)
-    model, config, scene = load_run(tiny_run)
+    model, config, scene = _load_weights(resolve_weights(tiny_run))
     assert run.path == tiny_run / "model.safetensors" and run.step == 2 and run.weights_info.newer is None
     assert run.data_root == tiny_root and run.config.to_dict() == config.to_dict()
     for (k, a), (_, b) in zip(run.model.state_dict().items(), model.state_dict().items(), strict=True):
@@ -50,7 +51,7 @@ def test_a_run_named_bare_from_its_parent_writes_into_itself(tiny_run, monkeypat
     assert not run.shipped and run.default_out() == Path(tiny_run.name) / "eval"
 
 
-def test_load_refuses_what_load_run_refuses(tmp_path):
+def test_load_refuses_a_missing_run_and_a_bad_device(tmp_path):
     with pytest.raises(CheckpointError, match="does not exist"):
         Run.load(tmp_path / "nothing")
     with pytest.raises(ConfigError, match="--device"):

@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from cerberus_core.datasets.readers import QuadrupletDataset
-from cerberus_core.train import NonFiniteError, load_checkpoint, load_model, train
+from cerberus_core.run import Run
+from cerberus_core.train import NonFiniteError, load_checkpoint, train
 from cerberus_core.train.checkpoint import checkpoint_dir
 
 
@@ -108,7 +109,8 @@ def test_run_folder_outputs_and_safe_loading(tiny_config, tmp_path):
     payload = torch.load(run / "checkpoints" / "last.pt", weights_only=True)  # no arbitrary pickles
     assert payload["step"] == 4 and "rng" in payload and "optimizer" in payload
     for source in (run, run / "model.safetensors", run / "checkpoints" / "last.pt"):
-        model, config = load_model(source)
+        loaded = Run.load(source)
+        model, config = loaded.model, loaded.config
         assert config.model.depth_offset == pytest.approx(result.model.config.depth_offset)
         assert_same_weights(params(model), params(result.model))
         assert not model.training

@@ -7,7 +7,8 @@ import yaml
 
 from cerberus_core import zoo
 from cerberus_core.model import Cerberus, ModelConfig
-from cerberus_core.train.checkpoint import export_weights, load_model, load_run
+from cerberus_core.run import Run
+from cerberus_core.train.checkpoint import export_weights
 from cerberus_core.train.config import TrainConfig
 
 
@@ -33,19 +34,20 @@ def _fake_zoo(tmp_path, monkeypatch, tamper=False):
 def test_a_shipped_name_loads_verified_weights_and_its_scene(tmp_path, monkeypatch):
     ref = _fake_zoo(tmp_path, monkeypatch)
     assert list(zoo.available()) == ["tiny"]
-    model, config, scene = load_run("tiny")
+    run = Run.load("tiny")
+    model, config, scene = run.model, run.config, run.recorded_scene
     for (k, a), (_, b) in zip(model.state_dict().items(), ref.state_dict().items(), strict=True):
         assert torch.equal(a, b), k
     assert (scene["elevation"], scene["fov_y"], scene["distance"]) == (20.0, 30.0, 2.5)
-    assert load_model("tiny")[1].model.width == config.model.width == 8
+    assert config.model.width == 8 and run.shipped
 
 
 def test_unknown_names_and_damaged_files_are_refused_with_the_fix(tmp_path, monkeypatch):
     _fake_zoo(tmp_path, monkeypatch, tamper=True)
     with pytest.raises(zoo.ZooError, match="fails its checksum.*reinstall"):
-        load_model("tiny")
+        Run.load("tiny")
     with pytest.raises(zoo.ZooError, match="no pretrained model named 'dog'.*shipped: tiny"):
-        load_model("dog")
+        Run.load("dog")
 
 
 def test_every_shipped_entry_matches_its_file():

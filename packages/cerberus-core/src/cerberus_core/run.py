@@ -14,14 +14,20 @@ does with the same call::
 """
 from __future__ import annotations
 
+import json
+import os
+import stat
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
+import yaml
+from safetensors import safe_open
+from safetensors.torch import load_file
 
-from cerberus_core.datasets.format import Manifest
+from cerberus_core.datasets.format import MANIFEST, Manifest
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
@@ -38,21 +44,239 @@ from cerberus_core.names import printable
 from cerberus_core.outputs import is_dataset, result_folder, writing_results
 from cerberus_core.plugins import get_metric
 from cerberus_core.render.backends import make_renderer
-from cerberus_core.train.checkpoint import (
-    WeightsInfo,
-    describe_weights,
-    load_model,
-    load_run,
-    looks_like_path,
-    model_scene,
-)
+from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.config import TrainConfig
-from cerberus_core.zoo import available
+from cerberus_core.zoo import available, model_path
 
 #: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without --overwrite.
 EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
 
 
+# ------------------------------------------------------------------ which weights, and loading them
+#: File endings of model files: a name ending so is a path, never a shipped model's name.
+WEIGHT_SUFFIXES = (".safetensors", ".pt")
+
+
+def looks_like_path(text: str | Path) -> bool:
+    """Whether a model argument is a path rather than a shipped model's name: a :class:`~pathlib.Path`,
+    or text with a folder separator, starting with ``.`` or ``~`` (``./human``), or ending in
+    ``.safetensors`` / ``.pt``."""
+    if isinstance(text, Path):
+        return True
+    seps = {"/", os.sep, *([os.altsep] if os.altsep else [])}
+    return any(sep in text for sep in seps) or text.startswith((".", "~")) or text.endswith(WEIGHT_SUFFIXES)
+
+
+def resolve_weights(path: str | Path) -> Path:
+    """The model file that a model argument names.
+
+    A bare name (see :func:`looks_like_path`) that a shipped model has is that model's checksum-verified
+    weights, even where a local folder has the same name (a warning says how to name the folder:
+    ``./human``); another bare name is taken as a path. A run folder gives its ``model.safetensors``,
+    else ``checkpoints/last.pt``.
+
+    Raises:
+        CheckpointError: a missing path, a folder that is not a run (a dataset folder says so), a FIFO,
+            device or other non-regular file (refused before it is opened, so nothing hangs).
+        ZooError: a shipped model's file is missing or damaged.
+    """
+    if not looks_like_path(path):
+        name = str(path)
+        local = _exists(Path(name))
+        if name in available():
+            if local:
+                warnings.warn(f"{name!r} is the shipped model {name!r}, not the local {printable(name)}: write "
+                              f"./{printable(name)} for that path", UserWarning, stacklevel=3)
+            return model_path(name)  # its checksum-verified weights
+        if not local:
+            model_path(name)  # ZooError: no such shipped model, listing the shipped ones
+    path = Path(path).expanduser()
+    shown = printable(path)
+    try:
+        path.stat()
+    except FileNotFoundError:
+        raise CheckpointError(f"{shown} does not exist; {USE_RUN}") from None
+    except OSError as exc:  # a name too long, a loop of symlinks, no permission
+        raise CheckpointError(f"{shown[:80]}{'...' if len(shown) > 80 else ''}: cannot be read "
+                              f"({exc.strerror or exc}); {USE_RUN}") from None
+    if path.is_dir():
+        for candidate in (path / "model.safetensors", checkpoint_dir(path) / LAST):
+            if candidate.is_file():
+                return candidate
+        if (path / "manifest.json").is_file():
+            raise CheckpointError(f"{shown} is a dataset folder, not a training run; pass the run folder "
+                                  f"first and the dataset with --data {shown}")
+        raise CheckpointError(f"{shown} holds neither model.safetensors nor checkpoints/{LAST}, so it is not a "
+                              "training run folder; train one with `cerberus train --out RUN`")
+    if not path.is_file():
+        raise CheckpointError(f"{shown} is {_file_kind(path)}, not a model file; {USE_RUN}")
+    return path
+
+
+def _exists(path: Path) -> bool:
+    """``path.exists()``, ``False`` where the name cannot even be looked up (too long, say)."""
+    try:
+        return path.exists()
+    except OSError:
+        return False
+
+
+def _file_kind(path: Path) -> str:
+    """``a FIFO``, ``a character device``, ... for a path that exists but is not a regular file or folder."""
+    mode = path.stat().st_mode
+    for test, kind in ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "not a regular file"
+
+
+def _step_of(path: Path) -> int | None:
+    """The training step a model file records (``None`` where it records none)."""
+    if path.suffix == ".safetensors":
+        from safetensors import safe_open
+
+        try:
+            with safe_open(str(path), framework="pt") as f:
+                step = (f.metadata() or {}).get("step")
+        except Exception:  # noqa: BLE001 - _load_weights reports a damaged file properly
+            return None
+    else:
+        step = load_checkpoint(path).get("step")
+    try:
+        return int(step) if step is not None else None
+    except (TypeError, ValueError):
+        return None
+
+
+@dataclass(frozen=True)
+class WeightsInfo:
+    """Which weights a model argument loads, and whether newer ones exist.
+
+    Attributes:
+        path: the model file (``RUN/model.safetensors``, a checkpoint, a shipped model's file).
+        step: the training step it records (``None``: none recorded).
+        newer: ``RUN/checkpoints/last.pt`` when it is further trained than ``path`` (an interrupted or
+            unfinished ``--resume``: ``model.safetensors`` is written only when a training finishes).
+        newer_step: that checkpoint's step.
+    """
+
+    path: Path
+    step: int | None
+    newer: Path | None = None
+    newer_step: int | None = None
+
+    def stale_warning(self) -> str | None:
+        """One line saying the weights are older than the run's latest checkpoint, with the fix."""
+        if self.newer is None:
+            return None
+        run = printable(self.path.parent)
+        return (f"{printable(self.path)} holds step {self.step} but {printable(self.newer)} is at step "
+                f"{self.newer_step} (a training resumed and not finished?); scoring step {self.step}: pass "
+                f"{printable(self.newer)} to score the newer weights, or finish the run with "
+                f"`cerberus train --out {run} --resume`")
+
+
+def describe_weights(path: str | Path) -> WeightsInfo:
+    """:func:`resolve_weights` with the step the weights record and the run's newer checkpoint, if any."""
+    file = resolve_weights(path)
+    step = _step_of(file)
+    last = checkpoint_dir(file.parent) / LAST
+    if file.name == "model.safetensors" and last.is_file():
+        try:
+            last_step = _step_of(last)
+        except CheckpointError:
+            last_step = None  # an unreadable checkpoint is not newer weights
+        if last_step is not None and (step is None or last_step > step):
+            return WeightsInfo(file, step, last, last_step)
+    return WeightsInfo(file, step)
+
+
+def _load_weights(path: str | Path, device: str | torch.device = "cpu") -> tuple[Cerberus, TrainConfig, dict | None]:
+    """The model (in eval mode on ``device``), its config and the training data's scene set-up when the file
+    records it (else ``None``), from what :func:`resolve_weights` names.
+
+    Raises:
+        CheckpointError: a missing path, a folder that is not a run (a dataset folder says so), a
+            truncated, foreign or pickled file, weights that do not fit the saved config, weights that
+            are NaN or infinite, or a scene record that is not JSON.
+    """
+    path = resolve_weights(path)
+    shown = printable(path)
+    scene = None
+    if path.suffix == ".safetensors":
+        try:
+            with safe_open(str(path), framework="pt") as f:
+                meta = f.metadata() or {}
+            state = load_file(str(path))
+        except Exception as exc:
+            raise CheckpointError(f"{shown} is not a readable safetensors file ({error_reason(exc)}); it may be "
+                                  f"truncated: {USE_RUN}") from None
+        if "config" not in meta:
+            raise CheckpointError(f"{shown} has no Cerberus config in its metadata; export it with export_weights")
+        config_yaml = meta["config"]
+        scene = meta.get("scene")
+    else:
+        payload = load_checkpoint(path)
+        config_yaml, state = payload["config"], payload["model"]
+        scene = payload.get("extra", {}).get("scene")
+    if isinstance(scene, str):
+        try:
+            scene = json.loads(scene)
+        except ValueError as exc:
+            raise CheckpointError(f"{shown}: its recorded scene set-up is not JSON ({exc}); the file is damaged: "
+                                  "re-export it, or use the run's checkpoints/last.pt") from None
+    if scene is not None and not isinstance(scene, dict):
+        raise CheckpointError(f"{shown}: its recorded scene set-up is not a mapping ({type(scene).__name__}); the "
+                              "file is damaged: re-export it, or use the run's checkpoints/last.pt")
+    bad = [k for k, v in state.items() if torch.is_tensor(v) and v.is_floating_point() and not torch.isfinite(v).all()]
+    if bad:
+        raise CheckpointError(f"{shown}: {len(bad)} of {len(state)} weight tensors hold NaN or infinite values (first: "
+                              f"{bad[0]}); the training diverged: use an earlier checkpoint "
+                              "(RUN/checkpoints/step_*.pt) or retrain with a lower optim.lr")
+    try:
+        config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
+        model = Cerberus(config.model)
+        model.load_state_dict(state)
+    except (ValueError, TypeError, KeyError, RuntimeError, yaml.YAMLError) as exc:
+        raise CheckpointError(f"{shown}: the saved config and weights do not form a Cerberus model "
+                              f"({error_reason(exc)}); it was written by another version or is damaged") from None
+    return model.to(device).eval(), config, scene
+
+
+def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict | None = None):
+    """The scene set-up the model was trained with: from ``--data`` (which must be a dataset), else the
+    one the run recorded, else from the run's training data if it is still there. Never a silent
+    default: without any of them the user is asked for ``--data``.
+
+    Args:
+        config: the run's config.
+        data: a dataset folder whose scene the images follow.
+        saved: the scene the weights record.
+    Returns:
+        A :class:`~cerberus_core.datasets.scene.SceneSetup`.
+    """
+    def scene_of(record, where: str, fix: str = "pass --data DATASET (the dataset it was trained on)"):
+        try:
+            return SceneSetup.from_dict(record)
+        except (ValueError, TypeError, AttributeError, KeyError) as exc:  # ConfigError is a ValueError
+            raise ConfigError(f"{where}: invalid scene set-up ({exc}); {fix}") from None
+
+    if data is not None:
+        if not (Path(data) / MANIFEST).is_file():
+            raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
+        return scene_of(Manifest.read(Path(data)).get("scene"), f"--data {data}",
+                        "its manifest is damaged: regenerate it with `cerberus data generate`")
+    if saved is not None:
+        return scene_of(saved, "the model's recorded scene")
+    root = Path(config.data.root)
+    if (root / MANIFEST).is_file():
+        return scene_of(Manifest.read(root).get("scene"), f"the run's training data {root}")
+    raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
+                      "--data DATASET (the dataset it was trained on, or one rendered the same way)")
+
+
+# ------------------------------------------------------------------ evaluation settings
 def check_protocol(name: str) -> str:
     """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
     anything runs)."""
@@ -89,7 +313,7 @@ def load_baselines(specs: Sequence[str], device: str) -> dict[str, Cerberus]:
         if name in out:
             raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
         try:
-            out[name] = load_model(path, device)[0]
+            out[name] = _load_weights(resolve_weights(path), device)[0]
         except CerberusError as exc:
             raise ConfigError(f"--baseline {name}={path}: {exc}") from None
     return out
@@ -149,7 +373,7 @@ class Run:
         model: the :class:`~cerberus_core.model.Cerberus` model, in eval mode on :attr:`device`.
         config: its :class:`~cerberus_core.train.config.TrainConfig`.
         weights_info: which file was loaded, its step and the run's newer checkpoint, if any
-            (:meth:`~cerberus_core.train.checkpoint.WeightsInfo.stale_warning`).
+            (:meth:`WeightsInfo.stale_warning`).
         source: the argument it was loaded from (a path, or a shipped model's name).
         recorded_scene: the training data's scene set-up as the weights record it (``None``: none).
         device: where the model is.
@@ -169,16 +393,17 @@ class Run:
     def load(cls, path: str | Path, device: str | torch.device = "cpu") -> Run:
         """Load a run folder (its ``model.safetensors``, else ``checkpoints/last.pt``), a ``.safetensors``
         export, a ``.pt`` checkpoint or a shipped model by name (``cerberus models``; a bare name a
-        shipped model has is that model: see :func:`~cerberus_core.train.checkpoint.resolve_weights`).
+        shipped model has is that model: see :func:`resolve_weights`).
 
         Raises:
             ConfigError: an unknown device.
-            CheckpointError: what :func:`~cerberus_core.train.checkpoint.load_run` refuses.
+            CheckpointError: a missing path, a folder that is not a run, a truncated, foreign or pickled file,
+                weights that do not fit the saved config or are not finite (:func:`_load_weights`).
             ZooError: a shipped model's file is missing or damaged.
         """
         check_device(str(device))
         weights = describe_weights(path)
-        model, config, scene = load_run(weights.path, device)
+        model, config, scene = _load_weights(weights.path, device)
         return cls(model, config, weights, source=path, recorded_scene=scene, device=device)
 
     def __repr__(self) -> str:
@@ -207,7 +432,7 @@ class Run:
 
     def scene_for(self, data: str | Path | None = None) -> SceneSetup:
         """The scene set-up of ``data`` (a dataset folder), else the one the weights record, else the
-        training data's (:func:`~cerberus_core.train.checkpoint.model_scene`; ConfigError naming
+        training data's (:func:`model_scene`; ConfigError naming
         ``--data`` when none is known)."""
         return model_scene(self.config, data, self.recorded_scene)
 

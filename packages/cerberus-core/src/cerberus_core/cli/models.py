@@ -12,7 +12,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="List the pretrained models that ship inside cerberus-core (no download): their name, what they "
         "were trained on, their test figures and their model card. Use a name wherever a run folder is taken: "
         "`cerberus reconstruct --model human photo.png`, `cerberus eval human --data DATASET`, or "
-        "`load_model(\"human\")` in Python.",
+        "`Run.load(\"human\")` in Python.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  cerberus models\n  cerberus models --json\n"
         "  cerberus reconstruct --model human person.png --out recon/")

@@ -59,8 +59,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.run import Run
-    from cerberus_core.train.checkpoint import looks_like_path
+    from cerberus_core.run import Run, looks_like_path
     from cerberus_core.zoo import model_path
 
     if args.model is not None:

@@ -81,24 +81,14 @@ def _check_config_file(path: Path) -> None:
 
 
 def resolve_config(args: argparse.Namespace, out: Path):
-    """The run's config from --config / --preset / the run's saved config, plus --set; validated."""
-    import yaml
+    """The run's config from --config / --preset / the run's saved config (:func:`resume_config`), plus
+    --set; validated."""
+    from cerberus_core.train.config import load_config, resume_config
 
-    from cerberus_core.train.config import TrainConfig, deep_merge, load_config, parse_overrides
-
-    saved = out / "config.yaml"
-    if args.resume and args.config is None and args.preset is None and saved.is_file():
-        # Resume from the run's own config plus --set overrides.
-        try:
-            raw = load_yaml(saved.read_text())
-        except yaml.YAMLError as exc:
-            raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
-        config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(args.overrides)))
-        root = Path(config.data.root)
-        if not root.is_absolute() and not root.exists():
-            raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and "
-                              f"does not exist from {Path.cwd()}; pass --set data.root=/absolute/path")
-    else:
+    config = None
+    if args.resume and args.config is None and args.preset is None:
+        config = resume_config(out, args.overrides)
+    if config is None:
         if args.config is not None:
             _check_config_file(args.config)
         config = load_config(args.config, preset=None if args.config else args.preset, overrides=args.overrides)

@@ -1,7 +1,7 @@
 """Training: config (:mod:`.config`), data contract and order (:mod:`.data`), objective
 (:mod:`.objective`), loop (:mod:`.trainer`), checkpoints (:mod:`.checkpoint`), data parallelism
 (:mod:`.distributed`) and logs (:mod:`.logs`). ``cerberus train`` drives :func:`train`."""
-from cerberus_core.train.checkpoint import load_checkpoint, load_model
+from cerberus_core.train.checkpoint import load_checkpoint
 from cerberus_core.train.config import TrainConfig, load_config, preset_names
 from cerberus_core.train.trainer import NonFiniteError, TrainResult, train
 
@@ -11,7 +11,6 @@ __all__ = [
     "TrainResult",
     "load_checkpoint",
     "load_config",
-    "load_model",
     "preset_names",
     "train",
 ]

@@ -21,7 +21,7 @@ from typing import Any, Literal
 
 import yaml
 
-from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, parse_overrides
+from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, load_yaml, parse_overrides, yaml_problem
 from cerberus_core.devices import is_device_name
 from cerberus_core.errors import ConfigError
 from cerberus_core.fields import Checked, Range, ranged
@@ -192,6 +192,29 @@ PRESETS = Presets("configs", kind="preset")
 def preset_names() -> list[str]:
     """Names of the bundled presets."""
     return PRESETS.names()
+
+
+def resume_config(run_dir: str | Path, overrides: list[str] | None = None) -> TrainConfig | None:
+    """The config a resumed run continues with: the run's own saved ``config.yaml`` plus ``overrides``
+    (``section.key=value`` strings); ``None`` when the run folder holds no saved config.
+
+    Raises:
+        ConfigError: a damaged saved config, or a relative ``data.root`` (written by an older version)
+            that does not exist from the current directory.
+    """
+    saved = Path(run_dir) / "config.yaml"
+    if not saved.is_file():
+        return None
+    try:
+        raw = load_yaml(saved.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
+    config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(overrides or [])))
+    root = Path(config.data.root)
+    if not root.is_absolute() and not root.exists():
+        raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and does not "
+                          f"exist from {Path.cwd()}; set data.root to the dataset's absolute path")
+    return config
 
 
 def default_preset(device: str | None = None) -> tuple[str, str]:

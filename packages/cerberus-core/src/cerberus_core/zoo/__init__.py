@@ -1,4 +1,4 @@
-"""Pretrained models shipped with the toolkit: ``load_model("human")`` works right after install.
+"""Pretrained models shipped with the toolkit: ``Run.load("human")`` works right after install.
 
 Each model is three files in this folder, all package data:
 
@@ -34,7 +34,7 @@ class PretrainedModel:
     """One shipped model (the fields of ``NAME.json``).
 
     Attributes:
-        name: what ``load_model`` and ``cerberus reconstruct --model`` take.
+        name: what ``Run.load`` and ``cerberus reconstruct --model`` take.
         summary: one line.
         weights: file name of the safetensors weights beside the entry.
         sha256: hex digest of the weights file.
