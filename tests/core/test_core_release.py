@@ -51,5 +51,5 @@ def test_a_foreign_cerberus_core_makes_a_backend_fail_in_one_line(tmp_path: Path
                          timeout=120)
     assert res.returncode != 0
     last = res.stderr.strip().splitlines()[-1]
-    assert last.startswith("ImportError: cerberus-render-torch: the installed `cerberus-core` is not the Cerberus toolkit's")
+    assert last.startswith("ImportError: cerberus-render-torch: the installed cerberus-core is not the Cerberus toolkit's")
     assert "pip uninstall cerberus-core" in last

@@ -6,12 +6,10 @@ needs ``warp-lang``; the error names the package to install if it is missing.
 """
 from importlib.metadata import version as _version
 
-try:  # first: a `cerberus_core` of another project (same name on the public index) must fail in one line
+try:  # first, so that another project's `cerberus_core` (same name on the public index) fails in one line
     from cerberus_core.release import require_lockstep
 except ImportError:
-    raise ImportError("cerberus-render-warp: the installed `cerberus-core` is not the Cerberus toolkit's (an unrelated project has "
-                      "that name on the public package index); pip uninstall cerberus-core, then install the toolkit's "
-                      "packages together from its wheelhouse (README, 'Installing with pip')") from None
+    raise ImportError("cerberus-render-warp: the installed cerberus-core is not the Cerberus toolkit's; pip uninstall cerberus-core, then install from the toolkit's wheelhouse (README, 'Installing with pip')") from None
 require_lockstep("cerberus-render-warp")
 
 from cerberus_render_warp.antialias import WarpAntialias, antialias
