@@ -1,9 +1,14 @@
 """The Cerberus model: ResNet-10-v1 encoder, up-sampling decoder, shape/rotation/translation heads.
 
+>>> import torch
+>>> from cerberus_core import Camera
 >>> from cerberus_core.model import Cerberus, ModelConfig
->>> model = Cerberus(ModelConfig(depth_offset=2.2))
->>> parts = model.reconstruct(images, camera)   # images (B, 3, H, W), camera: B cameras
->>> parts.posed().shape                          # (B, 9, 162, 3) world coordinates
+>>> model = Cerberus(ModelConfig(depth_offset=2.2)).eval()
+>>> images = torch.rand(2, 3, 64, 64)                      # (B, 3, H, W) float32 in [0, 1]
+>>> camera = Camera.look_at([0.0, 90.0], 15.0, 2.2)        # the B cameras that took them
+>>> parts = model.reconstruct(images, camera)
+>>> tuple(parts.posed().shape)                             # (B, 9 parts, 162 vertices, 3) world coordinates
+(2, 9, 162, 3)
 """
 from cerberus_core.model.cerberus import (
     Cerberus,

@@ -1,0 +1,74 @@
+"""cerberus_core.outputs: where a command may write, checked before it writes anything."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cerberus_core.errors import ConfigError
+from cerberus_core.outputs import (
+    MANIFEST_NAME,
+    NAME_MAX,
+    RESULT_MARKER,
+    check_path_length,
+    output_file,
+    output_folder,
+    result_folder,
+    writing_results,
+)
+
+
+def test_path_length_limits_name_the_option(tmp_path: Path):
+    assert check_path_length(tmp_path / "ok") == tmp_path / "ok"
+    with pytest.raises(ConfigError, match=r"--out: the name n+\.\.\. is \d+ bytes long"):
+        check_path_length(tmp_path / ("n" * (NAME_MAX - 10)))
+    with pytest.raises(ConfigError, match="--dst .* choose a shorter path"):
+        check_path_length(tmp_path.joinpath(*["d" * 200] * 25), "--dst")
+
+
+def test_output_folder_and_file_refuse_files_folders_and_datasets(tmp_path: Path):
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(ConfigError, match="is a file; pass a folder path"):
+        output_folder(tmp_path / "f")
+    with pytest.raises(ConfigError, match="which is a file"):
+        output_folder(tmp_path / "f" / "sub")
+    (tmp_path / "ds").mkdir()
+    (tmp_path / "ds" / MANIFEST_NAME).write_text("{}")
+    with pytest.raises(ConfigError, match="is a dataset folder"):
+        output_folder(tmp_path / "ds")
+    assert output_folder(tmp_path / "ds", dataset_ok=True) == tmp_path / "ds"
+    with pytest.raises(ConfigError, match="is a folder; pass a file path"):
+        output_file(tmp_path / "ds")
+    with pytest.raises(ConfigError, match="which is a file; pass a path inside a folder"):
+        output_file(tmp_path / "f" / "x.png")
+    assert output_file(tmp_path / "new" / "x.png") == tmp_path / "new" / "x.png"
+
+
+def test_result_folder_protects_inputs_and_foreign_files(tmp_path: Path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    with pytest.raises(ConfigError, match="holds .*run.* a result folder is replaced whole"):
+        result_folder(tmp_path, keep=[run])
+    with pytest.raises(ConfigError, match="the current directory"):
+        result_folder(Path("."))
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("precious")
+    with pytest.raises(ConfigError, match=r"is not empty \(it holds notes.txt\).*--overwrite"):
+        result_folder(mine)
+    assert result_folder(mine, overwrite=True) == mine
+    with writing_results(tmp_path / "res", "test") as tmp:
+        (tmp / "a.txt").write_text("a")
+    assert (tmp_path / "res" / RESULT_MARKER).is_file()
+    assert result_folder(tmp_path / "res") == tmp_path / "res"  # an earlier result may be replaced
+
+
+def test_writing_results_leaves_the_old_results_on_error(tmp_path: Path):
+    with writing_results(tmp_path / "res", "test") as tmp:
+        (tmp / "old.txt").write_text("old")
+    with pytest.raises(RuntimeError), writing_results(tmp_path / "res", "test") as tmp:
+        (tmp / "new.txt").write_text("new")
+        raise RuntimeError("midway")
+    assert sorted(p.name for p in (tmp_path / "res").iterdir()) == sorted([RESULT_MARKER, "old.txt"])
+    assert [p.name for p in tmp_path.iterdir()] == ["res"]  # no temporary left beside it
