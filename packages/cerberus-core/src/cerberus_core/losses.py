@@ -18,21 +18,18 @@ background            ``1/N sum_k sum_xy p^k_xy b_xy``                     :func
 smoothness            ``sum_edges (cos theta + 1)^2`` (Kato et al.)        :func:`smoothness_loss`
 ====================  ==================================================  =========================
 
-Beyond the paper (weight 0 in its settings): :func:`silhouette_loss`, :func:`silhouette_chamfer` and
-:func:`hidden_part_pull`.
+Beyond the paper (weight 0 in its settings): :func:`silhouette_loss`, :func:`silhouette_chamfer`,
+:func:`hidden_part_pull` and :func:`reprojection_loss`, and the ``own`` cross view of
+:func:`viewpoint_scenes`.
 
-:class:`LossConfig` holds the weights ``(lambda_r, lambda_t, lambda_b, lambda_s)`` and the switches
-that give the paper's variants (Free Cerberus: ``pose_consistency: false``).
+These are the functions; the objective's one table of terms (name, weight, how each is computed from
+the objective's inputs, symbol, reference) and the weights' config section, ``LossConfig``, are in
+:mod:`cerberus_core.train.objective`.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal
-
 import torch
 
-from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import pose_parts
 from cerberus_core.shapes import check_shapes
 
@@ -43,101 +40,6 @@ QUADRUPLET: tuple[str, ...] = ("a0", "a1", "b0", "b1")
 
 VIEW_PARTNER: tuple[int, ...] = (1, 0, 3, 2)
 """Index of the image of the same pose from the other viewpoint: a0 <-> a1, b0 <-> b1."""
-
-
-@dataclass(frozen=True)
-class LossTerm:
-    """One term of the training objective.
-
-    Attributes:
-        name: its name everywhere: the weight ``losses.<name>`` of :class:`LossConfig`, the column of
-            ``metrics.csv``, the key of ``ObjectiveOutput.terms``.
-        function: the function of this module that defines it.
-        symbol: its symbol in the total ``sum_k lambda_k L_k`` (docs).
-        paper: whether the paper has it (the others weigh 0 in its settings).
-        summary: what it measures, in one line (docs, ``--help``).
-    """
-
-    name: str
-    function: Callable[..., Tensor]
-    symbol: str
-    paper: bool
-    summary: str
-
-
-@dataclass
-class LossConfig(Checked):
-    """Loss weights and consistency switches (the ``losses:`` section of a training config).
-
-    Attributes:
-        recon, translation, background, smoothness: the weights ``lambda_r, lambda_t, lambda_b,
-            lambda_s`` (paper: 1, 1, 1, 0.0001). A weight of 0 switches the term off (it is still
-            computed and logged).
-        silhouette: weight of :func:`silhouette_loss` (rendered coverage vs the input's foreground,
-            own and partner viewpoint like the reconstruction loss); beyond the paper, 0 there. It
-            has a gradient only with ``render.antialias: true``.
-        chamfer: weight of :func:`silhouette_chamfer` (projected part vertices vs the input's
-            foreground pixels, every vertex visible or not); beyond the paper, 0 there.
-        hidden: weight of :func:`hidden_part_pull` (parts wholly hidden in their input view pulled
-            toward the foreground no part covers); beyond the paper, 0 there.
-        reprojection: weight of :func:`reprojection_loss` (each part's translation projected into
-            the partner camera against the partner's keypoint, in image heights); beyond the paper,
-            0 there.
-        cross_pulls: apply the chamfer and hidden-part pulls to the cross view as well (the
-            rendering of :func:`viewpoint_scenes` seen by the partner camera, against the partner's
-            foreground), averaged with the input view's like equation 4; off: the input view only.
-        pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses
-            its own shape latent — "Free Cerberus").
-        viewpoint_consistency: also render each image's rotated mesh from the other viewpoint
-            (equation 4); off: only the image's own viewpoint.
-        cross_view: which translations that second rendering uses (:func:`viewpoint_scenes`):
-            ``partner`` (the paper's equation 4: the partner viewpoint's translations, so a part's
-            own depth never meets the partner's image) or ``own`` (the image's whole 3D model, its
-            own world translations, seen from the partner camera: a part at the wrong depth lands
-            in the wrong place of the partner's image). Beyond the paper; ``partner`` there.
-        cross_view_warmup: with ``cross_view: own``, the first this many steps still use
-            ``partner``, so that early training, whose depths are still arbitrary, cannot lose the
-            body off the partner's screen (:meth:`cross_view_at`).
-        render_background: ``black`` (default) or ``dataset``: the background colour of the
-            reconstruction loss. With ``black`` the input image's background pixels (mask ``b``) are
-            set to black in the target and the renderings are composited over black. The barycentric
-            renderer has no silhouette gradient, so a part drawn over the background is pushed only
-            to change its shading towards the background colour: towards white (brighter than any
-            lit surface) that means turning the surface to face the light, which flattens and
-            inflates the part without bound; towards black it turns the surface away, which does not
-            grow it. Since the mask is exact, this equals a dataset rendered on black.
-        background_tolerance: a pixel is background (``b_xy = 1``) when every channel is within this
-            of the dataset's background colour
-            (:func:`background_mask`).
-    """
-
-    SECTION = "losses"
-
-    recon: float = ranged(1.0, ge=0)
-    translation: float = ranged(1.0, ge=0)
-    background: float = ranged(1.0, ge=0)
-    smoothness: float = ranged(0.0001, ge=0)
-    silhouette: float = ranged(0.0, ge=0)
-    chamfer: float = ranged(0.0, ge=0)
-    hidden: float = ranged(0.0, ge=0)
-    reprojection: float = ranged(0.0, ge=0)
-    cross_pulls: bool = False
-    pose_consistency: bool = True
-    viewpoint_consistency: bool = True
-    cross_view: Literal["partner", "own"] = "partner"
-    cross_view_warmup: int = ranged(0, ge=0)
-    render_background: Literal["black", "dataset"] = "black"
-    background_tolerance: float = ranged(0.02, ge=0, lt=1)
-
-    def cross_view_at(self, step: int | None) -> Literal["partner", "own"]:
-        """The cross view's translations at training step ``step`` (``None``: after any warm-up)."""
-        if self.cross_view == "own" and step is not None and step < self.cross_view_warmup:
-            return "partner"
-        return self.cross_view
-
-    def weight(self, name: str) -> float:
-        """The weight ``lambda`` of the term ``name`` of :data:`LOSS_TERMS`."""
-        return float(getattr(self, name))
 
 
 def background_mask(images: Tensor, background: tuple[float, float, float] | list[float],
@@ -186,7 +88,7 @@ def mix_shape_latents(latents: Tensor, generator: torch.Generator | None = None)
 
 
 def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Tensor,
-                     cross_view: Literal["partner", "own"] = "partner") -> tuple[Tensor, Tensor]:
+                     cross_view: str = "partner") -> tuple[Tensor, Tensor]:
     """The posed meshes rendered for equation 4 (all in world coordinates).
 
     Image ``x`` of the quadruplet contributes its rotated mesh ``R^x V^x`` twice: translated by its
@@ -202,7 +104,7 @@ def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Te
         local_vertices: ``(B, 4, N, V, 3)`` deformed parts (local frames).
         rotations: ``(B, 4, N, 3, 3)`` world rotations.
         translations: ``(B, 4, N, 3)`` world translations.
-        cross_view: ``partner`` or ``own`` (:attr:`LossConfig.cross_view`).
+        cross_view: ``partner`` or ``own`` (``losses.cross_view`` of the training config).
     Returns:
         ``own`` and ``cross``, both ``(B, 4, N, V, 3)``; ``cross[:, x]`` is to be rendered with the
         camera of image ``VIEW_PARTNER[x]`` and compared with that image.
@@ -458,28 +360,3 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
     per_part = _pair_distance(pts, centres, nearest).mean(1)  # (H,)
     hidden = torch.bincount(image, minlength=n).to(points.dtype)
     return out.index_add(0, image, per_part) / hidden.clamp(min=1) / height
-
-
-LOSS_TERMS: tuple[LossTerm, ...] = (
-    LossTerm("recon", reconstruction_loss, "lambda_r L_r'", True,
-             "squared RGB error of each image's rendering, own and partner viewpoint (eqs. 2, 4, 7)"),
-    LossTerm("translation", translation_loss, "lambda_t L_t'", True,
-             "disagreement of the translations predicted from the two viewpoints (eqs. 5, 6)"),
-    LossTerm("background", background_loss, "lambda_b L_b", True,
-             "keypoint probability mass on the input's background"),
-    LossTerm("smoothness", smoothness_loss, "lambda_s L_s", True,
-             "sum over mesh edges of (cos theta + 1)^2 (Kato et al.)"),
-    LossTerm("silhouette", silhouette_loss, "lambda_sil L_sil", False,
-             "squared error of the rendered coverage against the input's foreground (needs render.antialias)"),
-    LossTerm("chamfer", silhouette_chamfer, "lambda_c L_c", False,
-             "2-D chamfer distance between the projected part vertices and the foreground pixels"),
-    LossTerm("hidden", hidden_part_pull, "lambda_h L_h", False,
-             "pull of the parts an image does not show toward the foreground no part covers"),
-    LossTerm("reprojection", reprojection_loss, "lambda_p L_p", False,
-             "each part's translation projected into the partner camera against the partner's keypoint"),
-)
-"""Every term of the training objective, in logging order: the one list the config (a weight per
-name), the objective, ``metrics.csv`` and the docs (docs/training.md, checked by a test) read."""
-
-TERMS: tuple[str, ...] = tuple(t.name for t in LOSS_TERMS)
-"""The terms' names, in logging order."""

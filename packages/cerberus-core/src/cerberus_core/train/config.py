@@ -25,8 +25,8 @@ from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, 
 from cerberus_core.devices import is_device_name
 from cerberus_core.errors import ConfigError
 from cerberus_core.fields import Checked, Range, ranged
-from cerberus_core.losses import LossConfig
 from cerberus_core.model.cerberus import ModelConfig
+from cerberus_core.train.objective import LossConfig
 from cerberus_core.train.speed import SpeedConfig
 
 __all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "RenderConfig", "TrainConfig", "config_diff",

@@ -7,27 +7,28 @@ its own viewpoint, and with its viewpoint partner's translation from the partner
 
 ``lambda_r L_r' + lambda_t L_t' + lambda_b L_b + lambda_s L_s``
 
-averaged over the batch (:mod:`cerberus_core.losses` defines every term). Beyond the paper (off in
-its settings): ``antialias`` renders with the analytic anti-aliasing op, which gives the image and
-the coverage visibility gradients; ``lambda_sil L_sil`` compares the rendered coverage with the
-input's foreground (own and partner viewpoint, averaged like equation 4), ``lambda_c L_c`` pulls
-the projected part vertices onto the foreground and ``lambda_h L_h`` pulls the parts an image does
-not show toward the foreground no part covers (``losses.silhouette``, ``losses.chamfer``,
-``losses.hidden``).
+averaged over the batch, plus the terms beyond the paper (weight 0 in its settings). Each term is
+declared once, in :data:`TERM_TABLE` (its name, its weight in the paper's settings, how its value is
+computed from the objective's inputs, whether it is always logged, its symbol and where it comes
+from); the weights of :class:`LossConfig` (the ``losses:`` config section), the columns of
+``metrics.csv`` and the docs' table (:func:`terms_table`) are made from it. The functions behind the
+terms are :mod:`cerberus_core.losses`. Beyond the paper too: ``antialias`` renders with the analytic
+anti-aliasing op, which gives the image and the coverage visibility gradients, and ``losses.cross_view:
+own`` renders the cross view with each image's own 3D model.
 """
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, make_dataclass
+from typing import Any, Literal
 
 import torch
 from torch import nn
 
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.fields import Checked, ranged
 from cerberus_core.losses import (
-    TERMS,
     VIEW_PARTNER,
-    LossConfig,
     background_loss,
     background_mask,
     hidden_part_pull,
@@ -50,7 +51,7 @@ from cerberus_core.train.data import QuadrupletBatch
 
 Tensor = torch.Tensor
 
-__all__ = ["TERMS", "ObjectiveOutput", "quadruplet_objective"]
+__all__ = ["TERMS", "TERM_TABLE", "LossConfig", "ObjectiveOutput", "Term", "quadruplet_objective", "terms_table"]
 
 
 @dataclass
@@ -252,22 +253,138 @@ def _reprojection(x: ObjectiveInputs) -> Tensor:
     return reprojection_loss(projected.view(bsz, 4, n, 2), keypoints, x.batch.camera.height)
 
 
-TERM_VALUES: dict[str, Callable[[ObjectiveInputs], Tensor]] = {
-    "recon": _recon,
-    "translation": lambda x: translation_loss(x.parts.translations.view(-1, 4, *x.parts.translations.shape[1:])),
-    "background": lambda x: background_loss(x.pred.maps.prob, x.mask),
-    "smoothness": lambda x: smoothness_term(x.pred.local_vertices, x.dihedral, x.batch.num_quadruplets,
-                                            x.smoothness_once),
-    "silhouette": _silhouette,
-    "chamfer": _chamfer,
-    "hidden": _hidden,
-    "reprojection": _reprojection,
-}
-"""How the objective computes each term of :data:`cerberus_core.losses.LOSS_TERMS` from its inputs
-(per image or per quadruplet; averaged over the batch)."""
+@dataclass(frozen=True)
+class Term:
+    """One term of the training objective, declared once (:data:`TERM_TABLE`).
 
-ALWAYS_LOGGED = frozenset({"recon", "translation", "background", "smoothness", "silhouette"})
-"""Terms computed and logged even at weight 0 (cheap); the others (the pulls) only when weighted."""
+    Attributes:
+        name: its name everywhere: the weight ``losses.<name>`` of :class:`LossConfig`, the column of
+            ``metrics.csv``, the key of :attr:`ObjectiveOutput.terms`.
+        weight: its weight in the paper's settings, :class:`LossConfig`'s default (0: beyond the paper,
+            off there).
+        value: how the objective computes it from its inputs: ``ObjectiveInputs -> (B,)`` per
+            quadruplet or ``(4 B,)`` per image, averaged over the batch.
+        always_logged: computed and logged even at weight 0 (cheap); the others only when weighted.
+        symbol: its symbol in the total ``sum_k lambda_k L_k``.
+        source: where it comes from: the paper's equations, or ``beyond the paper``.
+        summary: what it measures, in one line (docs, :func:`terms_table`).
+        function: the function of :mod:`cerberus_core.losses` that defines it.
+    """
+
+    name: str
+    weight: float
+    value: Callable[[ObjectiveInputs], Tensor]
+    always_logged: bool
+    symbol: str
+    source: str
+    summary: str
+    function: Callable[..., Tensor]
+
+    @property
+    def paper(self) -> bool:
+        """Whether the paper has it."""
+        return self.source != BEYOND
+
+
+BEYOND = "beyond the paper"
+
+TERM_TABLE: tuple[Term, ...] = (
+    Term("recon", 1.0, _recon, True, "lambda_r L_r'", "eqs. 2, 4, 7",
+         "squared RGB error of each image's rendering, own and partner viewpoint", reconstruction_loss),
+    Term("translation", 1.0, lambda x: translation_loss(x.parts.translations.view(-1, 4, *x.parts.translations.shape[1:])),
+         True, "lambda_t L_t'", "eqs. 5, 6", "disagreement of the translations predicted from the two viewpoints",
+         translation_loss),
+    Term("background", 1.0, lambda x: background_loss(x.pred.maps.prob, x.mask), True, "lambda_b L_b", "section 5",
+         "keypoint probability mass on the input's background", background_loss),
+    Term("smoothness", 0.0001, lambda x: smoothness_term(x.pred.local_vertices, x.dihedral, x.batch.num_quadruplets,
+                                                         x.smoothness_once),
+         True, "lambda_s L_s", "section 5 (Kato et al.)", "sum over mesh edges of (cos theta + 1)^2",
+         smoothness_loss),
+    Term("silhouette", 0.0, _silhouette, True, "lambda_sil L_sil", BEYOND,
+         "squared error of the rendered coverage against the input's foreground (needs render.antialias)",
+         silhouette_loss),
+    Term("chamfer", 0.0, _chamfer, False, "lambda_c L_c", BEYOND,
+         "2-D chamfer distance between the projected part vertices and the foreground pixels", silhouette_chamfer),
+    Term("hidden", 0.0, _hidden, False, "lambda_h L_h", BEYOND,
+         "pull of the parts an image does not show toward the foreground no part covers", hidden_part_pull),
+    Term("reprojection", 0.0, _reprojection, False, "lambda_p L_p", BEYOND,
+         "each part's translation projected into the partner camera against the partner's keypoint",
+         reprojection_loss),
+)
+"""Every term of the training objective, in logging order."""
+
+TERMS: tuple[str, ...] = tuple(t.name for t in TERM_TABLE)
+"""The terms' names, in logging order (the ``metrics.csv`` columns after ``total``)."""
+
+
+def terms_table() -> str:
+    """The Markdown table of :data:`TERM_TABLE` that docs/training.md shows."""
+    rows = ["| weight | symbol | paper | paper weight | what it measures | function |", "| --- | --- | --- | ---: | --- | --- |"]
+    rows += [f"| `losses.{t.name}` | `{t.symbol}` | {t.source} | {t.weight:g} | {t.summary} | `{t.function.__name__}` |"
+             for t in TERM_TABLE]
+    return "\n".join(rows)
+
+
+class _LossSettings(Checked):
+    """The methods of :class:`LossConfig` (its fields are made from :data:`TERM_TABLE` and :data:`SWITCHES`)."""
+
+    SECTION = "losses"
+
+    def cross_view_at(self, step: int | None) -> Literal["partner", "own"]:
+        """The cross view's translations at training step ``step`` (``None``: after any warm-up)."""
+        if self.cross_view == "own" and step is not None and step < self.cross_view_warmup:
+            return "partner"
+        return self.cross_view
+
+    @property
+    def weights(self) -> dict[str, float]:
+        """``{term name: weight}`` in :data:`TERMS` order."""
+        return {t.name: float(getattr(self, t.name)) for t in TERM_TABLE}
+
+
+SWITCHES: tuple[tuple[str, Any, Any, str], ...] = (
+    ("pose_consistency", bool, True, "render with the mixed shape latent of equation 3 (off: each image uses its "
+     "own shape latent, 'Free Cerberus')"),
+    ("viewpoint_consistency", bool, True, "also render each image's rotated mesh from the other viewpoint "
+     "(equation 4); off: only the image's own viewpoint"),
+    ("cross_view", Literal["partner", "own"], "partner", "which translations that second rendering uses "
+     "(losses.viewpoint_scenes): 'partner' (the paper's equation 4: the partner viewpoint's translations, so a "
+     "part's own depth never meets the partner's image) or 'own' (the image's whole 3D model seen from the "
+     "partner camera: a part at the wrong depth lands in the wrong place of the partner's image); beyond the paper"),
+    ("cross_view_warmup", int, ranged(0, ge=0), "with cross_view: own, the first this many steps still use "
+     "'partner', so that early training, whose depths are still arbitrary, cannot lose the body off the "
+     "partner's screen (cross_view_at)"),
+    ("cross_pulls", bool, False, "apply the chamfer and hidden-part pulls to the cross view as well, against the "
+     "partner's foreground, averaged with the input view's like equation 4; off: the input view only"),
+    ("render_background", Literal["black", "dataset"], "black", "the background colour of the reconstruction "
+     "loss: 'black' sets the input's background pixels (mask b) to black in the target and composites the "
+     "renderings over black (the barycentric renderer has no silhouette gradient, so a part over a white "
+     "background would be pushed to face the light, which flattens and inflates it; towards black it is not); "
+     "'dataset' keeps the dataset's colour"),
+    ("background_tolerance", float, ranged(0.02, ge=0, lt=1), "a pixel is background (b = 1) when every "
+     "channel is within this of the dataset's background colour (losses.background_mask)"),
+)
+"""The ``losses:`` section's settings besides the weights: ``(name, type, default or field, meaning)``."""
+
+
+def _loss_config() -> type:
+    def spec(default: Any) -> Any:
+        return default if isinstance(default, type(field())) else field(default=default)
+
+    doc = ("Loss weights and consistency switches: the ``losses:`` section of a training config.\n\n"
+           "Its weight fields are made from :data:`TERM_TABLE`, one per term, each defaulting to the paper's "
+           "weight (a weight of 0 switches the term off; the always-logged terms are still computed), and "
+           "checked >= 0. The switches:\n\n"
+           + "\n".join(f"* ``{name}`` (default ``{d.default if isinstance(d, type(field())) else d!r}``): {text}."
+                       for name, _, d, text in SWITCHES))
+    cls = make_dataclass("LossConfig", [*((t.name, float, ranged(t.weight, ge=0)) for t in TERM_TABLE),
+                                        *((name, hint, spec(d)) for name, hint, d, _ in SWITCHES)],
+                         bases=(_LossSettings,), namespace={"__doc__": doc})
+    cls.__module__ = __name__
+    return cls
+
+
+LossConfig = _loss_config()
 
 
 def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: QuadrupletBatch, scene: SceneSetup,
@@ -309,9 +426,10 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                 cross_view=losses.cross_view_at(step))
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
                              smoothness_once and losses.pose_consistency, losses.cross_pulls)
-    values = {k: TERM_VALUES[k](inputs).mean() if k in ALWAYS_LOGGED or losses.weight(k) != 0
-              else images.new_zeros(()) for k in TERMS}
-    total = sum(losses.weight(k) * values[k] for k in TERMS if losses.weight(k) != 0)
+    weights = losses.weights
+    values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
+              for t in TERM_TABLE}
+    total = sum(weights[k] * values[k] for k in TERMS if weights[k] != 0)
     total = total if isinstance(total, Tensor) else images.new_zeros(())
     terms = {k: t.detach() for k, t in values.items()} | {"total": total.detach()}
     return ObjectiveOutput(total, terms, bool(torch.isfinite(total.detach())), render.own.image.detach(),
