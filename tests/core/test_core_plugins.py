@@ -140,7 +140,7 @@ def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, mo
 
     monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
     with pytest.raises(UnknownPluginError) as err:
-        run_module.check_evaluation()
+        run_module.EvalSettings()
     assert "pip install cerberus-metrics" in str(err.value) and "--protocol" not in str(err.value)
 
 

@@ -28,9 +28,11 @@ def test_reconstruct_refuses_images_that_are_not_float32_in_0_1(human):
 
 
 @pytest.mark.parametrize("limit", [0, -1, 2.5, True])
-def test_evaluate_refuses_a_limit_the_cli_refuses(human, pairs_dataset, limit):
-    with pytest.raises(ValueError, match="limit"):
-        human.evaluate(pairs_dataset, limit=limit, verbose=False)
+def test_evaluate_refuses_a_limit_the_cli_refuses(limit):
+    from cerberus_core.run import EvalSettings
+
+    with pytest.raises(ValueError, match=r"limit = .*: must be an integer >= 1 \(EvalSettings\(limit=...\)\)"):
+        EvalSettings(limit=limit)
 
 
 def test_domain_notes_name_another_kind_of_body_and_another_camera(human, pairs_dataset):

@@ -9,7 +9,7 @@ import torch
 
 from cerberus_core import Run
 from cerberus_core.errors import ConfigError
-from cerberus_core.run import _load_weights, resolve_weights
+from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
 from cerberus_core.train import train
 from cerberus_core.train.checkpoint import CheckpointError
 
@@ -68,8 +68,8 @@ def test_the_shipped_human_model_loads_by_name():
 def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, capsys):
     from cerberus_core.cli import main
 
-    options = dict(limit=3, part_quality=False, figure_images=1, viewer_images=0, renderer="torch")
-    evaluation = Run.load(tiny_run).evaluate(tiny_root, "test", tmp_path / "lib", **options)
+    settings = EvalSettings(limit=3, part_quality=False, figure_images=1, viewer_images=0, renderer="torch")
+    evaluation = Run.load(tiny_run).evaluate(tiny_root, settings, tmp_path / "lib")
     printed = capsys.readouterr().out
     assert printed.startswith(f"evaluating {tiny_run / 'model.safetensors'} at step 2\n")
     assert printed.endswith("\n".join(evaluation.lines()) + "\n") and evaluation.out == tmp_path / "lib"
@@ -81,5 +81,8 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
     assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
     for name in ("results.md", "table2.png", ".cerberus-result.json"):
         assert (tmp_path / "lib" / name).is_file(), name
-    with pytest.raises(ConfigError, match="--resolution 999: at most 256"):
-        Run.load(tiny_run).evaluate(tiny_root, out=tmp_path / "lib", resolution=999)
+    with pytest.raises(ConfigError, match=r"resolution = 999: must be an integer in \[1, 256\] \(EvalSettings\(resolution=...\)\)"):
+        EvalSettings(resolution=999)
+    capsys.readouterr()
+    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--resolution", "999"]) == 2  # the CLI: its flag
+    assert capsys.readouterr().err.strip() == "cerberus eval: --resolution 999: must be an integer in [1, 256]"

@@ -30,7 +30,16 @@ class DatasetError(CerberusError, ValueError):
 
 
 class ConfigError(CerberusError, ValueError):
-    """An invalid configuration: the message names the key, the value and what is allowed."""
+    """An invalid configuration: the message names the key, the value and what is allowed.
+
+    A setting checked by :mod:`cerberus_core.fields` also carries ``key`` (the dotted key or field
+    name), ``value`` and ``problem`` (what is allowed), so that a front end can say it in its own terms
+    (the ``cerberus`` command names its flag); they are ``None`` otherwise.
+    """
+
+    def __init__(self, message: str, *, key: str | None = None, value: object = None, problem: str | None = None):
+        super().__init__(message)
+        self.key, self.value, self.problem = key, value, problem
 
 
 class MissingPackageError(CerberusError, ImportError):

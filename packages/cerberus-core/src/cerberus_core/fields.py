@@ -105,21 +105,29 @@ def check_fields(obj: Any, section: str = "") -> None:
     """
     prefix = f"{section}." if section else ""
     choices = _choices(type(obj))
+    fix = getattr(type(obj), "FIX", Checked.FIX)
     for f in fields(obj):
-        value = getattr(obj, f.name)
+        value, key = getattr(obj, f.name), f"{prefix}{f.name}"
+        problem = None
         if f.name in choices and value not in choices[f.name]:
-            allowed = ", ".join("null" if c is None else repr(c) for c in choices[f.name])
-            raise ConfigError(f"{prefix}{f.name} = {value!r}: must be one of {allowed} (--set {prefix}{f.name}=VALUE)")
+            problem = "must be one of " + ", ".join("null" if c is None else repr(c) for c in choices[f.name])
         rng = f.metadata.get(RANGE)
-        if rng is not None and not rng.admits(value):
-            raise ConfigError(f"{prefix}{f.name} = {value!r}: must be {rng.describe()} (--set {prefix}{f.name}=VALUE)")
+        if problem is None and rng is not None and not rng.admits(value):
+            problem = f"must be {rng.describe()}"
+        if problem is not None:
+            hint = fix.format(key=key, cls=type(obj).__name__)
+            raise ConfigError(f"{key} = {value!r}: {problem} ({hint})", key=key, value=value, problem=problem)
 
 
 class Checked:
     """Mixin of a settings dataclass: ranges (:func:`ranged`) and then ``validate()`` (the checks
-    between fields) run on construction. ``SECTION`` is the config section the keys live under."""
+    between fields) run on construction. ``SECTION`` is the config section the keys live under;
+    ``FIX`` how a message says to fix a field (a config section: ``--set``; a settings object used from
+    Python: ``EvalSettings(resolution=...)``)."""
 
     SECTION: ClassVar[str] = ""
+    FIX: ClassVar[str] = "--set {key}=VALUE"
+    """How a message says to fix a field (``{key}``: the dotted key, ``{cls}``: the class name)."""
 
     def __post_init__(self) -> None:
         self.check()

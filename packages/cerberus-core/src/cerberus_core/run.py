@@ -6,10 +6,10 @@ weights file and the step it records (with the run's newer checkpoint, if any), 
 root and scene set-up. Its operations are the ones the CLI calls, so a notebook does what a command
 does with the same call::
 
-    from cerberus_core import Run
+    from cerberus_core.run import EvalSettings, Run
 
     run = Run.load("human")
-    run.evaluate(data="data/human", out="eval")       # what `cerberus eval human --data ...` does
+    run.evaluate("data/human", EvalSettings(limit=20), "eval")   # what `cerberus eval human --data ... --limit 20` does
     parts = run.model.reconstruct(images, camera)
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ import json
 import os
 import stat
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,14 +31,15 @@ from cerberus_core.datasets.format import MANIFEST, Manifest
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import ConfigError
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
 from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
-from cerberus_core.eval.standard import MAX_RESOLUTION, SCORER_ENTRY_POINT
+from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.eval.visibility import visibility_line
+from cerberus_core.fields import ranged
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.names import printable
 from cerberus_core.outputs import is_dataset, result_folder, writing_results
@@ -279,44 +280,38 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
 # ------------------------------------------------------------------ evaluation settings
 def check_protocol(name: str) -> str:
     """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
-    anything runs)."""
-    factory = get_metric(SCORER_ENTRY_POINT)  # first: a missing cerberus-metrics is named as such
+    anything runs; a missing cerberus-metrics is named as such)."""
+    factory = get_metric(SCORER_ENTRY_POINT)
     try:
         factory(protocol=name, resolution=32)
     except (ValueError, KeyError) as exc:
-        raise ConfigError(f"--protocol {name!r}: {exc}") from None
+        raise ConfigError(f"protocol = {name!r}: {exc}", key="protocol", value=name, problem=str(exc)) from None
     return name
 
 
-def check_evaluation(*, resolution: int = 32, protocol: str = "kato", viewer_images: int = 12,
-                     device: str | torch.device = "cpu", data: str | Path | None = None) -> None:
-    """The options of :meth:`Run.evaluate` (and the device) checked before any model is opened
-    (:class:`ConfigError` naming the option); also that the metrics package is installed."""
-    if resolution > MAX_RESOLUTION:
-        raise ConfigError(f"--resolution {resolution}: at most {MAX_RESOLUTION} (the paper uses 32)")
-    check_protocol(protocol)
-    if viewer_images < 0:
-        raise ConfigError(f"--viewer-images {viewer_images}: must be >= 0 (0: no viewer)")
-    check_device(str(device))
-    if data is not None and not is_dataset(Path(data)):
-        raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no manifest.json)")
-    get_metric(SCORER_ENTRY_POINT)  # fail early, naming the package, if cerberus-metrics is missing
+@dataclass(frozen=True)
+class EvalSettings(EvalConfig):
+    """Everything :meth:`Run.evaluate` is told: what to measure (:class:`EvalConfig`'s fields) and what to
+    score and write; checked when made (:class:`~cerberus_core.errors.ConfigError` naming the field),
+    the protocol through the metric's entry point.
 
+    Attributes:
+        split: the split to score.
+        limit: only the first ``limit`` images (``None``: all).
+        figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
+        renderer: backend for the figure and the visibility render (``None``: the run's).
+        overwrite: replace an output folder that holds files that are not earlier results.
+    """
 
-def load_baselines(specs: Sequence[str], device: str) -> dict[str, Cerberus]:
-    """``NAME=RUN`` specs → ``{name: model}``, every one loaded before the evaluation starts."""
-    out = {}
-    for spec in specs:
-        name, _, path = spec.partition("=")
-        if not name or not path:
-            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}")
-        if name in out:
-            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
-        try:
-            out[name] = _load_weights(resolve_weights(path), device)[0]
-        except CerberusError as exc:
-            raise ConfigError(f"--baseline {name}={path}: {exc}") from None
-    return out
+    split: str = "test"
+    limit: int | None = ranged(None, ge=1, integer=True)
+    figure_images: int = ranged(5, ge=1)
+    viewer_images: int = ranged(12, ge=0)
+    renderer: str | None = None
+    overwrite: bool = False
+
+    def validate(self) -> None:
+        check_protocol(self.protocol)
 
 
 @dataclass
@@ -474,63 +469,59 @@ class Run:
         """Whether the run was loaded by a shipped model's name (``Run.load("human")``), not a path."""
         return not looks_like_path(self.source) and str(self.source) in available()
 
-    def evaluate(self, data: str | Path | None = None, split: str = "test", out: str | Path | None = None, *,
-                 overwrite: bool = False, protocol: str = "kato", resolution: int = 32, hard: bool = True,
-                 part_quality: bool = True, limit: int | None = None, baselines: Sequence[str] = (),
-                 figure_images: int = 5, viewer_images: int = 12, renderer: str | None = None,
+    def evaluate(self, data: str | Path | None = None, settings: EvalSettings | None = None,
+                 out: str | Path | None = None, *, baselines: Mapping[str, Run | Cerberus] | None = None,
                  verbose: bool = True) -> Evaluation:
         """Score the run on a split and write the results folder: what ``cerberus eval`` does.
 
-        Voxel IoU, the Hard Human test, part quality and part visibility in one pass
-        (:func:`~cerberus_core.eval.runner.evaluate_dataset`), then ``results.json``, ``results.md``,
-        the figure ``table2.png`` and ``pictures/`` (with the 3D viewer), all replacing ``out`` in one
-        step once written (an error leaves it as it was).
+        Voxel IoU, the Hard Human test, part quality, part visibility and depth across views in one
+        pass (:func:`~cerberus_core.eval.runner.evaluate_dataset`), then ``results.json``,
+        ``results.md``, the figure ``table2.png`` and ``pictures/`` (with the 3D viewer), all replacing
+        ``out`` in one step once written (an error leaves it as it was).
 
         Args:
             data: dataset folder (default: the run's training data root).
-            split: the split to score.
+            settings: what to measure and write (:class:`EvalSettings`; default: everything, the
+                paper's protocol, the test split).
             out: the result folder (default :meth:`default_out`); replaced whole, refused when it
-                holds other files unless ``overwrite``.
-            protocol, resolution: the voxel-IoU protocol and grid (``kato``, 32: the paper's).
-            hard, part_quality: run the Hard Human test, part quality.
-            limit: only the first ``limit`` images.
-            baselines: ``NAME=RUN`` specs of other runs drawn beside this one in the figure.
-            figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
-            renderer: backend for the figure and the visibility render (default: the run's).
+                holds other files unless ``settings.overwrite``.
+            baselines: ``{name: Run or model}`` drawn beside this one in the figure.
             verbose: print what is scored and the summary (:meth:`Evaluation.lines`).
+        Raises:
+            ConfigError: ``data`` is not a dataset folder (``key="data"``), or ``out`` may not be written.
         """
-        check_evaluation(resolution=resolution, protocol=protocol, viewer_images=viewer_images, device=self.device,
-                         data=data)
-        if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
-            raise ConfigError(f"Run.evaluate: limit={limit!r}: must be a whole number >= 1, or None for every image")
+        s = settings if settings is not None else EvalSettings()
+        if data is not None and not is_dataset(Path(data)):
+            raise ConfigError(f"data = {printable(data)}: not a Cerberus dataset folder (no {MANIFEST})", key="data",
+                              value=str(data), problem=f"not a Cerberus dataset folder (no {MANIFEST})")
         data = None if data is None else Path(data)
         keep = [] if self.shipped else [Path(self.source)]
-        out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=overwrite,
+        out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=s.overwrite,
                             keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS)
-        baseline_models = load_baselines(baselines, str(self.device))
+        baseline_models = {name: b.model if isinstance(b, Run) else b for name, b in (baselines or {}).items()}
         if data is None and not is_dataset(self.data_root):
             raise ConfigError(f"the run's training data {self.data_root} is not a dataset folder from here; "
-                              "pass --data DATASET")
-        dataset = ViewDataset(data or self.data_root, split)
+                              "give the dataset (data)", key="data", value=None,
+                              problem=f"needed: the run's training data {self.data_root} is not here")
+        dataset = ViewDataset(data or self.data_root, s.split)
         dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
         for note in self.domain_notes(data or self.data_root):
             warnings.warn(f"{note}: the scores measure the model outside what it learned", UserWarning, stacklevel=2)
-        backend = make_renderer(renderer or self.config.renderer)
+        backend = make_renderer(s.renderer or self.config.renderer)
         weights, at_step = self.weights_info, "" if self.step is None else f" at step {self.step}"
         if verbose:
             print(f"evaluating {printable(self.path)}{at_step}")
         if weights.stale_warning():
             warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
         with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
-            indices = range(min(limit, len(dataset))) if limit else None
-            result = evaluate_dataset(dataset, self.model.reconstruct, EvalConfig(
-                protocol=protocol, resolution=resolution, hard=hard, part_quality=part_quality),
-                indices=indices, renderer=backend, device=self.device)
+            indices = range(min(s.limit, len(dataset))) if s.limit else None
+            result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
+                                      device=self.device)
             self._write_report(result, tmp, at_step)
-            evaluation_figures(backend, dataset, self.model, tmp, n_images=figure_images, baselines=baseline_models,
-                               device=self.device, viewer_images=viewer_images,
-                               title=f"cerberus eval: {printable(self.source)}{at_step} ({split} split)")
-        evaluation = Evaluation(result, out, weights, hard_requested=hard, viewer=viewer_images > 0,
+            evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
+                               device=self.device, viewer_images=s.viewer_images,
+                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
+        evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
                                 folder_dataset=dataset.manifest.config["dataset"] == "folder")
         if verbose:
             print("\n".join(evaluation.lines()))
@@ -579,4 +570,4 @@ class Run:
         write_text(report, folder / "results.md")
 
 
-__all__ = ["EARLIER_RESULTS", "Evaluation", "Run", "check_evaluation", "load_baselines"]
+__all__ = ["EARLIER_RESULTS", "EvalSettings", "Evaluation", "Run", "WeightsInfo", "looks_like_path", "resolve_weights"]

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from cerberus_core.cli.checks import positive_int
+from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
 
 
@@ -48,15 +49,50 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+#: The flag of each EvalSettings field (and of Run.evaluate's data): how a field error is said on this command line.
+FLAGS = {"data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
+         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
+         "renderer": "--renderer"}
+
+
+def in_flags(exc: ConfigError, flags: dict[str, str]) -> ConfigError:
+    """A field error of the library said with this command's flag (``--resolution 999: must be ...``)."""
+    if exc.key in flags and exc.problem:
+        shown = "" if exc.value is None else f" {exc.value}"
+        return ConfigError(f"{flags[exc.key]}{shown}: {exc.problem}")
+    return exc
+
+
+def baseline_runs(specs: list[str], device: str) -> dict:
+    """``--baseline NAME=RUN`` (repeatable) → ``{name: Run}``, every one loaded before anything runs."""
+    from cerberus_core.errors import CerberusError
+    from cerberus_core.run import Run
+
+    out = {}
+    for spec in specs:
+        name, _, path = spec.partition("=")
+        if not name or not path:
+            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}")
+        if name in out:
+            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
+        try:
+            out[name] = Run.load(path, device)
+        except CerberusError as exc:
+            raise ConfigError(f"--baseline {name}={path}: {exc}") from None
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.run import Run, check_evaluation
+    from cerberus_core.run import EvalSettings, Run
 
     # Every argument is checked, and every model and the dataset opened, before anything is written.
-    check_evaluation(resolution=args.resolution, protocol=args.protocol, viewer_images=args.viewer_images,
-                     device=args.device, data=args.data)
-    Run.load(args.run, args.device).evaluate(
-        args.data, args.split, args.out, overwrite=args.overwrite, protocol=args.protocol,
-        resolution=args.resolution, hard=not args.no_hard, part_quality=not args.no_part_quality,
-        limit=args.limit, baselines=args.baseline, figure_images=args.figure_images,
-        viewer_images=args.viewer_images, renderer=args.renderer)
+    try:
+        settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
+                                hard=not args.no_hard, part_quality=not args.no_part_quality, limit=args.limit,
+                                figure_images=args.figure_images, viewer_images=args.viewer_images,
+                                renderer=args.renderer, overwrite=args.overwrite)
+        run_ = Run.load(args.run, args.device)
+        run_.evaluate(args.data, settings, args.out, baselines=baseline_runs(args.baseline, args.device))
+    except ConfigError as exc:
+        raise in_flags(exc, FLAGS) from None
     return 0

@@ -19,7 +19,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -35,7 +35,8 @@ from cerberus_core.eval.accumulators import (
 )
 from cerberus_core.eval.depth import DepthAccumulator
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
+from cerberus_core.eval.standard import MAX_RESOLUTION, GroundTruthMemo, IoUSummary, VoxelScorer
+from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import PartSet
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
@@ -172,11 +173,12 @@ def extract_canonical(dataset: Any, reconstruct: Reconstructor, indices: dict[st
 
 
 @dataclass(frozen=True)
-class EvalConfig:
-    """What one evaluation measures and how (:func:`evaluate_dataset`).
+class EvalConfig(Checked):
+    """What one evaluation measures and how (:func:`evaluate_dataset`); checked when made.
 
     Attributes:
-        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's).
+        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the resolution is at most
+            :data:`~cerberus_core.eval.standard.MAX_RESOLUTION` (memory grows with its cube).
         hard: also run the Hard Human test (needs ``is_canonical`` images).
         part_quality: also score the parts against the ground-truth semantic parts.
         visibility: also measure how often each part is wholly hidden in its input view (one
@@ -191,22 +193,20 @@ class EvalConfig:
         progress: show a progress bar.
     """
 
+    FIX = "{cls}({key}=...)"
+
     protocol: str = "kato"
-    resolution: int = 32
+    resolution: int = ranged(32, ge=1, le=MAX_RESOLUTION)
     hard: bool = True
     part_quality: bool = True
     visibility: bool = True
     depth: bool = True
-    canonical_view: int | None = None
-    batch_size: int = 16
-    num_workers: int = 0
-    weighting: str = "area"
-    density: int = 4
+    canonical_view: int | None = ranged(None, ge=0, integer=True)
+    batch_size: int = ranged(16, ge=1)
+    num_workers: int = ranged(0, ge=0)
+    weighting: Literal["area", "count"] = "area"
+    density: int = ranged(4, ge=1)
     progress: bool = True
-
-    def __post_init__(self) -> None:
-        if self.weighting not in ("area", "count"):
-            raise ValueError(f"evaluate_dataset: weighting must be 'area' or 'count', got {self.weighting!r}")
 
 
 def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalConfig, scorer: VoxelScorer,

@@ -113,7 +113,7 @@ class LoopConfig(Checked):
 
 
 @dataclass
-class RenderConfig:
+class RenderConfig(Checked):
     """How training renders (the ``render:`` section).
 
     Attributes:
@@ -123,15 +123,24 @@ class RenderConfig:
             grow as well as shrink. Off: the paper's renderer (no visibility gradient).
     """
 
+    SECTION = "render"
+
     antialias: bool = False
 
 
 @dataclass
-class DebugConfig:
+class DebugConfig(Checked):
     """Test hooks. ``poison_steps``: steps whose input images are replaced by NaN (to exercise the
     non-finite handling)."""
 
+    SECTION = "debug"
+
     poison_steps: list[int] = field(default_factory=list)
+
+    def validate(self) -> None:
+        if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in self.poison_steps):
+            raise ConfigError(f"debug.poison_steps = {self.poison_steps!r}: must be step numbers >= 0",
+                              key="debug.poison_steps", value=self.poison_steps, problem="must be step numbers >= 0")
 
 
 @dataclass
@@ -164,9 +173,8 @@ class TrainConfig(Checked):
     speed: SpeedConfig = field(default_factory=SpeedConfig)
 
     def validate(self) -> None:
-        """The checks between sections (each section checks its own ranges and choices when made)."""
-        for section in (self.data, self.model, self.losses, self.optim, self.train, self.speed):
-            section.check()
+        """The checks between sections (each section checked its own ranges and choices when it was made:
+        nothing is checked twice)."""
         if self.losses.silhouette > 0 and not self.render.antialias:
             raise ConfigError("losses.silhouette needs render.antialias: true (the paper's renderer gives the coverage "
                               "no gradient); add --set render.antialias=true, or --set losses.silhouette=0")
