@@ -14,8 +14,8 @@ from pathlib import Path
 
 import yaml
 
-from cerberus_core.atomic import atomic_write_text
 from cerberus_core.datasets.format import read_manifest
+from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
 from cerberus_core.zoo import ZOO_DIR, sha256_file

@@ -1,4 +1,4 @@
-"""cerberus_core.atomic: temporaries carry their writer's pid, and those of dead writers are removed by the
+"""cerberus_core.plumbing.atomic: temporaries carry their writer's pid, and those of dead writers are removed by the
 next write beside them (issue 26: SIGKILL during `cerberus reconstruct` left hidden folders forever)."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from cerberus_core.atomic import atomic_folder, atomic_write_text, remove_stale
+from cerberus_core.plumbing.atomic import atomic_folder, atomic_write_text, remove_stale
 
 
 def _dead_pid() -> int:
@@ -21,7 +21,7 @@ def _dead_pid() -> int:
 def test_a_killed_writers_temporary_folder_is_removed_by_the_next_write(tmp_path: Path):
     script = textwrap.dedent("""
         import os, signal, sys
-        from cerberus_core.atomic import atomic_folder
+        from cerberus_core.plumbing.atomic import atomic_folder
         with atomic_folder(sys.argv[1]) as tmp:
             (tmp / "half.txt").write_text("half")
             os.kill(os.getpid(), signal.SIGKILL)

@@ -12,7 +12,7 @@ import pytest
 
 from cerberus_core.cli import main
 from cerberus_core.config import load_yaml
-from cerberus_core.names import did_you_mean
+from cerberus_core.plumbing.names import did_you_mean
 
 
 def test_did_you_mean_finds_case_and_typos_and_nothing_far():

@@ -1,4 +1,4 @@
-"""The folder lock (cerberus_core.lock): one writer per folder, holder named, stale locks taken over."""
+"""The folder lock (cerberus_core.plumbing.lock): one writer per folder, holder named, stale locks taken over."""
 from __future__ import annotations
 
 import json
@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from cerberus_core.lock import LOCK_NAME, LockedError, acquire, folder_lock, read_lock
+from cerberus_core.plumbing.lock import LOCK_NAME, LockedError, acquire, folder_lock, read_lock
 
 
 def dead_pid() -> int:
@@ -48,7 +48,7 @@ def test_a_stale_lock_of_a_killed_process_is_taken_over(tmp_path, capsys):
 
 
 def test_a_lock_held_by_another_live_process_is_refused_with_its_pid(tmp_path):
-    code = ("import sys, time; from cerberus_core.lock import acquire; acquire(sys.argv[1], 'holder'); "
+    code = ("import sys, time; from cerberus_core.plumbing.lock import acquire; acquire(sys.argv[1], 'holder'); "
             "print('held', flush=True); time.sleep(60)")
     proc = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True,
                             env=os.environ.copy())

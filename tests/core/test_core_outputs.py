@@ -1,4 +1,4 @@
-"""cerberus_core.outputs: where a command may write, checked before it writes anything."""
+"""cerberus_core.plumbing.outputs: where a command may write, checked before it writes anything."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from cerberus_core.errors import ConfigError
-from cerberus_core.outputs import (
+from cerberus_core.plumbing.outputs import (
     MANIFEST_NAME,
     NAME_MAX,
     RESULT_MARKER,

@@ -94,7 +94,7 @@ def test_generate_tiny_real_sources(tmp_path, dataset):
 def test_a_second_writer_of_a_dataset_folder_is_refused_with_the_holders_pid(tmp_path, capsys):
     import os
 
-    from cerberus_core.lock import folder_lock
+    from cerberus_core.plumbing.lock import folder_lock
 
     out = tmp_path / "ds"
     with folder_lock(out, "another cerberus data generate"):

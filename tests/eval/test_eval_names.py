@@ -1,6 +1,6 @@
 """Names from outside in what the toolkit writes and prints (issue 20): results.md escapes subject names and
 titles, terminal text never carries control characters, output stems are valid and short, and a result
-folder is written whole (cerberus_core.atomic.atomic_folder)."""
+folder is written whole (cerberus_core.plumbing.atomic.atomic_folder)."""
 from __future__ import annotations
 
 import errno
@@ -8,10 +8,10 @@ import os
 
 import pytest
 
-from cerberus_core.atomic import atomic_folder, atomic_write_text
 from cerberus_core.errors import OutputError
 from cerberus_core.eval.report import markdown_report, md_text
-from cerberus_core.names import MAX_STEM_BYTES, printable, safe_stem
+from cerberus_core.plumbing.atomic import atomic_folder, atomic_write_text
+from cerberus_core.plumbing.names import MAX_STEM_BYTES, printable, safe_stem
 
 HOSTILE_SUBJECT = "<img src=x onerror=alert(1)>|`x`[link](http://e.x)\x1b[31m"
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import yaml
 
 from cerberus_core.cli import main
-from cerberus_core.lock import LOCK_NAME
+from cerberus_core.plumbing.lock import LOCK_NAME
 from cerberus_core.train.checkpoint import load_checkpoint
 
 

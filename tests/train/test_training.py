@@ -156,7 +156,7 @@ def test_a_step_still_running_after_sigterm_is_abandoned_within_its_grace(tiny_c
     import time
 
     import cerberus_core.train.trainer as trainer_module
-    from cerberus_core.signals import Terminated
+    from cerberus_core.plumbing.signals import Terminated
 
     monkeypatch.setattr(trainer_module, "STEP_GRACE_S", 0.3)
     original = trainer_module._Trainer._step

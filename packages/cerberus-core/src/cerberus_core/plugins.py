@@ -21,7 +21,7 @@ from typing import Any
 import entrypoints
 
 from cerberus_core.errors import CerberusError
-from cerberus_core.names import did_you_mean
+from cerberus_core.plumbing.names import did_you_mean
 
 RENDERER_GROUP = "cerberus.renderers"
 METRIC_GROUP = "cerberus.metrics"

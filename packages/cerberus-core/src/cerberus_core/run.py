@@ -41,9 +41,9 @@ from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.fields import ranged
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.names import printable
-from cerberus_core.outputs import is_dataset, result_folder, writing_results
 from cerberus_core.plugins import get_metric
+from cerberus_core.plumbing.names import printable
+from cerberus_core.plumbing.outputs import is_dataset, result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.config import TrainConfig

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageDraw
 
-from cerberus_core.atomic import atomic_write
+from cerberus_core.plumbing.atomic import atomic_write
 
 Tensor = torch.Tensor
 
@@ -29,7 +29,7 @@ def to_uint8(images: Tensor) -> np.ndarray:
 
 
 def atomic_save_png(img: Image.Image, path: str | Path) -> None:
-    """Write a PNG atomically (:func:`cerberus_core.atomic.atomic_write`): a reader never sees half a file."""
+    """Write a PNG atomically (:func:`cerberus_core.plumbing.atomic.atomic_write`): a reader never sees half a file."""
     atomic_write(Path(path), lambda fh: img.save(fh, format="PNG"))
 
 

@@ -12,7 +12,7 @@ import threading
 import torch
 import warp as wp
 
-from cerberus_core.stdio import call_dropping_stderr
+from cerberus_core.plumbing.stdio import call_dropping_stderr
 
 CUDA_DRIVER_NOTE = "Could not find or load the NVIDIA CUDA driver"
 """The start of Warp's warning on machines without an NVIDIA driver (dropped when torch has no CUDA)."""

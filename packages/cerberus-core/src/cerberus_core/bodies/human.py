@@ -59,7 +59,7 @@ from cerberus_core.bodies import human_motion
 from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
 from cerberus_core.errors import MissingPackageError
-from cerberus_core.stdio import call_dropping_stderr
+from cerberus_core.plumbing.stdio import call_dropping_stderr
 
 if TYPE_CHECKING:
     import torch

@@ -23,7 +23,7 @@ import warnings
 from collections.abc import Iterator
 
 from cerberus_core.errors import CerberusError
-from cerberus_core.signals import Terminated
+from cerberus_core.plumbing.signals import Terminated
 
 #: Modules that contribute sub-commands, in the order ``--help`` lists them.
 COMMAND_MODULES = [
@@ -70,8 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def one_line(text: object) -> str:
     """A message on one line: inner newlines become '; ', and any other control character or undecodable
-    byte of a file name is shown escaped (:func:`cerberus_core.names.printable`), never sent raw."""
-    from cerberus_core.names import printable
+    byte of a file name is shown escaped (:func:`cerberus_core.plumbing.names.printable`), never sent raw."""
+    from cerberus_core.plumbing.names import printable
 
     return printable("; ".join(part.strip() for part in str(text).strip().splitlines() if part.strip()))
 
@@ -97,7 +97,7 @@ def _cli_environment(command: str) -> Iterator[None]:
 
 def _os_error_line(exc: OSError) -> str:
     """Any OSError as one line: what failed, on which path, and the system's reason."""
-    from cerberus_core.names import printable
+    from cerberus_core.plumbing.names import printable
 
     where = " -> ".join(printable(f) for f in (exc.filename, exc.filename2) if f is not None)
     reason = exc.strerror or str(exc) or type(exc).__name__

@@ -1,5 +1,5 @@
 """Argument checks shared by the sub-commands: argparse types for numbers, and (re-exported from
-:mod:`cerberus_core.outputs`) path checks that raise :class:`~cerberus_core.errors.ConfigError` before a
+:mod:`cerberus_core.plumbing.outputs`) path checks that raise :class:`~cerberus_core.errors.ConfigError` before a
 command writes anything (the device check is
 :func:`cerberus_core.devices.check_device`, which library code uses too)."""
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from cerberus_core.outputs import (  # noqa: F401 - re-exported: the sub-commands import them from here
+from cerberus_core.plumbing.outputs import (  # noqa: F401 - re-exported: the sub-commands import them from here
     MANIFEST_NAME,
     NAME_MAX,
     PATH_MAX,
@@ -54,7 +54,7 @@ def _choice_hint(message: str) -> str:
     """``"did you mean 'a'? "`` for an argparse "invalid choice: 'x' (choose from 'a', 'b')" message."""
     import re
 
-    from cerberus_core.names import did_you_mean
+    from cerberus_core.plumbing.names import did_you_mean
 
     found = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
     if not found:

@@ -139,7 +139,7 @@ def run_generate(args: argparse.Namespace) -> int:
     import yaml
 
     from cerberus_core.datasets.generate import generate, validate_generation
-    from cerberus_core.lock import check_unlocked, folder_lock
+    from cerberus_core.plumbing.lock import check_unlocked, folder_lock
 
     options = _source_options(args)
     config = _generation_config(args)

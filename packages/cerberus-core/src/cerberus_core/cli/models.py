@@ -21,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.names import printable
+    from cerberus_core.plumbing.names import printable
     from cerberus_core.zoo import available
 
     models = available()

@@ -7,7 +7,7 @@ from pathlib import Path
 from cerberus_core.cli.checks import finite_float
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
-from cerberus_core.names import printable
+from cerberus_core.plumbing.names import printable
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -97,7 +97,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.signals import interrupt_for
+    from cerberus_core.plumbing.signals import interrupt_for
     from cerberus_core.train.config import default_preset
     from cerberus_core.train.trainer import check_run_folder, train
 

@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.atomic import atomic_write
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import ConfigError, DatasetError  # DatasetError re-exported: the format's readers raise it
+from cerberus_core.plumbing.atomic import atomic_write
 
 FORMAT_NAME = "cerberus-dataset"
 FORMAT_VERSION = 1

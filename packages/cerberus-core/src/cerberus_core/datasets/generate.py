@@ -38,7 +38,7 @@ from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
-from cerberus_core.lock import is_lock_file
+from cerberus_core.plumbing.lock import is_lock_file
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.render.interface import Renderer
@@ -107,7 +107,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
     a split with subjects, subjects disjoint) and the memory the largest shard needs against the
     machine's (or the GPU's); with ``out``, also the folder (:func:`check_folder`: a file, another
     dataset or other files without ``overwrite``). The image size bound itself is
-    :class:`GenerationConfig`'s; the folder's lock is the caller's (:mod:`cerberus_core.lock`).
+    :class:`GenerationConfig`'s; the folder's lock is the caller's (:mod:`cerberus_core.plumbing.lock`).
 
     Args:
         source: the body source (default: built from ``config.dataset``, ``source_options`` and

@@ -21,8 +21,8 @@ import numpy as np
 import torch
 import trimesh
 
-from cerberus_core.atomic import atomic_write
 from cerberus_core.parts import PartSet
+from cerberus_core.plumbing.atomic import atomic_write
 from cerberus_core.viz import part_colors
 
 FORMATS = ("glb", "obj")

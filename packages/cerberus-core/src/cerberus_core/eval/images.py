@@ -33,7 +33,7 @@ import torch
 from PIL import Image, ImageOps, UnidentifiedImageError
 
 from cerberus_core.errors import CerberusError
-from cerberus_core.names import printable
+from cerberus_core.plumbing.names import printable
 
 Tensor = torch.Tensor
 

@@ -43,7 +43,7 @@ from cerberus_core.eval.images import (
     read_image,
     square_resize,
 )
-from cerberus_core.names import printable
+from cerberus_core.plumbing.names import printable
 
 #: Width in pixels of the model-size image's outer ring that :func:`background_check` looks at.
 BORDER_WIDTH = 2

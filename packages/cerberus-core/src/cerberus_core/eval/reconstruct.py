@@ -3,7 +3,7 @@
 
 For each image: the posed part meshes (GLB, OBJ), the pictures of the paper's Figure 1 and a card of the
 offline 3D viewer, all written into one result folder that replaces ``out`` only once everything is
-written (:func:`cerberus_core.outputs.writing_results`). Inputs out of the training domain are named
+written (:func:`cerberus_core.plumbing.outputs.writing_results`). Inputs out of the training domain are named
 (:mod:`cerberus_core.eval.input_domain`), and every input keeps its own output names
 (:func:`output_names`).
 """
@@ -23,8 +23,8 @@ from cerberus_core.eval.figures import save_image_pictures
 from cerberus_core.eval.input_domain import domain_note, prepare_input
 from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.names import printable, safe_stem
-from cerberus_core.outputs import RESULT_MARKER, writing_results
+from cerberus_core.plumbing.names import printable, safe_stem
+from cerberus_core.plumbing.outputs import RESULT_MARKER, writing_results
 from cerberus_core.render.backends import make_renderer
 
 #: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
@@ -44,7 +44,7 @@ def _outputs(stem: str) -> list[str]:
 def output_names(paths: Sequence[Path]) -> list[str]:
     """One output name per input, such that no two inputs' files share a name.
 
-    The name is the file stem made safe (:func:`cerberus_core.names.safe_stem`: valid UTF-8, no control
+    The name is the file stem made safe (:func:`cerberus_core.plumbing.names.safe_stem`: valid UTF-8, no control
     characters, short enough for every derived name); stems that repeat get the parent folder's name
     (``a/x.png b/x.png`` → ``a_x``, ``b_x``). Names are then claimed shortest first, and one whose files
     (:data:`OUTPUT_PATTERNS`) would meet names already claimed gets a counter: ``x.png`` keeps ``x``
@@ -127,7 +127,7 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
                        out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
                        viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "") -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
-    :func:`cerberus_core.outputs.result_folder`; replaced whole once everything is written).
+    :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
 
     Args:
         model: the trained model (on ``device``, in eval mode).

@@ -14,18 +14,18 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from cerberus_core.atomic import atomic_write_text
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.runner import EvaluationResult
 from cerberus_core.eval.visibility import visibility_line
-from cerberus_core.names import printable
+from cerberus_core.plumbing.atomic import atomic_write_text
+from cerberus_core.plumbing.names import printable
 
 _MD_SPECIAL = re.compile(r"([\\`|\[\]*])")
 
 
 def md_text(text: object) -> str:
     """A name (subject, part, path) as Markdown text that shows it literally: control characters and
-    undecodable bytes escaped (:func:`cerberus_core.names.printable`), ``& < >`` as HTML character
+    undecodable bytes escaped (:func:`cerberus_core.plumbing.names.printable`), ``& < >`` as HTML character
     references (no raw HTML reaches a renderer), and ``\\ ` | [ ] *`` backslash-escaped (no code span,
     link, emphasis or broken table cell)."""
     return _MD_SPECIAL.sub(r"\\\1", html.escape(printable(text), quote=False))

@@ -35,10 +35,10 @@ import torch
 import trimesh
 from PIL import Image
 
-from cerberus_core.atomic import atomic_write, atomic_write_text
 from cerberus_core.eval.export import export_parts
-from cerberus_core.names import printable
 from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
+from cerberus_core.plumbing.names import printable
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION
 from cerberus_core.viz import part_colors, to_uint8
@@ -230,7 +230,7 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
 
 def _html(text: object) -> str:
     """Text for HTML content or a quoted attribute: control characters and undecodable bytes shown as
-    escapes (:func:`cerberus_core.names.printable`), then ``& < > " '`` as character references."""
+    escapes (:func:`cerberus_core.plumbing.names.printable`), then ``& < > " '`` as character references."""
     return html.escape(printable(text), quote=True)
 
 

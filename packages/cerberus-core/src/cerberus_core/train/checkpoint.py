@@ -23,9 +23,9 @@ import numpy as np
 import torch
 from safetensors.torch import save
 
-from cerberus_core.atomic import atomic_write
 from cerberus_core.errors import CerberusError
 from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.plumbing.atomic import atomic_write
 
 FORMAT_VERSION = 1
 LAST = "last.pt"

@@ -18,8 +18,8 @@ from pathlib import Path
 import torch
 from PIL import Image, ImageDraw
 
-from cerberus_core.atomic import atomic_write_text
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer

@@ -15,7 +15,7 @@
   a result with ``interrupted`` set and ``stop_signal`` the signal (``cerberus train`` then exits
   130 or 143, so scripts know the run did not finish).
 * **One writer per run folder.** The main process holds ``RUN/.cerberus.lock``
-  (:mod:`cerberus_core.lock`) for the whole run; a second training into the same folder is refused
+  (:mod:`cerberus_core.plumbing.lock`) for the whole run; a second training into the same folder is refused
   with the holder's pid. A fresh run starts only in a new or empty folder.
 * **A run is usable from anywhere.** ``data.root`` is stored as an absolute path, and the training
   data's scene set-up is stored in every checkpoint and in ``model.safetensors``.
@@ -45,13 +45,13 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
-from cerberus_core.atomic import atomic_write_text
 from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.errors import CerberusError, ConfigError
-from cerberus_core.lock import LockedError, acquire, check_unlocked, is_lock_file
 from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.plumbing.atomic import atomic_write_text
+from cerberus_core.plumbing.lock import LockedError, acquire, check_unlocked, is_lock_file
+from cerberus_core.plumbing.signals import interrupt_for
 from cerberus_core.render.backends import make_renderer, resolve_renderer
-from cerberus_core.signals import interrupt_for
 from cerberus_core.train.checkpoint import (
     LAST,
     checkpoint_dir,

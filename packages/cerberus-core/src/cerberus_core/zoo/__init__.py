@@ -70,7 +70,7 @@ def _entry(path: Path) -> PretrainedModel:
     """
     from dataclasses import fields
 
-    from cerberus_core.names import printable
+    from cerberus_core.plumbing.names import printable
 
     fix = "the install is damaged or was edited: reinstall cerberus-core"
     try:

@@ -11,10 +11,10 @@ import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from cerberus_core.atomic import atomic_folder, atomic_write_text
 from cerberus_core.errors import ConfigError, OutputError
-from cerberus_core.lock import check_unlocked, is_lock_file
-from cerberus_core.names import printable
+from cerberus_core.plumbing.atomic import atomic_folder, atomic_write_text
+from cerberus_core.plumbing.lock import check_unlocked, is_lock_file
+from cerberus_core.plumbing.names import printable
 
 MANIFEST_NAME = "manifest.json"
 #: Written last into every result folder (reconstruct, eval): marks a folder a later run may replace.
@@ -118,7 +118,7 @@ def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
 def writing_results(path: Path, command: str) -> Iterator[Path]:
     """Write a result folder whole: yields a temporary folder beside ``path`` to write into; when the
     block ends it gets :data:`RESULT_MARKER` and replaces ``path`` in one rename
-    (:func:`cerberus_core.atomic.atomic_folder`). An error or a signal leaves ``path`` as it was."""
+    (:func:`cerberus_core.plumbing.atomic.atomic_folder`). An error or a signal leaves ``path`` as it was."""
     with atomic_folder(path) as tmp:
         yield tmp
         atomic_write_text(tmp / RESULT_MARKER, json.dumps({"command": command, "written": time.time()}) + "\n")

@@ -210,7 +210,7 @@ def atomic_folder(target: str | Path) -> Iterator[Path]:
     ``target`` is untouched. Signals arriving during the swap itself are delivered after it.
 
     Callers decide beforehand whether ``target`` may be replaced (see
-    :func:`cerberus_core.outputs.result_folder`): this function replaces it unconditionally.
+    :func:`cerberus_core.plumbing.outputs.result_folder`): this function replaces it unconditionally.
 
     Raises:
         OutputError: the parent folder cannot be created or written (permission, read-only, full).
