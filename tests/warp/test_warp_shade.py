@@ -126,13 +126,3 @@ def test_only_requested_gradients_and_strided_inputs() -> None:
     (g_clip,) = torch.autograd.grad((rgb * grad_out).sum(), [clip])
     (ref_clip,) = torch.autograd.grad((ref_rgb * grad_out).sum(), [clip])
     assert ((g_clip - ref_clip).abs().max() / ref_clip.abs().max()) < 1e-4
-
-
-def test_shape_errors() -> None:
-    clip, faces, face_id, normals, albedo, light = shading_inputs(1, 8)
-    with pytest.raises(ValueError, match="normals must be"):
-        shade(clip, faces, face_id, normals[:, :-1], albedo, light)
-    with pytest.raises(ValueError, match="light.ambient must be"):
-        shade(clip, faces, face_id, normals, albedo, Light(light.direction, light.ambient[:, :2], light.diffuse))
-    with pytest.raises(ValueError, match="face_id must be"):
-        shade(clip, faces, face_id[0], normals, albedo, light)

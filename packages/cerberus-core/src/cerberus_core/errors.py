@@ -6,6 +6,8 @@ of them the same way, and one module, so that no layer imports another just for 
 * :class:`DatasetError` — a dataset folder or mesh folder is missing, corrupt, incomplete or of
   another format;
 * :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid;
+* :class:`ShapeError`, :class:`DeviceError` — tensors of the wrong shape or dtype, or on different
+  devices (the render ops and every ``check_shapes`` call);
 * :class:`MissingPackageError` — an optional package a feature needs is not installed (the message
   names the ``pip install`` that brings it);
 * :class:`OutputError` — a result cannot be written (read-only, unwritable or full destination, a name
@@ -47,9 +49,18 @@ class MissingPackageError(CerberusError, ImportError):
     brings it (an ``ImportError`` too, for callers that catch one)."""
 
 
+class ShapeError(CerberusError, ValueError):
+    """A tensor of the wrong shape or dtype (:func:`cerberus_core.shapes.check_shapes`): the message names
+    the function, every tensor's expected and actual shape, and the sizes the others bound."""
+
+
+class DeviceError(CerberusError, ValueError):
+    """Tensors that must be on one device are not: the message names each tensor's device."""
+
+
 class OutputError(CerberusError, OSError):
     """A file or folder of results cannot be written: the message names the path, the reason (permission,
     read-only or full file system, a name too long) and the fix."""
 
 
-__all__ = ["CerberusError", "ConfigError", "DatasetError", "MissingPackageError", "OutputError"]
+__all__ = ["CerberusError", "ConfigError", "DatasetError", "DeviceError", "MissingPackageError", "OutputError", "ShapeError"]

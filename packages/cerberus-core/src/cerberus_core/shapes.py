@@ -8,34 +8,44 @@
 A pattern is space-separated dimensions: a number must match exactly, a name binds a size that must
 be the same everywhere it appears in one call (across all the tensors checked), ``_`` is any size, and
 a leading ``...`` any number of leading dimensions (their sizes must match between tensors that share
-them). A mismatch raises ``ValueError`` whose message starts with the checking function's name and
-gives every tensor's expected and actual shape, so the fix is visible.
+them). A third element names the dtypes allowed (``(clip, "B V 4", FLOATS)``), and ``same_device=True``
+asks every tensor of the call to be on one device. A mismatch raises
+:class:`~cerberus_core.errors.ShapeError` (a ``ValueError``) whose message starts with the checking
+function's name and gives every tensor's expected and actual shape or dtype, so the fix is visible;
+tensors on different devices raise :class:`~cerberus_core.errors.DeviceError`.
 """
 from __future__ import annotations
 
-from typing import Any
+from cerberus_core.errors import DeviceError, ShapeError
 
 
 def _expected(pattern: str) -> str:
     return "(" + ", ".join(pattern.split()) + ")"
 
 
-def check_shapes(where: str, **tensors: tuple[Any, str]) -> dict[str, int]:
-    """Check tensors against shape patterns and return the sizes the names bound.
+def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> dict[str, int]:
+    """Check tensors against shape patterns (and dtypes, and one device) and return the sizes the names bound.
 
     Args:
         where: the function that checks (it starts the message).
-        tensors: ``name=(tensor, "pattern")``.
+        same_device: every tensor must be on one device.
+        tensors: ``name=(tensor, "pattern")`` or ``name=(tensor, "pattern", allowed dtypes)``.
     Returns:
         ``{dimension name: size}``.
     Raises:
-        ValueError: ``"<where>: <name> must be (<pattern>), got (<shape>)"`` for the tensors that do
-            not fit, with the sizes the other tensors bound.
+        ShapeError: ``"<where>: <name> must be (<pattern>), got (<shape>)"`` for the tensors that do
+            not fit (or ``<name> must be float32 or float64, got int64``), with the sizes the other
+            tensors bound.
+        DeviceError: with ``same_device``, ``"<where>: a, b must be on one device, got cpu, cuda:0"``.
     """
     sizes: dict[str, int] = {}
     leading: tuple[int, ...] | None = None
     problems: list[str] = []
-    for name, (tensor, pattern) in tensors.items():
+    for name, spec in tensors.items():
+        tensor, pattern = spec[0], spec[1]
+        if len(spec) > 2 and tensor.dtype not in spec[2]:
+            allowed = " or ".join(str(d).removeprefix("torch.") for d in spec[2])
+            problems.append(f"{name} must be {allowed}, got {str(tensor.dtype).removeprefix('torch.')}")
         dims = pattern.split()
         shape = tuple(tensor.shape)
         ellipsis = bool(dims) and dims[0] == "..."
@@ -58,7 +68,10 @@ def check_shapes(where: str, **tensors: tuple[Any, str]) -> dict[str, int]:
             problems.append(f"{name} must be {_expected(pattern)}, got {shape}")
     if problems:
         bound = ", ".join(f"{k}={v}" for k, v in sizes.items())
-        raise ValueError(f"{where}: " + "; ".join(problems) + (f" (with {bound})" if bound else ""))
+        raise ShapeError(f"{where}: " + "; ".join(problems) + (f" (with {bound})" if bound else ""))
+    if same_device and len({str(spec[0].device) for spec in tensors.values()}) > 1:
+        raise DeviceError(f"{where}: {', '.join(tensors)} must be on one device, got "
+                          f"{', '.join(str(spec[0].device) for spec in tensors.values())}; move them with .to(device)")
     return sizes
 
 

@@ -18,12 +18,11 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from cerberus_core.render.antialias import MAX_WALK as _MAX_WALK
-from cerberus_core.render.antialias import check_antialias_inputs, edge_neighbors
+from cerberus_core.render.antialias import edge_neighbors
 from cerberus_core.render.camera import pixel_centres
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, overloads, row_span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
-from cerberus_render_warp.rasterize import check_inputs
 from cerberus_render_warp.shade import _barycentrics, _xyw
 
 wp.set_module_options(KERNEL_OPTIONS)
@@ -343,8 +342,6 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
     Returns:
         ``(B, H, W, C)`` blended colours, differentiable w.r.t. ``color`` and ``clip``.
     """
-    check_inputs(clip, faces)
-    check_antialias_inputs(color, clip, faces, face_id, "warp renderer: antialias")
     nbrs = edge_neighbors(faces).to(torch.int32).contiguous()
     return WarpAntialias.apply(color.to(clip.dtype).contiguous(), clip, faces.to(torch.int32).contiguous(), nbrs,
                                face_id.to(torch.int64).contiguous())

@@ -146,10 +146,4 @@ def vertex_normals(vertices: Tensor, faces: Tensor) -> Tensor:
     Returns:
         ``(B, V, 3)``; a vertex with no area gets ``(0, 0, 0)``.
     """
-    if vertices.ndim != 3 or vertices.shape[-1] != 3:
-        raise ValueError(f"warp vertex_normals: vertices must be (B, V, 3), got {tuple(vertices.shape)}")
-    if vertices.dtype not in (torch.float32, torch.float64):
-        raise ValueError(f"warp vertex_normals: vertices must be float32 or float64, got {vertices.dtype}")
-    if faces.ndim != 2 or faces.shape[-1] != 3:
-        raise ValueError(f"warp vertex_normals: faces must be (F, 3), got {tuple(faces.shape)}")
     return WarpVertexNormals.apply(vertices, faces.to(device=vertices.device, dtype=torch.int32).contiguous())

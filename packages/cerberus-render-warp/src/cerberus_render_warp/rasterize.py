@@ -20,7 +20,6 @@ from typing import Any
 import torch
 
 from cerberus_core.render.camera import BBOX_EPS, PIXEL_CENTRE, pixel_centres
-from cerberus_core.shapes import check_shapes
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
@@ -191,18 +190,6 @@ _RASTER = {
 }
 
 
-def check_inputs(clip: Tensor, faces: Tensor) -> None:
-    """Shape/dtype checks shared by the rasterizer and the shader."""
-    check_shapes("warp renderer", clip=(clip, "B V 4"), faces=(faces, "F 3"))
-    if clip.dtype not in SUPPORTED_DTYPES:
-        raise ValueError(f"warp renderer: clip must be float32 or float64, got {clip.dtype}")
-    if faces.dtype not in (torch.int32, torch.int64):
-        raise ValueError(f"warp renderer: faces must be an integer tensor, got {faces.dtype}")
-    if faces.device != clip.device:
-        raise ValueError(f"warp renderer: faces are on {faces.device} but clip is on {clip.device}; "
-                         "move both to one device")
-
-
 def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float = 0.05, *,
               serial: bool | None = None) -> Tensor:
     """Visible face id per pixel (not differentiable).
@@ -219,9 +206,6 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
     Returns:
         ``(B, H, W)`` int64 face ids, -1 on background, on ``clip``'s device.
     """
-    check_inputs(clip, faces)
-    if height <= 0 or width <= 0:
-        raise ValueError(f"warp renderer: image size must be positive, got {height}x{width}")
     bsz, nfaces = clip.shape[0], faces.shape[0]
     out = torch.full((bsz, height, width), -1, dtype=torch.int64, device=clip.device)
     if bsz == 0 or nfaces == 0:

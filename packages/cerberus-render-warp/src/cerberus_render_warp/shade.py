@@ -21,11 +21,9 @@ from torch.autograd.function import once_differentiable
 from cerberus_core.render.camera import pixel_centres
 from cerberus_core.render.light import Light
 from cerberus_core.render.templates import NORMAL_EPS
-from cerberus_core.shapes import check_shapes
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, overloads, row_span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
 from cerberus_render_warp.arith import cross, torch_cross_is_fused
-from cerberus_render_warp.rasterize import check_inputs
 
 wp.set_module_options(KERNEL_OPTIONS)
 
@@ -291,13 +289,7 @@ def shade(clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo:
     Returns:
         ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)`` (world units), 0 on background.
     """
-    check_inputs(clip, faces)
-    check_shapes("warp renderer", clip=(clip, "B V 4"), face_id=(face_id, "B H W"), normals=(normals, "B V 3"),
-                 albedo=(albedo, "B V 3"), **{f"light.{name}": (getattr(light, name), "B 3")
-                                              for name in ("direction", "ambient", "diffuse")})
-    tensors = [normals, albedo, light.direction, light.ambient, light.diffuse]
-    if any(t.device != clip.device for t in [face_id, *tensors]):
-        raise ValueError("warp renderer: clip, face_id, normals, albedo and light must be on one device")
+    tensors = [normals, albedo, light.direction, light.ambient, light.diffuse]  # checked by the op (render.ops.shade)
     normals, albedo, direction, ambient, diffuse = (t.to(clip.dtype) for t in tensors)
     return WarpShade.apply(clip, faces.to(torch.int32).contiguous(), face_id.to(torch.int64), normals, albedo,
                            direction, ambient, diffuse)

@@ -1,9 +1,11 @@
 """The rendering ops as free functions over a backend context, after nvdiffrast: one op per function.
 
 ``ctx`` is a renderer backend (:class:`~cerberus_core.render.interface.Renderer`, from
-:func:`cerberus_core.make_renderer`); each op validates its inputs, calls the backend's kernel for it
-(or the shared torch reference the backend inherits) and returns plain tensors, channels last like
-nvdiffrast's. :func:`cerberus_core.render.render` is these ops composed:
+:func:`cerberus_core.make_renderer`); each op validates its inputs once (shapes, dtypes, one device:
+:class:`~cerberus_core.errors.ShapeError`, :class:`~cerberus_core.errors.DeviceError`), calls the
+backend's kernel for it (or the shared torch reference the backend inherits; backends do not check
+again) and returns plain tensors, channels last like nvdiffrast's. These ops are the one way to a
+backend: :func:`cerberus_core.render.render` is them composed:
 
 >>> import torch
 >>> from cerberus_core import Camera, Light, icosphere, make_renderer
@@ -30,8 +32,14 @@ from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import Light
 from cerberus_core.render.shading import foreground, homogeneous_barycentrics, pixel_ndc
 from cerberus_core.render.shading import interpolate as interpolate_at
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
+
+FLOATS = (torch.float32, torch.float64)
+"""The geometry dtypes the ops take."""
+INTS = (torch.int32, torch.int64)
+"""The index dtypes the ops take (faces, face ids are int64)."""
 
 
 def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int, int], near: float) -> Tensor:
@@ -44,7 +52,10 @@ def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int,
     Returns:
         ``(B, H, W)`` int64 face ids, -1 on background.
     """
+    check_shapes("rasterize", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS))
     height, width = resolution
+    if int(height) < 1 or int(width) < 1:
+        raise ValueError(f"rasterize: the image size must be positive, got {height}x{width}")
     with torch.no_grad():
         return ctx.rasterize(clip.detach(), faces, int(height), int(width), float(near))
 
@@ -58,6 +69,8 @@ def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> T
     Returns:
         ``(B, H, W, C)``, 0 on background.
     """
+    check_shapes("interpolate", same_device=True, attr=(attr, "B V C", FLOATS), clip=(clip, "B V 4", FLOATS),
+                 faces=(faces, "F 3", INTS), face_id=(face_id, "B H W", (torch.int64,)))
     bsz, height, width = face_id.shape
     b, r, c, f = foreground(face_id)
     bary, _ = homogeneous_barycentrics(pixel_ndc(height, width, r, c, clip.dtype), clip[b.unsqueeze(-1), faces[f]])
@@ -70,6 +83,7 @@ def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> T
 def vertex_normals(ctx: Renderer, vertices: Tensor, faces: Tensor) -> Tensor:
     """``(B, V, 3)`` area-weighted unit vertex normals of ``(B, V, 3)`` world vertices (differentiable;
     the backend's kernel or the shared torch code)."""
+    check_shapes("vertex_normals", same_device=True, vertices=(vertices, "B V 3", FLOATS), faces=(faces, "F 3", INTS))
     return ctx.vertex_normals(vertices, faces)
 
 
@@ -83,6 +97,10 @@ def shade(ctx: Renderer, clip: Tensor, faces: Tensor, face_id: Tensor, normals: 
         ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)`` (distance along the view axis), both 0 on
         background.
     """
+    check_shapes("shade", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS),
+                 face_id=(face_id, "B H W", (torch.int64,)), normals=(normals, "B V 3", FLOATS),
+                 albedo=(albedo, "B V 3", FLOATS),
+                 **{f"light.{name}": (getattr(light, name), "B 3") for name in ("direction", "ambient", "diffuse")})
     return ctx.shade(clip, faces, face_id, normals, albedo, light)
 
 
@@ -90,7 +108,9 @@ def antialias(ctx: Renderer, color: Tensor, clip: Tensor, faces: Tensor, face_id
     """Analytic anti-aliasing of silhouette and occlusion edges (visibility gradients): ``(B, H, W, C)``
     colours blended across the edges, differentiable w.r.t. ``color`` and ``clip``
     (:mod:`cerberus_core.render.antialias`)."""
+    check_shapes("antialias", same_device=True, color=(color, "B H W C", FLOATS), clip=(clip, "B V 4", FLOATS),
+                 faces=(faces, "F 3", INTS), face_id=(face_id, "B H W", (torch.int64,)))
     return ctx.antialias(color, clip, faces, face_id)
 
 
-__all__ = ["antialias", "interpolate", "rasterize", "shade", "vertex_normals"]
+__all__ = ["FLOATS", "INTS", "antialias", "interpolate", "rasterize", "shade", "vertex_normals"]

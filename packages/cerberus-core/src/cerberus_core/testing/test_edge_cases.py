@@ -121,3 +121,40 @@ def test_single_mesh_render_matches_render_parts(renderer) -> None:
     a = render_parts(renderer, parts, faces, cam)
     b = render(renderer, parts.reshape(2, -1, 3), torch.cat([faces, faces + 162]), cam)
     assert torch.equal(a.face_id, b.face_id) and torch.equal(a.image, b.image)
+
+
+def test_bad_inputs_are_typed_errors_from_the_op_before_the_backend(renderer):
+    """Each op of cerberus_core.render.ops checks shapes, dtypes and devices once, for every backend (the
+    backends do not check again): ShapeError / DeviceError naming the op and the tensor."""
+    from cerberus_core.errors import DeviceError, ShapeError
+    from cerberus_core.render import ops
+    from cerberus_core.render.interface import Light
+
+    cam = _camera(1, 8)
+    sphere = icosphere(1)
+    v = 0.3 * sphere.vertices[None]
+    clip, faces = cam.world_to_clip(v), sphere.faces
+    with pytest.raises(ShapeError, match=r"rasterize: clip must be \(B, V, 4\)"):
+        ops.rasterize(renderer, clip[..., :3], faces, (8, 8), cam.near)
+    with pytest.raises(ShapeError, match="rasterize: clip must be float32 or float64, got float16"):
+        ops.rasterize(renderer, clip.half(), faces, (8, 8), cam.near)
+    with pytest.raises(ShapeError, match=r"rasterize: faces must be \(F, 3\)"):
+        ops.rasterize(renderer, clip, faces.view(-1), (8, 8), cam.near)
+    with pytest.raises(ValueError, match="image size must be positive"):
+        ops.rasterize(renderer, clip, faces, (0, 8), cam.near)
+    with pytest.raises(DeviceError, match="rasterize: clip, faces must be on one device, got cpu, meta"):
+        ops.rasterize(renderer, clip, faces.to("meta"), (8, 8), cam.near)
+    face_id = ops.rasterize(renderer, clip, faces, (8, 8), cam.near)
+    normals = ops.vertex_normals(renderer, v, faces)
+    albedo, light = torch.full_like(v, 0.8), Light.following(cam)
+    with pytest.raises(ShapeError, match="shade: normals must be"):
+        ops.shade(renderer, clip, faces, face_id, normals[:, :-1], albedo, light)
+    with pytest.raises(ShapeError, match="shade: light.ambient must be"):
+        ops.shade(renderer, clip, faces, face_id, normals, albedo,
+                  Light(light.direction, light.ambient[:, :2], light.diffuse))
+    with pytest.raises(ShapeError, match="shade: face_id must be"):
+        ops.shade(renderer, clip, faces, face_id[0], normals, albedo, light)
+    with pytest.raises(ShapeError, match=r"vertex_normals: vertices must be \(B, V, 3\)"):
+        ops.vertex_normals(renderer, v[0], faces)
+    with pytest.raises(ShapeError, match="antialias: face_id must be int64"):
+        ops.antialias(renderer, torch.zeros(1, 8, 8, 4), clip, faces, face_id.int())
