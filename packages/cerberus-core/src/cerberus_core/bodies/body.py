@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.errors import ConfigError
+from cerberus_core.shapes import check_shapes
 
 FILL: float = 0.9
 """Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""
@@ -53,10 +54,7 @@ class PosedBody:
     def __post_init__(self) -> None:
         v = np.asarray(self.vertices)
         f = np.asarray(self.faces)
-        if v.ndim != 2 or v.shape[1] != 3:
-            raise ValueError(f"PosedBody.vertices must be (V, 3), got {v.shape}")
-        if f.ndim != 2 or f.shape[1] != 3:
-            raise ValueError(f"PosedBody.faces must be (F, 3), got {f.shape}")
+        check_shapes("PosedBody", vertices=(v, "V 3"), faces=(f, "F 3"))
         if not np.isfinite(v).all():
             raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: vertices contain NaN or inf")
         if f.size and (f.min() < 0 or f.max() >= len(v)):

@@ -23,6 +23,7 @@ import trimesh
 
 from cerberus_core.parts import PartSet
 from cerberus_core.plumbing.atomic import atomic_write
+from cerberus_core.shapes import check_shapes
 from cerberus_core.viz import part_colors
 
 FORMATS = ("glb", "obj")
@@ -36,15 +37,13 @@ def part_name(k: int) -> str:
 def _rgba(colors: torch.Tensor | np.ndarray | None, n: int) -> np.ndarray:
     c = part_colors(n) if colors is None else colors
     c = np.asarray(c.detach().cpu() if hasattr(c, "detach") else c, dtype=np.float64)
-    if c.shape != (n, 3):
-        raise ValueError(f"export: colours must be ({n}, 3) RGB in [0, 1], got {c.shape}")
+    check_shapes("export", colours=(c, f"{n} 3"))
     return np.concatenate([np.round(np.clip(c, 0, 1) * 255), np.full((n, 1), 255)], axis=1).astype(np.uint8)
 
 
 def _part_meshes(part_vertices: np.ndarray, faces: np.ndarray) -> list[trimesh.Trimesh]:
     pv = np.asarray(part_vertices, dtype=np.float64)
-    if pv.ndim != 3 or pv.shape[-1] != 3:
-        raise ValueError(f"export: part vertices must be (P, V, 3), got {pv.shape}")
+    check_shapes("export", part_vertices=(pv, "P V 3"))
     if not np.isfinite(pv).all():
         raise ValueError("export: part vertices contain NaN or inf; the reconstruction is broken, nothing was written")
     f = np.asarray(faces, dtype=np.int64)

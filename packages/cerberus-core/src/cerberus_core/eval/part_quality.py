@@ -42,6 +42,7 @@ import numpy as np
 import trimesh
 
 from cerberus_core.errors import MissingPackageError
+from cerberus_core.shapes import check_shapes
 
 
 def _np(x: Any, dtype=None) -> np.ndarray:
@@ -113,8 +114,7 @@ def overlap_matrix(assignment: np.ndarray, gt_labels: np.ndarray, num_parts: int
     to predicted part ``p`` (weights default to 1 per point)."""
     a = _np(assignment, np.int64)
     g = _np(gt_labels, np.int64)
-    if a.shape != g.shape:
-        raise ValueError(f"overlap_matrix: {a.shape[0]} assignments but {g.shape[0]} ground-truth labels")
+    check_shapes("overlap_matrix", assignment=(a, "N"), gt_labels=(g, "N"))
     if a.size and (a.min() < 0 or a.max() >= num_parts):
         raise ValueError(f"overlap_matrix: assignments must lie in [0, {num_parts})")
     if g.size and (g.min() < 0 or g.max() >= num_gt_parts):
@@ -167,9 +167,7 @@ class PartQualityAccumulator:
     def add(self, overlap: np.ndarray, group: str = "") -> None:
         """Record one image's ``(P, K)`` overlap matrix; ``group`` is its subject or species."""
         m = np.asarray(overlap, dtype=np.float64)
-        if m.shape != (self.num_parts, self.num_gt_parts):
-            raise ValueError(f"PartQualityAccumulator.add: expected a ({self.num_parts}, {self.num_gt_parts}) "
-                             f"overlap matrix, got {m.shape}")
+        check_shapes("PartQualityAccumulator.add", overlap=(m, f"{self.num_parts} {self.num_gt_parts}"))
         self.overlaps.append(m)
         self.groups.append(str(group))
 

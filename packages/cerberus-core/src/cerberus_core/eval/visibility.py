@@ -27,6 +27,7 @@ from cerberus_core.parts import PartSet
 from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
@@ -65,8 +66,7 @@ class VisibilityAccumulator:
     def add(self, counts: Tensor | np.ndarray) -> None:
         """Record a batch's ``(B, P)`` visible-pixel counts (:func:`visible_pixels`)."""
         c = np.asarray(counts.cpu() if isinstance(counts, Tensor) else counts, dtype=np.int64)
-        if c.ndim != 2 or c.shape[1] != self.num_parts:
-            raise ValueError(f"VisibilityAccumulator.add: expected (B, {self.num_parts}) counts, got {c.shape}")
+        check_shapes("VisibilityAccumulator.add", counts=(c, f"B {self.num_parts}"))
         self.counts.extend(c)
 
     def summary(self) -> dict[str, Any]:

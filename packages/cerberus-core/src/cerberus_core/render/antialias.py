@@ -164,10 +164,8 @@ def check_antialias_inputs(color: Tensor, clip: Tensor, faces: Tensor, face_id: 
     if color.ndim != 4:
         raise ValueError(f"{who}: color must be (B, H, W, C) channels-last, got {tuple(color.shape)}; "
                          "permute a (B, C, H, W) image with .permute(0, 2, 3, 1)")
-    check_shapes(who, color=(color, "B H W C"), face_id=(face_id, "B H W"), clip=(clip, "B V 4"),
+    check_shapes(who, same_device=True, color=(color, "B H W C"), face_id=(face_id, "B H W"), clip=(clip, "B V 4"),
                  faces=(faces, "F 3"))
-    if len({color.device, clip.device, faces.device, face_id.device}) != 1:
-        raise ValueError(f"{who}: color, clip, faces and face_id must be on one device")
 
 
 def differing_pairs(face_id: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:

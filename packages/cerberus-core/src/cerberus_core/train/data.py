@@ -31,6 +31,7 @@ from torch.utils.data import Sampler
 from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
+from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
@@ -127,8 +128,7 @@ def quadruplet_batch(batch: dict[str, Any], device: torch.device, scene: SceneSe
     """Collated dataset items → images at ``image_size`` and their cameras
     (:meth:`SceneSetup.view_cameras`), on ``device``."""
     images = torch.as_tensor(batch["images"]).to(device=device, dtype=torch.float32)
-    if images.ndim != 5 or images.shape[1:3] != (4, 3):
-        raise ValueError(f"batch images must be (B, 4, 3, H, W), got {tuple(images.shape)}")
+    check_shapes("quadruplet_batch", images=(images, "B 4 3 H W"))
     bsz, _, _, h, w = images.shape
     if image_size is not None and (h, w) != (image_size, image_size):
         flat = torch.nn.functional.interpolate(images.flatten(0, 1), size=(image_size, image_size),
