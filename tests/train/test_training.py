@@ -175,3 +175,22 @@ def test_a_step_still_running_after_sigterm_is_abandoned_within_its_grace(tiny_c
     assert time.monotonic() - start < 20
     assert load_checkpoint(checkpoint_dir(tmp_path / "run") / "last.pt")["step"] == 1
     assert signal.getsignal(signal.SIGTERM) is not trainer_module._StopRequest._handle  # handlers restored
+
+
+def test_resources_a_setting_cannot_have_are_capped_or_refused(tiny_config, tiny_root, tmp_path):
+    """Issue 26: threads beyond the cores are capped with a word; a batch larger than the data is refused
+    before any step (it would repeat the data, and a huge one would never finish a step)."""
+    import os
+
+    from cerberus_core.errors import ConfigError
+
+    before = torch.get_num_threads()
+    try:
+        cfg = tiny_config("threads=10000", "train.steps=1", "train.image_every=0")
+        with pytest.warns(UserWarning, match=rf"threads=10000 is more than this machine's {os.cpu_count()} cores"):
+            train(cfg, tmp_path / "run", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+        assert torch.get_num_threads() <= (os.cpu_count() or 1)
+    finally:
+        torch.set_num_threads(before)
+    with pytest.raises(ConfigError, match=r"train.batch_size=1000000000 is larger than the 4 quadruplets"):
+        train(tiny_config("train.batch_size=1000000000"), tmp_path / "big", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
