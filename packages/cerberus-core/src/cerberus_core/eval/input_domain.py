@@ -244,14 +244,13 @@ def background_check(image: np.ndarray | torch.Tensor, scene) -> tuple[bool, str
 def appearance_check(image: np.ndarray, scene) -> tuple[bool, str]:
     """Whether the body in ``image`` (``(S, S, 3)`` in [0, 1], over the training background) looks like the
     training bodies: grey and smoothly shaded. Returns ``(ok, reason)``."""
-    from scipy import ndimage
-
     arr = np.asarray(image, dtype=np.float64)
     body = np.abs(arr - np.asarray(scene.background, dtype=np.float64)).max(-1) > BACKGROUND_TOLERANCE
     if body.sum() < 16:
         return True, ""
     colour = float((arr.max(-1) - arr.min(-1))[body].mean())
-    inner = ndimage.binary_erosion(body, iterations=1)
+    pad = np.pad(body, 1, constant_values=False)  # one-pixel erosion (4-neighbourhood): the body without its edge
+    inner = body & pad[:-2, 1:-1] & pad[2:, 1:-1] & pad[1:-1, :-2] & pad[1:-1, 2:]
     lum = arr.mean(-1)
     steps = np.concatenate([np.abs(np.diff(lum, axis=1))[inner[:, :-1] & inner[:, 1:]],
                             np.abs(np.diff(lum, axis=0))[inner[:-1] & inner[1:]]])
