@@ -257,22 +257,8 @@ def envelope_poses(species: AnimalSpecies) -> list[AnimalPose]:
             head_pitch=LIMITS["head_pitch"][1],
             tail_lift=LIMITS["tail_lift"][1],
         ),
-        AnimalPose(
-            kind="envelope",
-            legs=stretched,
-            spine_pitch=LIMITS["spine_pitch"][1],
-            neck_raise=flat_neck,
-            head_pitch=head_level,
-            tail_lift=tail_level,
-        ),
-        AnimalPose(
-            kind="envelope",
-            legs=stretched,
-            spine_pitch=LIMITS["spine_pitch"][0],
-            neck_raise=flat_neck,
-            head_pitch=head_level,
-            tail_lift=tail_level,
-        ),
+        *(AnimalPose(kind="envelope", legs=stretched, spine_pitch=LIMITS["spine_pitch"][end], neck_raise=flat_neck,
+                     head_pitch=head_level, tail_lift=tail_level) for end in (1, 0)),  # the spine's two limits
         AnimalPose(kind="envelope", neck_raise=LIMITS["neck_raise"][0], head_pitch=LIMITS["head_pitch"][0]),
     ]
     cfg = sit_configuration(species)
