@@ -445,7 +445,7 @@ class Run:
         camera and the look), one sentence each; empty when nothing known differs."""
         notes = []
         kind, theirs = self.training_kind(), Manifest.read(Path(data)).get("dataset")
-        if kind and theirs and kind != theirs:
+        if kind and theirs and kind != theirs and "folder" not in (kind, theirs):  # a folder holds any bodies
             notes.append(f"the model was trained on {kind} bodies and {printable(data)} holds {theirs} bodies")
         if self.recorded_scene is not None:
             mine, other = SceneSetup.from_dict(self.recorded_scene).to_dict(), self.scene_for(data).to_dict()
