@@ -41,17 +41,6 @@ EXIT_SIGINT = 128 + signal.SIGINT  # 130
 EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
 
 
-def _typed_errors() -> tuple[type[BaseException], ...]:
-    from cerberus_core.plugins import PluginError
-
-    errors: list[type[BaseException]] = [CerberusError, PluginError]
-    with contextlib.suppress(ImportError):  # the dataset error class until it derives from CerberusError
-        from cerberus_core.datasets.format import DatasetError
-
-        errors.append(DatasetError)
-    return tuple(errors)
-
-
 def build_parser() -> argparse.ArgumentParser:
     from cerberus_core.cli.checks import OneLineParser
 
@@ -124,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         command = args.command
         with _cli_environment(command):
             return int(args.func(args) or 0)
-    except CerberusError as exc:
+    except CerberusError as exc:  # every typed error, plugin and dataset errors included
         print(f"cerberus {command}: {one_line(exc)}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_ERROR))
     except Terminated:
@@ -136,10 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"cerberus {command}: {one_line(_os_error_line(exc))}", file=sys.stderr)
         return EXIT_ERROR
-    except Exception as exc:
-        if isinstance(exc, _typed_errors()):
-            print(f"cerberus {command}: {one_line(exc)}", file=sys.stderr)
-            return int(getattr(exc, "exit_code", EXIT_ERROR))
+    except Exception:
         if interrupted:  # e.g. a module whose import Ctrl-C cut short, failing later: it was the interrupt
             print(f"cerberus {command}: interrupted", file=sys.stderr)
             return EXIT_SIGINT

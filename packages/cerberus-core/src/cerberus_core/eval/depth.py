@@ -112,7 +112,8 @@ class DepthAccumulator:
             views = self.poses.setdefault((item.subject, item.pose), _PoseViews())
             views.parts.append(one)
             views.cameras.append(cameras.index([b]))
-            views.body = (torch.as_tensor(gt[0]), torch.as_tensor(gt[1]))
+            if views.body is None:  # one body per pose: its views share it
+                views.body = (torch.as_tensor(gt[0]), torch.as_tensor(gt[1]))
 
     def summary(self) -> dict[str, Any] | None:
         disagreement, own, turned = [], [], []
