@@ -10,6 +10,7 @@ preset's ``render.antialias`` is on) over the step time.
 
     python benchmarks/bench_train.py                 # 2 threads, both presets, both backends
     python benchmarks/bench_train.py --threads 1 --steps 5 --renderers warp
+    python benchmarks/bench_train.py --device cuda --renderers torch --steps 50 --warmup 10   # on a GPU
     python benchmarks/bench_train.py --switches --presets cpu --renderers warp --threads 1 --steps 20
 
 ``--precision`` times the preset with ``speed.autocast`` at ``null`` (float32), ``bf16`` and ``auto``
@@ -50,8 +51,8 @@ def make_data(root: Path, image_size: int) -> Path:
     return root
 
 
-def setup(preset: str, renderer_name: str, data_root: Path, batch_size: int | None):
-    """The preset's config (depth offset resolved), the scene, one batch and the renderer."""
+def setup(preset: str, renderer_name: str, data_root: Path, batch_size: int | None, device: str = "cpu"):
+    """The preset's config (depth offset resolved), the scene, one batch on ``device`` and the renderer."""
     from cerberus_core import make_renderer, resolve_renderer
     from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core.train.config import load_config
@@ -65,20 +66,20 @@ def setup(preset: str, renderer_name: str, data_root: Path, batch_size: int | No
     size = cfg.data.image_size or data.image_size
     renderer_name = resolve_renderer(renderer_name)
     raw = torch.utils.data.default_collate([data[i % len(data)] for i in range(bsz)])
-    batch = quadruplet_batch(raw, torch.device("cpu"), scene, size)
+    batch = quadruplet_batch(raw, torch.device(device), scene, size)
     return cfg, scene, batch, renderer_name, make_renderer(renderer_name)
 
 
 def stepper(cfg, scene, batch, renderer, speed=None):
-    """A fresh model (seed 0, with the speed switches ``speed`` applied), its Adam, and a function
-    running one full optimisation step ``i`` that returns the step's loss."""
+    """A fresh model (seed 0, with the speed switches ``speed`` applied, on the batch's device), its
+    Adam, and a function running one full optimisation step ``i`` that returns the step's loss."""
     from cerberus_core.model import Cerberus
     from cerberus_core.train.objective import quadruplet_objective
     from cerberus_core.train.speed import SpeedConfig, apply_speed
 
     speed = speed or SpeedConfig()
     torch.manual_seed(0)
-    model = apply_speed(Cerberus(cfg.model), speed)
+    model = apply_speed(Cerberus(cfg.model).to(batch.images.device), speed)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
 
     def step(i: int) -> float:
@@ -91,21 +92,31 @@ def stepper(cfg, scene, batch, renderer, speed=None):
     return model, step
 
 
-def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None) -> dict:
+def sync(device: torch.device) -> None:
+    """Wait for the device's queued work, so a timer reads finished work (a no-op on the CPU)."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None,
+          device: str = "cpu") -> dict:
     from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.render.api import render_parts
     from cerberus_core.render.camera import Camera
     from cerberus_core.train.objective import partner_cameras, unwrap
 
-    cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)
+    cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size, device)
     bsz, size = batch.num_quadruplets, batch.images.shape[-1]
     model, step = stepper(cfg, scene, batch, renderer)
+    dev = batch.images.device
 
     for i in range(warmup):
         step(i)
+    sync(dev)
     t0 = time.perf_counter()
     for i in range(steps):
         step(warmup + i)
+    sync(dev)
     step_s = (time.perf_counter() - t0) / steps
 
     # The same render call as the objective's, on the current predictions, forward + backward.
@@ -121,7 +132,7 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
     else:
         verts, cams = own.flatten(0, 1), batch.camera
     verts.requires_grad_(True)
-    grad = torch.rand(verts.shape[0], 3, size, size)
+    grad = torch.rand(verts.shape[0], 3, size, size, device=dev)
 
     def render_once():
         img = render_parts(renderer, verts, model.faces, cams, scene.light(cams), albedo=scene.albedo,
@@ -129,11 +140,13 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
         img.backward(grad)
 
     render_once()
+    sync(dev)
     t0 = time.perf_counter()
     for _ in range(steps):
         render_once()
+    sync(dev)
     render_s = (time.perf_counter() - t0) / steps
-    return {"preset": preset, "renderer": renderer_name, "batch": bsz, "size": size, "width": cfg.model.width, "images": 4 * bsz,
+    return {"preset": preset, "renderer": renderer_name, "device": str(dev), "batch": bsz, "size": size, "width": cfg.model.width, "images": 4 * bsz,
             "renders": verts.shape[0], "step_s": step_s, "steps_per_s": 1 / step_s, "render_s": render_s,
             "render_share": render_s / step_s}
 
@@ -249,6 +262,9 @@ def main() -> None:
     p.add_argument("--warmup", type=int, default=2, help="untimed steps first")
     p.add_argument("--batch-size", type=int, default=None, help="override the presets' batch sizes")
     p.add_argument("--data", type=Path, default=None, help="a quadruplet dataset (default: generate primitives)")
+    p.add_argument("--device", default="cpu",
+                   help="device of the timed steps: cpu (default) or cuda[:N] (the renderer follows the tensors; "
+                        "not with --switches/--precision)")
     p.add_argument("--precision", action="store_true",
                    help="instead: time speed.autocast null (fp32), bf16 and auto side by side, interleaved, "
                         "with the preset's other speed switches")
@@ -261,6 +277,8 @@ def main() -> None:
     from cerberus_core.train.config import load_config
 
     if args.switches is not None or args.precision:
+        if args.device != "cpu":
+            p.error("--switches and --precision time the CPU; leave out --device")
         run_switches(args)
         return
     rows = []
@@ -273,11 +291,12 @@ def main() -> None:
                 if not root.exists():
                     make_data(root, size)
             for name in args.renderers:
-                rows.append(bench(preset, name, root, args.steps, args.warmup, args.batch_size))
+                rows.append(bench(preset, name, root, args.steps, args.warmup, args.batch_size, args.device))
                 r = rows[-1]
                 print(f"  {preset} / {r['renderer']}: {r['step_s']:.3f} s/step", flush=True)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} "
+    where = torch.cuda.get_device_name(args.device) if args.device.startswith("cuda") else "CPU"
+    print(f"\ntorch {torch.__version__}, {where}, {args.threads} threads, load average {load:.1f} "
           f"(on {os.cpu_count()} CPUs), {args.steps} timed steps after {args.warmup} warm-up")
     head = f"{'preset':<14}{'renderer':>9}{'batch':>6}{'px':>5}{'width':>6}{'images':>7}{'renders':>8}{'s/step':>9}" \
            f"{'steps/s':>9}{'render s':>10}{'render %':>9}"
