@@ -115,7 +115,7 @@ def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, ca
     import trimesh
 
     from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
-    from cerberus_core.datasets.format import read_manifest
+    from cerberus_core.datasets.manifest import Manifest
     from cerberus_core.datasets.plan import generate_command
 
     meshes = tmp_path / "meshes"
@@ -128,7 +128,7 @@ def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, ca
     out = tmp_path / "ds"
     assert main(["data", "generate", "--dataset", "folder", "--source", str(meshes), "--test-subjects", "cat",
                  "--image-size", "24", "--out", str(out), "--quiet"]) == 0
-    command = generate_command(out, read_manifest(out))
+    command = generate_command(out, Manifest.read(out))
     words = shlex.split(command)
     assert words[words.index("--source") + 1] == str(meshes.resolve()) and "--test-subjects" in words
     capsys.readouterr()

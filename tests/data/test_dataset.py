@@ -103,7 +103,7 @@ def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     cfg = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], meshes=False)})
     generate(cfg, tmp_path / "ds", progress=False, log=lambda s: None)
     ds = ViewDataset(tmp_path / "ds", "train")
-    assert "vertices" not in ds.manifest["splits"]["train"]["shards"][0]["files"]
+    assert "vertices" not in ds.manifest.split("train").shards[0].files
     body = ds.gt_mesh(6)
     src = make_source("primitives")
     (subject,) = [s for s in src.subjects("train", 2, 0) if s.name == body.subject]

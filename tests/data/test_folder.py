@@ -1,7 +1,7 @@
 """Bring your own meshes: a folder of posed meshes becomes a dataset."""
 from __future__ import annotations
 
-import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,6 +12,7 @@ from cerberus_core.bodies.folder import FolderSource
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.manifest import Manifest, SourceRecord
 from cerberus_core.datasets.plan import preset_config
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, verify_dataset
 
@@ -170,7 +171,6 @@ def test_z_up_meshes_give_the_y_up_bodies_with_up_axis_z(tmp_path):
 
 
 def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsys):
-    import json
     import warnings
 
     from cerberus_core.cli import main
@@ -185,8 +185,8 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
         assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "d1"), "--dry-run"]) == 0
         assert main([*base, "--source", str(z_root), "--out", str(tmp_path / "dz"), "--up-axis", "+z"]) == 0
         assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "dy")]) == 0
-    manifest = json.loads((tmp_path / "dz" / "manifest.json").read_text())
-    assert manifest["source"]["options"]["up_axis"] == "+z" and manifest["config"]["source"]["up_axis"] == "+z"
+    manifest = Manifest.read(tmp_path / "dz")
+    assert manifest.source.options["up_axis"] == "+z" and manifest.generation_config().source["up_axis"] == "+z"
     z_test, y_test = ViewDataset(tmp_path / "dz"), ViewDataset(tmp_path / "dy")
     np.testing.assert_allclose(z_test.gt_mesh(0).vertices, y_test.gt_mesh(0).vertices, atol=1e-6)
     capsys.readouterr()
@@ -260,7 +260,7 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
                         source_options={"root": str(root), "test_fraction": 1.0, "canonical": "rest"},
                         progress=False, log=logs.append)
     assert logs == ["split 'train' has no subject and is left empty"]
-    assert manifest["splits"]["train"]["planned_shards"] == 0 and verify_dataset(tmp_path / "ds")[1] == []
+    assert manifest.split("train").planned_shards == 0 and verify_dataset(tmp_path / "ds")[1] == []
     test = ViewDataset(tmp_path / "ds")
     assert len(test) == 2 * 3 * 4  # 2 poses + the canonical one, 4 views each
     canon = test.canonical_indices()
@@ -318,9 +318,9 @@ def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
     assert "--test-fraction 1 (every subject a test subject" in msg and "made with --test-fraction 1" not in msg
     from cerberus_core.datasets.readers import empty_split_hint
 
-    manifest = json.loads((out / "manifest.json").read_text())
-    three = dict(manifest, subjects=manifest["subjects"] * 3, source={"options": {"test_fraction": 0.0}})
+    manifest = Manifest.read(out)
+    three = replace(manifest, subjects=manifest.subjects * 3, source=SourceRecord("folder", {"test_fraction": 0.0}))
     assert "--test-fraction 0 of its 3 subjects gives 0 (a fraction of 0) test subjects" in empty_split_hint(three,
                                                                                                               "test")
-    train = dict(manifest, source={"options": {"test_fraction": 1.0}})
+    train = replace(manifest, source=SourceRecord("folder", {"test_fraction": 1.0}))
     assert "(its only subject is a test subject, --test-fraction 1)" in empty_split_hint(train, "train", out)

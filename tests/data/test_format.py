@@ -1,4 +1,5 @@
-"""The on-disk format: shard round trip, manifest validation, checksums, path safety."""
+"""The on-disk format: shard round trip, checksums, path safety, verification (the manifest's own
+tests are in test_manifest.py)."""
 from __future__ import annotations
 
 import json
@@ -9,17 +10,15 @@ import pytest
 
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.datasets.format import (
-    FORMAT_VERSION,
-    MANIFEST,
     VIEW_DTYPE,
     DatasetError,
     atomic_save_npy,
     pack_meshes,
-    read_manifest,
     resolve_inside,
     unpack_mesh,
     write_shard,
 )
+from cerberus_core.datasets.manifest import MANIFEST
 from cerberus_core.datasets.readers import verify_dataset
 
 
@@ -61,16 +60,18 @@ def _write_example(root):
 
 def test_write_shard_round_trip_and_records(tmp_path):
     images, views, quads, rec = _write_example(tmp_path)
-    assert rec["images"] == 8 and rec["quadruplets"] == 2 and rec["meshes"] == 4
-    assert set(rec["files"]) == {"images", "views", "quads", "vertices", "meshes"}
-    for f in rec["files"].values():
-        assert not f["path"].startswith("/") and len(f["sha256"]) == 64
-        assert (tmp_path / f["path"]).stat().st_size == f["bytes"]
-    back = np.load(tmp_path / rec["files"]["images"]["path"], mmap_mode="r")
+    assert (rec.index, rec.name, rec.images, rec.quadruplets, rec.meshes) == (0, "shard-00000", 8, 2, 4)
+    assert set(rec.files) == {"images", "views", "quads", "vertices", "meshes"}
+    for f in rec.files.values():
+        assert not f.path.startswith("/") and len(f.sha256) == 64
+        assert (tmp_path / f.path).stat().st_size == f.bytes
+    assert rec.files["images"].shape == (8, 3, 16, 16) and rec.files["images"].dtype == "|u1"
+    assert rec.files["meshes"].shape is None  # an .npz: no array header to record
+    back = np.load(tmp_path / rec.files["images"].path, mmap_mode="r")
     assert isinstance(back, np.memmap)
     np.testing.assert_array_equal(back, images)
-    np.testing.assert_array_equal(np.load(tmp_path / rec["files"]["views"]["path"]), views)
-    np.testing.assert_array_equal(np.load(tmp_path / rec["files"]["quads"]["path"]), quads)
+    np.testing.assert_array_equal(np.load(tmp_path / rec.files["views"].path), views)
+    np.testing.assert_array_equal(np.load(tmp_path / rec.files["quads"].path), quads)
     assert not list(tmp_path.rglob("*.tmp"))  # no temporaries left behind
 
 
@@ -85,28 +86,6 @@ def test_atomic_write_failure_leaves_nothing(tmp_path):
     with pytest.raises(ValueError):
         atomic_save_npy(target, np.array([object()], dtype=object))  # pickles are refused mid-write
     assert not target.exists() and not list(tmp_path.iterdir())
-
-
-def test_read_manifest_errors(tmp_path):
-    with pytest.raises(DatasetError, match="does not exist"):
-        read_manifest(tmp_path / "nope")
-    with pytest.raises(DatasetError, match="not a Cerberus dataset"):
-        read_manifest(tmp_path)
-    (tmp_path / MANIFEST).write_text("{not json")
-    with pytest.raises(DatasetError, match="not valid JSON"):
-        read_manifest(tmp_path)
-
-
-def test_version_mismatch_is_refused(pairs_dataset, tmp_path):
-    ds = tmp_path / "ds"
-    shutil.copytree(pairs_dataset, ds)
-    m = json.loads((ds / MANIFEST).read_text())
-    m["format_version"] = FORMAT_VERSION + 1
-    (ds / MANIFEST).write_text(json.dumps(m))
-    with pytest.raises(DatasetError, match=f"format version {FORMAT_VERSION + 1}"):
-        read_manifest(ds)
-    _, problems = verify_dataset(ds)
-    assert problems and "format version" in problems[0]
 
 
 def test_resolve_inside_refuses_escapes(tmp_path):
@@ -140,9 +119,9 @@ def test_corruption_is_detected(pairs_dataset, tmp_path):
     ds = tmp_path / "ds"
     shutil.copytree(pairs_dataset, ds)
     manifest, problems = verify_dataset(ds)
-    assert problems == [] and manifest["complete"]
-    shard = manifest["splits"]["train"]["shards"][1]
-    images = ds / shard["files"]["images"]["path"]
+    assert problems == [] and manifest.complete
+    shard = manifest.split("train").shards[1]
+    images = ds / shard.files["images"].path
     data = bytearray(images.read_bytes())
     data[-5] ^= 0xFF  # one flipped pixel byte: same size, wrong sha256
     images.write_bytes(bytes(data))
@@ -150,11 +129,11 @@ def test_corruption_is_detected(pairs_dataset, tmp_path):
     assert len(problems) == 1 and str(images) in problems[0] and "sha256" in problems[0]
     _, quick = verify_dataset(ds, checksums=False)
     assert quick == []  # sizes alone cannot see a flipped byte
-    views = ds / shard["files"]["views"]["path"]
+    views = ds / shard.files["views"].path
     views.write_bytes(views.read_bytes()[:-3])  # truncated
     _, problems = verify_dataset(ds, checksums=False)
     assert any(str(views) in p and "bytes" in p for p in problems)
-    (ds / shard["files"]["quads"]["path"]).unlink()
+    (ds / shard.files["quads"].path).unlink()
     _, problems = verify_dataset(ds, checksums=False)
     assert any("missing" in p for p in problems)
 
@@ -188,29 +167,3 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
     assert main(["data", "check", str(root)]) == 1
     out = capsys.readouterr()
     assert "render empty" in out.err and "1 problem(s)" in out.out
-
-
-def test_the_manifest_is_one_typed_object(pairs_dataset, tmp_path):
-    from cerberus_core import Manifest
-    from cerberus_core.datasets.readers import ViewDataset
-    from cerberus_core.datasets.scene import SceneSetup
-
-    m = Manifest.read(pairs_dataset)
-    raw = json.loads((pairs_dataset / MANIFEST).read_text())
-    assert dict(m) == raw and m["splits"] == raw["splits"] and m.get("nothing") is None  # reads like its JSON
-    assert m.root == pairs_dataset and m.path == pairs_dataset / MANIFEST and m.complete
-    assert m.splits == raw["splits"] and m.image_size == raw["image_size"] and m.part_names == raw["part_names"]
-    assert m.subjects == raw["subjects"] and m.subject_names == [s["name"] for s in raw["subjects"]]
-    assert m.source == raw["source"] and m.dataset == raw["dataset"] and m.config == raw["config"]
-    assert isinstance(m.scene, SceneSetup) and m.scene == SceneSetup.from_dict(raw["scene"])
-    assert m.split("test") == raw["splits"]["test"] and repr(m).startswith("Manifest(")
-    with pytest.raises(DatasetError, match="no split 'val'"):
-        m.split("val")
-    assert read_manifest(pairs_dataset) == m  # the function form
-    assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
-
-    ds = tmp_path / "ds"
-    shutil.copytree(pairs_dataset, ds)
-    (ds / MANIFEST).write_text(json.dumps(raw | {"scene": raw["scene"] | {"elevation": "high"}}))
-    with pytest.raises(DatasetError, match="invalid scene set-up.*regenerate"):
-        Manifest.read(ds).scene  # noqa: B018

@@ -9,8 +9,9 @@ import textwrap
 import numpy as np
 import pytest
 
-from cerberus_core.datasets.format import MANIFEST, DatasetError, sha256_file
+from cerberus_core.datasets.format import DatasetError, sha256_file
 from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.manifest import MANIFEST, Manifest
 from cerberus_core.datasets.readers import verify_dataset
 
 QUIET = {"progress": False, "log": lambda s: None}
@@ -38,24 +39,24 @@ def test_interrupted_run_resumes_to_the_identical_dataset(pairs_dataset, pairs_c
     done = []
 
     def crash_after_two(split, rec):
-        done.append(rec["name"])
+        done.append(rec.name)
         if len(done) == 2:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
         generate(pairs_config(), out, on_shard=crash_after_two, **QUIET)
-    manifest = json.loads((out / MANIFEST).read_text())
-    assert not manifest["complete"] and len(manifest["splits"]["train"]["shards"]) == 2
+    manifest = Manifest.read(out)
+    assert not manifest.complete and len(manifest.split("train").shards) == 2
     from cerberus_core.datasets.readers import QuadrupletDataset
 
     with pytest.raises(DatasetError, match="incomplete"):
         QuadrupletDataset(out)
-    finished = sum(s["quadruplets"] for s in manifest["splits"]["train"]["shards"])
+    finished = manifest.split("train").totals()["quadruplets"]
     assert len(QuadrupletDataset(out, allow_partial=True)) == finished > 0
     rebuilt = []
-    generate(pairs_config(), out, on_shard=lambda split, rec: rebuilt.append((split, rec["name"])), **QUIET)
-    final = json.loads((out / MANIFEST).read_text())
-    everything = [(split, s["name"]) for split in ("train", "test") for s in final["splits"][split]["shards"]]
+    generate(pairs_config(), out, on_shard=lambda split, rec: rebuilt.append((split, rec.name)), **QUIET)
+    final = Manifest.read(out)
+    everything = [(split, s.name) for split in ("train", "test") for s in final.split(split).shards]
     assert rebuilt == everything[2:]  # the finished shards were not redone
     assert _fingerprint(out) == _fingerprint(pairs_dataset)
 

@@ -69,8 +69,8 @@ def test_human_paper_preset_counts():
     train, test = plan.totals("train"), plan.totals("test")
     assert train["quadruplets"] == 19_500 and train["images"] == 78_000
     assert test["images"] == 810 * 4 + 2 * 4  # 810 poses x 4 views + one canonical pose per test subject
-    train_subjects = {s["name"] for s in plan.subjects if "train" in s["splits"]}
-    test_subjects = {s["name"] for s in plan.subjects if "test" in s["splits"]}
+    train_subjects = {s.name for s in plan.subjects if "train" in s.splits}
+    test_subjects = {s.name for s in plan.subjects if "test" in s.splits}
     assert len(train_subjects) == 5 and len(test_subjects) == 2 and not train_subjects & test_subjects
 
 
@@ -79,7 +79,7 @@ def test_animal_paper_preset_counts():
     assert plan.totals("train")["quadruplets"] == 38_540
     assert plan.totals("train")["images"] == 41 * 47 * 4
     assert plan.totals("test")["images"] == 984
-    assert len(plan.subjects) == 41 and all(s["splits"] == ["train", "test"] for s in plan.subjects)
+    assert len(plan.subjects) == 41 and all(s.splits == ("train", "test") for s in plan.subjects)
     # the same species, disjoint poses
     train_poses = {(m[0], m[1]) for sh in plan.shards["train"] for m in sh.meshes}
     test_poses = {(m[0], m[1]) for sh in plan.shards["test"] for m in sh.meshes}

@@ -11,6 +11,7 @@ import trimesh
 
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.cli import main
+from cerberus_core.datasets.manifest import Manifest
 from cerberus_core.plugins import PluginError, get_metric
 
 
@@ -40,9 +41,9 @@ def test_evaluate_the_shipped_model_on_your_own_test_only_meshes(tmp_path, capsy
     data, out = tmp_path / "data", tmp_path / "eval"
     assert main(["data", "generate", "--dataset", "folder", "--source", str(meshes), "--test-fraction", "1",
                  "--up-axis", "+z", "--canonical", "rest", "--out", str(data), "--quiet"]) == 0
-    manifest = json.loads((data / "manifest.json").read_text())
-    assert manifest["splits"]["train"]["planned_shards"] == 0
-    assert [s["canonical_pose"] for s in manifest["subjects"]] == [0, 0]  # 'rest' sorts before 'walk1', 'walk2'
+    manifest = Manifest.read(data)
+    assert manifest.split("train").planned_shards == 0
+    assert [s.canonical_pose for s in manifest.subjects] == [0, 0]  # 'rest' sorts before 'walk1', 'walk2'
     capsys.readouterr()
 
     assert main(["eval", "human", "--data", str(data), "--out", str(out), "--figure-images", "2",

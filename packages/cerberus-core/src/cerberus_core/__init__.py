@@ -6,7 +6,7 @@ backends live in separate packages found through the ``cerberus.renderers`` entr
 
 The two objects a notebook starts from: :class:`~cerberus_core.run.Run` (a trained run:
 ``Run.load("human")``, ``run.model``, ``run.evaluate(...)``) and
-:class:`~cerberus_core.datasets.format.Manifest` (a dataset's manifest: ``Manifest.read(root)``).
+:class:`~cerberus_core.datasets.manifest.Manifest` (a dataset's manifest: ``Manifest.read(root)``).
 """
 import importlib
 from typing import Any
@@ -26,7 +26,7 @@ _LAZY = {
     "Light": "cerberus_core.render.interface", "Renderer": "cerberus_core.render.interface",
     "RenderOutput": "cerberus_core.render.interface", "MeshTemplate": "cerberus_core.render.templates",
     "icosphere": "cerberus_core.render.templates", "Run": "cerberus_core.run",
-    "Manifest": "cerberus_core.datasets.format",
+    "Manifest": "cerberus_core.datasets.manifest",
 }
 
 

@@ -27,7 +27,7 @@ import yaml
 from safetensors import safe_open
 from safetensors.torch import load_file
 
-from cerberus_core.datasets.format import MANIFEST, Manifest
+from cerberus_core.datasets.manifest import MANIFEST, Manifest
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
@@ -266,13 +266,12 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
     if data is not None:
         if not (Path(data) / MANIFEST).is_file():
             raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
-        return scene_of(Manifest.read(Path(data)).get("scene"), f"--data {data}",
-                        "its manifest is damaged: regenerate it with `cerberus data generate`")
+        return Manifest.read(Path(data)).scene  # a damaged scene record is a DatasetError naming the manifest
     if saved is not None:
         return scene_of(saved, "the model's recorded scene")
     root = Path(config.data.root)
     if (root / MANIFEST).is_file():
-        return scene_of(Manifest.read(root).get("scene"), f"the run's training data {root}")
+        return Manifest.read(root).scene
     raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
                       "--data DATASET (the dataset it was trained on, or one rendered the same way)")
 
@@ -437,14 +436,14 @@ class Run:
         if self.shipped:
             return str(self.source)
         if is_dataset(self.data_root):
-            return str(Manifest.read(self.data_root).get("dataset") or "") or None
+            return Manifest.read(self.data_root).dataset or None
         return None
 
     def domain_notes(self, data: str | Path) -> list[str]:
         """How the dataset ``data`` differs from what the model was trained on (the kind of bodies, the
         camera and the look), one sentence each; empty when nothing known differs."""
         notes = []
-        kind, theirs = self.training_kind(), Manifest.read(Path(data)).get("dataset")
+        kind, theirs = self.training_kind(), Manifest.read(Path(data)).dataset
         if kind and theirs and kind != theirs and "folder" not in (kind, theirs):  # a folder holds any bodies
             notes.append(f"the model was trained on {kind} bodies and {printable(data)} holds {theirs} bodies")
         if self.recorded_scene is not None:
@@ -522,7 +521,7 @@ class Run:
                                device=self.device, viewer_images=s.viewer_images,
                                title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
         evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
-                                folder_dataset=dataset.manifest.config["dataset"] == "folder")
+                                folder_dataset=dataset.manifest.dataset == "folder")
         if verbose:
             print("\n".join(evaluation.lines()))
         return evaluation

@@ -160,24 +160,24 @@ def run_generate(args: argparse.Namespace) -> int:
     with folder_lock(args.out, "cerberus data generate"):  # one writer per dataset folder
         manifest = generate(config, args.out, source=job.source, source_options=options, overwrite=args.overwrite,
                             device=args.device, batch_size=args.batch_size, progress=not args.quiet)
-    print(*(f"{split:<6} {info['planned_images']:>8} images {info['planned_quadruplets']:>8} quadruplets"
-            for split, info in manifest["splits"].items()), f"dataset written to {args.out}", sep="\n")
+    print(*(f"{split:<6} {info.planned_images:>8} images {info.planned_quadruplets:>8} quadruplets"
+            for split, info in manifest.splits.items()), f"dataset written to {args.out}", sep="\n")
     return 0
 
 
 def run_check(args: argparse.Namespace) -> int:
     """Exit 2 when ROOT is not a readable dataset (bad input), 1 when the dataset has problems."""
+    from cerberus_core.datasets.manifest import FORMAT_VERSION
     from cerberus_core.datasets.readers import verify_dataset
 
     manifest, problems = verify_dataset(args.root, checksums=not args.quick, progress=sys.stderr.isatty())
     if manifest is None:
         raise DatasetError(problems[0])
-    print(f"{args.root}: {manifest['dataset']}/{manifest['preset']}, format v{manifest['format_version']}, "
-          f"{manifest['image_size']}px, {len(manifest['subjects'])} subjects, {len(manifest['part_names'])} parts")
-    for split, info in manifest["splits"].items():
-        shards = info.get("shards", [])
-        count = {k: sum(s[k] for s in shards) for k in ("images", "quadruplets", "meshes")}
-        print(f"  {split:<6} {len(shards)}/{info['planned_shards']} shards, {count['images']} images, "
+    print(f"{args.root}: {manifest.dataset}/{manifest.preset}, format v{FORMAT_VERSION}, "
+          f"{manifest.image_size}px, {len(manifest.subjects)} subjects, {len(manifest.part_names)} parts")
+    for split, info in manifest.splits.items():
+        count = info.totals()
+        print(f"  {split:<6} {len(info.shards)}/{info.planned_shards} shards, {count['images']} images, "
               f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
     for p in problems:
         print(f"problem: {p}", file=sys.stderr)
@@ -186,7 +186,7 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from cerberus_core.datasets.format import Manifest
+    from cerberus_core.datasets.manifest import Manifest
     from cerberus_core.datasets.show import save_contact_sheet
     from cerberus_core.plugins import RENDERER_GROUP, get_plugin
     from cerberus_core.render.backends import AUTO_RENDERER

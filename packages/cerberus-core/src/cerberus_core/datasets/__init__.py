@@ -7,7 +7,9 @@ Modules, one line each:
 * :mod:`.plan` — generation configs (YAML size presets in ``configs/data/``, ``--set``) and the
   deterministic shard plan;
 * :mod:`.generate` — the resumable, deterministic driver: plan → pose → render → atomic shards → manifest;
-* :mod:`.format` — the on-disk format: manifest, shard files, checksums, atomic writes, verification;
+* :mod:`.manifest` — the typed manifest (:class:`~cerberus_core.datasets.manifest.Manifest` and its
+  split, shard, file, subject and source records), read and written both ways;
+* :mod:`.format` — the on-disk format: shard files, checksums, atomic writes, verification;
 * :mod:`.readers` — torch datasets: ``QuadrupletDataset`` (training), ``ViewDataset`` (evaluation,
   ground-truth meshes rebuilt from the manifest's subject records when not stored);
 * :mod:`.show` — contact sheets of a split.

@@ -1,4 +1,5 @@
-"""The on-disk dataset format: manifest, shards, checksums, atomic writes (see docs/data_format.md).
+"""The on-disk dataset format: shards, checksums, atomic writes (see docs/data_format.md); the
+manifest itself is :mod:`cerberus_core.datasets.manifest`.
 
 A dataset is a folder::
 
@@ -17,23 +18,16 @@ a killed run never leaves a shard that a reader accepts half-written.
 from __future__ import annotations
 
 import hashlib
-import json
-from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import ConfigError, DatasetError  # DatasetError re-exported: the format's readers raise it
+from cerberus_core.datasets.manifest import MANIFEST, FileRecord, Manifest, ShardRecord, canonical_json
+from cerberus_core.errors import DatasetError  # DatasetError re-exported: the format's readers raise it
 from cerberus_core.plumbing.atomic import atomic_write
 
-FORMAT_NAME = "cerberus-dataset"
-FORMAT_VERSION = 1
-MANIFEST = "manifest.json"
-
 VIEW_DTYPE = np.dtype([
-    ("subject", "<i4"),     # index into manifest["subjects"]
+    ("subject", "<i4"),     # index into Manifest.subjects
     ("pose", "<i4"),        # pose id, unique within the subject
     ("view", "<i2"),        # view index within the pose (0/1 in a pair, 0..V-1 on a grid)
     ("canonical", "?"),     # the subject's canonical pose (Hard Human test)
@@ -58,15 +52,6 @@ def atomic_save_npy(path: Path, array: np.ndarray) -> None:
 def atomic_save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """``np.savez`` (uncompressed) atomically."""
     atomic_write(path, lambda fh: np.savez(fh, **arrays))
-
-
-def canonical_json(obj: Any) -> str:
-    """Deterministic JSON (sorted keys, 1-space indent) used for the manifest and config hashes."""
-    return json.dumps(obj, sort_keys=True, indent=1, ensure_ascii=True)
-
-
-def atomic_write_json(path: Path, obj: Any) -> None:
-    atomic_write(path, lambda fh: fh.write((canonical_json(obj) + "\n").encode()))
 
 
 def sha256_file(path: Path, chunk: int = 1 << 22) -> str:
@@ -110,197 +95,44 @@ def resolve_inside(root: Path, rel: str) -> Path:
     return full
 
 
-# ------------------------------------------------------------------------------------ manifest
-_REQUIRED = ("dataset", "config", "scene", "image_size", "part_names", "subjects", "splits")
-
-
-class Manifest(Mapping[str, Any]):
-    """A dataset's ``manifest.json`` as one typed, read-only object.
-
-    It reads like the JSON it holds (``manifest["splits"]``, ``manifest.get("source")``: a
-    :class:`~collections.abc.Mapping`) and names what callers use: :attr:`splits`, :attr:`scene` (a
-    checked :class:`~cerberus_core.datasets.scene.SceneSetup`), :attr:`subjects`, :attr:`image_size`,
-    :attr:`source`, :attr:`part_names`, :meth:`split`. Read one with :meth:`read`.
-    """
-
-    def __init__(self, data: dict[str, Any], root: str | Path) -> None:
-        self.raw = data
-        self.root = Path(root)
-
-    @classmethod
-    def read(cls, root: str | Path) -> Manifest:
-        """Load and validate ``root/manifest.json`` (format name and version, required keys).
-
-        Raises:
-            DatasetError: a missing or unreadable manifest, another format or another format version.
-        """
-        root = Path(root)
-        path = root / MANIFEST
-        if root.exists() and not root.is_dir():
-            raise DatasetError(f"{root} is a file, not a dataset folder; pass the folder that holds {MANIFEST}")
-        if not root.is_dir():
-            raise DatasetError(f"dataset folder {root} does not exist; generate one with "
-                               f"`cerberus data generate --out {root}`")
-        if not path.is_file():
-            raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset "
-                               f"(generate one with `cerberus data generate --out {root}`)")
-        try:
-            manifest = json.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
-        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
-            found = manifest.get("format") if isinstance(manifest, dict) else None
-            raise DatasetError(f"{path} is not a {FORMAT_NAME} manifest (format={found!r})")
-        version = manifest.get("format_version")
-        if version != FORMAT_VERSION:
-            raise DatasetError(f"{path} has format version {version!r}, this cerberus-core reads version "
-                               f"{FORMAT_VERSION}; regenerate the dataset with this version (`cerberus data generate "
-                               "... --overwrite`) or install the cerberus-core release that wrote it")
-        for key in _REQUIRED:
-            if key not in manifest:
-                raise DatasetError(f"{path} lacks the required key {key!r}; the dataset is corrupt — regenerate it")
-        return cls(manifest, root)
-
-    # the Mapping protocol: the JSON as read
-    def __getitem__(self, key: str) -> Any:
-        return self.raw[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self.raw)
-
-    def __len__(self) -> int:
-        return len(self.raw)
-
-    def __repr__(self) -> str:
-        return f"Manifest({str(self.root)!r}: {self.dataset}/{self.preset}, splits {sorted(self.splits)})"
-
-    @property
-    def path(self) -> Path:
-        """The ``manifest.json`` file."""
-        return self.root / MANIFEST
-
-    @property
-    def dataset(self) -> str:
-        """The body source's name: ``human``, ``animal``, ``primitives``, ``folder``."""
-        return str(self.raw["dataset"])
-
-    @property
-    def preset(self) -> str | None:
-        """The size preset it was generated with."""
-        return self.raw.get("preset")
-
-    @property
-    def config(self) -> dict[str, Any]:
-        """The resolved generation config (:meth:`GenerationConfig.to_dict` form)."""
-        return self.raw["config"]
-
-    @property
-    def image_size(self) -> int:
-        return int(self.raw["image_size"])
-
-    @property
-    def part_names(self) -> list[str]:
-        """The ground-truth semantic part names."""
-        return list(self.raw["part_names"])
-
-    @property
-    def subjects(self) -> list[dict[str, Any]]:
-        """One record per subject (:meth:`cerberus_core.bodies.sources.Subject.from_dict` reads one)."""
-        return self.raw["subjects"]
-
-    @property
-    def subject_names(self) -> list[str]:
-        return [s["name"] for s in self.subjects]
-
-    @property
-    def source(self) -> dict[str, Any]:
-        """The body source a reader rebuilds bodies with: ``{"name": ..., "options": {...}}``."""
-        return self.raw.get("source") or {}
-
-    @property
-    def splits(self) -> dict[str, dict[str, Any]]:
-        """``{split: its record}`` (planned counts, listed shards)."""
-        return self.raw["splits"]
-
-    @property
-    def complete(self) -> bool:
-        """Whether the generation finished."""
-        return bool(self.raw.get("complete", False))
-
-    @property
-    def scene(self) -> SceneSetup:
-        """The scene set-up the images were rendered with (checked).
-
-        Raises:
-            DatasetError: the record is not a valid scene set-up (the manifest is damaged).
-        """
-        try:
-            return SceneSetup.from_dict(self.raw.get("scene"))
-        except ConfigError as exc:
-            raise DatasetError(f"{self.path}: invalid scene set-up ({exc}); the manifest is damaged: regenerate the "
-                               "dataset with `cerberus data generate`") from None
-
-    def split(self, name: str) -> dict[str, Any]:
-        """The record of split ``name`` (:func:`split_info`)."""
-        return split_info(self, name, self.root)
-
-
-def read_manifest(root: str | Path) -> Manifest:
-    """:meth:`Manifest.read`, as a function."""
-    return Manifest.read(root)
-
-
-def split_info(manifest: Mapping[str, Any], split: str, root: Path) -> dict:
-    """The manifest entry of ``split`` or a :class:`DatasetError` naming the available splits."""
-    splits = manifest["splits"]
-    if split not in splits:
-        raise DatasetError(f"{Path(root) / MANIFEST}: no split {split!r}; this dataset has {sorted(splits)}")
-    return splits[split]
-
-
-def split_complete(info: dict) -> bool:
-    return len(info.get("shards", [])) == info.get("planned_shards", -1)
-
-
-def file_record(root: Path, path: Path, array_shape: tuple[int, ...] | None, dtype: str | None) -> dict:
-    """Manifest entry of one written shard file: relative path, bytes, sha256 (and array shape)."""
-    rec = {"path": path.relative_to(root).as_posix(), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
-    if array_shape is not None:
-        rec["shape"], rec["dtype"] = list(array_shape), dtype
-    return rec
+# ------------------------------------------------------------------------------------ shard records
+def file_record(root: Path, path: Path, array_shape: tuple[int, ...] | None, dtype: str | None) -> FileRecord:
+    """The record of one written shard file: relative path, bytes, sha256 (and array shape, dtype)."""
+    return FileRecord(path.relative_to(root).as_posix(), path.stat().st_size, sha256_file(path),
+                      None if array_shape is None else tuple(array_shape), dtype)
 
 
 # ------------------------------------------------------------------------------------ verification
-def check_shard_files(root: Path, shard: dict, *, checksums: bool) -> list[str]:
+def check_shard_files(root: Path, shard: ShardRecord, *, checksums: bool) -> list[str]:
     """Problems with one shard's files (empty list if fine): missing, wrong size, wrong checksum,
     array header not matching the manifest, path escaping the folder."""
     problems = []
-    for role, rec in shard.get("files", {}).items():
+    for role, rec in shard.files.items():
         try:
-            path = resolve_inside(root, rec["path"])
+            path = resolve_inside(root, rec.path)
         except DatasetError as exc:
             problems.append(str(exc))
             continue
         if not path.is_file():
-            problems.append(f"{path}: missing ({role} of {shard.get('name')}); resume the generation to rebuild it")
+            problems.append(f"{path}: missing ({role} of {shard.name}); resume the generation to rebuild it")
             continue
         size = path.stat().st_size
-        if size != rec["bytes"]:
-            problems.append(f"{path}: {size} bytes, the manifest records {rec['bytes']} (truncated or replaced); "
+        if size != rec.bytes:
+            problems.append(f"{path}: {size} bytes, the manifest records {rec.bytes} (truncated or replaced); "
                             "delete it and resume the generation")
             continue
-        if checksums and sha256_file(path) != rec["sha256"]:
+        if checksums and sha256_file(path) != rec.sha256:
             problems.append(f"{path}: sha256 mismatch (corrupt); delete it and resume the generation")
             continue
-        if "shape" in rec and path.suffix == ".npy":
+        if rec.shape is not None and path.suffix == ".npy":
             try:
                 arr = np.load(path, mmap_mode="r", allow_pickle=False)
             except Exception as exc:  # noqa: BLE001 - any header problem is corruption
                 problems.append(f"{path}: unreadable .npy ({exc})")
                 continue
-            if list(arr.shape) != rec["shape"] or arr.dtype.str != rec["dtype"]:
+            if arr.shape != rec.shape or arr.dtype.str != rec.dtype:
                 problems.append(f"{path}: array {arr.dtype.str}{list(arr.shape)} but the manifest records "
-                                f"{rec['dtype']}{rec['shape']}")
+                                f"{rec.dtype}{list(rec.shape)}")
     return problems
 
 
@@ -310,23 +142,23 @@ this fraction of the image (at least 1 pixel) renders empty: :func:`empty_views`
 most of the frame (:mod:`cerberus_core.datasets.scene`), so a sound view has thousands of times more."""
 
 
-def empty_views(root: Path, manifest: Mapping[str, Any], split: str, shard: dict, chunk: int = 256) -> list[str]:
+def empty_views(manifest: Manifest, split: str, shard: ShardRecord, chunk: int = 256) -> list[str]:
     """One problem line for a shard with views that render empty (no body on the background), or none.
 
     Args:
-        root: the dataset folder; manifest: its manifest (``scene.background``: RGB in [0, 1],
-            ``subjects``); split: the shard's split; shard: its manifest record, files already checked.
+        manifest: the dataset's manifest (its folder, scene background, subjects); split: the shard's
+            split; shard: its record, files already checked.
         chunk: images compared at a time (``(chunk, 3, H, W)`` uint8 in memory).
     Returns:
         ``[]``, or one line naming the images file, how many views are empty, the first few (subject,
         pose, view, foreground pixels) and the likely cause and fix.
     """
-    files = shard.get("files", {})
+    root, files = manifest.root, shard.files
     if "images" not in files or "views" not in files:
         return []
-    images = np.load(resolve_inside(root, files["images"]["path"]), mmap_mode="r", allow_pickle=False)
-    views = np.load(resolve_inside(root, files["views"]["path"]), mmap_mode="r", allow_pickle=False)
-    background = np.asarray(manifest.get("scene", {}).get("background", (1.0, 1.0, 1.0)), dtype=np.float64)
+    images = np.load(resolve_inside(root, files["images"].path), mmap_mode="r", allow_pickle=False)
+    views = np.load(resolve_inside(root, files["views"].path), mmap_mode="r", allow_pickle=False)
+    background = np.asarray(manifest.scene.background, dtype=np.float64)
     bg = np.round(np.clip(background, 0.0, 1.0) * 255).astype(np.int16).reshape(1, 3, 1, 1)
     h, w = images.shape[-2:]
     least = max(1, int(np.ceil(EMPTY_VIEW_FRACTION * h * w)))
@@ -335,19 +167,19 @@ def empty_views(root: Path, manifest: Mapping[str, Any], split: str, shard: dict
     bad = np.flatnonzero(counts < least)
     if bad.size == 0:
         return []
-    subjects = manifest.get("subjects", [])
+    subjects = manifest.subjects
 
     def name(i: int) -> str:
         v = views[i]
-        sub = subjects[int(v["subject"])] if 0 <= int(v["subject"]) < len(subjects) else {}
-        poses = sub.get("info", {}).get("poses") if isinstance(sub, dict) else None
-        pose = int(v["pose"])
-        pose_name = f" ({poses[pose]})" if isinstance(poses, list) and 0 <= pose < len(poses) else ""
-        return (f"image {i}: subject {sub.get('name', int(v['subject'])) if isinstance(sub, dict) else sub} "
+        s, pose = int(v["subject"]), int(v["pose"])
+        sub = subjects[s] if 0 <= s < len(subjects) else None
+        poses = sub.pose_names if sub is not None else None
+        pose_name = f" ({poses[pose]})" if poses is not None and 0 <= pose < len(poses) else ""
+        return (f"image {i}: subject {sub.name if sub is not None else s} "
                 f"pose {pose}{pose_name} view {int(v['view'])}, {int(counts[i])} foreground pixels")
 
     shown = "; ".join(name(int(i)) for i in bad[:3]) + (f"; and {bad.size - 3} more" if bad.size > 3 else "")
-    return [f"{resolve_inside(root, files['images']['path'])}: {bad.size} of {len(images)} views of split {split!r} "
+    return [f"{resolve_inside(root, files['images'].path)}: {bad.size} of {len(images)} views of split {split!r} "
             f"render empty (fewer than {least} of {h}x{w} pixels differ from the background): {shown}; the body is "
             "outside the camera or a few pixels small (a pose in another unit than its subject's other poses?): "
             "fix the meshes or the scene and regenerate the dataset"]
@@ -412,15 +244,16 @@ def unpack_mesh(vertices: np.ndarray, meshes: dict[str, np.ndarray],
 
 
 def write_shard(root: Path, split: str, index: int, images: np.ndarray, views: np.ndarray, quads: np.ndarray,
-                meshes: tuple[np.ndarray, dict[str, np.ndarray]] | None, *, extra: dict | None = None) -> dict:
-    """Write one shard's files atomically and return its manifest record (not yet in the manifest).
+                meshes: tuple[np.ndarray, dict[str, np.ndarray]] | None, *,
+                subjects: tuple[int, ...] = ()) -> ShardRecord:
+    """Write one shard's files atomically and return its record (not yet in the manifest).
 
     Args:
         images: ``(N, 3, H, W)`` uint8.
         views: ``(N,)`` :data:`VIEW_DTYPE`.
         quads: ``(Q, 4)`` int32 indices into the shard's images.
         meshes: the output of :func:`pack_meshes`, or ``None`` when meshes are not stored.
-        extra: more fields for the record (e.g. the subjects in the shard).
+        subjects: the manifest indices of the subjects whose bodies the shard holds.
     """
     root = Path(root)
     if images.dtype != np.uint8 or images.ndim != 4 or images.shape[1] != 3:
@@ -444,5 +277,5 @@ def write_shard(root: Path, split: str, index: int, images: np.ndarray, views: n
         path = folder / f"{name}.meshes.npz"
         atomic_save_npz(path, meshes[1])
         files["meshes"] = file_record(root, path, None, None)
-    return {"index": index, "name": name, "images": int(len(images)), "quadruplets": int(len(quads)),
-            "meshes": 0 if meshes is None else int(len(meshes[1]["pose"])), "files": files, **(extra or {})}
+    return ShardRecord(index, name, int(len(images)), int(len(quads)), 0 if meshes is None else int(len(meshes[1]["pose"])),
+                       files, tuple(int(s) for s in subjects))

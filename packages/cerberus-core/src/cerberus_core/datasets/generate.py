@@ -20,19 +20,23 @@ import torch
 
 from cerberus_core import __version__
 from cerberus_core.bodies.body import PosedBody
-from cerberus_core.bodies.sources import BodySource, Subject, make_source
+from cerberus_core.bodies.sources import BodySource, make_source
 from cerberus_core.datasets.format import (
-    FORMAT_NAME,
-    FORMAT_VERSION,
-    MANIFEST,
     DatasetError,
-    Manifest,
-    atomic_write_json,
     check_shard_files,
     clean_temporaries,
     config_hash,
     pack_meshes,
     write_shard,
+)
+from cerberus_core.datasets.manifest import (
+    MANIFEST,
+    Manifest,
+    ShardRecord,
+    SourceRecord,
+    SplitRecord,
+    SubjectRecord,
+    jsonable,
 )
 from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
@@ -43,7 +47,7 @@ from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.render.interface import Renderer
 
-ShardCallback = Callable[[str, dict], None]
+ShardCallback = Callable[[str, ShardRecord], None]
 
 
 # ------------------------------------------------------------------------------------ validation
@@ -126,7 +130,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
         renderer = resolve_renderer(config.renderer)
         make_renderer(renderer)  # installed, imports, builds: before the manifest names it
         # The manifest names the backend that draws the images (``auto`` resolved).
-        config = replace(config, source=_jsonable(source.describe()), renderer=renderer)
+        config = replace(config, source=jsonable(source.describe()), renderer=renderer)
         plan = make_plan(config, source)
     except CerberusError:
         raise
@@ -146,7 +150,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               + f"), more than it has ({total / 2**30:.1f} GiB); lower --image-size, --batch-size "
                               "or --shard-images")
     if out is not None:
-        check_folder(Path(out), _jsonable(config.to_dict()), overwrite)
+        check_folder(Path(out), jsonable(config.to_dict()), overwrite)
     return GenerationJob(config, source, plan, images + buffers)
 
 
@@ -203,7 +207,7 @@ def render_views(renderer: Renderer, bodies: list[PosedBody], mesh_index: np.nda
     return out
 
 
-def build_bodies(source: BodySource, subjects: list[dict], meshes: list[tuple[int, int]],
+def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list[tuple[int, int]],
                  n_parts: int) -> list[PosedBody]:
     """Pose every (subject index, pose id) of a shard, one batched call per subject, and check them.
 
@@ -217,7 +221,7 @@ def build_bodies(source: BodySource, subjects: list[dict], meshes: list[tuple[in
             by_subject[s].append(p)
     built: dict[tuple[int, int], PosedBody] = {}
     for s, poses in by_subject.items():
-        who = Subject.from_dict(subjects[s])
+        who = subjects[s].subject
         name = who.name
         bodies = source.bodies(who, poses)
         if len(bodies) != len(poses):
@@ -252,7 +256,7 @@ def _remove_dataset(out: Path, splits: list[str]) -> None:
     clean_temporaries(out)
 
 
-def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | None]:
+def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, Manifest | None]:
     """What generating ``config`` (the manifest's form) into ``out`` will do; changes nothing.
 
     Returns:
@@ -269,16 +273,16 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | 
         raise DatasetError(f"{out} exists and is not a folder; choose another --out")
     if (out / MANIFEST).exists():
         try:
-            old = Manifest.read(out).raw
+            old = Manifest.read(out)
         except DatasetError as exc:
             if not overwrite:
                 raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass --overwrite to "
                                    "replace it, or choose another --out") from exc
             return "overwrite", None
-        if old["config"] == config:
+        if old.config == config:
             return "resume", old
         if not overwrite:
-            diff = "; ".join(_differences(old["config"], config)[:6])
+            diff = "; ".join(_differences(dict(old.config), config)[:6])
             raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
                                "--overwrite to replace it, or choose another --out")
         return "overwrite", old
@@ -292,52 +296,39 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, dict | 
     return "overwrite", None
 
 
-def _prepare(out: Path, config: dict, overwrite: bool, log: Callable[[str], None]) -> dict | None:
+def _prepare(out: Path, config: GenerationConfig, cfg: dict, overwrite: bool,
+             log: Callable[[str], None]) -> Manifest | None:
     """Decide between a fresh run and a resume (:func:`check_folder`); return the manifest to resume from."""
-    action, old = check_folder(out, config, overwrite)
+    action, old = check_folder(out, cfg, overwrite)
     if action == "resume":
         return old
     if action == "overwrite":
         log(f"overwriting the dataset in {out}" if (out / MANIFEST).exists()
             else f"writing into the non-empty folder {out} (--overwrite)")
-        _remove_dataset(out, list(config["splits"]) + list((old or {}).get("splits", {})))
+        _remove_dataset(out, list(config.splits) + list(old.splits if old is not None else ()))
     out.mkdir(parents=True, exist_ok=True)
     return None
 
 
-def _manifest(config: GenerationConfig, cfg: dict, source: BodySource, source_options: dict, plan: DatasetPlan) -> dict:
+def _manifest(out: Path, config: GenerationConfig, cfg: dict, source: BodySource, source_options: dict,
+              plan: DatasetPlan) -> Manifest:
+    """The manifest of a dataset about to be generated: the plan's counts, no shard written yet."""
     splits = {}
     for name, split_cfg in config.splits.items():
         t = plan.totals(name)
-        splits[name] = {"layout": split_cfg.layout, "meshes": split_cfg.meshes, "planned_shards": t["shards"],
-                        "planned_images": t["images"], "planned_quadruplets": t["quadruplets"],
-                        "planned_meshes": t["meshes"], "shards": []}
-    return {
-        "format": FORMAT_NAME, "format_version": FORMAT_VERSION, "dataset": config.dataset, "preset": config.preset,
-        "config": cfg, "config_sha256": config_hash(cfg), "scene": config.scene.to_dict(),
-        "image_size": config.image_size, "part_names": list(source.part_names), "subjects": plan.subjects,
-        "source": {"name": source.name, "options": source_options}, "splits": splits, "complete": False,
-        "generator": {"cerberus_core": __version__},
-    }
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return obj
+        splits[name] = SplitRecord(split_cfg.layout, split_cfg.meshes, t["shards"], t["images"], t["quadruplets"],
+                                   t["meshes"])
+    return Manifest(dataset=config.dataset, preset=config.preset, config=cfg, config_sha256=config_hash(cfg),
+                    scene=config.scene, image_size=config.image_size, part_names=tuple(source.part_names),
+                    subjects=tuple(plan.subjects), source=SourceRecord(source.name, jsonable(source_options)),
+                    splits=splits, generator={"cerberus_core": __version__}, root=out)
 
 
 # ------------------------------------------------------------------------------------ driver
 def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | None = None,
              source_options: dict[str, Any] | None = None, overwrite: bool = False, device: str = "cpu",
              batch_size: int = 64, progress: bool = True, log: Callable[[str], None] = print,
-             on_shard: ShardCallback | None = None) -> dict:
+             on_shard: ShardCallback | None = None) -> Manifest:
     """Generate (or resume) a dataset in ``out``.
 
     Args:
@@ -365,27 +356,26 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
     job = validate_generation(config, source=source, source_options=source_options, device=device,
                               batch_size=batch_size)
     config, source, plan = job.config, job.source, job.plan
-    cfg = _jsonable(config.to_dict())
-    resume = _prepare(out, cfg, overwrite, log)
+    cfg = jsonable(config.to_dict())
+    resume = _prepare(out, config, cfg, overwrite, log)
     clean_temporaries(out)
     for split in config.splits:
         if not plan.shards[split]:
             log(f"split {split!r} has no subject and is left empty")
-    manifest = _jsonable(_manifest(config, cfg, source, source_options, plan))
-    done: dict[str, dict[int, dict]] = {s: {} for s in config.splits}
+    manifest = _manifest(out, config, cfg, source, source_options, plan)
+    done: dict[str, dict[int, ShardRecord]] = {s: {} for s in config.splits}
     if resume is not None:
-        for split, info in resume["splits"].items():
-            for rec in info.get("shards", []):
+        for split, info in resume.splits.items():
+            for rec in info.shards:
                 problems = check_shard_files(out, rec, checksums=True)
                 if problems:
-                    log(f"shard {split}/{rec.get('name')} is damaged and will be rebuilt: {problems[0]}")
-                elif split in done and rec["index"] < len(plan.shards[split]):
-                    done[split][rec["index"]] = rec
+                    log(f"shard {split}/{rec.name} is damaged and will be rebuilt: {problems[0]}")
+                elif split in done and rec.index < len(plan.shards[split]):
+                    done[split][rec.index] = rec
         n_done = sum(len(d) for d in done.values())
         log(f"resuming {out}: {n_done} of {sum(len(s) for s in plan.shards.values())} shards already done")
-    for split in config.splits:
-        manifest["splits"][split]["shards"] = [done[split][i] for i in sorted(done[split])]
-    atomic_write_json(out / MANIFEST, manifest)
+    manifest = manifest.with_shards({split: done[split].values() for split in config.splits})
+    manifest.write()
 
     todo: list[ShardPlan] = [s for split in config.splits for s in plan.shards[split] if s.index not in done[split]]
     if todo:
@@ -398,20 +388,19 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
             for shard in todo:
                 bar.set_postfix_str(f"{shard.split} shard {shard.index + 1}/{len(plan.shards[shard.split])}")
                 rec = _build_shard(out, config, source, plan, shard, renderer, device, batch_size, bar.update)
-                info = manifest["splits"][shard.split]
-                info["shards"] = sorted(info["shards"] + [rec], key=lambda r: r["index"])
-                atomic_write_json(out / MANIFEST, manifest)
+                manifest = manifest.with_shard(shard.split, rec)
+                manifest.write()
                 if on_shard is not None:
                     on_shard(shard.split, rec)
         finally:
             bar.close()
-    manifest["complete"] = True
-    atomic_write_json(out / MANIFEST, manifest)
+    manifest = manifest.finished()
+    manifest.write()
     return manifest
 
 
 def _build_shard(out: Path, config: GenerationConfig, source: BodySource, plan: DatasetPlan, shard: ShardPlan,
-                 renderer: Renderer, device: str, batch_size: int, on_batch: Callable[[int], None]) -> dict:
+                 renderer: Renderer, device: str, batch_size: int, on_batch: Callable[[int], None]) -> ShardRecord:
     bodies = build_bodies(source, plan.subjects, shard.meshes, len(source.part_names))
     images = render_views(renderer, bodies, shard.views["mesh"], shard.views["azimuth"], config.scene,
                           config.image_size, batch_size=batch_size, device=device, on_batch=on_batch,
@@ -423,4 +412,4 @@ def _build_shard(out: Path, config: GenerationConfig, source: BodySource, plan: 
     else:
         views["mesh"] = -1
     return write_shard(out, shard.split, shard.index, images, views, shard.quads, meshes,
-                       extra={"subjects": shard.subjects})
+                       subjects=tuple(shard.subjects))

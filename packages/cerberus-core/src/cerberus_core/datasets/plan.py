@@ -35,6 +35,7 @@ import yaml
 from cerberus_core.bodies.sources import BodySource, Subject
 from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw, omit_defaults
 from cerberus_core.datasets.format import VIEW_DTYPE
+from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.errors import ConfigError
 from cerberus_core.fields import Checked, ranged
@@ -185,6 +186,15 @@ class GenerationConfig(Checked):
         }
         return omit_defaults(d, {"supersample": 1})
 
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> GenerationConfig:
+        """The config of :meth:`to_dict`'s form (a manifest's ``config``), checked.
+
+        Raises:
+            ConfigError: a key this version does not know, or a value out of range.
+        """
+        return replace(build(cls, {k: v for k, v in d.items() if k != "scene"}), scene=SceneSetup.from_dict(d.get("scene")))
+
 
 # ------------------------------------------------------------------------------------ presets
 DATASETS: tuple[str, ...] = ("human", "animal", "primitives", "folder")
@@ -247,18 +257,17 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
     return replace(load_generation_config(dataset, size), **overrides)
 
 
-def generate_command(root: str | Path, manifest: dict[str, Any]) -> str:
+def generate_command(root: str | Path, manifest: Manifest) -> str:
     """The ``cerberus data generate`` command that resumes the dataset of ``manifest`` in ``root``.
 
     It names the dataset, the size preset, the body source's options and, as a flag or ``--set``,
     every config key whose value differs from the bundled preset's, so that the command rebuilds
     exactly the stored config (``generate`` then resumes instead of refusing a different dataset).
     """
-    config = manifest.get("config") or {}
-    dataset = str(manifest.get("dataset") or config.get("dataset"))
-    size = str(manifest.get("preset") or config.get("preset"))
+    config = manifest.config
+    dataset, size = manifest.dataset, str(manifest.preset)
     words = ["cerberus", "data", "generate", "--dataset", dataset, "--size", size, "--out", str(root)]
-    options = (manifest.get("source") or {}).get("options") or {}
+    options = manifest.source.options
     if "root" in options:
         words += ["--source", str(options["root"])]
     if options.get("test_subjects"):
@@ -314,7 +323,7 @@ class _Unit:
 class DatasetPlan:
     """The whole dataset: the subject table, and the shards of every split."""
 
-    subjects: list[dict[str, Any]]
+    subjects: list[SubjectRecord]
     shards: dict[str, list[ShardPlan]]
 
     def totals(self, split: str) -> dict[str, int]:
@@ -464,7 +473,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
         ValueError: if splits share a subject while the source promises disjoint subjects, no split
             has a subject, or a split with subjects would hold no image.
     """
-    table: list[dict[str, Any]] = []
+    table: list[SubjectRecord] = []
     index: dict[str, int] = {}
     shards: dict[str, list[ShardPlan]] = {}
     for split, cfg in config.splits.items():
@@ -476,13 +485,14 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
             if s.name in index:
                 entry = table[index[s.name]]
                 if not source.shared_subjects:
-                    raise ValueError(f"subject {s.name!r} is in splits {entry['splits']} and {split!r}; "
+                    raise ValueError(f"subject {s.name!r} is in splits {list(entry.splits)} and {split!r}; "
                                      "splits must hold disjoint subjects")
-                entry["splits"].append(split)
+                table[index[s.name]] = entry.in_split(split)
             else:
                 index[s.name] = len(table)
-                table.append({"name": s.name, "splits": [split], "canonical_pose": source.canonical_pose(s),
-                              "info": s.info})
+                canonical = source.canonical_pose(s)
+                table.append(SubjectRecord(s.name, jsonable(s.info), (split,),
+                                           None if canonical is None else int(canonical)))
         units: list[_Unit] = []
         pair_counts = _spread(cfg.pairs, len(infos)) if (cfg.layout == "pairs" and cfg.pairs is not None) else None
         chunk = max(1, config.shard_images // 4)

@@ -20,17 +20,16 @@ from torch.utils.data import Dataset
 from tqdm import tqdm
 
 from cerberus_core.bodies.body import PosedBody
-from cerberus_core.bodies.sources import Subject, make_source
+from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
-    Manifest,
     check_shard_files,
     empty_views,
     resolve_inside,
-    split_complete,
     unpack_mesh,
 )
+from cerberus_core.datasets.manifest import Manifest, ShardRecord
 from cerberus_core.datasets.plan import generate_command
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
@@ -38,12 +37,12 @@ from cerberus_core.render.camera import Camera
 Tensor = torch.Tensor
 
 
-def empty_split_hint(manifest: dict, split: str, root: str | Path = "ROOT") -> str:
+def empty_split_hint(manifest: Manifest, split: str, root: str | Path = "ROOT") -> str:
     """Why ``split`` of a dataset has no subject and what to do, with the dataset's own counts.
 
     Args:
-        manifest: the dataset's manifest (``subjects``: each with its ``splits``; ``source.options``:
-            a folder source's ``test_fraction`` or ``test_subjects``).
+        manifest: the dataset's manifest (its subjects; ``source.options``: a folder source's
+            ``test_fraction`` or ``test_subjects``).
         split: the empty split (``"train"`` or ``"test"``).
         root: the dataset folder, for the command the hint names.
     Returns:
@@ -52,10 +51,9 @@ def empty_split_hint(manifest: dict, split: str, root: str | Path = "ROOT") -> s
         test subjects; ...". The count follows :class:`~cerberus_core.bodies.folder.FolderSource`'s
         rule (the last ``round(f * n)`` subjects, at least one when ``f > 0`` and ``n >= 2``).
     """
-    subjects = manifest.get("subjects") or []
-    n = len(subjects)
+    n = len(manifest.subjects)
     plural = "" if n == 1 else "s"
-    options = (manifest.get("source") or {}).get("options") or {}
+    options = manifest.source.options
     head = f"the dataset has no {split} subjects"
     if split == "train":
         cause = " (its only subject is a test subject" if n == 1 else f" (all {n} subjects are test subjects"
@@ -79,14 +77,15 @@ def empty_split_hint(manifest: dict, split: str, root: str | Path = "ROOT") -> s
     return f"{head}{cause}; {fix}"
 
 
-def incomplete_split(root: Path, manifest: dict, split: str) -> str:
+def incomplete_split(root: Path, manifest: Manifest, split: str) -> str:
     """The problem with an incomplete split, naming the command that finishes it (it resumes)."""
-    info = manifest["splits"][split]
-    return (f"split {split!r} is incomplete ({len(info.get('shards', []))} of {info.get('planned_shards')} shards); "
+    info = manifest.split(split)
+    return (f"split {split!r} is incomplete ({len(info.shards)} of {info.planned_shards} shards); "
             f"finish generating it (it resumes) with `{generate_command(root, manifest)}`")
 
 
-def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False) -> tuple[dict | None, list[str]]:
+def verify_dataset(root: Path, *, checksums: bool = True,
+                   progress: bool = False) -> tuple[Manifest | None, list[str]]:
     """Check a whole dataset: manifest, completeness, every shard file (and its sha256), and views
     that render empty (:func:`~cerberus_core.datasets.format.empty_views`, on shards whose files are sound).
 
@@ -99,11 +98,10 @@ def verify_dataset(root: Path, *, checksums: bool = True, progress: bool = False
     except DatasetError as exc:
         return None, [str(exc)]
     problems: list[str] = []
-    shards = [(name, s) for name, info in manifest["splits"].items() for s in info.get("shards", [])]
+    shards = [(name, s) for name, info in manifest.splits.items() for s in info.shards]
     for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
-        problems.extend(check_shard_files(root, shard, checksums=checksums) or empty_views(root, manifest, split, shard))
-    problems += [incomplete_split(root, manifest, name) for name, info in manifest["splits"].items()
-                 if not split_complete(info)]
+        problems.extend(check_shard_files(root, shard, checksums=checksums) or empty_views(manifest, split, shard))
+    problems += [incomplete_split(root, manifest, name) for name, info in manifest.splits.items() if not info.complete]
     return manifest, problems
 
 
@@ -115,18 +113,18 @@ class _SplitReader:
         self.split = split
         self.manifest = Manifest.read(self.root)
         self.info = self.manifest.split(split)
-        if self.info.get("planned_shards") == 0:
+        if self.info.planned_shards == 0:
             raise DatasetError(f"{self.root}: split {split!r} is empty: {empty_split_hint(self.manifest, split, self.root)}")
-        if not allow_partial and not split_complete(self.info):
+        if not allow_partial and not self.info.complete:
             raise DatasetError(f"{self.root}: {incomplete_split(self.root, self.manifest, split)}")
-        self.shards: list[dict] = self.info["shards"]
+        self.shards: tuple[ShardRecord, ...] = self.info.shards
         for shard in self.shards:
             problems = check_shard_files(self.root, shard, checksums=verify)
             if problems:
                 more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
                 raise DatasetError(problems[0] + more)
-        self.image_offsets = np.concatenate([[0], np.cumsum([s["images"] for s in self.shards])]).astype(np.int64)
-        self.quad_offsets = np.concatenate([[0], np.cumsum([s["quadruplets"] for s in self.shards])]).astype(np.int64)
+        self.image_offsets = np.concatenate([[0], np.cumsum([s.images for s in self.shards])]).astype(np.int64)
+        self.quad_offsets = np.concatenate([[0], np.cumsum([s.quadruplets for s in self.shards])]).astype(np.int64)
         self.image_size = self.manifest.image_size
         self._cache: dict[tuple[int, str], Any] = {}
 
@@ -139,18 +137,18 @@ class _SplitReader:
         """The memory-mapped ``role`` array (images, views, quads, vertices) of shard ``shard``."""
         key = (shard, role)
         if key not in self._cache:
-            rec = self.shards[shard]["files"].get(role)
+            rec = self.shards[shard].files.get(role)
             if rec is None:
-                raise DatasetError(f"{self.root}: shard {self.shards[shard]['name']} of split {self.split!r} has no "
+                raise DatasetError(f"{self.root}: shard {self.shards[shard].name} of split {self.split!r} has no "
                                    f"{role} file (this split was generated without it)")
-            path = resolve_inside(self.root, rec["path"])
+            path = resolve_inside(self.root, rec.path)
             try:
                 arr = np.load(path, mmap_mode="r", allow_pickle=False)
             except (OSError, ValueError) as exc:
                 raise DatasetError(f"{path}: unreadable ({exc}); run `cerberus data check {self.root}`") from exc
-            if list(arr.shape) != rec["shape"] or arr.dtype.str != rec["dtype"]:
+            if arr.shape != rec.shape or arr.dtype.str != rec.dtype:
                 raise DatasetError(f"{path}: array {arr.dtype.str}{list(arr.shape)} does not match the manifest "
-                                   f"({rec['dtype']}{rec['shape']}); the shard is corrupt")
+                                   f"({rec.dtype}{list(rec.shape or ())}); the shard is corrupt")
             if role == "views" and arr.dtype != VIEW_DTYPE:
                 raise DatasetError(f"{path}: view records of an unknown layout {arr.dtype}")
             self._cache[key] = arr
@@ -159,10 +157,10 @@ class _SplitReader:
     def meshes(self, shard: int) -> dict[str, np.ndarray]:
         key = (shard, "meshes")
         if key not in self._cache:
-            rec = self.shards[shard]["files"].get("meshes")
+            rec = self.shards[shard].files.get("meshes")
             if rec is None:
                 raise DatasetError(f"{self.root}: split {self.split!r} was generated without ground-truth meshes")
-            path = resolve_inside(self.root, rec["path"])
+            path = resolve_inside(self.root, rec.path)
             try:
                 with np.load(path, allow_pickle=False) as npz:
                     self._cache[key] = {k: npz[k] for k in npz.files}
@@ -266,7 +264,7 @@ class QuadrupletDataset(_Base):
         self._scene = None
         if self._reader.quad_offsets[-1] == 0:
             raise DatasetError(f"{self._reader.root}: split {split!r} has no quadruplets (a "
-                               f"{self._reader.info['layout']} test split?); use ViewDataset for single images")
+                               f"{self._reader.info.layout} test split?); use ViewDataset for single images")
 
     def __len__(self) -> int:
         return int(self._reader.quad_offsets[-1])
@@ -375,14 +373,14 @@ class ViewDataset(_Base):
         if self._source is None:
             src = self.manifest.source
             try:
-                self._source = make_source(src["name"], **src.get("options", {}))
+                self._source = make_source(src.name, **src.options)
             except Exception as exc:  # noqa: BLE001
                 raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and its source "
-                                   f"{src['name']!r} cannot be rebuilt here ({exc})") from exc
+                                   f"{src.name!r} cannot be rebuilt here ({exc})") from exc
         try:
-            return self._source.bodies(Subject.from_dict(self.manifest.subjects[subject]), [pose])[0]
+            return self._source.bodies(self.manifest.subjects[subject].subject, [pose])[0]
         except KeyError as exc:
-            raise DatasetError(f"{self.root / 'manifest.json'}: {exc.args[0]}") from exc
+            raise DatasetError(f"{self.manifest.path}: {exc.args[0]}") from exc
 
 
 __all__ = ["QuadrupletDataset", "ViewDataset", "empty_split_hint"]

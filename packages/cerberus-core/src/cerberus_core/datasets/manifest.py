@@ -1,0 +1,432 @@
+"""A dataset's ``manifest.json``, typed both ways (see docs/data_format.md).
+
+The manifest is a tree of frozen records, each with ``from_json`` (the JSON object as stored) and
+``to_json`` (the object to store):
+
+* :class:`Manifest`: format and version, the dataset's name and size preset, the generation config
+  (as stored, compared whole on resume), the scene (:class:`~cerberus_core.datasets.scene.SceneSetup`),
+  image size, part names, subjects, body source, splits, whether generation finished;
+* :class:`SubjectRecord`: one subject (``name``, the source's ``info``, its splits, canonical pose);
+* :class:`SourceRecord`: the body source a reader rebuilds bodies with (name and options);
+* :class:`SplitRecord`: a split's layout, planned counts and the shards written so far;
+* :class:`ShardRecord`: one written shard (counts, the subjects it holds, its files);
+* :class:`FileRecord`: one shard file (relative path, bytes, sha256, array shape and dtype).
+
+The generator builds these records and writes them with :meth:`Manifest.write` (atomically, after
+each shard); every reader opens a dataset with :meth:`Manifest.read`. This module is the only place
+that reads or writes the manifest's JSON keys. Manifests written by earlier versions of format 1
+still read: keys they lack take the defaults below (``tests/data/old_manifest.json``).
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cerberus_core.bodies.body import Subject
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.plumbing.atomic import atomic_write
+
+if TYPE_CHECKING:
+    from cerberus_core.datasets.plan import GenerationConfig
+
+FORMAT_NAME = "cerberus-dataset"
+FORMAT_VERSION = 1
+MANIFEST = "manifest.json"
+
+
+def canonical_json(obj: Any) -> str:
+    """Deterministic JSON (sorted keys, 1-space indent) used for the manifest and config hashes."""
+    return json.dumps(obj, sort_keys=True, indent=1, ensure_ascii=True)
+
+
+def jsonable(obj: Any) -> Any:
+    """``obj`` with NumPy scalars and arrays as Python numbers and lists, tuples as lists and keys as
+    strings: what :func:`json.dumps` takes, and what reading the JSON back gives."""
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return obj
+
+
+class _Damaged(Exception):
+    """A record that does not have the form of its type (a key missing or of another type)."""
+
+
+def _need(record: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if not isinstance(record, Mapping) or key not in record:
+        raise _Damaged(f"{where} lacks {key!r}")
+    value = record[key]
+    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        raise _Damaged(f"{where}.{key} is {value!r}, not {getattr(kind, '__name__', kind)}")
+    return value
+
+
+def _mapping(record: Any, where: str) -> Mapping[str, Any]:
+    if not isinstance(record, Mapping):
+        raise _Damaged(f"{where} is {type(record).__name__}, not an object")
+    return record
+
+
+@dataclass(frozen=True)
+class FileRecord:
+    """One file of a shard.
+
+    Attributes:
+        path: relative to the dataset folder, POSIX form.
+        bytes: its size.
+        sha256: hex digest of its content.
+        shape: the array's shape (``.npy`` files), else ``None``.
+        dtype: the array's ``dtype.str`` (``.npy`` files), else ``None``.
+    """
+
+    path: str
+    bytes: int
+    sha256: str
+    shape: tuple[int, ...] | None = None
+    dtype: str | None = None
+
+    @classmethod
+    def from_json(cls, record: Any, where: str = "file") -> FileRecord:
+        shape = _mapping(record, where).get("shape")
+        return cls(_need(record, "path", str, where), _need(record, "bytes", int, where),
+                   _need(record, "sha256", str, where), None if shape is None else tuple(int(n) for n in shape),
+                   record.get("dtype"))
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"path": self.path, "bytes": self.bytes, "sha256": self.sha256}
+        if self.shape is not None:
+            out["shape"], out["dtype"] = list(self.shape), self.dtype
+        return out
+
+
+@dataclass(frozen=True)
+class ShardRecord:
+    """One written shard of a split.
+
+    Attributes:
+        index: its position in the split (``shard-NNNNN``).
+        name: ``shard-NNNNN``.
+        images, quadruplets, meshes: what it holds.
+        files: ``{role: FileRecord}`` (roles: :data:`cerberus_core.datasets.format.SHARD_ROLES`).
+        subjects: indices (into :attr:`Manifest.subjects`) of the subjects whose bodies it holds.
+    """
+
+    index: int
+    name: str
+    images: int
+    quadruplets: int
+    meshes: int
+    files: Mapping[str, FileRecord] = field(default_factory=dict)
+    subjects: tuple[int, ...] = ()
+
+    @classmethod
+    def from_json(cls, record: Any, where: str = "shard") -> ShardRecord:
+        index = _need(record, "index", int, where)
+        where = f"{where} {index}"
+        files = _mapping(record.get("files", {}), f"{where}.files")
+        return cls(index, _need(record, "name", str, where), _need(record, "images", int, where),
+                   int(record.get("quadruplets", 0)), int(record.get("meshes", 0)),
+                   {role: FileRecord.from_json(rec, f"{where}.files.{role}") for role, rec in files.items()},
+                   tuple(int(s) for s in record.get("subjects", ())))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"index": self.index, "name": self.name, "images": self.images, "quadruplets": self.quadruplets,
+                "meshes": self.meshes, "files": {role: rec.to_json() for role, rec in self.files.items()},
+                "subjects": list(self.subjects)}
+
+
+@dataclass(frozen=True)
+class SplitRecord:
+    """One split: its layout, what the plan promised and the shards written so far.
+
+    Attributes:
+        layout: ``pairs`` (training quadruplets) or ``grid`` (views of each pose).
+        meshes: whether its shards store the ground-truth meshes.
+        planned_shards, planned_images, planned_quadruplets, planned_meshes: the plan's totals.
+        shards: the shards written, by index.
+    """
+
+    layout: str
+    meshes: bool
+    planned_shards: int
+    planned_images: int = 0
+    planned_quadruplets: int = 0
+    planned_meshes: int = 0
+    shards: tuple[ShardRecord, ...] = ()
+
+    @property
+    def complete(self) -> bool:
+        """Every planned shard is written."""
+        return len(self.shards) == self.planned_shards
+
+    def totals(self) -> dict[str, int]:
+        """Images, quadruplets and meshes in the shards written so far."""
+        return {"images": sum(s.images for s in self.shards), "quadruplets": sum(s.quadruplets for s in self.shards),
+                "meshes": sum(s.meshes for s in self.shards)}
+
+    def with_shard(self, shard: ShardRecord) -> SplitRecord:
+        """This split with ``shard`` written (replacing a shard of the same index)."""
+        kept = [s for s in self.shards if s.index != shard.index]
+        return replace(self, shards=tuple(sorted([*kept, shard], key=lambda s: s.index)))
+
+    @classmethod
+    def from_json(cls, record: Any, where: str = "split") -> SplitRecord:
+        shards = record.get("shards", []) if isinstance(record, Mapping) else None
+        if not isinstance(shards, list):
+            raise _Damaged(f"{where}.shards is not a list")
+        return cls(_need(record, "layout", str, where), bool(record.get("meshes", False)),
+                   _need(record, "planned_shards", int, where), int(record.get("planned_images", 0)),
+                   int(record.get("planned_quadruplets", 0)), int(record.get("planned_meshes", 0)),
+                   tuple(ShardRecord.from_json(s, f"{where}.shards") for s in shards))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"layout": self.layout, "meshes": self.meshes, "planned_shards": self.planned_shards,
+                "planned_images": self.planned_images, "planned_quadruplets": self.planned_quadruplets,
+                "planned_meshes": self.planned_meshes, "shards": [s.to_json() for s in self.shards]}
+
+
+@dataclass(frozen=True)
+class SubjectRecord:
+    """One subject of the dataset.
+
+    Attributes:
+        name: unique within the dataset.
+        info: JSON-ready parameters its body source poses it with.
+        splits: the splits it appears in.
+        canonical_pose: the pose id of its canonical pose (Hard Human), or ``None``.
+    """
+
+    name: str
+    info: Mapping[str, Any] = field(default_factory=dict)
+    splits: tuple[str, ...] = ()
+    canonical_pose: int | None = None
+
+    @property
+    def subject(self) -> Subject:
+        """The subject as its body source takes it."""
+        return Subject(self.name, dict(self.info))
+
+    @property
+    def pose_names(self) -> list[str] | None:
+        """Names of its poses by pose id, where its source records them (a folder's frame names)."""
+        poses = self.info.get("poses")
+        return [str(p) for p in poses] if isinstance(poses, list) else None
+
+    def in_split(self, split: str) -> SubjectRecord:
+        """This subject, also in ``split``."""
+        return self if split in self.splits else replace(self, splits=(*self.splits, split))
+
+    @classmethod
+    def from_json(cls, record: Any, where: str = "subject") -> SubjectRecord:
+        info = _mapping(record, where).get("info", {})
+        canonical = record.get("canonical_pose")
+        return cls(_need(record, "name", str, where), dict(_mapping(info, f"{where}.info")),
+                   tuple(str(s) for s in record.get("splits", ())), None if canonical is None else int(canonical))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "info": dict(self.info), "splits": list(self.splits),
+                "canonical_pose": self.canonical_pose}
+
+
+@dataclass(frozen=True)
+class SourceRecord:
+    """The body source of a dataset: its registered name and the JSON-ready options it was built with
+    (a folder's ``root``, ``test_fraction`` or ``test_subjects``, ...)."""
+
+    name: str
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_json(cls, record: Any, dataset: str) -> SourceRecord:
+        if not record:  # manifests before the source record: the dataset's own source, default options
+            return cls(dataset)
+        options = _mapping(record, "source").get("options") or {}
+        return cls(_need(record, "name", str, "source"), dict(_mapping(options, "source.options")))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "options": dict(self.options)}
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """A dataset's ``manifest.json``: read one with :meth:`read`, store one with :meth:`write`.
+
+    Attributes:
+        dataset: the body source's name: ``human``, ``animal``, ``primitives``, ``folder``.
+        preset: the size preset it was generated with.
+        config: the resolved generation config (:meth:`GenerationConfig.to_dict` form, JSON), as
+            stored: a resume compares it whole.
+        config_sha256: its hash (:func:`cerberus_core.datasets.format.config_hash`).
+        scene: the scene set-up the images were rendered with (checked).
+        image_size: images are ``image_size`` pixels square.
+        part_names: the ground-truth semantic part names.
+        subjects: one record per subject; view records index it.
+        source: the body source a reader rebuilds bodies with.
+        splits: ``{split: its record}``.
+        complete: whether the generation finished.
+        generator: the versions that wrote it (``{"cerberus_core": "0.2.0+toolkit"}``).
+        root: the dataset folder it was read from or is written to (not stored).
+    """
+
+    dataset: str
+    preset: str | None
+    config: Mapping[str, Any]
+    config_sha256: str
+    scene: SceneSetup
+    image_size: int
+    part_names: tuple[str, ...]
+    subjects: tuple[SubjectRecord, ...]
+    source: SourceRecord
+    splits: Mapping[str, SplitRecord]
+    complete: bool = False
+    generator: Mapping[str, str] = field(default_factory=dict)
+    root: Path = field(default=Path("."), compare=False)
+
+    # ---------------------------------------------------------------------------- reading, writing
+    @classmethod
+    def read(cls, root: str | Path) -> Manifest:
+        """Load and check ``root/manifest.json``.
+
+        Raises:
+            DatasetError: a missing or unreadable manifest, another format or format version, or a
+                manifest without the form of one (naming the first problem).
+        """
+        root = Path(root)
+        path = root / MANIFEST
+        if root.exists() and not root.is_dir():
+            raise DatasetError(f"{root} is a file, not a dataset folder; pass the folder that holds {MANIFEST}")
+        if not root.is_dir():
+            raise DatasetError(f"dataset folder {root} does not exist; generate one there first "
+                               "(cerberus_core.datasets.generate, or `cerberus data generate`)")
+        if not path.is_file():
+            raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset (generate one there first: "
+                               "cerberus_core.datasets.generate, or `cerberus data generate`)")
+        try:
+            record = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
+        return cls.from_json(record, root)
+
+    @classmethod
+    def from_json(cls, record: Any, root: str | Path = ".") -> Manifest:
+        """The manifest stored as ``record`` (the parsed JSON) in the folder ``root``.
+
+        Raises:
+            DatasetError: another format or format version, or a record without the form of a
+                manifest (a required key missing, a value of another type, an invalid scene).
+        """
+        path = Path(root) / MANIFEST
+        if not isinstance(record, Mapping) or record.get("format") != FORMAT_NAME:
+            found = record.get("format") if isinstance(record, Mapping) else None
+            raise DatasetError(f"{path} is not a {FORMAT_NAME} manifest (format={found!r})")
+        version = record.get("format_version")
+        if version != FORMAT_VERSION:
+            raise DatasetError(f"{path} has format version {version!r}, this cerberus-core reads version "
+                               f"{FORMAT_VERSION}; regenerate the dataset with this version (overwriting it) or "
+                               "install the cerberus-core release that wrote it")
+        try:
+            dataset = _need(record, "dataset", str, "manifest")
+            config = _mapping(_need(record, "config", Mapping, "manifest"), "config")
+            splits = _mapping(_need(record, "splits", Mapping, "manifest"), "splits")
+            return cls(
+                dataset=dataset, preset=record.get("preset"), config=dict(config),
+                config_sha256=str(record.get("config_sha256", "")), scene=_scene(record.get("scene"), path),
+                image_size=_need(record, "image_size", int, "manifest"),
+                part_names=tuple(str(n) for n in _need(record, "part_names", list, "manifest")),
+                subjects=tuple(SubjectRecord.from_json(s, f"subjects[{i}]")
+                               for i, s in enumerate(_need(record, "subjects", list, "manifest"))),
+                source=SourceRecord.from_json(record.get("source"), dataset),
+                splits={name: SplitRecord.from_json(rec, f"splits.{name}") for name, rec in splits.items()},
+                complete=bool(record.get("complete", False)), generator=dict(record.get("generator") or {}),
+                root=Path(root))
+        except _Damaged as exc:
+            raise DatasetError(f"{path}: {exc}; the dataset is corrupt — regenerate it") from None
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object :meth:`write` stores (:meth:`from_json` reads it back equal)."""
+        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "dataset": self.dataset,
+                "preset": self.preset, "config": dict(self.config), "config_sha256": self.config_sha256,
+                "scene": self.scene.to_dict(), "image_size": self.image_size, "part_names": list(self.part_names),
+                "subjects": [s.to_json() for s in self.subjects], "source": self.source.to_json(),
+                "splits": {name: rec.to_json() for name, rec in self.splits.items()}, "complete": self.complete,
+                "generator": dict(self.generator)}
+
+    def write(self) -> None:
+        """Store it as :attr:`path`, atomically (a reader sees the old manifest or this one)."""
+        text = canonical_json(self.to_json()) + "\n"
+        atomic_write(self.path, lambda fh: fh.write(text.encode()))
+
+    # ---------------------------------------------------------------------------- changes
+    def with_shard(self, split: str, shard: ShardRecord) -> Manifest:
+        """This manifest with ``shard`` written into ``split``."""
+        return replace(self, splits={**self.splits, split: self.split(split).with_shard(shard)})
+
+    def with_shards(self, shards: Mapping[str, Iterable[ShardRecord]]) -> Manifest:
+        """This manifest with each split's shards replaced by ``shards[split]`` (splits not named: none)."""
+        return replace(self, splits={name: replace(rec, shards=tuple(sorted(shards.get(name, ()),
+                                                                           key=lambda s: s.index)))
+                                     for name, rec in self.splits.items()})
+
+    def finished(self) -> Manifest:
+        """This manifest, marked complete."""
+        return replace(self, complete=True)
+
+    # ---------------------------------------------------------------------------- reading parts
+    def __repr__(self) -> str:
+        return f"Manifest({str(self.root)!r}: {self.dataset}/{self.preset}, splits {sorted(self.splits)})"
+
+    @property
+    def path(self) -> Path:
+        """The ``manifest.json`` file."""
+        return self.root / MANIFEST
+
+    @property
+    def subject_names(self) -> list[str]:
+        return [s.name for s in self.subjects]
+
+    def generation_config(self) -> GenerationConfig:
+        """:attr:`config` as the typed :class:`~cerberus_core.datasets.plan.GenerationConfig`.
+
+        Raises:
+            DatasetError: the stored config does not build with this version (keys it no longer knows).
+        """
+        from cerberus_core.datasets.plan import GenerationConfig  # plan builds manifests: imported late
+
+        try:
+            return GenerationConfig.from_dict(dict(self.config))
+        except ConfigError as exc:
+            raise DatasetError(f"{self.path}: its generation config does not build with this version ({exc}); "
+                               "regenerate the dataset with this version") from None
+
+    def split(self, name: str) -> SplitRecord:
+        """The record of split ``name``.
+
+        Raises:
+            DatasetError: no such split, naming the dataset's splits.
+        """
+        if name not in self.splits:
+            raise DatasetError(f"{self.path}: no split {name!r}; this dataset has {sorted(self.splits)}")
+        return self.splits[name]
+
+
+def _scene(record: Any, path: Path) -> SceneSetup:
+    try:
+        return SceneSetup.from_dict(record)
+    except ConfigError as exc:
+        raise DatasetError(f"{path}: invalid scene set-up ({exc}); the manifest is damaged: regenerate the "
+                           "dataset") from None
+
+
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "Manifest", "ShardRecord", "SourceRecord",
+           "SplitRecord", "SubjectRecord", "canonical_json", "jsonable"]

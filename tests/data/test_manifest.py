@@ -1,0 +1,107 @@
+"""The typed manifest (cerberus_core.datasets.manifest): read, written, round-tripped, refused when
+damaged, and read when an earlier version wrote it."""
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import FrozenInstanceError
+from pathlib import Path
+
+import pytest
+
+from cerberus_core.datasets.format import DatasetError
+from cerberus_core.datasets.manifest import (
+    FORMAT_VERSION,
+    MANIFEST,
+    FileRecord,
+    Manifest,
+    ShardRecord,
+    SplitRecord,
+)
+from cerberus_core.datasets.readers import ViewDataset, verify_dataset
+from cerberus_core.datasets.scene import SceneSetup
+
+OLD_MANIFEST = Path(__file__).with_name("old_manifest.json")
+"""The manifest of `primitives`/`tiny` as the first release of the format wrote it (cerberus_core
+0.1.0, commit 5386e9a), kept as written."""
+
+
+def test_read_gives_typed_records(pairs_dataset):
+    m = Manifest.read(pairs_dataset)
+    raw = json.loads((pairs_dataset / MANIFEST).read_text())
+    assert m.root == pairs_dataset and m.path == pairs_dataset / MANIFEST and m.complete
+    assert (m.dataset, m.preset, m.image_size) == (raw["dataset"], raw["preset"], raw["image_size"])
+    assert m.part_names == tuple(raw["part_names"]) and m.subject_names == [s["name"] for s in raw["subjects"]]
+    assert isinstance(m.scene, SceneSetup) and m.scene == SceneSetup.from_dict(raw["scene"])
+    train = m.split("train")
+    assert isinstance(train, SplitRecord) and train.complete and train.layout == "pairs"
+    assert all(isinstance(s, ShardRecord) for s in train.shards)
+    assert [s.index for s in train.shards] == list(range(train.planned_shards))
+    assert isinstance(train.shards[0].files["images"], FileRecord)
+    assert train.totals()["images"] == train.planned_images
+    assert m.subjects[0].subject.name == m.subjects[0].name and "train" in m.subjects[0].splits
+    assert m.generation_config().to_dict() == m.config
+    assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
+    with pytest.raises(DatasetError, match="no split 'val'; this dataset has \\['test', 'train'\\]"):
+        m.split("val")
+    with pytest.raises(FrozenInstanceError):
+        m.complete = False  # type: ignore[misc]
+
+
+def test_to_json_is_what_the_generator_wrote_and_reads_back_equal(pairs_dataset):
+    m = Manifest.read(pairs_dataset)
+    assert m.to_json() == json.loads((pairs_dataset / MANIFEST).read_text())
+    assert Manifest.from_json(m.to_json(), pairs_dataset) == m
+
+
+def test_write_is_atomic_and_round_trips(pairs_dataset, tmp_path):
+    ds = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, ds)
+    m = Manifest.read(ds)
+    unfinished = m.with_shards({"train": m.split("train").shards[:1]})
+    assert not unfinished.split("train").complete and unfinished.split("test").shards == ()
+    unfinished.write()
+    assert Manifest.read(ds) == unfinished and not list(ds.glob(".*.tmp"))
+    again = unfinished
+    for shard in reversed(m.split("train").shards):
+        again = again.with_shard("train", shard)  # a shard already there is replaced, not repeated
+    assert again.split("train") == m.split("train")  # shards kept in index order
+
+
+def test_read_errors_name_the_problem(tmp_path, pairs_dataset):
+    with pytest.raises(DatasetError, match="does not exist"):
+        Manifest.read(tmp_path / "nope")
+    with pytest.raises(DatasetError, match="not a Cerberus dataset"):
+        Manifest.read(tmp_path)
+    (tmp_path / MANIFEST).write_text("{not json")
+    with pytest.raises(DatasetError, match="not valid JSON"):
+        Manifest.read(tmp_path)
+    raw = json.loads((pairs_dataset / MANIFEST).read_text())
+    cases = {
+        "format version 2": raw | {"format_version": FORMAT_VERSION + 1},
+        "not a cerberus-dataset manifest": raw | {"format": "other"},
+        "manifest lacks 'subjects'": {k: v for k, v in raw.items() if k != "subjects"},
+        "manifest.image_size is '64'": raw | {"image_size": "64"},
+        "splits.train lacks 'layout'": raw | {"splits": raw["splits"] | {"train": {"planned_shards": 1}}},
+        "invalid scene set-up": raw | {"scene": raw["scene"] | {"elevation": "high"}},
+    }
+    for problem, record in cases.items():
+        (tmp_path / MANIFEST).write_text(json.dumps(record))
+        with pytest.raises(DatasetError, match=problem):
+            Manifest.read(tmp_path)
+    ds = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, ds)
+    (ds / MANIFEST).write_text(json.dumps(cases["format version 2"]))
+    _, problems = verify_dataset(ds)
+    assert problems and "format version" in problems[0]
+
+
+def test_a_manifest_written_by_the_first_release_still_reads(tmp_path):
+    (tmp_path / MANIFEST).write_text(OLD_MANIFEST.read_text())
+    m = Manifest.read(tmp_path)
+    assert (m.dataset, m.preset, m.image_size, m.complete) == ("primitives", "tiny", 64, True)
+    assert m.generator == {"cerberus_core": "0.1.0"}
+    assert sorted(m.splits) == ["test", "train"] and all(s.complete for s in m.splits.values())
+    assert m.split("train").shards[0].files["images"].shape == (24, 3, 64, 64)
+    assert m.generation_config().splits["train"].layout == "pairs"
+    assert m.to_json() == json.loads(OLD_MANIFEST.read_text())  # rewritten on resume without loss
