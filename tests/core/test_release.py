@@ -11,8 +11,7 @@ import tomllib
 
 from cerberus_core import __version__
 from cerberus_core.release import DISTRIBUTIONS, VERSION, ReleaseMismatchError, require_lockstep
-
-REPO = Path(__file__).resolve().parents[2]
+from tests.support.paths import REPO
 
 
 def test_every_package_and_sibling_requirement_is_this_release_with_a_local_label():

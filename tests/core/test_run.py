@@ -1,4 +1,5 @@
-"""``Run``: a trained run as one object, and the one call ``cerberus eval`` makes (``Run.evaluate``)."""
+"""``Run`` (cerberus_core.run): a trained run as one object, the one call ``cerberus eval`` makes
+(``Run.evaluate``), and the checks it makes as the CLI does (issue 26)."""
 from __future__ import annotations
 
 import json
@@ -9,9 +10,15 @@ import torch
 
 from cerberus_core import Run
 from cerberus_core.errors import ConfigError
+from cerberus_core.plugins import (
+    METRIC_GROUP,
+    UnknownPluginError,
+)
 from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
 from cerberus_core.train import train
 from cerberus_core.train.checkpoint import CheckpointError
+
+pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
 
 
 @pytest.fixture(scope="module")
@@ -86,3 +93,31 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
     capsys.readouterr()
     assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--resolution", "999"]) == 2  # the CLI: its flag
     assert capsys.readouterr().err.strip() == "cerberus eval: --resolution 999: must be an integer in [1, 256]"
+
+
+
+def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, monkeypatch) -> None:
+    """core + a backend alone: `cerberus eval` / Run.evaluate say to install cerberus-metrics (issue 26),
+    not '--protocol ...: unknown plugin' for a flag nobody gave."""
+    import cerberus_core.run as run_module
+    from cerberus_core.plugins import get_plugin as real_get_plugin
+
+    monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
+    with pytest.raises(UnknownPluginError) as err:
+        run_module.EvalSettings()
+    assert "pip install cerberus-metrics" in str(err.value) and "--protocol" not in str(err.value)
+
+
+
+@pytest.mark.parametrize("limit", [0, -1, 2.5, True])
+def test_evaluate_refuses_a_limit_the_cli_refuses(limit):
+    from cerberus_core.run import EvalSettings
+
+    with pytest.raises(ValueError, match=r"limit = .*: must be an integer >= 1 \(EvalSettings\(limit=...\)\)"):
+        EvalSettings(limit=limit)
+
+
+def test_domain_notes_name_another_kind_of_body_and_another_camera(human_run, pairs_dataset):
+    notes = human_run.domain_notes(pairs_dataset)
+    assert any("trained on human bodies" in n and "primitives bodies" in n for n in notes)
+    assert any("differs from the model's training scenes" in n for n in notes)

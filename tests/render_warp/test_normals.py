@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import pytest
 import torch
-from warp_scenes import part_scene
 
 from cerberus_core import Light, make_renderer, render_parts
 from cerberus_core.render.api import pack_parts
 from cerberus_core.render.templates import vertex_normals as core_vertex_normals
 from cerberus_render_warp import vertex_normals
+from tests.support.scenes import part_scene
 
 
 @pytest.mark.parametrize("dtype, rtol", [(torch.float32, 1e-5), (torch.float64, 1e-12)])

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import pytest
 import torch
-from warp_scenes import clip_scene
 
 from cerberus_render_torch import rasterize as torch_rasterize
 from cerberus_render_warp import rasterize
+from tests.support.scenes import clip_scene
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])

@@ -8,10 +8,10 @@ import textwrap
 
 import pytest
 import torch
-from warp_scenes import part_scene
 
 from cerberus_core import Light, available_renderers, make_renderer, render_parts
 from cerberus_render_warp import WarpRenderer
+from tests.support.scenes import part_scene
 
 
 def test_found_through_the_entry_point(warp_renderer) -> None:

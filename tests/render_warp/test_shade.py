@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import pytest
 import torch
-from warp_scenes import shading_inputs
 
 from cerberus_core.render.interface import Light
 from cerberus_core.render.shading import shade as reference_shade
 from cerberus_render_warp import rasterize, shade
+from tests.support.scenes import shading_inputs
 
 Tensor = torch.Tensor
 

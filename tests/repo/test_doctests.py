@@ -3,11 +3,12 @@ from __future__ import annotations
 
 import doctest
 import importlib
-from pathlib import Path
 
 import pytest
 
-SOURCES = Path(__file__).resolve().parents[2] / "packages"
+from tests.support.paths import REPO
+
+SOURCES = REPO / "packages"
 
 
 def _modules_with_examples() -> list[str]:

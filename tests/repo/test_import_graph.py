@@ -11,7 +11,9 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-PACKAGES = Path(__file__).resolve().parents[2] / "packages"
+from tests.support.paths import REPO
+
+PACKAGES = REPO / "packages"
 MAX_LOCAL_IMPORTS = 5
 
 

@@ -6,11 +6,10 @@ import importlib.util
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.paths import REPO
 
 
 def _ruff() -> list[str] | None:
@@ -24,10 +23,10 @@ def test_ruff_check_passes() -> None:
     ruff = _ruff()
     if ruff is None:
         pytest.skip("ruff is not installed (pip install ruff)")
-    res = subprocess.run([*ruff, "check", "--no-cache", "."], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    res = subprocess.run([*ruff, "check", "--no-cache", "."], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
 
 
 def test_the_complexity_limit_is_configured() -> None:
-    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    text = (REPO / "pyproject.toml").read_text(encoding="utf-8")
     assert '"C901"' in text and "max-complexity = " in text

@@ -1,4 +1,5 @@
-"""Scene builders for the Warp backend's own tests (imported by the test modules)."""
+"""Scene builders for the renderer tests (the render API, the torch and the Warp backends), imported by the test
+modules."""
 from __future__ import annotations
 
 import torch
@@ -9,6 +10,19 @@ from cerberus_core.render.templates import vertex_normals
 
 Tensor = torch.Tensor
 
+
+
+def two_sphere_scene() -> tuple[Tensor, Tensor, Camera]:
+    """Two icosphere parts side by side, in a batch of 2 seen from azimuths 0 and 40 at 32 x 48 pixels.
+
+    Returns:
+        ``parts`` ``(2, 2, V, 3)``, template ``faces`` ``(F, 3)`` and the cameras.
+    """
+    t = icosphere(2)
+    parts = torch.stack([t.vertices * 0.25 + torch.tensor([-0.25, 0.0, 0.0]),
+                         t.vertices * 0.2 + torch.tensor([0.25, 0.1, 0.1])]).expand(2, -1, -1, -1)
+    cam = Camera.look_at(torch.tensor([0.0, 40.0]), 10.0, 2.5, fov_y_deg=30.0, image_size=(32, 48))
+    return parts, t.faces, cam
 
 def part_scene(batch: int, num_parts: int, size: int | tuple[int, int], *, seed: int = 0, radius: float = 0.1,
                level: int = 2, dtype: torch.dtype = torch.float32) -> tuple[Tensor, Tensor, Camera]:

@@ -1,7 +1,10 @@
 """``cerberus train`` end to end: start, refuse to clobber, resume, report errors with exit codes."""
+import pytest
 import yaml
 
 from cerberus_core.cli import main
+
+pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
 
 
 def test_cli_trains_resumes_and_reports(tiny_root, tmp_path, capsys):

@@ -12,11 +12,14 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 import yaml
 
 from cerberus_core.cli import main
 from cerberus_core.plumbing.lock import LOCK_NAME
 from cerberus_core.train.checkpoint import load_checkpoint
+
+pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
 
 
 def wait_for(condition, timeout: float = 120.0) -> None:

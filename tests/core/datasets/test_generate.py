@@ -1,17 +1,21 @@
-"""The generation driver: determinism, atomic shards, resume after a kill, refusing foreign folders."""
+"""The generation driver (cerberus_core.datasets.generate): determinism, atomic shards, resume after a kill,
+refusing foreign folders, supersampled images."""
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
 import textwrap
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from cerberus_core.datasets.format import MANIFEST, DatasetError, sha256_file
 from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.plan import preset_config
 from cerberus_core.datasets.readers import verify_dataset
+from cerberus_core.datasets.scene import SceneSetup
 
 QUIET = {"progress": False, "log": lambda s: None}
 
@@ -187,3 +191,27 @@ def test_the_memory_of_a_generation_is_checked_where_it_lives(monkeypatch, tmp_p
     with pytest.raises(ConfigError, match="on this machine"):  # generate() validates first: nothing written
         gen.generate(config, tmp_path / "ds", batch_size=24, **QUIET)
     assert not (tmp_path / "ds").exists()
+
+
+
+def test_supersampled_images_blend_edges_and_keep_the_coverage(tmp_path):
+    """``supersample``: images are rendered larger and box-filtered, so edges take intermediate values
+    while the body's total brightness matches the hard render's; stored only when not 1."""
+    from cerberus_core.bodies.body import PosedBody
+    from cerberus_core.datasets.generate import render_views
+    from cerberus_core.render.backends import make_renderer
+    from cerberus_core.render.templates import icosphere
+
+    sphere = icosphere(3)
+    body = PosedBody(0.3 * sphere.vertices.numpy(), sphere.faces.numpy(), np.zeros(len(sphere.vertices)), ["all"], "s", 0)
+    scene = SceneSetup(background=(0.0, 0.0, 0.0))
+    renderer = make_renderer("torch")
+    args = (renderer, [body], np.zeros(2, dtype=np.int64), np.array([0.0, 90.0]), scene, 32)
+    hard, soft = render_views(*args), render_views(*args, supersample=4)
+    edge_values = lambda im: int(((im > 0) & (im < 40)).sum())  # noqa: E731  darker than any lit surface pixel
+    assert edge_values(soft) > 3 * max(edge_values(hard), 1)
+    assert abs(float(soft.astype(np.float64).sum()) / float(hard.astype(np.float64).sum()) - 1) < 0.05
+    cfg = preset_config("primitives", "tiny")
+    assert "supersample" not in cfg.to_dict() and replace(cfg, supersample=4).to_dict()["supersample"] == 4
+    with pytest.raises(ValueError, match=r"supersample = .*: must be an integer in \[1, 8\]"):
+        replace(cfg, supersample=0)

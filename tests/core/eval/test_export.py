@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from conftest import body_parts
 
 from cerberus_core.eval.export import export_parts, export_reconstruction
 from cerberus_core.parts import PartSet
 from cerberus_core.viz import part_colors
+from tests.support.oracle import body_parts
 
 
 def test_glb_round_trip_has_named_coloured_parts(tmp_path, primitive_bodies):

@@ -4,13 +4,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from conftest import body_parts
 from PIL import Image
 
 from cerberus_core.eval import figures
 from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera
+from tests.support.oracle import body_parts
 
 H = 40
 

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import body_parts
 
 from cerberus_core.eval.standard import Score, VoxelScorer, summarize
+from tests.support.oracle import body_parts
 
 
 @pytest.mark.parametrize("direction", [(1, 0, 0), (1, -1, 0), (-1, 1, 1)], ids=["face", "edge", "corner"])
@@ -32,3 +32,20 @@ def test_summary_counts_images_and_parts_clamped():
     scores = [Score(0.5, 3), Score(0.7, 0), Score(0.0, 0, "MeshInputError: x"), Score(0.9, 1)]
     s = summarize(scores, ["a", "a", "b", "b"])
     assert (s.clipped, s.clipped_parts, s.failed, s.count) == (2, 4, 1, 4)
+
+
+
+def test_scorer_clamps_escaping_predictions_and_zeroes_rejected_ones(primitive_bodies, iou_scorer):
+    body = primitive_bodies[1]
+    parts = body_parts(body).part_meshes(0)
+    gt = (body.vertices, body.faces)
+    scorer = VoxelScorer(factory=iou_scorer)
+    assert scorer(parts, gt).iou == pytest.approx(1.0)
+    shifted = [(v + np.array([0.3, 0.0, 0.0]), f) for v, f in parts]
+    s = scorer(shifted, gt)
+    assert s.clipped and s.error is None and 0.0 < s.iou < 0.9
+    flat = [(np.zeros_like(v), f) for v, f in parts]
+    s = scorer(flat, gt)
+    assert s.iou == 0.0 and "degenerate mesh" in s.error
+    with pytest.raises(Exception, match="gt"):  # a broken ground truth is a data error, not a score
+        scorer(flat, (np.zeros_like(body.vertices), body.faces))

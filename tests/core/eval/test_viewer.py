@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from conftest import body_parts
 from PIL import Image
 
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.eval import viewer
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.camera import Camera
+from tests.support.oracle import body_parts
 
 STEMS = ["alpha", "beta", "gamma"]
 

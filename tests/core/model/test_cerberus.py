@@ -1,4 +1,7 @@
-"""The assembled Cerberus model: output shapes, camera vs world frames, initialisation, evaluation API."""
+"""The assembled Cerberus model (cerberus_core.model.cerberus): output shapes, camera vs world frames,
+initialisation, evaluation API, and the images it refuses (issue 26)."""
+from __future__ import annotations
+
 import pytest
 import torch
 
@@ -85,3 +88,17 @@ def test_forward_mixer_replaces_the_render_latent_only():
     pred = model(torch.rand(4, 3, 32, 32), mix=lambda s: s.flip(0))
     torch.testing.assert_close(pred.render_latent, pred.shape_latent.flip(0))
     torch.testing.assert_close(pred.local_vertices, model.shape.deform(pred.shape_latent.flip(0)))
+
+
+
+def test_reconstruct_refuses_images_that_are_not_float32_in_0_1(human_run):
+    cam = human_run.scene.cameras(torch.zeros(1), 64)
+    with pytest.raises(ValueError, match=r"uint8 \(0-255\); pass images.float\(\) / 255"):
+        human_run.model.reconstruct(torch.zeros(1, 3, 64, 64, dtype=torch.uint8), cam)
+    with pytest.raises(ValueError, match="float64"):
+        human_run.model.reconstruct(torch.zeros(1, 3, 64, 64, dtype=torch.float64), cam)
+    with pytest.raises(ValueError, match="above 1"):
+        human_run.model.reconstruct(torch.full((1, 3, 64, 64), 200.0), cam)
+    human_run.model.eval()
+    with torch.no_grad():
+        assert human_run.model.reconstruct(torch.rand(1, 3, 64, 64), cam).batch_size == 1

@@ -1,9 +1,9 @@
 """Training configs: presets, files with ``extends``, ``--set`` overrides, validation messages."""
-from pathlib import Path
 
 import pytest
 
 from cerberus_core.train.config import TrainConfig, config_diff, load_config, parse_overrides, preset_names
+from tests.support.paths import REPO
 
 
 def test_bundled_presets_load_and_validate():
@@ -93,7 +93,7 @@ def test_yaml_round_trip():
 
 def test_table1_experiment_configs_load_and_say_what_their_names_say():
     """The configs behind docs/results.md stay loadable as the presets evolve."""
-    root = Path(__file__).resolve().parents[2] / "experiments" / "table1"
+    root = REPO / "experiments" / "table1"
     files = sorted(root.glob("*.yaml"))
     assert len(files) == 6
     for f in files:

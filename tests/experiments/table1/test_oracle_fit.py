@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,8 +10,9 @@ import trimesh
 
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.render.templates import icosphere
+from tests.support.paths import REPO
 
-SCRIPT = Path(__file__).resolve().parents[2] / "experiments" / "table1" / "oracle_fit.py"
+SCRIPT = REPO / "experiments" / "table1" / "oracle_fit.py"
 
 
 @pytest.fixture(scope="module")
