@@ -1,11 +1,17 @@
 """Repository-wide pytest set-up. (The renderer conformance suite, and its ``--renderer`` option, ship in
 the core package: ``cerberus_core/testing``, collected by the suite through ``testpaths``.)
 
-The ``chromium`` fixture runs headless Chromium for the 3D viewer's tests (skipped where it is missing).
+The ``chromium`` fixture runs headless Chromium for the 3D viewer's tests (skipped where it is missing);
+``fake_dist`` lays out fake installed distributions for the plugin-discovery tests.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
+
 import pytest
+
+from tests.support.dists import write_distribution
 
 
 # ------------------------------------------------------------------ headless Chromium (the 3D viewer's tests)
@@ -60,3 +66,19 @@ def chromium(tmp_path_factory) -> HeadlessChromium:
         pytest.skip("headless Chromium not found, so the 3D viewer's browser tests are skipped: "
                     "install it with `apt-get install chromium` (CI does) or set CERBERUS_CHROMIUM")
     return HeadlessChromium(exe, tmp_path_factory.mktemp("chromium"))
+
+
+# ------------------------------------------------------------------ fake installed distributions (plugin discovery)
+@pytest.fixture
+def fake_dist(tmp_path: Path) -> Callable[..., Path]:
+    """``fake_dist(dist, entry_points, modules, folder="site")`` writes a fake distribution into
+    ``tmp_path / folder`` and returns that folder (pass ``path=[str(it)]`` to the discovery
+    functions, or put it on sys.path)."""
+
+    def make(dist: str, entry_points: dict[str, dict[str, str]], modules: dict[str, str] | None = None,
+             folder: str = "site") -> Path:
+        root = tmp_path / folder
+        write_distribution(root, dist, entry_points, modules)
+        return root
+
+    return make

@@ -1,46 +1,144 @@
-"""Fixtures of the core unit tests: fake installed distributions for plugin discovery."""
+"""Fixtures shared by the core package's tests (``tests/core/**``), in sections:
+
+* datasets: small datasets of capsule figures (the ``primitives`` source), generated with the real renderer
+  into temporary folders;
+* training: the tiny on-disk dataset (6 training quadruplets at 32 pixels, made in a few seconds) and the
+  ``tiny`` training config on it, and ``one_thread``;
+* evaluation: the torch renderer, capsule-figure bodies and the tiny rendered test set of
+  ``tests/support/oracle.py``, and the voxel IoU scorer of cerberus-metrics;
+* the shipped ``human`` run.
+
+Helpers that test modules import live in ``tests/support/``, not here.
+"""
 from __future__ import annotations
 
-import textwrap
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
+from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, preset_config
+from cerberus_core.plugins import PluginError, get_metric
+from cerberus_core.render.backends import make_renderer
+from cerberus_core.train.config import load_config
+from tests.support.oracle import TinyViewDataset
 
-def write_distribution(root: Path, dist: str, entry_points: dict[str, dict[str, str]],
-                       modules: dict[str, str] | None = None, version: str = "0.1") -> Path:
-    """Lay out an installed distribution the way pip does: ``NAME-VERSION.dist-info/`` with METADATA
-    and entry_points.txt, plus top-level modules, under ``root``.
 
-    Args:
-        dist: distribution name (``fake-render``).
-        entry_points: ``{group: {name: "module:object"}}``.
-        modules: ``{module_name: source}`` written as ``root/module_name.py``.
-    """
-    info = root / f"{dist.replace('-', '_')}-{version}.dist-info"
-    info.mkdir(parents=True)
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: {version}\n")
-    lines = []
-    for group, eps in entry_points.items():
-        lines.append(f"[{group}]")
-        lines += [f"{name} = {target}" for name, target in eps.items()]
-    (info / "entry_points.txt").write_text("\n".join(lines) + "\n")
-    for name, source in (modules or {}).items():
-        (root / f"{name}.py").write_text(textwrap.dedent(source))
-    return info
+# ------------------------------------------------------------------ datasets
+def tiny_pairs_config(**overrides) -> GenerationConfig:
+    """Pairs layout (Human protocol) with 3 training shards and a test grid with canonical poses."""
+    splits = {
+        "train": SplitConfig("pairs", subjects=2, pairs=6, meshes=True),
+        "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
+    }
+    base = {"dataset": "primitives", "preset": "test-pairs", "splits": splits, "image_size": 32, "shard_images": 8}
+    base.update(overrides)
+    return GenerationConfig(**base)
+
+
+def tiny_grid_config(**overrides) -> GenerationConfig:
+    """Grid layout (Animal protocol): shared azimuths, quadruplets from pose pairs x view pairs."""
+    splits = {
+        "train": SplitConfig("grid", subjects=2, poses=3, views=3, azimuths="shared", quadruplets_per_pose=2),
+        "test": SplitConfig("grid", subjects=1, poses=2, views=2),
+    }
+    base = {"dataset": "primitives", "preset": "test-grid", "splits": splits, "image_size": 32, "shard_images": 64}
+    base.update(overrides)
+    return GenerationConfig(**base)
+
+
+@pytest.fixture(scope="session")
+def pairs_dataset(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("pairs") / "ds"
+    generate(tiny_pairs_config(), out, progress=False, log=lambda s: None)
+    return out
+
+
+@pytest.fixture(scope="session")
+def grid_dataset(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("grid") / "ds"
+    generate(tiny_grid_config(), out, progress=False, log=lambda s: None)
+    return out
+
+
+@pytest.fixture(scope="session")
+def tiny_preset_config() -> GenerationConfig:
+    return preset_config("primitives", "tiny", image_size=32)
+
+
+@pytest.fixture(scope="session")
+def pairs_config():
+    """Factory of the pairs-layout test config (keyword overrides)."""
+    return tiny_pairs_config
+
+
+@pytest.fixture(scope="session")
+def grid_config():
+    """Factory of the grid-layout test config (keyword overrides)."""
+    return tiny_grid_config
+
+
+# ------------------------------------------------------------------ training
+@pytest.fixture(scope="session")
+def tiny_root(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data") / "primitives_tiny"
+    generate(preset_config("primitives", "tiny", image_size=32), root, progress=False, log=lambda _: None)
+    return root
 
 
 @pytest.fixture
-def fake_dist(tmp_path: Path) -> Callable[..., Path]:
-    """``fake_dist(dist, entry_points, modules, folder="site")`` writes a fake distribution into
-    ``tmp_path / folder`` and returns that folder (pass ``path=[str(it)]`` to the discovery
-    functions, or put it on sys.path)."""
-
-    def make(dist: str, entry_points: dict[str, dict[str, str]], modules: dict[str, str] | None = None,
-             folder: str = "site") -> Path:
-        root = tmp_path / folder
-        write_distribution(root, dist, entry_points, modules)
-        return root
-
+def tiny_config(tiny_root):
+    """``tiny_config(key=value, ...)`` → the ``tiny`` preset on the tiny dataset, with ``--set`` style overrides."""
+    def make(*overrides: str):
+        return load_config(preset="tiny", overrides=[f"data.root={tiny_root}", "train.tensorboard=false",
+                                                     *overrides])
     return make
+
+
+@pytest.fixture
+def one_thread():
+    """One intra-op thread: small tensors gain nothing from more, and on a shared machine an
+    oversubscribed OpenMP pool can be tens of times slower. Restored after each test."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+# ------------------------------------------------------------------ evaluation
+@pytest.fixture(scope="session")
+def iou_scorer():
+    """The ``voxel_iou_scorer`` factory through its entry point, or a skip while cerberus-metrics is absent."""
+    try:
+        return get_metric("voxel_iou_scorer")
+    except PluginError as exc:
+        pytest.skip(f"the voxel_iou metric is not installed (pip install cerberus-metrics): {exc}")
+
+
+@pytest.fixture(scope="session")
+def renderer():
+    return make_renderer("torch")
+
+
+@pytest.fixture(scope="session")
+def primitive_bodies():
+    source = PrimitiveBodySource()
+    subjects = sample_subjects(2, seed=1, split="test")
+    return [b for s in subjects for b in source.posed_bodies(s, [0, 1, 2])]
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(renderer):
+    return TinyViewDataset(renderer)
+
+
+# ------------------------------------------------------------------ the shipped model
+@pytest.fixture(scope="module")
+def human_run():
+    """The shipped ``human`` run (``Run.load("human")``)."""
+    from cerberus_core import Run
+
+    return Run.load("human")

@@ -24,7 +24,7 @@ from cerberus_core.datasets.plan import preset_config
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are
-# in tests/eval/test_eval_input_domain.py).
+# in tests/core/eval/test_input_domain.py).
 pytestmark = pytest.mark.filterwarnings("ignore:.*out of the training domain:UserWarning")
 
 

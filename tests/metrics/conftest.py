@@ -1,4 +1,5 @@
-"""Shared mesh builders and independent oracles for the cerberus-metrics tests."""
+"""Shared mesh builders and independent oracles for the cerberus-metrics tests (the ``helpers`` fixture), and
+the ``box`` and ``folders`` (a batch of predictions and ground truths) fixtures."""
 
 from __future__ import annotations
 
@@ -120,3 +121,28 @@ def helpers():
         kato_loops = staticmethod(kato_surface_loops)
 
     return H
+
+
+@pytest.fixture
+def box(helpers):
+    return helpers.box((-0.3, -0.2, -0.1), (0.25, 0.3, 0.2))
+
+
+@pytest.fixture
+def folders(tmp_path, helpers):
+    pred, gt = tmp_path / "pred", tmp_path / "gt"
+    pred.mkdir()
+    gt.mkdir()
+    for i in range(3):
+        helpers.blob(10 + i).export(gt / f"s{i}.ply")
+        helpers.blob(20 + i).export(pred / f"s{i}.ply")
+    (pred / "parts").mkdir()  # a prediction made of parts, matched by folder name
+    helpers.box((-0.3, -0.3, -0.3), (0.0, 0.2, 0.2)).export(pred / "parts" / "a.obj")
+    helpers.box((-0.1, -0.3, -0.3), (0.2, 0.2, 0.2)).export(pred / "parts" / "b.obj")
+    helpers.box((-0.3, -0.3, -0.3), (0.2, 0.2, 0.2)).export(gt / "parts.obj")
+    (pred / "broken.obj").write_text("this is not a mesh\nv 1\n")  # unreadable prediction
+    helpers.blob(1).export(gt / "broken.obj")
+    (pred / "empty.obj").write_text("# no faces\nv 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    helpers.blob(2).export(gt / "empty.obj")
+    helpers.blob(3).export(gt / "lonely.ply")  # no prediction
+    return pred, gt

@@ -17,7 +17,7 @@ __version__ = VERSION
 
 #: Every exported name, loaded on first use: ``import cerberus_core`` itself imports nothing heavy (no
 #: torch), so the ``cerberus`` command can take charge of Ctrl-C before anything slow is imported, and
-#: ``import cerberus_core.render`` needs torch alone (tests/core/test_core_imports.py). The function
+#: ``import cerberus_core.render`` needs torch alone (tests/core/render/test_init.py). The function
 #: ``render`` is ``cerberus_core.render.render`` (``cerberus_core.render`` is its sub-package).
 _LAZY = {
     "render_parts": "cerberus_core.render.api",

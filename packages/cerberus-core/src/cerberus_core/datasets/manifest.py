@@ -15,7 +15,7 @@ The manifest is a tree of frozen records, each with ``from_json`` (the JSON obje
 The generator builds these records and writes them with :meth:`Manifest.write` (atomically, after
 each shard); every reader opens a dataset with :meth:`Manifest.read`. This module is the only place
 that reads or writes the manifest's JSON keys. Manifests written by earlier versions of format 1
-still read: keys they lack take the defaults below (``tests/data/old_manifest.json``).
+still read: keys they lack take the defaults below (``tests/core/datasets/old_manifest.json``).
 """
 from __future__ import annotations
 

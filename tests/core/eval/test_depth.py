@@ -1,0 +1,54 @@
+"""cerberus_core.eval.depth: depth across the views of a test pose."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.eval.depth import mask_iou, translation_disagreement, turned_view_ious
+from cerberus_core.parts import PartSet
+from cerberus_core.render.backends import make_renderer
+from cerberus_core.render.templates import icosphere
+
+
+def test_translation_disagreement_is_the_mean_pairwise_distance_per_part():
+    t = torch.zeros(3, 2, 3)
+    t[1, 0, 0] = 0.3  # part 0: one view off by 0.3 -> pairs (0,1) 0.3, (0,2) 0, (1,2) 0.3
+    torch.testing.assert_close(translation_disagreement(t), torch.tensor([0.2, 0.0]))
+    with pytest.raises(ValueError, match="at least 2 views"):
+        translation_disagreement(t[:1])
+
+
+def test_mask_iou():
+    a = torch.zeros(2, 4, 4, dtype=torch.bool)
+    b = torch.zeros(2, 4, 4, dtype=torch.bool)
+    a[0, :2] = True
+    b[0, 1:3] = True  # 4 shared pixels of 12
+    torch.testing.assert_close(mask_iou(a, b), torch.tensor([4 / 12, 1.0]))  # both empty: 1
+
+
+def _scene(shift: float):
+    """A sphere 'body' at the origin seen from 3 views; each view's reconstruction is the same
+    sphere, view 0's moved by ``shift`` along its own camera ray (its input view nearly unchanged)."""
+    scene = SceneSetup(distance=2.5)
+    cams = scene.cameras(torch.tensor([0.0, 90.0, 200.0]), 32)
+    sphere = icosphere(2, radius=0.35)
+    local = sphere.vertices.unsqueeze(0).unsqueeze(0).expand(3, 1, -1, 3)
+    trans = torch.zeros(3, 1, 3)
+    ray = torch.nn.functional.normalize(-cams.center[0], dim=0)
+    trans[0, 0] = shift * ray
+    parts = PartSet(local, sphere.faces, torch.eye(3).expand(3, 1, 3, 3), trans)
+    return parts, cams, (sphere.vertices, sphere.faces)
+
+
+def test_turned_view_iou_sees_a_depth_error_the_input_view_cannot():
+    renderer = make_renderer("torch")
+    parts, cams, body = _scene(0.0)
+    right = turned_view_ious(renderer, parts, cams, body)
+    assert right.shape == (3, 3) and bool((right > 0.97).all())
+    parts, cams, body = _scene(0.6)  # view 0's sphere slides 0.6 toward its camera
+    wrong = turned_view_ious(renderer, parts, cams, body)
+    assert wrong[0, 1] < 0.5 and wrong[0, 2] < 0.8  # the other views see it off the body
+    assert wrong[1, 2] > 0.97 and wrong[2, 1] > 0.97  # the consistent views still agree
+    off = ~torch.eye(3, dtype=torch.bool)
+    assert float(wrong.diagonal().mean() - wrong[off].mean()) > float(right.diagonal().mean() - right[off].mean())

@@ -1,0 +1,100 @@
+"""Pictures with real rendering: sizes, contents, viewpoints."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from cerberus_core.eval import figures
+from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
+from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import Camera
+from tests.support.oracle import body_parts
+
+H = 40
+
+
+def _camera(az=30.0, n=1):
+    return Camera.look_at(torch.full((n,), az), 15.0, 2.6, fov_y_deg=30.0, image_size=H)
+
+
+def test_renders_show_the_body_and_part_colours(renderer, primitive_bodies):
+    recon = body_parts(primitive_bodies[1])
+    cam = _camera()
+    shaded = figures.render_reconstruction(renderer, recon, cam)
+    parts = figures.render_reconstruction(renderer, recon, cam, parts=True)
+    assert shaded.shape == parts.shape == (1, 3, H, H)
+    fg = (shaded[0] < 0.99).any(0)
+    assert 0.02 < fg.float().mean() < 0.6  # the figure is in frame, not filling it
+    grey = (shaded[0, 0] - shaded[0, 2]).abs()[fg].max()
+    assert grey < 1e-5 and (parts[0, 0] - parts[0, 2]).abs()[fg].max() > 0.2
+    relit = figures.relit(renderer, recon, cam)
+    assert (relit - shaded).abs()[:, :, fg].mean() > 0.02  # another light, other shading, same silhouette
+    assert torch.equal((relit[0] < 0.99).any(0), fg)
+
+
+def test_turntable_views_differ(renderer, primitive_bodies):
+    recon = body_parts(primitive_bodies[2])
+    views = figures.turntable(renderer, recon, _camera(), n_views=4)
+    assert views.shape == (4, 3, H, H)
+    first = figures.render_reconstruction(renderer, recon, _camera())[0]
+    torch.testing.assert_close(views[0], first, atol=1e-4, rtol=0)
+    masks = [(v < 0.99).any(0) for v in views]
+    assert all((masks[0] ^ m).float().mean() > 0.01 for m in masks[1:])
+
+
+def test_new_pose_equals_render_of_donor_when_shapes_agree(renderer, primitive_bodies):
+    a = body_parts(primitive_bodies[0], seed=3)
+    donor = PartSet(a.local_vertices, a.faces, a.rotations.flip(1), a.translations.flip(1))
+    got = figures.reposed(renderer, a, donor, _camera())
+    torch.testing.assert_close(got, figures.render_reconstruction(renderer, donor, _camera()))
+
+
+def test_save_image_pictures_writes_pngs_of_expected_size(tmp_path, renderer, primitive_bodies):
+    recon, donor = body_parts(primitive_bodies[0]), body_parts(primitive_bodies[1])
+    cam = _camera()
+    image = figures.render_reconstruction(renderer, recon, cam)[0]
+    paths = figures.save_image_pictures(renderer, image, recon, cam, tmp_path, "x", n_views=8, pose_donor=donor,
+                                        scale=2)
+    sizes = {p.name: Image.open(p).size for p in paths}
+    for name in ("input", "reconstruction", "parts", "new_lighting", "new_pose"):
+        assert sizes[f"x_{name}.png"] == (H, H)
+    cell = 2 * H + PAD
+    assert sizes["x_turntable.png"] == (ROW_LABEL_WIDTH + 8 * cell + PAD, TITLE_HEIGHT + 2 * cell + PAD)
+    assert sizes["x_figure1.png"] == (3 * cell + PAD, 2 * (TITLE_HEIGHT + cell + PAD))
+    png = np.asarray(Image.open(tmp_path / "x_parts.png"))
+    assert len({tuple(p) for p in png.reshape(-1, 3)}) > 10  # coloured parts, not a blank tile
+
+
+def test_comparison_figure_columns(renderer, primitive_bodies):
+    bodies = primitive_bodies[:3]
+    ours = PartSet.cat([body_parts(b) for b in bodies])
+    cams = Camera.cat([_camera(az) for az in (0.0, 45.0, 90.0)])
+    images = figures.render_reconstruction(renderer, ours, cams)
+    blob = PartSet.from_posed(torch.as_tensor(bodies[0].vertices)[None].expand(3, -1, -1),
+                                         torch.as_tensor(bodies[0].faces))
+    titles, rows = figures.comparison_rows(renderer, images, cams, ours, {"NMR": blob, "NMRs": blob})
+    assert titles == ["Input", "NMR", "NMRs", "Ours", "Parts", "Turn"]
+    assert len(rows) == 3 and all(len(r) == 6 for r in rows)
+    torch.testing.assert_close(rows[1][3], images[1])
+    img = figures.comparison_figure(renderer, images, cams, ours, {"NMR": blob}, scale=1)
+    assert img.size == (5 * (H + PAD) + PAD, TITLE_HEIGHT + 3 * (H + PAD) + PAD)
+    with pytest.raises(ValueError, match="reconstructions for 3 images"):
+        figures.comparison_rows(renderer, images, cams, ours.index([0, 1]))
+
+
+@pytest.mark.parametrize("size", [16, 32, 64])
+def test_figure_one_titles_stay_inside_their_columns(size):
+    """Issue 11: at 32 px the captions ran into each other. Every caption is drawn inside its own
+    column: the title band is white where two columns meet, and every caption left some ink."""
+    panels = {k: torch.full((3, size, size), 0.5) for k in figures.FIGURE_ONE_TITLES}
+    picture = np.asarray(figures.figure_one(panels, scale=1, columns=3).convert("L"))
+    cell = size + PAD
+    for row in range(2):
+        band = picture[row * (TITLE_HEIGHT + cell + PAD):][:TITLE_HEIGHT]
+        for c in range(3):
+            x0 = PAD + c * cell
+            assert (band[:, x0 - PAD // 2] == 255).all(), f"a caption crosses the left edge of column {c}"
+            assert (band[:, x0 + size - 1 + PAD // 2] == 255).all(), f"a caption crosses the right edge of column {c}"
+            assert (band[:, x0:x0 + size] < 128).any(), f"caption {c} of row {row} drew nothing"

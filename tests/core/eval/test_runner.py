@@ -1,0 +1,86 @@
+"""Standard, Hard Human and part-quality evaluation in one pass, on a real (tiny) rendered test set
+(cerberus_core.eval.runner)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cerberus_core.eval.report import markdown_report, write_json
+from cerberus_core.eval.runner import evaluate_dataset
+from cerberus_core.eval.standard import VoxelScorer
+from tests.support.oracle import IMAGE_SIZE, OracleModel
+
+
+def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, iou_scorer, renderer, tmp_path):
+    model = OracleModel(tiny_dataset)
+    scorer = VoxelScorer(factory=iou_scorer)
+    res = evaluate_dataset(tiny_dataset, model, batch_size=5, scorer=scorer, renderer=renderer, progress=False)
+    n = len(tiny_dataset)
+    assert res.standard.count == n and res.standard.mean == pytest.approx(1.0)
+    assert set(res.standard.per_group) == {it["subject"] for it in tiny_dataset.items}
+    # Canonical image of each subject: pose 0, view 0; every other image is scored in the hard test.
+    assert res.canonical == {s: min(i for i, it in enumerate(tiny_dataset.items) if it["subject"] == s)
+                             for s in res.standard.per_group}
+    assert res.hard.count == n - 2
+    for rec in res.records:
+        if rec["index"] in res.canonical.values():
+            assert "hard_iou" not in rec
+        elif rec["pose"] == 0:  # another view of the canonical pose: same transforms, exact
+            assert rec["hard_iou"] == pytest.approx(1.0)
+        else:  # canonical capsules moved to the new pose's centres but not turned
+            assert 0.05 < rec["hard_iou"] < 0.95
+    assert res.hard.mean < res.standard.mean
+    # Work done once: one forward per image (+ the canonical ones), one GT mesh and grid per pose.
+    poses = len({(it["subject"], it["pose"]) for it in tiny_dataset.items})
+    assert model.calls == n + 2
+    assert tiny_dataset.gt_calls == poses
+    assert scorer.cache.misses == poses
+    pq = res.part_quality
+    assert pq["consistency"] == 1.0 and pq["mean_segmentation_iou"] == pytest.approx(1.0)
+
+    # Visibility: the oracle's parts are the body's capsules, so every image's counts partition the
+    # silhouette of the input image itself (rendered over white by the dataset).
+    vis = res.part_visibility
+    assert vis["images"] == n and vis["image_size"] == [IMAGE_SIZE, IMAGE_SIZE] and len(vis["hidden_fraction"]) == 10
+    for rec in res.records:
+        image = tiny_dataset.images[rec["index"]]
+        assert sum(rec["visible_pixels"]) == int((image < 1.0).any(0).sum())
+    counts = np.array([rec["visible_pixels"] for rec in res.records])
+    assert vis["hidden_fraction"] == pytest.approx((counts == 0).mean(0).tolist())
+    assert vis["mean_visible_pixels"] == pytest.approx(counts.mean(0).tolist())
+    assert vis["parts_hidden_in_most_images"] == sum(h > 0.5 for h in vis["hidden_fraction"])
+
+    path = write_json(res, tmp_path / "results.json")
+    data = json.loads(path.read_text())
+    assert data["standard"]["count"] == n and len(data["records"]) == n
+    assert data["part_visibility"]["hidden_fraction"] == pytest.approx(vis["hidden_fraction"])
+    md = markdown_report(data, "Oracle")
+    assert "| all | 1.0000 |" in md and "Hard Human" in md and "| head | 1.000 |" in md
+    assert "| Images | Hidden in input view | Silhouette share |" in md and "parts hidden in most images:" in md
+
+
+def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
+    model = OracleModel(tiny_dataset)
+    res = evaluate_dataset(tiny_dataset, model, indices=[3, 4], hard=False, part_quality=False,
+                           scorer=VoxelScorer(factory=iou_scorer), renderer=renderer, progress=False)
+    assert res.standard.count == 2 and res.hard is None and res.part_quality is None and res.canonical == {}
+    assert res.part_visibility["images"] == 2
+    md = markdown_report(res)
+    assert "## Part visibility" in md and "| Learned part | Hidden in input view | Silhouette share | Visible pixels |" in md
+    res = evaluate_dataset(tiny_dataset, model, indices=[3], hard=False, part_quality=False, visibility=False,
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    assert res.part_visibility is None and "visible_pixels" not in res.records[0]
+    assert "visibility" not in markdown_report(res)
+    res = evaluate_dataset(tiny_dataset, model, indices=[3], part_quality=False, visibility=False,
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    assert res.hard.count == 1  # the canonical image is found outside the subset
+    with pytest.raises(ValueError, match="no images"):
+        evaluate_dataset(tiny_dataset, model, indices=[], progress=False)
+
+
+def test_model_output_is_checked(tiny_dataset, iou_scorer):
+    with pytest.raises(TypeError, match="PartSet"):
+        evaluate_dataset(tiny_dataset, lambda images, camera: images, hard=False,
+                         scorer=VoxelScorer(factory=iou_scorer), progress=False)

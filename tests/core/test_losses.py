@@ -1,0 +1,250 @@
+"""Every loss term (cerberus_core.losses), eqs. 2-7 and the terms beyond the paper."""
+
+import math
+
+import pytest
+import torch
+
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.losses import (
+    VIEW_PARTNER,
+    background_loss,
+    background_mask,
+    dihedral_cosines,
+    mix_shape_latents,
+    reconstruction_loss,
+    smoothness_loss,
+    translation_loss,
+    viewpoint_reconstruction,
+    viewpoint_scenes,
+)
+from cerberus_core.render.templates import icosphere
+
+
+def test_reconstruction_loss_is_mean_over_pixels_of_squared_rgb_error():
+    rendered = torch.zeros(2, 4, 3, 8, 8)
+    target = torch.full((2, 4, 3, 8, 8), 0.5)
+    target[0, 0, :, :4] = 0.0  # half the pixels of one image are right
+    loss = reconstruction_loss(rendered, target)
+    assert loss.shape == (2, 4)
+    assert loss[0, 0] == pytest.approx(0.375)
+    assert loss[1, 3] == pytest.approx(0.75)
+
+
+def test_mixing_draws_each_element_from_one_of_the_four_latents():
+    g = torch.Generator().manual_seed(0)
+    latents = torch.arange(4.0).view(1, 4, 1) + 10 * torch.arange(3.0).view(3, 1, 1) + torch.zeros(3, 4, 500)
+    mixed, choice = mix_shape_latents(latents, g)
+    assert mixed.shape == (3, 500) and choice.shape == (3, 500)
+    torch.testing.assert_close(mixed, latents.gather(1, choice.unsqueeze(1)).squeeze(1))
+    torch.testing.assert_close(mixed, choice.float() + 10 * torch.arange(3.0).view(3, 1))
+    counts = torch.bincount(choice.flatten(), minlength=4).float() / choice.numel()
+    assert torch.allclose(counts, torch.full((4,), 0.25), atol=0.04)  # uniform categorical Z
+
+
+def test_viewpoint_scenes_cross_uses_partner_translation_with_own_rotation():
+    """Equation 4: a0 -> a1 renders R^a0 V^a0 + T^a1 (and a1 -> a0 is R^a1 V^a1 + T^a0, etc.)."""
+    g = torch.Generator().manual_seed(2)
+    local = torch.randn(1, 4, 2, 5, 3, generator=g)
+    rot = torch.linalg.qr(torch.randn(1, 4, 2, 3, 3, generator=g))[0]
+    trans = torch.randn(1, 4, 2, 3, generator=g)
+    own, cross = viewpoint_scenes(local, rot, trans)
+    assert VIEW_PARTNER == (1, 0, 3, 2)
+    for x, partner in enumerate(VIEW_PARTNER):
+        rotated = local[0, x] @ rot[0, x].transpose(-1, -2)
+        torch.testing.assert_close(own[0, x], rotated + trans[0, x].unsqueeze(-2))
+        torch.testing.assert_close(cross[0, x], rotated + trans[0, partner].unsqueeze(-2))
+
+
+def test_viewpoint_scenes_own_cross_view_is_the_whole_model_seen_from_the_partner():
+    """cross_view='own': a0 -> a1 renders R^a0 V^a0 + T^a0 (image a0's own world model), so the
+    partner's image checks each part's own depth; an unknown mode is refused."""
+    g = torch.Generator().manual_seed(3)
+    local = torch.randn(1, 4, 2, 5, 3, generator=g)
+    rot = torch.linalg.qr(torch.randn(1, 4, 2, 3, 3, generator=g))[0]
+    trans = torch.randn(1, 4, 2, 3, generator=g)
+    own, cross = viewpoint_scenes(local, rot, trans, "own")
+    torch.testing.assert_close(cross, own)
+    torch.testing.assert_close(own, viewpoint_scenes(local, rot, trans)[0])
+    with pytest.raises(ValueError, match="cross_view"):
+        viewpoint_scenes(local, rot, trans, "mine")
+
+
+def test_viewpoint_reconstruction_halves_own_and_cross_then_averages():
+    own = torch.tensor([[1.0, 2.0, 3.0, 4.0]])
+    cross = torch.tensor([[3.0, 2.0, 1.0, 0.0]])
+    assert viewpoint_reconstruction(own, cross).item() == pytest.approx(2.0)
+    assert viewpoint_reconstruction(own, None).item() == pytest.approx(2.5)
+
+
+def test_translation_loss_equations_5_and_6():
+    t = torch.zeros(1, 4, 3, 3)
+    t[0, 0, :, 0] = 1.0  # a0 differs from a1 by 1 in x for every part; b0 == b1
+    t[0, 2] = t[0, 3] = 5.0
+    assert translation_loss(t).item() == pytest.approx(0.5)
+    t[0, 3, 0, 1] = 7.0  # one of 3 parts of pose b off by 2 in y: L_t^b = 4 / 3
+    assert translation_loss(t).item() == pytest.approx(0.5 * (1 + 4 / 3))
+
+
+def test_background_loss_is_probability_mass_on_background():
+    prob = torch.full((2, 3, 4, 4), 1 / 16)
+    images = torch.ones(2, 3, 4, 4)
+    images[:, :, :2] = 0.3  # top half is body, bottom half is white background
+    mask = background_mask(images, (1.0, 1.0, 1.0), 0.02)
+    assert mask.shape == (2, 1, 4, 4)
+    torch.testing.assert_close(background_loss(prob, mask), torch.full((2,), 0.5))
+    prob = torch.zeros(2, 3, 4, 4)
+    prob[..., 0, 0] = 1.0  # all mass on a body pixel
+    torch.testing.assert_close(background_loss(prob, mask), torch.zeros(2))
+
+
+def _hinge(phi: float) -> torch.Tensor:
+    """Two triangles sharing edge (0,0,0)-(1,0,0); the second wing at angle ``phi`` from the first."""
+    return torch.tensor([[0.0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, math.cos(phi), math.sin(phi)]])
+
+
+@pytest.mark.parametrize("phi, expected", [(math.pi, 0.0), (math.pi / 2, 1.0), (2 * math.pi / 3, 0.25),
+                                           (1e-3, 4.0)])
+def test_smoothness_of_a_hinge_is_cos_plus_one_squared(phi, expected):
+    quad = torch.tensor([[0, 1, 2, 3]])
+    v = _hinge(phi).view(1, 1, 4, 3)
+    assert dihedral_cosines(v, quad).item() == pytest.approx(math.cos(phi), abs=1e-5)
+    assert smoothness_loss(v, quad).item() == pytest.approx(expected, abs=1e-4)
+
+
+def test_smoothness_of_spheres_is_small_and_summed_over_parts():
+    t = icosphere(2)
+    parts = t.vertices.expand(2, 3, -1, -1) * 0.1
+    loss = smoothness_loss(parts, t.dihedral)
+    assert loss.shape == (2,)
+    per_part = smoothness_loss(parts[:, :1], t.dihedral)
+    torch.testing.assert_close(loss, 3 * per_part)
+    assert 0 < per_part[0] < 0.01 * len(t.dihedral)
+    bumpy = parts.clone()
+    bumpy[..., ::7, :] *= 1.5
+    assert (smoothness_loss(bumpy, t.dihedral) > 10 * loss).all()
+
+
+def test_silhouette_chamfer_pulls_toward_uncovered_foreground_and_vanishes_on_a_fit():
+    from cerberus_core.losses import silhouette_chamfer
+
+    fg = torch.zeros(1, 1, 16, 16)
+    fg[..., 4:12, 2:4] = 1  # a thin vertical limb
+    rows, cols = torch.nonzero(fg[0, 0], as_tuple=True)
+    exact = (torch.stack([cols, rows], -1).float() + 0.5)[None]
+    assert float(silhouette_chamfer(exact, fg)) == 0.0
+    far = torch.tensor([[[13.0, 8.0], [14.0, 9.0]]], requires_grad=True)  # two vertices off to the right
+    loss = silhouette_chamfer(far, fg)
+    loss.backward()
+    assert float(loss.detach()) > 0 and (far.grad[0, :, 0] > 0).all()  # descending moves both left, to the limb
+    assert float(silhouette_chamfer(far.detach(), torch.zeros(1, 16, 16))) == 0.0
+
+
+def test_silhouette_loss_is_the_mean_squared_coverage_error():
+    from cerberus_core.losses import silhouette_loss
+
+    alpha = torch.tensor([[[[1.0, 0.5], [0.0, 0.0]]]])
+    fg = torch.tensor([[[[1.0, 1.0], [1.0, 0.0]]]])
+    torch.testing.assert_close(silhouette_loss(alpha, fg), torch.tensor([(0.25 + 1.0) / 4]))
+
+
+def test_hidden_part_pull_moves_only_hidden_parts_toward_uncovered_foreground():
+    from cerberus_core.losses import hidden_part_pull
+
+    uncovered = torch.zeros(1, 1, 16, 16)
+    uncovered[..., 4:12, 2:4] = 1  # a limb nobody covers, columns 2-3
+    pts = torch.tensor([[[[13.0, 8.0], [14.0, 9.0]],   # part 0: hidden, off to the right
+                         [[8.0, 8.0], [9.0, 8.0]]]],   # part 1: visible
+                       requires_grad=True)
+    visible = torch.tensor([[False, True]])
+    loss = hidden_part_pull(pts, visible, uncovered)
+    # part 0's vertices (13, 8) and (14, 9): the nearest uncovered pixel centres lie in column 3.5,
+    # half a pixel above or below, so the distances are |(9.5, 0.5)| and |(10.5, 0.5)|, in image heights
+    expected = (torch.tensor([9.5, 0.5]).norm() + torch.tensor([10.5, 0.5]).norm()) / 2 / 16
+    torch.testing.assert_close(loss, expected.reshape(1).float())
+    loss.sum().backward()
+    assert (pts.grad[0, 0, :, 0] > 0).all()  # descending moves the hidden part left, to the limb
+    assert (pts.grad[0, 1] == 0).all()  # the visible part is left alone
+    assert float(hidden_part_pull(pts.detach(), torch.tensor([[True, True]]), uncovered)) == 0.0
+    assert float(hidden_part_pull(pts.detach(), visible, torch.zeros(1, 16, 16))) == 0.0
+    with pytest.raises(ValueError, match="hidden_part_pull"):
+        hidden_part_pull(pts.detach()[0], visible, uncovered)
+
+
+def test_reprojection_loss_pulls_the_projection_toward_the_partner_keypoint_only():
+    from cerberus_core.losses import reprojection_loss
+
+    projected = torch.zeros(1, 4, 2, 2, requires_grad=True)
+    keypoints = torch.zeros(1, 4, 2, 2, requires_grad=True)
+    with torch.no_grad():
+        keypoints[0, 0, 1] = torch.tensor([8.0, 0.0])  # one of 8 (image, part) pairs off by 8 px of 16
+    loss = reprojection_loss(projected, keypoints, 16)
+    torch.testing.assert_close(loss, torch.tensor([0.25 / 8]))
+    loss.sum().backward()
+    assert projected.grad[0, 0, 1, 0] < 0  # descending moves the projection right, onto the keypoint
+    assert keypoints.grad is None  # the partner's keypoint is a target, not pulled
+    with pytest.raises(ValueError, match="reprojection_loss"):
+        reprojection_loss(projected[0], keypoints, 16)
+
+
+def test_reprojection_gradient_moves_a_part_along_its_ray_toward_the_triangulated_depth():
+    """A part seen at the right pixel of view 0 but at the wrong depth: the partner view (90 degrees
+    around) sees it off its keypoint, and descending the term moves view 0's depth to the truth."""
+    from cerberus_core.losses import reprojection_loss
+
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.tensor([0.0, 90.0]), 32)
+    truth = torch.tensor([[[0.2, 0.1, 0.0]]])  # (1, 1, 3) world point
+    uv0, d0 = cam.index([0]).project(truth)
+    uv1, _ = cam.index([1]).project(truth)
+    def loss_at(depth):
+        point = cam.index([0]).unproject(uv0, depth)  # stays on view 0's ray: view 0 unchanged
+        projected, _ = cam.index([1]).project(point)
+        return reprojection_loss(projected.reshape(1, 1, 1, 2).expand(1, 4, 1, 2),
+                                 uv1.reshape(1, 1, 1, 2).expand(1, 4, 1, 2), 32).sum()
+
+    for offset in (0.4, -0.4):  # too far, then too near, along view 0's ray
+        depth = (d0 + offset).clone().requires_grad_(True)
+        (grad,) = torch.autograd.grad(loss_at(depth), depth)
+        assert float(grad.sign()) == (1.0 if offset > 0 else -1.0)  # descending moves it toward the truth
+        opt = torch.optim.Adam([depth], lr=0.01)
+        for _ in range(150):
+            opt.zero_grad()
+            loss_at(depth).backward()
+            opt.step()
+        assert abs(float(depth.detach() - d0)) < 0.01
+    assert float(loss_at(d0)) < 1e-10
+
+
+def test_cross_view_chamfer_pulls_a_part_along_its_own_ray_toward_the_partner_silhouette():
+    """losses.cross_pulls: a part at the wrong depth sits exactly on its own view's silhouette, so the
+    input-view chamfer gives its depth no gradient; projected into the partner view it misses the body by
+    more than a limb's width, and the chamfer there pulls its depth toward the truth."""
+    from cerberus_core.losses import silhouette_chamfer
+
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.tensor([0.0, 90.0]), 32)
+    truth = torch.tensor([[[0.1, 0.0, 0.0]]])
+    blob = 0.05 * icosphere(1).vertices  # the part: a small sphere of points around its centre
+    masks = []
+    for k in range(2):  # each view's silhouette of the true part
+        uv, _ = cam.index([k]).project(truth + blob[None])
+        m = torch.zeros(1, 32, 32)
+        cols, rows = uv[0, :, 0].long().clamp(0, 31), uv[0, :, 1].long().clamp(0, 31)
+        m[0, rows, cols] = 1
+        masks.append(m)
+    uv0, d0 = cam.index([0]).project(truth)
+
+    def pulls(depth):
+        centre = cam.index([0]).unproject(uv0, depth)  # on view 0's ray through the true centre
+        pts = centre + blob[None]
+        own = silhouette_chamfer(cam.index([0]).project(pts)[0], masks[0])
+        cross = silhouette_chamfer(cam.index([1]).project(pts)[0], masks[1])
+        return own.sum(), cross.sum()
+
+    depth = (d0 + 0.5).clone().requires_grad_(True)  # 0.5 too far: a limb's width is about 0.1
+    own, cross = pulls(depth)
+    (g_own,) = torch.autograd.grad(own, depth, retain_graph=True)
+    (g_cross,) = torch.autograd.grad(cross, depth)
+    assert abs(float(g_own)) < 0.1 * abs(float(g_cross))  # the input view barely sees the depth error
+    assert float(g_cross) > 0  # descending the partner-view pull brings the part nearer, toward the truth

@@ -1,0 +1,123 @@
+"""``Run`` (cerberus_core.run): a trained run as one object, the one call ``cerberus eval`` makes
+(``Run.evaluate``), and the checks it makes as the CLI does (issue 26)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+from cerberus_core import Run
+from cerberus_core.errors import ConfigError
+from cerberus_core.plugins import (
+    METRIC_GROUP,
+    UnknownPluginError,
+)
+from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
+from cerberus_core.train import train
+from cerberus_core.train.checkpoint import CheckpointError
+
+pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tiny_root, tmp_path_factory):
+    from cerberus_core.train.config import load_config
+
+    config = load_config(preset="tiny", overrides=[f"data.root={tiny_root}", "train.tensorboard=false",
+                                                    "train.steps=2", "train.progress=false"])
+    run = tmp_path_factory.mktemp("run") / "run"
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        train(config, run)
+    finally:
+        torch.set_num_threads(threads)
+    return run
+
+
+def test_a_run_folder_loads_as_one_object(tiny_run, tiny_root):
+    run = Run.load(tiny_run)
+    model, config, scene = _load_weights(resolve_weights(tiny_run))
+    assert run.path == tiny_run / "model.safetensors" and run.step == 2 and run.weights_info.newer is None
+    assert run.data_root == tiny_root and run.config.to_dict() == config.to_dict()
+    for (k, a), (_, b) in zip(run.model.state_dict().items(), model.state_dict().items(), strict=True):
+        assert torch.equal(a, b), k
+    assert not run.model.training and run.recorded_scene == scene
+    assert run.scene.to_dict() == run.scene_for(tiny_root).to_dict()  # recorded, or read from the data
+    assert run.default_out() == tiny_run / "eval" and repr(run) == f"Run({run.path}, step 2)"
+    last = Run.load(tiny_run / "checkpoints" / "last.pt")
+    assert last.path.name == "last.pt" and last.step == 2 and last.default_out() == tiny_run / "checkpoints" / "eval"
+
+
+def test_a_run_named_bare_from_its_parent_writes_into_itself(tiny_run, monkeypatch):
+    # `cerberus eval myrun` (no ./, not a shipped name) must write myrun/eval, not ./eval
+    monkeypatch.chdir(tiny_run.parent)
+    run = Run.load(tiny_run.name)
+    assert not run.shipped and run.default_out() == Path(tiny_run.name) / "eval"
+
+
+def test_load_refuses_a_missing_run_and_a_bad_device(tmp_path):
+    with pytest.raises(CheckpointError, match="does not exist"):
+        Run.load(tmp_path / "nothing")
+    with pytest.raises(ConfigError, match="--device"):
+        Run.load(tmp_path / "nothing", device="tpu")
+
+
+def test_the_shipped_human_model_loads_by_name():
+    run = Run.load("human")
+    assert run.path.name == "human.safetensors" and run.step is not None and run.step > 0
+    assert run.model.config.num_parts == run.config.model.num_parts and run.scene.fov_y > 0
+    assert run.shipped and run.default_out() == Path("eval")
+
+
+def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, capsys):
+    from cerberus_core.cli import main
+
+    settings = EvalSettings(limit=3, part_quality=False, figure_images=1, viewer_images=0, renderer="torch")
+    evaluation = Run.load(tiny_run).evaluate(tiny_root, settings, tmp_path / "lib")
+    printed = capsys.readouterr().out
+    assert printed.startswith(f"evaluating {tiny_run / 'model.safetensors'} at step 2\n")
+    assert printed.endswith("\n".join(evaluation.lines()) + "\n") and evaluation.out == tmp_path / "lib"
+    assert evaluation.result.standard.count == 3 and evaluation.weights.step == 2
+    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--out", str(tmp_path / "cli"), "--limit", "3",
+                 "--no-part-quality", "--figure-images", "1", "--viewer-images", "0", "--renderer", "torch"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == printed.splitlines()[-1].replace("/lib/", "/cli/")
+    lib, cli = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("lib", "cli"))
+    assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
+    for name in ("results.md", "table2.png", ".cerberus-result.json"):
+        assert (tmp_path / "lib" / name).is_file(), name
+    with pytest.raises(ConfigError, match=r"resolution = 999: must be an integer in \[1, 256\] \(EvalSettings\(resolution=...\)\)"):
+        EvalSettings(resolution=999)
+    capsys.readouterr()
+    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--resolution", "999"]) == 2  # the CLI: its flag
+    assert capsys.readouterr().err.strip() == "cerberus eval: --resolution 999: must be an integer in [1, 256]"
+
+
+
+def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, monkeypatch) -> None:
+    """core + a backend alone: `cerberus eval` / Run.evaluate say to install cerberus-metrics (issue 26),
+    not '--protocol ...: unknown plugin' for a flag nobody gave."""
+    import cerberus_core.run as run_module
+    from cerberus_core.plugins import get_plugin as real_get_plugin
+
+    monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
+    with pytest.raises(UnknownPluginError) as err:
+        run_module.EvalSettings()
+    assert "pip install cerberus-metrics" in str(err.value) and "--protocol" not in str(err.value)
+
+
+
+@pytest.mark.parametrize("limit", [0, -1, 2.5, True])
+def test_evaluate_refuses_a_limit_the_cli_refuses(limit):
+    from cerberus_core.run import EvalSettings
+
+    with pytest.raises(ValueError, match=r"limit = .*: must be an integer >= 1 \(EvalSettings\(limit=...\)\)"):
+        EvalSettings(limit=limit)
+
+
+def test_domain_notes_name_another_kind_of_body_and_another_camera(human_run, pairs_dataset):
+    notes = human_run.domain_notes(pairs_dataset)
+    assert any("trained on human bodies" in n and "primitives bodies" in n for n in notes)
+    assert any("differs from the model's training scenes" in n for n in notes)

@@ -1,0 +1,284 @@
+"""How the training objective wires the loss terms (cerberus_core.train.objective): the quadruplet mixer,
+partner cameras, the switches, the weights and their table."""
+import math
+
+import pytest
+import torch
+
+from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.losses import (
+    VIEW_PARTNER,
+    background_mask,
+    reconstruction_loss,
+)
+from cerberus_core.model import Cerberus, ModelConfig
+from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import make_renderer
+from cerberus_core.train.data import QuadrupletBatch
+from cerberus_core.train.objective import LossConfig, partner_cameras, quadruplet_mixer, quadruplet_objective
+from tests.support.paths import REPO
+
+
+def test_quadruplet_mixer_shares_one_mixed_latent_per_quadruplet():
+    own = torch.randn(8, 32)  # 2 quadruplets
+    mixed = quadruplet_mixer(torch.Generator().manual_seed(1))(own)
+    quads, mq = own.view(2, 4, 32), mixed.view(2, 4, 32)
+    for b in range(2):
+        assert all(torch.equal(mq[b, 0], mq[b, k]) for k in range(4))
+        from_one = (mq[b, 0].unsqueeze(0) == quads[b]).any(0)
+        assert from_one.all()
+        assert not torch.equal(mq[b, 0], quads[b, 0])
+
+
+def test_cross_view_warmup_keeps_the_partner_translations_first():
+    cfg = LossConfig(cross_view="own", cross_view_warmup=300)
+    assert [cfg.cross_view_at(s) for s in (0, 299, 300, None)] == ["partner", "partner", "own", "own"]
+    assert LossConfig().cross_view_at(10_000) == "partner"  # the paper's equation 4 by default
+
+
+def test_loss_config_rejects_negative_weights():
+    with pytest.raises(ValueError, match="losses.smoothness"):
+        LossConfig(smoothness=-1).validate()
+
+
+# ------------------------------------------------------------------ the objective's wiring
+def _setup(pose_consistency=True, viewpoint_consistency=True):
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(num_parts=3, sphere_level=1, width=8, shape_latent_dim=8, depth_offset=2.5))
+    with torch.no_grad():
+        model.rotation.linear.weight.normal_(std=0.5)  # distinct rotations per image
+    scene = SceneSetup(distance=2.5)
+    az = torch.tensor([0.0, 80.0, 20.0, 140.0])
+    cam = scene.cameras(az, 32)
+    images = 0.9 * torch.rand(1, 4, 3, 32, 32)
+    images[..., :8, :] = 1.0  # a band of white dataset background
+    losses = LossConfig(pose_consistency=pose_consistency, viewpoint_consistency=viewpoint_consistency)
+    return model, scene, QuadrupletBatch(images, cam), losses
+
+
+def test_objective_cross_renders_own_rotated_mesh_with_partner_translation_from_partner_view():
+    """Equation 4 end to end, with the loss's black background (background pixels of the targets
+    zeroed, renderings composited over black)."""
+    model, scene, batch, losses = _setup()
+    assert losses.render_background == "black"
+    targets = batch.images.clone()
+    targets[..., :8, :] = 0.0
+    renderer = make_renderer("torch")
+    out = quadruplet_objective(model, renderer, batch, scene, losses, torch.Generator().manual_seed(3))
+    # Recompute the reconstruction term scene by scene, from the model's own predictions.
+    mixed = quadruplet_mixer(torch.Generator().manual_seed(3))
+    pred = model(batch.images[0], mixed)
+    rot, trans, _, _ = model.world_pose(pred, batch.camera)
+    rotated = pred.local_vertices @ rot.transpose(-1, -2)
+    own, cross = [], []
+    for x, partner in enumerate(VIEW_PARTNER):
+        def draw(verts, cam_index):
+            cam = batch.camera.index([cam_index])
+            return render_parts(renderer, verts.unsqueeze(0), model.faces, cam, scene.light(cam),
+                                albedo=scene.albedo, background=(0.0, 0.0, 0.0)).image[0]
+        own.append(reconstruction_loss(draw(rotated[x] + trans[x].unsqueeze(-2), x), targets[0, x]))
+        cross.append(reconstruction_loss(draw(rotated[x] + trans[partner].unsqueeze(-2), partner),
+                                         targets[0, partner]))
+    expected = sum(0.5 * (o + c) for o, c in zip(own, cross, strict=False)) / 4
+    assert out.terms["recon"].item() == pytest.approx(expected.item(), rel=1e-5)
+    renders = out.renders[0]
+    assert renders.shape == (4, 3, 32, 32)
+
+
+def test_partner_cameras_swap_views_within_each_pose():
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.arange(8.0) * 10, 32)
+    swapped = partner_cameras(cam, 2)
+    expected = torch.tensor([1, 0, 3, 2, 5, 4, 7, 6])
+    torch.testing.assert_close(swapped.rotation, cam.rotation[expected])
+
+
+def _latents_seen(model, pose_consistency):
+    seen = {}
+    model.shape.to_latent.register_forward_hook(lambda m, i, o: seen.__setitem__("own", o.detach()))
+    model.shape.to_displacement.register_forward_hook(lambda m, i, o: seen.__setitem__("render", i[0].detach()))
+    return seen
+
+
+@pytest.mark.parametrize("pose_consistency", [True, False])
+def test_objective_pose_consistency_switch(pose_consistency):
+    model, scene, batch, losses = _setup(pose_consistency=pose_consistency)
+    seen = _latents_seen(model, pose_consistency)
+    quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    own, render = seen["own"], seen["render"]
+    if pose_consistency:
+        assert all(torch.equal(render[0], render[k]) for k in range(4))
+        assert ((render[0].unsqueeze(0) == own).any(0)).all()
+        assert not torch.equal(render, own)
+    else:  # Free Cerberus: every image renders its own shape latent
+        torch.testing.assert_close(render, own)
+
+
+def test_objective_without_viewpoint_consistency_renders_only_own_views():
+    model, scene, batch, losses = _setup(viewpoint_consistency=False)
+    losses.render_background = "dataset"  # the dataset's white background, as in the input images
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    assert (out.renders[0, :, :, 0, 0] == 1.0).any()  # some corner shows the white background
+    own = reconstruction_loss(out.renders, batch.images).mean()
+    assert out.terms["recon"].item() == pytest.approx(own.item(), rel=1e-5)
+    total = sum(getattr(losses, k) * out.terms[k] for k in ("recon", "translation", "background", "smoothness"))
+    assert out.total.item() == pytest.approx(total.item(), rel=1e-6)
+
+
+def test_objective_reports_non_finite_geometry_without_rendering():
+    model, scene, batch, losses = _setup()
+    batch.images[0, 1] = float("nan")
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses)
+    assert not out.finite and math.isnan(out.total.item()) and out.renders is None
+
+
+def _grad_norm(model, total):
+    if not total.requires_grad:
+        return 0.0
+    model.zero_grad(set_to_none=True)
+    total.backward()
+    return sum(float(p.grad.abs().sum()) for p in model.parameters() if p.grad is not None)
+
+
+@pytest.mark.parametrize("antialias", [False, True])
+def test_objective_silhouette_term_has_gradient_only_with_antialiasing(antialias):
+    """The silhouette term alone: the paper's renderer gives its hard coverage no gradient; the
+    anti-aliased renderer does (visibility gradients reach the network)."""
+    model, scene, batch, _ = _setup()
+    losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, silhouette=1.0)
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses,
+                               torch.Generator().manual_seed(0), antialias=antialias)
+    assert out.terms["silhouette"].item() > 0
+    assert out.total.item() == pytest.approx(out.terms["silhouette"].item(), rel=1e-6)
+    grad = _grad_norm(model, out.total)
+    assert (grad > 0) == antialias
+
+
+def test_objective_silhouette_term_is_the_coverage_error_of_each_view():
+    model, scene, batch, _ = _setup(viewpoint_consistency=False)
+    losses = LossConfig(silhouette=1.0, viewpoint_consistency=False)
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    fg = 1 - background_mask(batch.images, scene.background, losses.background_tolerance)  # (1, 4, 1, H, W)
+    alpha = (out.renders.sum(2, keepdim=True) > 0).float()  # over black, every covered pixel is lit
+    assert 0 < alpha.mean() < 1
+    from cerberus_core.losses import silhouette_loss
+    expected = silhouette_loss(alpha, fg).mean()
+    assert out.terms["silhouette"].item() == pytest.approx(expected.item(), rel=1e-6)
+
+
+def test_objective_pulls_are_zero_when_unweighted():
+    """The chamfer and hidden-part pulls are Python loops over images: not computed at weight 0."""
+    model, scene, batch, _ = _setup()
+    off = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(),
+                               torch.Generator().manual_seed(0))
+    assert off.terms["chamfer"].item() == 0.0 and off.terms["hidden"].item() == 0.0
+
+
+def test_objective_chamfer_term_is_the_chamfer_of_the_projected_parts_and_pulls_every_vertex():
+    model, scene, batch, _ = _setup()
+    losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, chamfer=1.0)
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    from cerberus_core.losses import silhouette_chamfer
+    uv, _ = batch.camera.project(out.parts.flatten(0, 1).flatten(1, 2))
+    fg = 1 - background_mask(batch.images[0], scene.background, losses.background_tolerance)
+    assert out.terms["chamfer"].item() == pytest.approx(silhouette_chamfer(uv, fg).mean().item(), rel=1e-5)
+    assert _grad_norm(model, out.total) > 0  # no renderer in the path: a gradient with the paper's renderer too
+
+
+def test_objective_hidden_term_is_the_pull_of_the_hidden_parts():
+    _, scene, batch, _ = _setup()
+    losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, hidden=1.0)
+    torch.manual_seed(0)  # twelve parts at one anchor crowd the middle of the image: some hide behind others
+    model = Cerberus(ModelConfig(num_parts=12, sphere_level=1, width=8, shape_latent_dim=8, depth_offset=2.5,
+                                 anchor_spread=0.0))
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    # Recompute it from the objective's own parts: render each own view, count each part's pixels.
+    from cerberus_core.losses import hidden_part_pull
+    from cerberus_core.render.api import render_parts
+    bsz, n, v = out.parts.shape[0], out.parts.shape[2], out.parts.shape[3]
+    model_faces = model.faces
+    part_id = render_parts(make_renderer("torch"), out.parts.flatten(0, 1), model_faces, batch.camera).part_id
+    shown = torch.stack([(part_id == k).flatten(1).any(1) for k in range(n)], 1)
+    fg = 1 - background_mask(batch.images[0], scene.background, losses.background_tolerance)
+    uv, _ = batch.camera.project(out.parts.flatten(0, 1).flatten(1, 2))
+    expected = hidden_part_pull(uv.view(4 * bsz, n, v, 2), shown, fg[:, 0] * (part_id < 0)).mean()
+    assert not shown.all() and expected.item() > 0
+    assert out.terms["hidden"].item() == pytest.approx(expected.item(), rel=1e-5)
+    assert _grad_norm(model, out.total) > 0  # no renderer in the path: a gradient with the paper's renderer too
+
+
+def test_loss_config_rejects_nan_weights():
+    with pytest.raises(ValueError, match="losses.silhouette"):
+        LossConfig(silhouette=float("nan")).validate()
+
+
+def test_the_term_table_makes_the_config_weights_and_the_docs_show_it():
+    """Each term is declared once (TERM_TABLE): LossConfig's weight fields are made from it, with the
+    paper's weights as defaults and the range >= 0; docs/training.md shows terms_table()."""
+
+    from cerberus_core.train.objective import TERM_TABLE, terms_table
+
+    assert LossConfig().weights == {t.name: t.weight for t in TERM_TABLE}
+    assert [t.name for t in TERM_TABLE if t.paper] == ["recon", "translation", "background", "smoothness"]
+    assert all(t.weight == 0 for t in TERM_TABLE if not t.paper)  # beyond the paper: off in its settings
+    assert all(t.function.__module__ == "cerberus_core.losses" for t in TERM_TABLE)
+    docs = (REPO / "docs" / "training.md").read_text()
+    assert terms_table() in docs, "docs/training.md: paste cerberus_core.train.objective.terms_table() over its table"
+    with pytest.raises(ValueError, match=r"losses.hidden = nan: must be a number >= 0"):
+        LossConfig(hidden=float("nan")).validate()
+
+
+def _depth_setup(cross_view="partner", **weights):
+    """Two views 90 degrees apart of one pose; the objective's gradient on the predicted depths."""
+    model, scene, batch, _ = _setup()
+    losses = LossConfig(**{"recon": 0, "translation": 0, "background": 0, "smoothness": 0, **weights},
+                        cross_view=cross_view)
+    return model, scene, batch, losses
+
+
+def test_objective_reprojection_is_the_translations_seen_by_the_partner_camera():
+    model, scene, batch, losses = _depth_setup(reprojection=1.0)
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    pred = model(batch.images[0], quadruplet_mixer(torch.Generator().manual_seed(0)))
+    _, trans, _, _ = model.world_pose(pred, batch.camera)
+    uv, _ = partner_cameras(batch.camera, 1).project(trans)
+    kp = pred.maps.uv[list(VIEW_PARTNER)]
+    expected = ((uv - kp) / 32).square().sum(-1).mean()
+    assert out.terms["reprojection"].item() == pytest.approx(expected.item(), rel=1e-4)
+    assert expected.item() > 0 and _grad_norm(model, out.total) > 0
+
+
+def test_cross_pulls_average_the_partner_view_pull_with_the_input_view_pull():
+    model, scene, batch, _ = _setup()
+    renderer, gen = make_renderer("torch"), torch.Generator
+    kw = dict(recon=0, translation=0, background=0, smoothness=0, chamfer=1.0, cross_view="own")
+    own_only = quadruplet_objective(model, renderer, batch, scene, LossConfig(**kw), gen().manual_seed(0))
+    both = quadruplet_objective(model, renderer, batch, scene, LossConfig(**kw, cross_pulls=True), gen().manual_seed(0))
+    from cerberus_core.losses import silhouette_chamfer
+    parts = own_only.parts.flatten(0, 1).flatten(1, 2)  # own cross view: the same world parts
+    uv_cross, _ = partner_cameras(batch.camera, 1).project(parts)
+    fg = 1 - background_mask(batch.images[0], scene.background, 0.02)
+    cross = silhouette_chamfer(uv_cross, fg[list(VIEW_PARTNER)]).mean()
+    expected = 0.5 * (own_only.terms["chamfer"] + cross)
+    assert both.terms["chamfer"].item() == pytest.approx(expected.item(), rel=1e-5)
+    assert cross.item() != pytest.approx(own_only.terms["chamfer"].item(), rel=1e-3)
+
+
+def test_objective_own_cross_view_renders_each_model_whole_from_the_partner_camera():
+    model, scene, batch, _ = _setup()
+    renderer = make_renderer("torch")
+    losses = LossConfig(cross_view="own", cross_view_warmup=5)
+    warm = quadruplet_objective(model, renderer, batch, scene, losses, torch.Generator().manual_seed(3), step=4)
+    paper = quadruplet_objective(model, renderer, batch, scene, LossConfig(), torch.Generator().manual_seed(3))
+    assert warm.terms["recon"].item() == paper.terms["recon"].item()  # partner translations in the warm-up
+    after = quadruplet_objective(model, renderer, batch, scene, losses, torch.Generator().manual_seed(3), step=5)
+    parts = after.parts[0]  # (4, N, V, 3) world parts, the same ones seen from the partner camera
+    targets = batch.images.clone()
+    targets[..., :8, :] = 0.0
+    cams = partner_cameras(batch.camera, 1)
+    cross = render_parts(renderer, parts, model.faces, cams, scene.light(cams), albedo=scene.albedo,
+                         background=(0.0, 0.0, 0.0)).image
+    own = reconstruction_loss(after.renders[0], targets[0])
+    expected = 0.5 * (own + reconstruction_loss(cross, targets[0, list(VIEW_PARTNER)]))
+    assert after.terms["recon"].item() == pytest.approx(expected.mean().item(), rel=1e-5)
+    assert after.terms["recon"].item() != pytest.approx(paper.terms["recon"].item(), rel=1e-4)

@@ -1,0 +1,33 @@
+"""The grid cache (cerberus_metrics.cache): hits skip work, replay warnings, and survive the process."""
+from __future__ import annotations
+
+import pytest
+import trimesh
+
+from cerberus_metrics import (
+    GridCache,
+    MeshQualityWarning,
+    voxel_iou,
+)
+
+
+def test_cache_hits_skip_work_and_replay_warnings(tmp_path, box, helpers):
+    cache = GridCache(tmp_path / "grids")
+    gt = tmp_path / "gt.ply"
+    box.export(gt)
+    pred = helpers.blob(3)
+    first = voxel_iou(pred, str(gt), cache=cache)
+    assert (cache.hits, cache.misses) == (0, 1)
+    assert voxel_iou(pred, str(gt), cache=cache) == first
+    assert cache.hits == 1
+    fresh = GridCache(tmp_path / "grids")  # another process: read from disk
+    assert voxel_iou(pred, str(gt), cache=fresh) == first and fresh.hits == 1
+    voxel_iou(pred, str(gt), protocol="gt_bbox", cache=fresh)
+    assert fresh.misses == 1  # another protocol is another key
+    open_box = trimesh.Trimesh(box.vertices, box.faces[1:], process=False)
+    mem = GridCache()
+    with pytest.warns(MeshQualityWarning):
+        voxel_iou(box, open_box, cache=mem)
+    with pytest.warns(MeshQualityWarning, match="not watertight"):
+        voxel_iou(box, open_box, cache=mem)
+    assert mem.hits == 1

@@ -1,0 +1,145 @@
+"""The ``cerberus-metrics`` command (cerberus_metrics.cli): help, bad input as one line and exit 2, outputs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from cerberus_metrics import voxel_iou
+from cerberus_metrics.cli import build_parser, main
+
+CLI = [sys.executable, "-m", "cerberus_metrics.cli"]
+
+
+def _files(root) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*")}
+
+
+# --------------------------------------------------------------------------- help
+
+
+def test_every_subcommand_has_description_and_examples():
+    parser = build_parser()
+    subs = next(a for a in parser._actions if a.dest == "command").choices
+    assert set(subs) == {"iou", "chamfer", "fscore", "check", "batch", "protocols"}
+    for name, sub in subs.items():
+        text = sub.format_help()
+        assert sub.description and "Examples:" in text and f"cerberus-metrics {name}" in text, name
+    assert "watertight" in subs["check"].format_help()
+    top = parser.format_help()
+    assert "COMMAND --help" in top and "Exit codes" in top
+
+
+# --------------------------------------------------------------------------- bad input (issue 11)
+
+
+@pytest.fixture
+def bad_inputs(tmp_path, helpers):
+    helpers.blob(1).export(tmp_path / "gt.ply")
+    helpers.blob(2).export(tmp_path / "pred.ply")
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "cols.csv").write_text("prediction,groundtruth\npred.ply,gt.ply\n")
+    (tmp_path / "binary.csv").write_bytes(b"\xff\xfe\x00\x81garbage\x00")
+    (tmp_path / "bad.json").write_text("{not json")
+    (tmp_path / "pairs.txt").write_text("pred,gt\npred.ply,gt.ply\n")
+    (tmp_path / "ok.csv").write_text("pred,gt\npred.ply,gt.ply\n")
+    (tmp_path / "afile").write_text("x")
+    return tmp_path
+
+
+OUTS = ["--out", "out.json", "--csv", "out.csv"]
+BATCH = ["batch", "--pairs", "ok.csv", "--no-progress"]
+
+BAD_CLI = [
+    ("no command", [], "required"),
+    ("unknown option", ["iou", "pred.ply", "gt.ply", "--bogus"], "unrecognized"),
+    ("iou missing file", ["iou", "missing.ply", "gt.ply"], "does not exist"),
+    ("iou directory", ["iou", "adir", "gt.ply"], "is a directory"),
+    ("iou one mesh", ["iou", "gt.ply"], "at least two meshes"),
+    ("iou resolution 0", ["iou", "pred.ply", "gt.ply", "--resolution", "0"], "--resolution"),
+    ("iou resolution text", ["iou", "pred.ply", "gt.ply", "--resolution", "abc"], "not an integer"),
+    ("iou bad protocol", ["iou", "pred.ply", "gt.ply", "--protocol", "nope"], "invalid choice"),
+    ("fscore threshold -1", ["fscore", "pred.ply", "gt.ply", "--threshold", "-1"], "--threshold"),
+    ("fscore threshold nan", ["fscore", "pred.ply", "gt.ply", "--threshold", "nan"], "--threshold"),
+    ("chamfer samples 0", ["chamfer", "pred.ply", "gt.ply", "--samples", "0"], "--samples"),
+    ("check missing", ["check", "missing.obj"], "does not exist"),
+    ("check directory", ["check", "adir"], "is a directory"),
+    ("pairs missing", ["batch", "--pairs", "missing.csv", *OUTS], "does not exist"),
+    ("pairs directory", ["batch", "--pairs", "adir", *OUTS], "is a directory"),
+    ("pairs not text", ["batch", "--pairs", "binary.csv", *OUTS], "not UTF-8"),
+    ("pairs bad columns", ["batch", "--pairs", "cols.csv", *OUTS], "missing column"),
+    ("pairs bad json", ["batch", "--pairs", "bad.json", *OUTS], "not valid JSON"),
+    ("pairs unknown type", ["batch", "--pairs", "pairs.txt", *OUTS], "use .csv or .json"),
+    ("jobs negative", [*BATCH, "--jobs", "-2", *OUTS], "--jobs"),
+    ("jobs zero", [*BATCH, "--jobs", "0", *OUTS], "--jobs"),
+    ("batch resolution negative", [*BATCH, "--resolution", "-5", *OUTS], "--resolution"),
+    ("unknown metric", [*BATCH, "--metrics", "voxel_iou,nope", *OUTS], "unknown metric"),
+    ("out in missing folder", [*BATCH, "--out", "nofolder/out.json", "--csv", "out.csv"], "does not exist"),
+    ("out is a folder", [*BATCH, "--out", "adir", "--csv", "out.csv"], "is a folder"),
+    ("out equals csv", [*BATCH, "--out", "out.json", "--csv", "out.json"], "same file"),
+    ("cache dir is a file", [*BATCH, "--cache-dir", "afile", *OUTS], "--cache-dir"),
+    ("pred-dir without gt-dir", ["batch", "--pred-dir", "adir", *OUTS], "--gt-dir"),
+    ("pred-dir missing", ["batch", "--pred-dir", "nope", "--gt-dir", "adir", *OUTS], "does not exist"),
+    ("pairs and gt-dir", ["batch", "--pairs", "ok.csv", "--gt-dir", "adir", *OUTS], "--gt-dir"),
+]
+
+
+@pytest.mark.parametrize("case,argv,words", BAD_CLI, ids=[c[0] for c in BAD_CLI])
+def test_bad_cli_input_is_one_line_exit_2_and_writes_nothing(bad_inputs, monkeypatch, capsys, case, argv, words):
+    monkeypatch.chdir(bad_inputs)
+    before = _files(bad_inputs)
+    assert main(argv) == 2, case
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "Traceback" not in err and words in err, err
+    assert _files(bad_inputs) == before  # no output (and no temporary) file created
+
+
+def test_bad_cli_input_through_the_console_script(bad_inputs):
+    for argv in (["batch", "--pairs", "ok.csv", "--jobs", "-1", *OUTS], ["iou", "missing.ply", "gt.ply"]):
+        proc = subprocess.run(CLI + argv, cwd=bad_inputs, capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert not (bad_inputs / "out.json").exists() and not (bad_inputs / "out.csv").exists()
+
+
+
+def test_cli_iou_json_and_errors(folders, capsys):
+    pred, gt = folders
+    assert main(["iou", str(pred / "s0.ply"), str(gt / "s0.ply")]) == 0
+    out = capsys.readouterr().out
+    assert float(out) == pytest.approx(voxel_iou(str(pred / "s0.ply"), str(gt / "s0.ply")), abs=1e-6)
+    assert main(["iou", str(pred / "parts" / "a.obj"), str(pred / "parts" / "b.obj"), str(gt / "parts.obj"),
+                 "--json", "--protocol", "gt_bbox", "--resolution", "64"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["voxel_iou"] == 1.0 and data["settings"]["resolution"] == 64 and len(data["pred"]) == 2
+    assert main(["iou", str(pred / "broken.obj"), str(gt / "s0.ply")]) == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "broken.obj" in err
+    assert main(["chamfer", str(pred / "s0.ply"), str(gt / "s0.ply"), "--samples", "2000", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["chamfer_l2"] > 0
+    assert main(["check", str(gt / "s0.ply"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)[0]["watertight"] is True
+
+
+def test_cli_batch_exit_code_and_outputs(folders, tmp_path, capsys):
+    pred, gt = folders
+    rc = main(["batch", "--pred-dir", str(pred), "--gt-dir", str(gt), "--jobs", "2", "--no-progress",
+               "--out", str(tmp_path / "o.json"), "--csv", str(tmp_path / "o.csv"),
+               "--cache-dir", str(tmp_path / "cache")])
+    assert rc == 1  # some pairs failed: reported, counted, outputs written
+    captured = capsys.readouterr()
+    assert "failed: 3" in captured.out and "FAILED lonely" in captured.err
+    assert json.loads((tmp_path / "o.json").read_text())["summary"]["succeeded"] == 4
+    assert any((tmp_path / "cache").iterdir())
+
+
+def test_console_script_help():
+    exe = [sys.executable, "-m", "cerberus_metrics.cli"]
+    out = subprocess.run(exe + ["--help"], capture_output=True, text=True, check=True).stdout
+    assert "kato" in out and "gt_bbox" in out and "batch" in out
+    out = subprocess.run(exe + ["iou", "--help"], capture_output=True, text=True, check=True).stdout
+    assert "PRED [PRED ...] GT" in out

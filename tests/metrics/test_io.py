@@ -1,0 +1,168 @@
+"""Mesh input (cerberus_metrics.io): input forms, cleaning reports, bad input errors, open and
+self-intersecting meshes."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+from cerberus_metrics import (
+    MeshInputError,
+    MeshQualityWarning,
+    inspect_mesh,
+    load_parts,
+    voxel_iou,
+    voxelize,
+)
+
+
+def test_input_forms_agree(tmp_path, box):
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    ref = voxelize(box).occupancy
+    for ext in ("obj", "ply", "stl", "off", "glb"):
+        path = tmp_path / f"box.{ext}"
+        box.export(path)
+        assert np.array_equal(voxelize(str(path)).occupancy, ref), ext
+        assert np.array_equal(voxelize(path).occupancy, ref), ext
+    assert np.array_equal(voxelize((v, f)).occupancy, ref)
+    assert np.array_equal(voxelize([v.tolist(), f.tolist()]).occupancy, ref)  # a 2-list of arrays is one mesh
+    assert np.array_equal(voxelize({"vertices": v, "faces": f}).occupancy, ref)
+    assert np.array_equal(voxelize(trimesh.Scene([box])).occupancy, ref)
+
+
+def test_multi_mesh_glb_is_parts(tmp_path, helpers):
+    a = helpers.box((-0.4, -0.4, -0.4), (0.0, 0.0, 0.0))
+    b = helpers.box((0.1, 0.1, 0.1), (0.4, 0.4, 0.4))
+    path = tmp_path / "scene.glb"
+    trimesh.Scene([a, b]).export(path)
+    parts = load_parts(str(path), "pred")
+    assert len(parts) == 2
+    assert voxel_iou(str(path), [a, b]) == 1.0
+
+
+def test_cleaning_report(box):
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    # split vertices per face (as STL does), add a duplicate face, a zero-area face and an unused vertex
+    tri = v[f].reshape(-1, 3)
+    faces = np.arange(len(tri)).reshape(-1, 3)
+    faces = np.vstack([faces, faces[:1], [[0, 1, 1]]])
+    verts = np.vstack([tri, [[9.0, 9.0, 9.0]]])
+    (rep,) = inspect_mesh((verts, faces), "pred")
+    assert rep.faces == 12 and rep.vertices == 8 and rep.watertight
+    assert rep.removed_duplicate_vertices == len(tri) - 8
+    assert rep.removed_unreferenced_vertices == 1
+    assert rep.removed_duplicate_faces + rep.removed_null_faces == 2
+    assert rep.self_intersecting_faces == 0
+    assert rep.volume == pytest.approx(0.55 * 0.5 * 0.3)
+    assert voxel_iou((verts, faces), box) == 1.0
+
+
+@pytest.mark.parametrize(
+    "make,words",
+    [
+        (lambda v, f: (np.zeros((0, 3)), np.zeros((0, 3), int)), ["gt", "empty mesh"]),
+        (lambda v, f: (np.where(np.arange(8)[:, None] == 3, np.nan, v), f), ["gt", "NaN", "vertex 3"]),
+        (lambda v, f: (v, np.where(f == 7, 8, f)), ["gt", "vertex index 8", "0..7"]),
+        (lambda v, f: (v, -np.ones_like(f)), ["gt", "vertex index -1"]),
+        (lambda v, f: (v[:, :2], f), ["gt", "shape (V, 3)"]),
+        (lambda v, f: (v, f[:, :2]), ["gt", "(F, 3)", "triangulate"]),
+        (lambda v, f: (v + 2.0, f), ["gt", "outside the kato grid", "gt_bbox"]),
+    ],
+)
+def test_bad_arrays_raise_clear_errors(box, make, words):
+    v, f = make(np.asarray(box.vertices), np.asarray(box.faces))
+    with pytest.raises(MeshInputError) as exc:
+        voxel_iou(box, (v, f))
+    for w in words:
+        assert w in str(exc.value)
+
+
+def test_inf_vertex_in_part_names_the_part(box, helpers):
+    v = np.asarray(box.vertices).copy()
+    v[2, 1] = np.inf
+    with pytest.raises(MeshInputError, match=r"pred\[1\].*infinite"):
+        voxel_iou([box, (v, box.faces)], box)
+
+
+def test_part_outside_grid_names_the_part_file(tmp_path, box, helpers):
+    far = tmp_path / "far.obj"
+    helpers.box((0.3, 0.3, 0.3), (0.6, 0.6, 0.6)).export(far)
+    with pytest.raises(MeshInputError, match=r"pred\[1\] \('.*far\.obj'\): mesh lies \(partly\) outside.*0\.5161"):
+        voxel_iou([box, str(far)], box)
+
+
+def test_bad_files_name_the_file(tmp_path, box):
+    missing = tmp_path / "missing.obj"
+    with pytest.raises(MeshInputError, match=r"pred.*missing\.obj.*does not exist"):
+        voxel_iou(str(missing), box)
+    garbage = tmp_path / "garbage.obj"
+    garbage.write_text("v 1 2\nf 1 2 3\n")
+    with pytest.raises(MeshInputError, match=r"gt.*garbage\.obj.*cannot read mesh file"):
+        voxel_iou(box, str(garbage))
+    points = tmp_path / "points.ply"
+    trimesh.PointCloud(np.random.default_rng(0).random((10, 3)) - 0.5).export(points)
+    with pytest.raises(MeshInputError, match=r"points\.ply.*empty mesh"):
+        voxel_iou(str(points), box)
+    with pytest.raises(MeshInputError, match="unknown protocol 'foo'.*kato"):
+        voxel_iou(box, box, protocol="foo")
+    with pytest.raises(MeshInputError, match="resolution"):
+        voxel_iou(box, box, resolution=0)
+
+
+def test_open_mesh_policies(box):
+    open_box = trimesh.Trimesh(box.vertices, box.faces[1:], process=False)
+    with pytest.warns(MeshQualityWarning, match=r"gt: mesh is not watertight \(3 boundary .*Treatment"):
+        iou = voxel_iou(box, open_box)
+    assert 0 < iou <= 1
+    with pytest.raises(MeshInputError, match="not watertight.*open_mesh='error'"):
+        voxel_iou(box, open_box, open_mesh="error")
+    with pytest.warns(MeshQualityWarning, match="closed holes"):
+        assert voxel_iou(box, open_box, open_mesh="close") == 1.0
+
+
+def test_large_hole_leaks_and_is_reported(helpers):
+    # A sphere with a cap removed: the kato fill enters through the hole, only surface voxels stay.
+    s = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
+    keep = s.triangles_center[:, 2] < 0.3
+    cut = trimesh.Trimesh(s.vertices, s.faces[keep], process=False)
+    with pytest.warns(MeshQualityWarning, match="not watertight"):
+        g = voxelize(cut)
+    assert g.count < 0.5 * voxelize(s).count
+
+
+def test_self_intersecting_mesh_warns_and_gives_union(helpers):
+    a = helpers.box((-0.3, -0.3, -0.3), (0.1, 0.1, 0.1))
+    b = helpers.box((-0.1, -0.1, -0.1), (0.3, 0.3, 0.3))
+    merged = trimesh.util.concatenate([a, b])  # one mesh whose surfaces cross
+    for protocol in ("kato", "gt_bbox_center"):
+        with pytest.warns(MeshQualityWarning, match="self-intersecting.*union"):
+            one = voxelize(merged, protocol=protocol)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            two = voxelize([a, b], protocol=protocol, frame=one.frame)  # parts: no warning
+        assert np.array_equal(one.occupancy, two.occupancy)
+
+
+def test_star_shaped_certificate_agrees_with_pymeshlab(helpers):
+    from cerberus_metrics.io import star_shaped
+
+    torus = trimesh.creation.torus(major_radius=0.3, minor_radius=0.1)
+    a = helpers.box((-0.3, -0.3, -0.3), (0.1, 0.1, 0.1))
+    b = helpers.box((-0.1, -0.1, -0.1), (0.3, 0.3, 0.3))
+    crossing = trimesh.util.concatenate([a, b])
+    cases = [(helpers.blob(s), True) for s in range(4)] + [(torus, False), (crossing, False)]
+    for mesh, certified in cases:
+        (auto,) = inspect_mesh(mesh)
+        (full,) = inspect_mesh(mesh, check_self_intersections="pymeshlab")
+        assert star_shaped(np.asarray(mesh.vertices), np.asarray(mesh.faces)) is certified
+        assert auto.self_intersection_check == ("star-shaped certificate" if certified else "pymeshlab")
+        assert full.self_intersection_check == "pymeshlab"
+        assert auto.self_intersecting_faces == full.self_intersecting_faces
+    flipped = helpers.blob(1)
+    flipped.invert()
+    assert star_shaped(np.asarray(flipped.vertices), np.asarray(flipped.faces))
+    (skipped,) = inspect_mesh(helpers.blob(1), check_self_intersections=False)
+    assert skipped.self_intersecting_faces is None and skipped.self_intersection_check == "skipped"

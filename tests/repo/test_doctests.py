@@ -1,0 +1,36 @@
+"""The examples in the packages' docstrings run, and say what they print (doctests, collected here)."""
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+from tests.support.paths import REPO
+
+SOURCES = REPO / "packages"
+
+
+def _modules_with_examples() -> list[str]:
+    names = []
+    for path in sorted(SOURCES.glob("*/src/cerberus_*/**/*.py")):
+        if "vendor" in path.parts or ">>>" not in path.read_text(encoding="utf-8"):
+            continue
+        parts = path.relative_to(path.parents[len(path.relative_to(SOURCES).parts) - 3]).with_suffix("").parts
+        names.append(".".join(p for p in parts if p != "__init__"))
+    return names
+
+
+MODULES = _modules_with_examples()
+
+
+def test_the_docstring_examples_are_found():
+    assert {"cerberus_core.render.ops", "cerberus_core.render.api", "cerberus_core.shapes"} <= set(MODULES)
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples_run(name):
+    pytest.importorskip(name.split(".")[0])
+    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0, f"{name} has '>>>' but no doctest ran"
+    assert result.failed == 0, f"{result.failed} of {result.attempted} examples of {name} failed (see the output above)"

@@ -1,0 +1,120 @@
+"""An honest import graph, read from the sources with ``ast`` (nothing is imported):
+
+* no import cycle among the toolkit's modules at module level (``if TYPE_CHECKING:`` imports count:
+  a cycle hidden from the interpreter is still one for the reader);
+* at most :data:`MAX_LOCAL_IMPORTS` function-local imports of ``cerberus_*`` modules outside
+  ``cli/`` (the commands import their pipelines lazily so that ``cerberus --help`` stays fast; the
+  library itself imports at the top, and keeps local imports for optional heavy dependencies).
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from tests.support.paths import REPO
+
+PACKAGES = REPO / "packages"
+MAX_LOCAL_IMPORTS = 5
+
+
+def _modules() -> dict[str, Path]:
+    """``{dotted module name: file}`` of every module under ``packages/*/src``."""
+    out = {}
+    for path in sorted(PACKAGES.glob("*/src/cerberus_*/**/*.py")):
+        parts = path.relative_to(path.parents[len(path.relative_to(PACKAGES).parts) - 3]).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _targets(module: str, node: ast.Import | ast.ImportFrom) -> list[str]:
+    """The toolkit modules an import statement loads (``from pkg import mod`` names ``pkg.mod``)."""
+    if isinstance(node, ast.Import):
+        names = [alias.name for alias in node.names]
+    else:
+        base = node.module or ""
+        if node.level:
+            package = module.split(".") if MODULES[module].name == "__init__.py" else module.split(".")[:-1]
+            package = package[:len(package) - (node.level - 1)]
+            base = ".".join(package + ([node.module] if node.module else []))
+        names = [base] + [f"{base}.{alias.name}" for alias in node.names]
+    return [n for n in names if n in MODULES]
+
+
+def _imports(module: str) -> tuple[set[str], list[tuple[int, str]]]:
+    """``(modules imported at module level, [(line, statement)] of function-local toolkit imports)``."""
+    top: set[str] = set()
+    local: list[tuple[int, str]] = []
+
+    def walk(node: ast.AST, in_function: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            inside = in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+            if isinstance(child, (ast.Import, ast.ImportFrom)):
+                targets = _targets(module, child)
+                if inside and targets:
+                    local.append((child.lineno, ast.unparse(child)))
+                elif not inside:
+                    top.update(targets)
+            walk(child, inside)
+
+    walk(ast.parse(MODULES[module].read_text(encoding="utf-8")), False)
+    return top, local
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan), or a module importing itself."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1 or v in graph.get(v, ()):
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_sources_are_found() -> None:
+    assert {"cerberus_core.render.interface", "cerberus_core.bodies.sources", "cerberus_render_warp._runtime",
+            "cerberus_metrics.api"} <= set(MODULES)
+
+
+def test_no_import_cycle_at_module_level() -> None:
+    graph = {m: {t for t in _imports(m)[0] if t != m} for m in MODULES}
+    assert _cycles(graph) == [], "import cycles: move the shared piece to one module both can import"
+
+
+def test_few_function_local_imports_of_our_own_modules_outside_cli() -> None:
+    local = [f"{m}:{line}: {text}" for m in MODULES if ".cli" not in f".{m}"
+             for line, text in _imports(m)[1]]
+    assert len(local) <= MAX_LOCAL_IMPORTS, "\n".join(local)
+
+
+def test_the_cycle_finder_finds_cycles() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
