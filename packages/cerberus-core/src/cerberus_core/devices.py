@@ -13,23 +13,20 @@ def is_device_name(name: object) -> bool:
                                       (name.startswith("cuda:") and name[5:].isdigit()))
 
 
-def check_device(name: str, key: str = "device") -> str:
-    """``cpu``, ``cuda`` or ``cuda:N`` that exists here, or ``auto``; returns ``name``.
-
-    Args:
-        key: the parameter or config key that holds the name (the :class:`ConfigError`'s ``key``).
-    """
+def check_device(name: str) -> str:
+    """``cpu``, ``cuda`` or ``cuda:N`` that exists here, or ``auto``; returns ``name``. A
+    :class:`ConfigError` otherwise, about the setting ``device`` (every layer's name for it)."""
     import torch
 
     if name in ("auto", "cpu"):
         return name
     if not is_device_name(name):
-        raise ConfigError.about(key, name, "expected cpu, cuda or cuda:N (or auto)")
+        raise ConfigError.about("device", name, "expected cpu, cuda or cuda:N (or auto)")
     if not torch.cuda.is_available():  # name is cuda or cuda:N from here on
-        raise ConfigError.about(key, name, f"CUDA is not available on this machine; use `{key}=cpu`")
+        raise ConfigError.about("device", name, "CUDA is not available on this machine; use `device=cpu`")
     index, count = name.partition(":")[2], torch.cuda.device_count()
     if index and int(index) >= count:
-        raise ConfigError.about(key, name, f"no such GPU (this machine has {count}); use cuda:0 .. cuda:{count - 1}")
+        raise ConfigError.about("device", name, f"no such GPU (this machine has {count}); use cuda:0 .. cuda:{count - 1}")
     return name
 
 
