@@ -46,7 +46,7 @@ def test_ranged_infers_integer_from_the_default():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"lr": 0}, r"example.lr = 0: must be a number > 0 \(--set example.lr=VALUE\)"),
+    ({"lr": 0}, r"example.lr = 0: must be a number > 0 \(`example.lr=VALUE`\)"),
     ({"steps": 2.5}, r"example.steps = 2.5: must be an integer >= 1"),
     ({"ratio": 1.0}, r"example.ratio = 1.0: must be a number in \[0, 1\)"),
     ({"mode": "c"}, r"example.mode = 'c': must be one of 'a', 'b'"),

@@ -61,7 +61,7 @@ def test_a_run_named_bare_from_its_parent_writes_into_itself(tiny_run, monkeypat
 def test_load_refuses_a_missing_run_and_a_bad_device(tmp_path):
     with pytest.raises(CheckpointError, match="does not exist"):
         Run.load(tmp_path / "nothing")
-    with pytest.raises(ConfigError, match="--device"):
+    with pytest.raises(ConfigError, match="device = 'tpu': expected cpu, cuda or cuda:N"):
         Run.load(tmp_path / "nothing", device="tpu")
 
 

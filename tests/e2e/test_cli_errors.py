@@ -188,13 +188,13 @@ CASES = [
     # lock or manifest is written (cerberus_core.datasets.generate.validate_generation)
     *[(f"data-generate-{name}{'-dry-run' if dry else ''}", f"{GEN} {argv}{' --dry-run' if dry else ''}", expected)
       for name, argv, expected in [
-          ("image-size-huge", "--image-size 100000 --out {root}/new", "image_size = 100000: must be an integer in [8, 1024]"),
-          ("image-size-negative", "--image-size -5 --out {root}/new", "image_size = -5: must be an integer in [8, 1024]"),
+          ("image-size-huge", "--image-size 100000 --out {root}/new", "--image-size 100000: must be an integer in [8, 1024]"),
+          ("image-size-negative", "--image-size -5 --out {root}/new", "--image-size -5: must be an integer in [8, 1024]"),
           ("memory", "--size paper --image-size 1024 --shard-images 100000 --batch-size 100000 --out {root}/new",
            "GiB of memory"),
           ("renderer", "--renderer foo --out {root}/new", "unknown renderer 'foo'"),
           ("set-renderer", "--set renderer=foo --out {root}/new", "unknown renderer 'foo'"),
-          ("size", "--size nope --out {root}/new", "unknown preset 'nope' for dataset 'primitives'"),
+          ("size", "--size nope --out {root}/new", "--size nope: unknown size preset for dataset 'primitives'"),
           ("set-yaml", "--set seed=[1 --out {root}/new", "not valid YAML"),
           ("set-key", "--set splits.train.pair=3 --out {root}/new", "did you mean 'splits.train.pairs'"),
           ("set-nan", "--set scene.elevation=.nan --out {root}/new", "scene.elevation = nan: must be a finite"),
@@ -207,8 +207,8 @@ CASES = [
           ("scene-near", "--set scene.near=-1 --out {root}/new", "scene.near = -1.0: must be a number > 0"),
           ("scene-far", "--set scene.far=1 --out {root}/new", "far 1.0 must exceed the distance"),
           ("scene-background", "--set scene.background=[2,0,0] --out {root}/new", "RGB values must lie in [0, 1]"),
-          ("seed-negative", "--seed -1 --out {root}/new", "seed = -1: must be an integer >= 0"),
-          ("shard-images-0", "--shard-images 0 --out {root}/new", "shard_images = 0: must be an integer >= 4"),
+          ("seed-negative", "--seed -1 --out {root}/new", "--seed -1: must be an integer >= 0"),
+          ("shard-images-0", "--shard-images 0 --out {root}/new", "--shard-images 0: must be an integer >= 4"),
           ("batch-size-0", "--batch-size 0 --out {root}/new", "--batch-size: must be >= 1"),
           ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--dataset folder only"),
           ("out-file", "--out {root}/afile", "is a file"),
@@ -222,7 +222,7 @@ CASES = [
     ("data-generate-folder-missing", "data generate --dataset folder --source {root}/nothing --out {root}/new",
      "does not exist"),
     ("data-generate-folder-fraction", "data generate --dataset folder --source {root}/notes --test-fraction 2 "
-     "--out {root}/new", "test_fraction must lie in [0, 1]"),
+     "--out {root}/new", "--test-fraction 2.0: must lie in [0, 1]"),
     ("data-check-missing", "data check {root}/nothing", "does not exist"),
     ("data-check-file", "data check {root}/afile", "is a file, not a dataset folder"),
     ("data-check-notes", "data check {root}/notes", "is not a Cerberus dataset"),
@@ -336,7 +336,7 @@ def test_the_scene_of_a_model_is_never_a_silent_default(place, tmp_path):
     trained_on = model_scene(config, None, None)  # the training data is still there
     assert model_scene(config, None, saved) == trained_on == model_scene(config, place["data"], None)
     gone = replace(config, data=replace(config.data, root=str(tmp_path / "moved")))
-    with pytest.raises(ConfigError, match="pass --data DATASET"):
+    with pytest.raises(ConfigError, match="pass `data=DATASET`"):
         model_scene(gone, None, None)
     with pytest.raises(ConfigError, match="not a Cerberus dataset"):
         model_scene(config, place["root"] / "notes", saved)
@@ -517,7 +517,7 @@ def test_eval_reports_its_step_and_a_newer_checkpoint(place, tmp_path, capsys):
     torch.save(payload, run / "checkpoints" / "last.pt")
     (run / "eval").mkdir()
     (run / "eval" / "results.json").write_text("{}")  # an earlier version's results: replaced without --overwrite
-    with pytest.warns(UserWarning, match=r"holds step 2 but .*last.pt is at step 5.*--resume"):
+    with pytest.warns(UserWarning, match=r"holds step 2 but .*last.pt is at step 5.*resuming its training"):
         assert main(["eval", str(run), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
                      "--viewer-images", "0"]) == 0
     printed = capsys.readouterr().out

@@ -75,7 +75,7 @@ def test_evaluate_the_shipped_model_on_your_own_test_only_meshes(tmp_path, capsy
     assert main(["eval", "human", "--data", str(tmp_path / "plain"), "--out", str(tmp_path / "plain_eval"),
                  "--limit", "2", "--no-part-quality", "--figure-images", "1", "--viewer-images", "0"]) == 0
     printed = capsys.readouterr().out
-    assert "Hard Human: not run" in printed and "--canonical POSE" in printed
+    assert "Hard Human: not run" in printed and "the folder source's `canonical` option" in printed
     assert json.loads((tmp_path / "plain_eval" / "results.json").read_text())["hard"] is None
 
     # training on it is refused in one line, nothing written

@@ -165,8 +165,8 @@ def test_z_up_meshes_give_the_y_up_bodies_with_up_axis_z(tmp_path):
     assert y_up.describe()["up_axis"] == "+y" and z_up.describe()["up_axis"] == "+z"  # part of the config hash
     assert y_up.up_axis_warning() is None and z_up.up_axis_warning() is None
     hint = lying.up_axis_warning()
-    assert "--up-axis +z" in hint and "4 of 4 meshes" in hint
-    with pytest.raises(ValueError, match="up axis 'z'"):
+    assert "`up_axis=+z`" in hint and "4 of 4 meshes" in hint
+    with pytest.raises(ValueError, match="up_axis = 'z': must be one of"):
         FolderSource(z_root, up_axis="z")
 
 
@@ -178,7 +178,7 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
     y_root = _figures(tmp_path / "y")
     z_root = _figures(tmp_path / "z", transform=lambda v: np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1))
     base = ["data", "generate", "--dataset", "folder", "--image-size", "32", "--quiet", "--test-fraction", "0.5"]
-    with pytest.warns(UserWarning, match=r"tallest along z.*pass --up-axis \+z"):
+    with pytest.warns(UserWarning, match=r"tallest along z.*pass `up_axis=\+z`"):
         assert main([*base, "--source", str(z_root), "--out", str(tmp_path / "d0"), "--dry-run"]) == 0
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # any warning fails

@@ -62,7 +62,7 @@ def test_generate_takes_set_overrides_with_the_training_configs_validation(tmp_p
                            (["--set", "splits.train.layout=pair"], "splits.train.layout: must be one of 'pairs'"),
                            (["--set", "scene.fov_y=200"], r"scene.fov_y = 200.0: must be a number in \(0, 180\)"),
                            (["--set", "seed"], "section.key=value"),
-                           (["--size", "tiniest"], "unknown preset 'tiniest' for dataset 'primitives'.*tiny")):
+                           (["--size", "tiniest"], "--size tiniest: unknown size preset for dataset 'primitives'.*tiny")):
         assert main([*base, *flags, "--dry-run"]) == 2
         assert re.search(message, capsys.readouterr().err)
     assert not (tmp_path / "x").exists()

@@ -131,7 +131,7 @@ def test_bad_configs_are_refused():
         SplitConfig("triples")
     with pytest.raises(ValueError, match="2 views"):
         SplitConfig("grid", views=1, quadruplets_per_pose=2)
-    with pytest.raises(ValueError, match="unknown preset"):
+    with pytest.raises(ValueError, match="size = 'huge': unknown size preset"):
         preset_config("human", "huge")
     with pytest.raises(ValueError, match="image_size"):
         preset_config("human", "tiny", image_size=4)

@@ -100,7 +100,7 @@ def test_cluttered_photo_warns_once_and_the_mask_composites_it_back(generated):
     named = [str(w.message) for w in caught if "out of the training domain" in str(w.message)]
     assert len(named) == 1 and "1 of 2 image(s)" in named[0], named  # one warning, naming the photo only
     assert "photo.png: its border is not the training background" in named[0] and "gen1" not in named[0]
-    assert "--mask" in named[0] and "RGBA" in named[0] and "\n" not in named[0]
+    assert "`mask=MASK.png`" in named[0] and "RGBA" in named[0] and "\n" not in named[0]
     html = (root / "plain" / "index.html").read_text()
     assert html.count("Out of the training domain: its border") == 1  # the photo's card, not gen1's
     assert (root / "plain" / "photo_figure1.png").is_file()
@@ -165,7 +165,7 @@ def test_bad_masks_are_one_line(generated, capsys):
         (["--mask", str(root / "missing.png")], "missing.png: no such file"),
         (["--mask", str(photo)], "is not a mask"),  # a rendered picture
         (["--mask", str(root / "black_mask.png")], "marks no pixel as the body"),
-        (["--mask", str(root / "black_mask.png"), "--mask", str(root / "black_mask.png")], "--mask given 2 time(s)"),
+        (["--mask", str(root / "black_mask.png"), "--mask", str(root / "black_mask.png")], "--mask: 2 given for 1 image(s)"),
     ]
     for extra, expected in cases:
         out = root / "bad_out"

@@ -71,7 +71,7 @@ def test_resumed_run_ends_with_the_same_weights_as_an_uninterrupted_one(tiny_con
 
 def test_resume_refuses_a_different_run_and_fresh_start_refuses_an_existing_one(tiny_config, tmp_path):
     train(tiny_config("train.steps=2"), tmp_path / "run")
-    with pytest.raises(FileExistsError, match="--resume"):
+    with pytest.raises(FileExistsError, match="pass `resume=True` to continue it"):
         train(tiny_config("train.steps=2"), tmp_path / "run")
     with pytest.raises(ValueError, match="optim.lr"):
         train(tiny_config("optim.lr=0.1"), tmp_path / "run", resume=True)
@@ -192,5 +192,5 @@ def test_resources_a_setting_cannot_have_are_capped_or_refused(tiny_config, tiny
         assert torch.get_num_threads() <= (os.cpu_count() or 1)
     finally:
         torch.set_num_threads(before)
-    with pytest.raises(ConfigError, match=r"train.batch_size=1000000000 is larger than the 4 quadruplets"):
+    with pytest.raises(ConfigError, match=r"train.batch_size = 1000000000: more than the 4 quadruplets"):
         train(tiny_config("train.batch_size=1000000000"), tmp_path / "big", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))

@@ -105,19 +105,19 @@ def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> d
     for item in items:
         key, eq, text = item.partition("=")
         if not eq or not key.strip() or any(not p for p in key.strip().split(".")):
-            raise ConfigError(f"--set {item!r}: expected section.key=value, e.g. --set {example}")
+            raise ConfigError.about("overrides", item, f"expected section.key=value, e.g. `{example}`")
         try:
             value = yaml.safe_load(text) if text.strip() else None
         except yaml.YAMLError as exc:
             problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({problem}); close brackets and "
-                              f"quotes, e.g. --set {example}") from None
+            raise ConfigError.about("overrides", item, f"the value is not valid YAML ({problem}); close brackets "
+                                    f"and quotes, e.g. `{example}`") from None
         node = out
         parts = key.strip().split(".")
         for p in parts[:-1]:
             child = node.setdefault(p, {})
             if not isinstance(child, dict):
-                raise ConfigError(f"--set {item!r}: {p!r} was already given a value, not a section")
+                raise ConfigError.about("overrides", item, f"{p!r} was already given a value, not a section")
             node = child
         node[parts[-1]] = value
     return out
@@ -182,7 +182,7 @@ def load_raw(presets: Presets, path: str | Path | None = None, *, preset: str | 
         layers = _layers(read_file(path), str(path), Path(path).parent, presets)
     elif preset is not None:
         names = [preset] if isinstance(preset, str) else list(preset)
-        layers = _layers(yaml.safe_dump({"extends": names}), "--preset " + " --preset ".join(names), None, presets)
+        layers = _layers(yaml.safe_dump({"extends": names}), f"{presets.kind}s {' + '.join(names)}", None, presets)
     raw: dict[str, Any] = {}
     for _, layer in layers:
         raw = deep_merge(raw, layer)
@@ -268,7 +268,7 @@ def _coerce_float(value: Any, key: str) -> float:
     if number is None:
         raise ConfigError(f"{key}: expected a number, got {value!r}")
     if not math.isfinite(number):  # .nan / .inf are YAML numbers, never sensible settings
-        raise ConfigError(f"{key} = {number}: must be a finite number (--set {key}=VALUE)")
+        raise ConfigError.about(key, number, "must be a finite number")
     return number
 
 

@@ -1,5 +1,5 @@
-"""The one check of a torch device name, for every layer that takes one (``--device``, a config's
-``device``, :func:`cerberus_core.datasets.generate.validate_generation`): it raises
+"""The one check of a torch device name, for every layer that takes one (a ``device`` parameter, a
+config's ``device``, :func:`cerberus_core.datasets.generate.validate_generation`): it raises
 :class:`~cerberus_core.errors.ConfigError` before anything is allocated or written."""
 from __future__ import annotations
 
@@ -13,26 +13,20 @@ def is_device_name(name: object) -> bool:
                                       (name.startswith("cuda:") and name[5:].isdigit()))
 
 
-def check_device(name: str, option: str = "--device") -> str:
-    """``cpu``, ``cuda`` or ``cuda:N`` that exists here, or ``auto``; returns ``name``.
-
-    Args:
-        option: how the message names the setting: a flag (``--device``) or a config key (``device``,
-            which the fix then sets with ``--set``).
-    """
+def check_device(name: str) -> str:
+    """``cpu``, ``cuda`` or ``cuda:N`` that exists here, or ``auto``; returns ``name``. A
+    :class:`ConfigError` otherwise, about the setting ``device`` (every layer's name for it)."""
     import torch
 
-    cpu = f"{option} cpu" if option.startswith("--") else f"--set {option}=cpu"
     if name in ("auto", "cpu"):
         return name
     if not is_device_name(name):
-        raise ConfigError(f"{option} {name!r}: expected cpu, cuda or cuda:N (or auto)")
+        raise ConfigError.about("device", name, "expected cpu, cuda or cuda:N (or auto)")
     if not torch.cuda.is_available():  # name is cuda or cuda:N from here on
-        raise ConfigError(f"{option} {name}: CUDA is not available on this machine; use {cpu}")
-    index = name.partition(":")[2]
-    if index and int(index) >= torch.cuda.device_count():
-        raise ConfigError(f"{option} {name}: no such GPU (this machine has {torch.cuda.device_count()}); "
-                          f"use {option} cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
+        raise ConfigError.about("device", name, "CUDA is not available on this machine; use `device=cpu`")
+    index, count = name.partition(":")[2], torch.cuda.device_count()
+    if index and int(index) >= count:
+        raise ConfigError.about("device", name, f"no such GPU (this machine has {count}); use cuda:0 .. cuda:{count - 1}")
     return name
 
 

@@ -5,7 +5,8 @@ of them the same way, and one module, so that no layer imports another just for 
   the file or key at fault and the fix);
 * :class:`DatasetError` — a dataset folder or mesh folder is missing, corrupt, incomplete or of
   another format;
-* :class:`ConfigError` — a configuration (YAML preset, config file, ``--set``) is invalid;
+* :class:`ConfigError` — a setting (a config key from a YAML preset, a config file or overrides, a function's
+  parameter, a settings object's field) is invalid;
 * :class:`ShapeError`, :class:`DeviceError` — tensors of the wrong shape or dtype, or on different
   devices (the render ops and every ``check_shapes`` call);
 * :class:`MissingPackageError` — an optional package a feature needs is not installed (the message
@@ -18,8 +19,17 @@ Errors that belong to one module derive from :class:`CerberusError` there (the p
 
 ``DatasetError`` and ``ConfigError`` are also ``ValueError``\\ s, so ``except ValueError`` keeps
 catching them; ``OutputError`` is an ``OSError`` (with the original ``errno``).
+
+Messages say the problem and the fix in Python terms, never a command-line flag: a setting is named as its
+config key, parameter or field, in backticks where the fix sets it (`` `train.steps=VALUE` ``,
+`` `resume=True` ``, `` `data` ``); the ``cerberus`` command says each in its own flags
+(:mod:`cerberus_core.cli`; docs/architecture.md, "Errors").
 """
 from __future__ import annotations
+
+import os
+
+from cerberus_core.plumbing.names import printable
 
 
 class CerberusError(Exception):
@@ -32,16 +42,28 @@ class DatasetError(CerberusError, ValueError):
 
 
 class ConfigError(CerberusError, ValueError):
-    """An invalid configuration: the message names the key, the value and what is allowed.
+    """An invalid setting: the message names the key, the value and what is allowed.
 
-    A setting checked by :mod:`cerberus_core.fields` also carries ``key`` (the dotted key or field
-    name), ``value`` and ``problem`` (what is allowed), so that a front end can say it in its own terms
-    (the ``cerberus`` command names its flag); they are ``None`` otherwise.
+    An error about one setting (:meth:`about`; every check of :mod:`cerberus_core.fields`) also carries
+    ``key`` (the dotted config key, parameter or field name), ``value`` and ``problem`` (what is wrong or
+    allowed), so that a front end can say it in its own terms (the ``cerberus`` command names its flag);
+    they are ``None`` otherwise.
     """
 
     def __init__(self, message: str, *, key: str | None = None, value: object = None, problem: str | None = None):
         super().__init__(message)
         self.key, self.value, self.problem = key, value, problem
+
+    @classmethod
+    def about(cls, key: str, value: object, problem: str, fix: str = "") -> ConfigError:
+        """The error of the setting ``key``: ``key = value: problem (fix)`` (``key: problem`` when ``value``
+        is ``None``; a path shown as it is written), with ``key``, ``value`` and ``problem`` kept.
+
+        Args:
+            fix: the Python fix, where the problem does not say it, e.g. ``EvalSettings(resolution=...)``.
+        """
+        shown = "" if value is None else f" = {printable(value)}" if isinstance(value, os.PathLike) else f" = {value!r}"
+        return cls(f"{key}{shown}: {problem}" + (f" ({fix})" if fix else ""), key=key, value=value, problem=problem)
 
 
 class MissingPackageError(CerberusError, ImportError):

@@ -5,7 +5,7 @@ A settings dataclass declares each field's type with its hint (``Literal`` for a
 range with :func:`ranged` in the field's metadata. Deriving from :class:`Checked` checks every
 range and every ``Literal`` when the object is constructed, from a file or from Python, and raises
 :class:`~cerberus_core.errors.ConfigError` there, at the source, naming the dotted key, the value,
-the range and the ``--set`` that fixes it::
+the range and the fix in Python terms (the ``cerberus`` command says it as ``--set`` or its flag)::
 
     @dataclass
     class OptimConfig(Checked):
@@ -13,7 +13,7 @@ the range and the ``--set`` that fixes it::
         lr: float = ranged(0.0005, gt=0)
 
     OptimConfig(lr=0)
-    # ConfigError: optim.lr = 0: must be a number > 0 (--set optim.lr=VALUE)
+    # ConfigError: optim.lr = 0: must be a number > 0 (`optim.lr=VALUE`)
 
 Checks that relate two fields stay in the class's ``validate()``, which :meth:`Checked.check` calls
 after the ranges; they raise :class:`ConfigError` too. Call ``check()`` again after changing a field
@@ -115,18 +115,17 @@ def check_fields(obj: Any, section: str = "") -> None:
         if problem is None and rng is not None and not rng.admits(value):
             problem = f"must be {rng.describe()}"
         if problem is not None:
-            hint = fix.format(key=key, cls=type(obj).__name__)
-            raise ConfigError(f"{key} = {value!r}: {problem} ({hint})", key=key, value=value, problem=problem)
+            raise ConfigError.about(key, value, problem, fix.format(key=key, cls=type(obj).__name__))
 
 
 class Checked:
     """Mixin of a settings dataclass: ranges (:func:`ranged`) and then ``validate()`` (the checks
     between fields) run on construction. ``SECTION`` is the config section the keys live under;
-    ``FIX`` how a message says to fix a field (a config section: ``--set``; a settings object used from
-    Python: ``EvalSettings(resolution=...)``)."""
+    ``FIX`` how a message says to fix a field in Python terms (a config section: its key,
+    `` `optim.lr=VALUE` ``; a settings object made in Python: ``EvalSettings(resolution=...)``)."""
 
     SECTION: ClassVar[str] = ""
-    FIX: ClassVar[str] = "--set {key}=VALUE"
+    FIX: ClassVar[str] = "`{key}=VALUE`"
     """How a message says to fix a field (``{key}``: the dotted key, ``{cls}``: the class name)."""
 
     def __post_init__(self) -> None:

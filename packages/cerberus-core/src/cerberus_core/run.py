@@ -49,7 +49,7 @@ from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, check
 from cerberus_core.train.config import TrainConfig
 from cerberus_core.zoo import available, model_path
 
-#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without --overwrite.
+#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without ``overwrite``.
 EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
 
 
@@ -106,9 +106,9 @@ def resolve_weights(path: str | Path) -> Path:
                 return candidate
         if (path / "manifest.json").is_file():
             raise CheckpointError(f"{shown} is a dataset folder, not a training run; pass the run folder "
-                                  f"first and the dataset with --data {shown}")
+                                  f"first and the dataset as `data={shown}`")
         raise CheckpointError(f"{shown} holds neither model.safetensors nor checkpoints/{LAST}, so it is not a "
-                              "training run folder; train one with `cerberus train --out RUN`")
+                              "training run folder; train one first (`cerberus train`)")
     if not path.is_file():
         raise CheckpointError(f"{shown} is {_file_kind(path)}, not a model file; {USE_RUN}")
     return path
@@ -174,8 +174,8 @@ class WeightsInfo:
         run = printable(self.path.parent)
         return (f"{printable(self.path)} holds step {self.step} but {printable(self.newer)} is at step "
                 f"{self.newer_step} (a training resumed and not finished?); scoring step {self.step}: pass "
-                f"{printable(self.newer)} to score the newer weights, or finish the run with "
-                f"`cerberus train --out {run} --resume`")
+                f"{printable(self.newer)} to score the newer weights, or finish the run by resuming its training "
+                f"in {run}")
 
 
 def describe_weights(path: str | Path) -> WeightsInfo:
@@ -246,9 +246,9 @@ def _load_weights(path: str | Path, device: str | torch.device = "cpu") -> tuple
 
 
 def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict | None = None):
-    """The scene set-up the model was trained with: from ``--data`` (which must be a dataset), else the
+    """The scene set-up the model was trained with: from ``data`` (which must be a dataset), else the
     one the run recorded, else from the run's training data if it is still there. Never a silent
-    default: without any of them the user is asked for ``--data``.
+    default: without any of them the user is asked for ``data`` (:class:`ConfigError` with that key).
 
     Args:
         config: the run's config.
@@ -257,23 +257,22 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
     Returns:
         A :class:`~cerberus_core.datasets.scene.SceneSetup`.
     """
-    def scene_of(record, where: str, fix: str = "pass --data DATASET (the dataset it was trained on)"):
-        try:
-            return SceneSetup.from_dict(record)
-        except (ValueError, TypeError, AttributeError, KeyError) as exc:  # ConfigError is a ValueError
-            raise ConfigError(f"{where}: invalid scene set-up ({exc}); {fix}") from None
-
     if data is not None:
         if not (Path(data) / MANIFEST).is_file():
-            raise ConfigError(f"--data {data}: not a Cerberus dataset folder (no {MANIFEST})")
+            raise ConfigError.about("data", Path(data), f"not a Cerberus dataset folder (no {MANIFEST})")
         return Manifest.read(Path(data)).scene  # a damaged scene record is a DatasetError naming the manifest
     if saved is not None:
-        return scene_of(saved, "the model's recorded scene")
+        try:
+            return SceneSetup.from_dict(saved)
+        except (ValueError, TypeError, AttributeError, KeyError) as exc:  # ConfigError is a ValueError
+            raise ConfigError(f"the model's recorded scene: invalid scene set-up ({exc}); pass `data=DATASET` (the "
+                              "dataset it was trained on)") from None
     root = Path(config.data.root)
     if (root / MANIFEST).is_file():
         return Manifest.read(root).scene
-    raise ConfigError(f"the run does not record its scene set-up and its training data {root} is not here; pass "
-                      "--data DATASET (the dataset it was trained on, or one rendered the same way)")
+    raise ConfigError.about("data", None, f"needed: the run does not record its scene set-up and its training data "
+                            f"{root} is not here; pass `data=DATASET` (the dataset it was trained on, or one rendered "
+                            "the same way)")
 
 
 # ------------------------------------------------------------------ evaluation settings
@@ -284,7 +283,7 @@ def check_protocol(name: str) -> str:
     try:
         factory(protocol=name, resolution=32)
     except (ValueError, KeyError) as exc:
-        raise ConfigError(f"protocol = {name!r}: {exc}", key="protocol", value=name, problem=str(exc)) from None
+        raise ConfigError.about("protocol", name, str(exc)) from None
     return name
 
 
@@ -343,7 +342,8 @@ class Evaluation:
         elif self.hard_requested:
             line += "; Hard Human: not run (no canonical-pose images in this split"
             if self.folder_dataset:
-                line += "; name each subject's canonical pose with `cerberus data generate --dataset folder --canonical POSE`"
+                line += ("; generate the dataset with each subject's canonical pose named: the folder source's "
+                         "`canonical` option")
             line += ")"
         lines = [line]
         if result.part_visibility is not None:
@@ -426,8 +426,8 @@ class Run:
 
     def scene_for(self, data: str | Path | None = None) -> SceneSetup:
         """The scene set-up of ``data`` (a dataset folder), else the one the weights record, else the
-        training data's (:func:`model_scene`; ConfigError naming
-        ``--data`` when none is known)."""
+        training data's (:func:`model_scene`; :class:`ConfigError` naming
+        ``data`` when none is known)."""
         return model_scene(self.config, data, self.recorded_scene)
 
     def training_kind(self) -> str | None:
@@ -491,17 +491,15 @@ class Run:
         """
         s = settings if settings is not None else EvalSettings()
         if data is not None and not is_dataset(Path(data)):
-            raise ConfigError(f"data = {printable(data)}: not a Cerberus dataset folder (no {MANIFEST})", key="data",
-                              value=str(data), problem=f"not a Cerberus dataset folder (no {MANIFEST})")
+            raise ConfigError.about("data", Path(data), f"not a Cerberus dataset folder (no {MANIFEST})")
         data = None if data is None else Path(data)
         keep = [] if self.shipped else [Path(self.source)]
         out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=s.overwrite,
                             keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS)
         baseline_models = {name: b.model if isinstance(b, Run) else b for name, b in (baselines or {}).items()}
         if data is None and not is_dataset(self.data_root):
-            raise ConfigError(f"the run's training data {self.data_root} is not a dataset folder from here; "
-                              "give the dataset (data)", key="data", value=None,
-                              problem=f"needed: the run's training data {self.data_root} is not here")
+            raise ConfigError.about("data", None, f"needed: the run's training data {self.data_root} is not a dataset "
+                                    "folder from here; give the dataset")
         dataset = ViewDataset(data or self.data_root, s.split)
         dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
         for note in self.domain_notes(data or self.data_root):
@@ -545,7 +543,7 @@ class Run:
             viewer_images: cards in ``out/index.html`` (0: no viewer).
         """
         if viewer_images < 0:
-            raise ConfigError(f"--viewer-images {viewer_images}: must be >= 0 (0: no viewer)")
+            raise ConfigError.about("viewer_images", viewer_images, "must be >= 0 (0: no viewer)")
         images = [Path(p) for p in images]
         mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])

@@ -159,8 +159,8 @@ class BodySource(ABC):
         Raises:
             ConfigError: the source has no motion pairs (or, for ``n=None``, no fixed number of them).
         """
-        raise ConfigError(f"splits.{split}.pose_pairs: the {self.name} source has no motion pose pairs; set "
-                          f"splits.{split}.pose_pairs=independent")
+        raise ConfigError.about(f"splits.{split}.pose_pairs", "motion", f"the {self.name} source has no motion pose "
+                                f"pairs; use `splits.{split}.pose_pairs=independent`")
 
     @abstractmethod
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:

@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.bodies.body import FILL, BodySource, PosedBody, Subject, normalise_subject
-from cerberus_core.errors import DatasetError
+from cerberus_core.errors import ConfigError, DatasetError
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
@@ -84,10 +84,10 @@ def up_axis_rotation(up_axis: str) -> np.ndarray:
     vertices become ``vertices @ R.T``.
 
     Raises:
-        ValueError: an unknown axis (the message lists :data:`UP_AXES`).
+        ConfigError: an unknown axis (the message lists :data:`UP_AXES`).
     """
     if up_axis not in _UP_ROTATIONS:
-        raise ValueError(f"up axis {up_axis!r} is not one of {', '.join(UP_AXES)}")
+        raise ConfigError.about("up_axis", up_axis, f"must be one of {', '.join(UP_AXES)}")
     return np.asarray(_UP_ROTATIONS[up_axis], dtype=np.float64)
 
 
@@ -223,7 +223,7 @@ class FolderSource(BodySource):
         if not self.root.is_dir():
             raise DatasetError(f"mesh folder {self.root} does not exist")
         if not 0.0 <= test_fraction <= 1.0:
-            raise ValueError(f"test_fraction must lie in [0, 1], got {test_fraction}")
+            raise ConfigError.about("test_fraction", test_fraction, "must lie in [0, 1]")
         self.up_axis = up_axis
         self._rotation = up_axis_rotation(up_axis)
         self.canonical = canonical
@@ -259,7 +259,7 @@ class FolderSource(BodySource):
                 stems = [f.stem for f in self._files[subject]]
                 if canonical not in stems:
                     raise DatasetError(f"{self.root / subject}: no pose file {canonical!r} (the canonical pose named by "
-                                       f"--canonical); its poses are {stems}; add it or name another pose")
+                                       f"`canonical`); its poses are {stems}; add it or name another pose")
         self.part_names = self._read_part_names()
         self._scan()  # opens every file: errors surface before anything is written
 
@@ -367,7 +367,7 @@ class FolderSource(BodySource):
 
     def up_axis_warning(self) -> str | None:
         """A one-line warning when most meshes are tallest along a file axis other than the up axis
-        (e.g. z-up meshes read as +Y up would lie on their backs), naming ``--up-axis`` and the likely
+        (e.g. z-up meshes read as +Y up would lie on their backs), naming ``up_axis`` and the likely
         value; ``None`` when the extents agree with the up axis. Long bodies (quadrupeds) can be
         longest along a horizontal axis: hence a warning, not an error."""
         up = int(np.argmax(np.abs(self._rotation[1])))  # the file axis that becomes +Y
@@ -378,8 +378,8 @@ class FolderSource(BodySource):
         axis = "xyz"[tallest]
         return (f"{self.root}: {counts[tallest]} of {len(self._tallest)} meshes are tallest along {axis}, not along "
                 f"the up axis {self.up_axis}; if they are {axis}-up (Blender, anny and many scans are z-up), pass "
-                f"--up-axis +{axis} (or -{axis} if they come out upside down); if they are long bodies "
-                f"(quadrupeds) already {self.up_axis} up, pass --up-axis {self.up_axis} to silence this")
+                f"`up_axis=+{axis}` (or -{axis} if they come out upside down); if they are long bodies "
+                f"(quadrupeds) already {self.up_axis} up, pass `up_axis={self.up_axis}` to silence this")
 
     def describe(self) -> dict[str, Any]:
         return {"fingerprint": self.fingerprint, "test_subjects": list(self._split["test"]),

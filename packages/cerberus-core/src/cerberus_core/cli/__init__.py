@@ -2,12 +2,19 @@
 ``add_parser(subparsers)`` function; this module only assembles them and owns the one error path:
 
 * a typed error (:class:`cerberus_core.errors.CerberusError`, a plugin error) → one line
-  ``cerberus COMMAND: message`` on standard error, exit status 2 (or the error's ``exit_code``);
+  ``cerberus COMMAND: message`` on standard error, exit status 2 (or the error's ``exit_code``), said in
+  this command's flags (:class:`Terms`);
 * any other ``OSError`` (a full disk, a read-only or missing folder, whatever its errno) → one line
   naming the path and the system's reason, exit 2;
 * Ctrl-C (SIGINT) at any moment, imports included → exit 130; SIGTERM → exit 143 (a training writes
   its checkpoint first);
-* warnings → one line ``cerberus COMMAND: warning: message``, without Python source lines.
+* warnings → one line ``cerberus COMMAND: warning: message``, without Python source lines, in this
+  command's flags too.
+
+The library says a setting in Python terms (docs/architecture.md, "Errors"): a
+:class:`~cerberus_core.errors.ConfigError`'s ``key``, and in any message a parameter, field or config key
+in backticks (`` `resume=True` ``, `` `data` ``, `` `train.steps=VALUE` ``). :class:`Terms` is the one
+place that says each as the flag of the command that was run, or as ``--set KEY=VALUE``.
 
 Sub-commands validate every argument before they write anything, and raise typed errors instead of
 printing and returning a status.
@@ -16,11 +23,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import importlib
+import re
+import shlex
 import signal
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 
 from cerberus_core.errors import CerberusError
 from cerberus_core.plumbing.signals import Terminated
@@ -39,6 +49,72 @@ COMMAND_MODULES = [
 EXIT_ERROR = 2
 EXIT_SIGINT = 128 + signal.SIGINT  # 130
 EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
+
+
+#: A setting a library message names: `name` or `name=value` in backticks (a parameter, a field, a config key).
+SETTING = re.compile(r"`([a-z_][a-z0-9_]*(?:\.[a-z0-9_]+)*)(?:=([^`]*))?`")
+
+
+@dataclasses.dataclass(frozen=True)
+class Terms:
+    """How one command says the settings the library names (a sub-command passes its own with
+    ``set_defaults(terms=...)``; :func:`main` adds the flags typed).
+
+    Attributes:
+        flags: setting (a library parameter, a settings field or a config key) → this command's flag,
+            e.g. ``{"run_dir": "--out", "resume": "--resume"}``.
+        config: the settings class whose keys ``--set KEY=VALUE`` sets (``None``: the command has no ``--set``).
+        typed: the flags on this command line: a config key that has a flag of its own is said with that flag
+            where it was typed, else with ``--set``.
+    """
+
+    flags: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    config: type | None = None
+    typed: frozenset[str] = frozenset()
+
+    def is_config_key(self, key: str) -> bool:
+        """Whether ``--set`` sets ``key`` on this command (its first part is a field of :attr:`config`)."""
+        return self.config is not None and key.split(".")[0] in {f.name for f in dataclasses.fields(self.config)}
+
+    def flag(self, key: str) -> str | None:
+        """The flag that says ``key`` here, or ``None`` (a config key set with ``--set``, or not a setting here)."""
+        flag = self.flags.get(key)
+        return flag if flag and (flag in self.typed or not self.is_config_key(key)) else None
+
+    def text(self, text: str) -> str:
+        """``text`` with each setting in backticks said as this command's flag (`` `data=DATASET` `` → ``--data
+        DATASET``; a switch: `` `resume=True` `` → ``--resume``, `` `resume=False` `` → ``without --resume``) or
+        ``--set`` (`` `train.steps=VALUE` `` → ``--set train.steps=VALUE``); a setting this command does not take
+        stays as it is."""
+        def say(match: re.Match) -> str:
+            key, value = match[1], match[2]
+            if flag := self.flag(key):
+                return {None: flag, "True": flag, "False": f"without {flag}"}.get(value, f"{flag} {value}")
+            if self.is_config_key(key):
+                return key if value is None else f"--set {key}={value}"
+            return match[0]
+
+        return SETTING.sub(say, text)
+
+    def error(self, exc: BaseException) -> str:
+        """The message of ``exc`` in this command's terms: an error about one setting (``key``, ``value``,
+        ``problem``) leads with its flag (``--resolution 999: must be ...``) or, for a config key, ends with
+        the ``--set`` that fixes it; every setting the message names is said as a flag (:meth:`text`)."""
+        key, problem = getattr(exc, "key", None), getattr(exc, "problem", None)
+        if key is None or problem is None:
+            return self.text(str(exc))
+        said, flag, value = self.text(problem), self.flag(key), getattr(exc, "value", None)
+        if flag:
+            shown = "" if value is None or isinstance(value, bool) else f" {shlex.quote(str(value))}"
+            return f"{flag}{shown}: {said}"
+        if self.is_config_key(key):
+            return f"{key} = {value!r}: {said}" + ("" if f"--set {key}=" in said else f" (--set {key}=VALUE)")
+        return self.text(str(exc))
+
+
+def typed_flags(argv: list[str]) -> frozenset[str]:
+    """The flags on a command line (``--out``, ``--set``; ``--out=DIR`` counts as ``--out``)."""
+    return frozenset(a.partition("=")[0] for a in argv if a.startswith("--"))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -66,8 +142,9 @@ def one_line(text: object) -> str:
 
 
 @contextlib.contextmanager
-def _cli_environment(command: str) -> Iterator[None]:
-    """SIGTERM raises :class:`Terminated`; warnings print as one line. Both restored on exit."""
+def _cli_environment(command: str, terms: Terms) -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated`; warnings print as one line, in the command's terms. Both restored
+    on exit."""
     def on_term(signum, frame):  # noqa: ARG001
         raise Terminated()
 
@@ -75,7 +152,7 @@ def _cli_environment(command: str) -> Iterator[None]:
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         previous = signal.signal(signal.SIGTERM, on_term)
     saved_format = warnings.formatwarning
-    warnings.formatwarning = lambda message, *a, **k: f"cerberus {command}: warning: {one_line(message)}\n"
+    warnings.formatwarning = lambda message, *a, **k: f"cerberus {command}: warning: {one_line(terms.text(str(message)))}\n"
     try:
         yield
     finally:
@@ -104,17 +181,20 @@ def main(argv: list[str] | None = None) -> int:
         interrupted.append(True)
         raise KeyboardInterrupt
 
-    command = next((a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("-")), "")
+    words = sys.argv[1:] if argv is None else argv
+    command = next((a for a in words if not a.startswith("-")), "")
+    terms = Terms()
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         signal.signal(signal.SIGINT, on_int)
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
         command = args.command
-        with _cli_environment(command):
+        terms = dataclasses.replace(getattr(args, "terms", terms), typed=typed_flags(words))
+        with _cli_environment(command, terms):
             return int(args.func(args) or 0)
     except CerberusError as exc:  # every typed error, plugin and dataset errors included
-        print(f"cerberus {command}: {one_line(exc)}", file=sys.stderr)
+        print(f"cerberus {command}: {one_line(terms.error(exc))}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_ERROR))
     except Terminated:
         print(f"cerberus {command}: terminated (SIGTERM)", file=sys.stderr)

@@ -7,7 +7,9 @@ import warnings
 from pathlib import Path
 
 from cerberus_core.bodies.folder import DEFAULT_UP_AXIS, UP_AXES
+from cerberus_core.cli import Terms
 from cerberus_core.cli.checks import output_file, output_folder, positive_int
+from cerberus_core.datasets.plan import SHORTCUT_FLAGS, GenerationConfig, load_generation_config
 from cerberus_core.errors import ConfigError, DatasetError
 
 _DATASETS = ("human", "animal", "folder", "primitives")  # the order --help lists them
@@ -74,7 +76,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
     g.add_argument("--print-config", action="store_true", help="print the resolved config (YAML) and exit")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
-    g.set_defaults(func=run_generate)
+    # The flag of each setting of load_generation_config, validate_generation / generate and the folder source;
+    # the config's other keys are said with --set.
+    g.set_defaults(func=run_generate, terms=Terms({
+        **SHORTCUT_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",
+        "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device", "test_fraction": "--test-fraction",
+        "test_subjects": "--test-subjects", "up_axis": "--up-axis", "canonical": "--canonical"}, GenerationConfig))
 
     c = dsub.add_parser("check", help="verify a dataset's checksums and report its contents",
                         description="Verify the manifest (format version, paths), every shard file (size, sha256, "
@@ -93,13 +100,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--parts", action="store_true", help="add ground-truth part renderings")
     s.add_argument("--scale", type=positive_int, default=2, help=f"tile upscaling, 1..{MAX_SHOW_SCALE} (default 2)")
     s.add_argument("--renderer", default="auto", help="backend for --parts (default auto: warp, else torch)")
-    s.set_defaults(func=run_show)
+    s.set_defaults(func=run_show, terms=Terms({"out": "--out", "split": "--split", "renderer": "--renderer"}))
 
 
 def _generation_config(args: argparse.Namespace):
     """The resolved config: the size preset, then the shortcut flags, then --set (later wins)."""
-    from cerberus_core.datasets.plan import SHORTCUT_FLAGS, load_generation_config
-
     size = args.size
     if args.size_alias is not None:
         print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "

@@ -5,9 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cerberus_core.cli import Terms
 from cerberus_core.cli.checks import positive_int
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
+
+#: The flag of each setting of Run.load and Run.evaluate (its EvalSettings fields included).
+TERMS = Terms({"data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
+               "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
+               "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device"})
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -46,21 +52,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--renderer", help="renderer backend for the figure and the part-visibility render "
                    "(default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
-    p.set_defaults(func=run)
-
-
-#: The flag of each EvalSettings field (and of Run.evaluate's data): how a field error is said on this command line.
-FLAGS = {"data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
-         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
-         "renderer": "--renderer"}
-
-
-def in_flags(exc: ConfigError, flags: dict[str, str]) -> ConfigError:
-    """A field error of the library said with this command's flag (``--resolution 999: must be ...``)."""
-    if exc.key in flags and exc.problem:
-        shown = "" if exc.value is None else f" {exc.value}"
-        return ConfigError(f"{flags[exc.key]}{shown}: {exc.problem}")
-    return exc
+    p.set_defaults(func=run, terms=TERMS)
 
 
 def baseline_runs(specs: list[str], device: str) -> dict:
@@ -86,13 +78,10 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.run import EvalSettings, Run
 
     # Every argument is checked, and every model and the dataset opened, before anything is written.
-    try:
-        settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
-                                hard=not args.no_hard, part_quality=not args.no_part_quality, limit=args.limit,
-                                figure_images=args.figure_images, viewer_images=args.viewer_images,
-                                renderer=args.renderer, overwrite=args.overwrite)
-        run_ = Run.load(args.run, args.device)
-        run_.evaluate(args.data, settings, args.out, baselines=baseline_runs(args.baseline, args.device))
-    except ConfigError as exc:
-        raise in_flags(exc, FLAGS) from None
+    settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
+                            hard=not args.no_hard, part_quality=not args.no_part_quality, limit=args.limit,
+                            figure_images=args.figure_images, viewer_images=args.viewer_images,
+                            renderer=args.renderer, overwrite=args.overwrite)
+    run_ = Run.load(args.run, args.device)
+    run_.evaluate(args.data, settings, args.out, baselines=baseline_runs(args.baseline, args.device))
     return 0

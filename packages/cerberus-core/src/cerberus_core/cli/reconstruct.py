@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cerberus_core.cli import Terms
 from cerberus_core.cli.checks import finite_float
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
@@ -55,7 +56,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="camera azimuth assumed for the inputs, degrees (default 0; it only fixes the world frame)")
     p.add_argument("--renderer", help="renderer backend for the pictures (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
-    p.set_defaults(func=run)
+    # The flag of each setting of Run.load and Run.reconstruct_images (and an image's mask).
+    p.set_defaults(func=run, terms=Terms({"masks": "--mask", "mask": "--mask", "viewer_images": "--viewer-images",
+                                          "out": "--out", "overwrite": "--overwrite", "data": "--data",
+                                          "azimuth": "--azimuth", "renderer": "--renderer", "device": "--device"}))
 
 
 def run(args: argparse.Namespace) -> int:

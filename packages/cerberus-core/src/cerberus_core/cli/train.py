@@ -5,6 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from cerberus_core.cli import Terms
 from cerberus_core.cli.checks import output_folder
 from cerberus_core.config import load_yaml, yaml_problem
 from cerberus_core.devices import check_device
@@ -32,7 +33,7 @@ with --resume. Errors print one line and exit 2 (3: stopped on a non-finite loss
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from cerberus_core.train.config import preset_names
+    from cerberus_core.train.config import TrainConfig, preset_names
 
     p = sub.add_parser(
         "train", help="train Cerberus (or a baseline) on a quadruplet dataset",
@@ -57,7 +58,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "config's: cpu in the cpu presets, auto in paper). On CUDA the torch and Warp renderers run there "
                    "too; speed.autocast auto picks bf16 where the device computes it natively")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
-    p.set_defaults(func=run)
+    # The flag of each setting of train() and check_run_folder(); the config's keys are said with --set.
+    p.set_defaults(func=run, terms=Terms({"run_dir": "--out", "out": "--out", "resume": "--resume",
+                                          "overrides": "--set", "device": "--device"}, TrainConfig))
 
 
 def _check_config_file(path: Path) -> None:
@@ -92,7 +95,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
         if args.config is not None:
             _check_config_file(args.config)
         config = load_config(args.config, preset=None if args.config else args.preset, overrides=args.overrides)
-    check_device(config.device, option="--device" if args.device is not None else "device")
+    check_device(config.device)
     return config
 
 

@@ -206,7 +206,7 @@ follows the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in
 ``folder`` has ``pairs`` (the Human protocol) and ``grid`` (the Animal protocol) instead."""
 
 SET_EXAMPLE = "splits.train.pairs=2000"
-"""The ``--set`` example that error messages show."""
+"""The override example that error messages show."""
 
 SHORTCUT_FLAGS: dict[str, str] = {"seed": "--seed", "image_size": "--image-size", "renderer": "--renderer",
                                   "shard_images": "--shard-images"}
@@ -242,12 +242,12 @@ def load_generation_config(dataset: str, size: str | None = None, overrides: Ite
     size = default_size(dataset) if size is None else size
     known = sizes(dataset)
     if size not in known:
-        raise ConfigError(f"unknown preset {size!r} for dataset {dataset!r} (--size){did_you_mean(size, known)}; "
-                          f"choose one of {', '.join(known)}")
+        raise ConfigError.about("size", size, f"unknown size preset for dataset {dataset!r}"
+                                f"{did_you_mean(size, known)}; choose one of {', '.join(known)}")
     raw = load_raw(DATA_PRESETS, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
-    for key, why in (("dataset", "--dataset"), ("preset", "--size"), ("source", "the body source")):
+    for key, why in (("dataset", "`dataset`"), ("preset", "`size`"), ("source", "the body source")):
         if key in raw:
-            raise ConfigError(f"{key}: set by {why}, not by a preset file or --set")
+            raise ConfigError(f"{key}: set by {why}, not by a preset file or `overrides`")
     return build(GenerationConfig, {**raw, "dataset": dataset, "preset": size})
 
 

@@ -346,5 +346,5 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
                             stem, pose_donor=donor, background=background)
     write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,
                                 bodies=[dataset.gt_mesh(i) for i in idx], limit=viewer_images,
-                                limit_hint="--viewer-images", background=background, title=title)
+                                limit_hint="viewer_images", background=background, title=title)
     return save_png(fig, out / "table2.png")

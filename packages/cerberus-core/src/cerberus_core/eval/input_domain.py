@@ -312,7 +312,7 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
     if mask is not None:
         silhouette = read_mask(mask, raw, path)
         if raw.alpha is not None:
-            notes.append("the --mask is used instead of the image's alpha channel")
+            notes.append("the mask is used instead of the image's alpha channel")
     else:
         silhouette = silhouette_from(np.concatenate([raw.rgb, raw.alpha[..., None]], -1)
                                      if raw.alpha is not None else None, name=printable(path))
@@ -323,7 +323,7 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
         ok, reason = background_check(arr, scene)
         if not ok:
             reasons.append(reason)
-            advice.append("give an RGBA cut-out (transparent background) or --mask MASK.png (white on the body)")
+            advice.append("give an RGBA cut-out (transparent background) or `mask=MASK.png` (white on the body)")
     else:
         notes.append(f"{'mask' if mask is not None else 'alpha'} composited over the training background "
                      f"{_colour(scene.background)}")

@@ -69,15 +69,15 @@ def output_names(paths: Sequence[Path]) -> list[str]:
 
 
 def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Path | None]:
-    """The ``--mask`` of each image: ``None`` each without ``--mask``; one per image, in order; or, for one
+    """The mask of each image: ``None`` each without ``masks``; one per image, in order; or, for one
     folder, ``FOLDER/<image stem>.png``."""
     if not masks:
         return [None] * len(images)
     if len(masks) == 1 and masks[0].is_dir():
         return [masks[0] / f"{Path(p).stem}.png" for p in images]
     if len(masks) != len(images):
-        raise ConfigError(f"--mask given {len(masks)} time(s) for {len(images)} image(s); give one mask per image, in "
-                          "the images' order, or one folder holding NAME.png for each image NAME")
+        raise ConfigError.about("masks", None, f"{len(masks)} given for {len(images)} image(s); give one mask per "
+                                "image, in the images' order, or one folder holding NAME.png for each image NAME")
     return list(masks)
 
 
@@ -134,7 +134,7 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
         scene: the scene set-up the images follow (camera elevation, distance, fov; background).
         image_size: the model's input size in pixels.
         renderer: the backend for the pictures.
-        images: the input files; masks: each one's ``--mask`` (or ``None``).
+        images: the input files; masks: each one's mask (or ``None``).
         azimuth: the camera azimuth assumed for every input, degrees.
         viewer_images: cards in ``out/index.html`` (0: no viewer).
         title: the viewer's title.
@@ -153,7 +153,7 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
             written += save_image_pictures(backend, pictures[i], recon.index([i]), camera.index([i]), tmp, stem,
                                            pose_donor=donor, background=scene.background, note=notes[i])
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems, limit=viewer_images, notes=notes,
-                                               limit_hint="--viewer-images", title=title,
+                                               limit_hint="viewer_images", title=title,
                                                background=scene.background)
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
     return Reconstruction(out, stems, written, renamed, notes)

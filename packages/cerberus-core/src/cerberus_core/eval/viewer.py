@@ -191,7 +191,7 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
         title: the page's heading.
         limit: at most this many cards (the page says how many it left out).
         total: how many images there were in all (default ``len(entries)``), for that sentence.
-        limit_hint: how a user shows more, e.g. ``"--viewer-images"``.
+        limit_hint: the setting that shows more, e.g. ``"viewer_images"``.
         background: the 3D views' background colour, RGB in [0, 1].
     Returns:
         The page's path.

@@ -25,52 +25,54 @@ RESULT_MARKER = ".cerberus-result.json"
 NAME_MAX, PATH_MAX = 255, 4096
 
 
-def check_path_length(path: Path, option: str = "--out") -> Path:
+def check_path_length(path: Path, key: str = "out") -> Path:
     """:class:`ConfigError` when ``path`` or one of its names is longer than file systems allow (a name
     over :data:`NAME_MAX` bytes, the whole over :data:`PATH_MAX`), before anything tries to use it.
-    Output names derived from it add at most a few dozen bytes."""
+    Output names derived from it add at most a few dozen bytes. ``key`` is the parameter that holds ``path``
+    (the error's ``key``)."""
     def short(text: str) -> str:
         text = printable(text)
         return text if len(text) <= 40 else text[:37] + "..."
 
     whole = len(os.fsencode(str(path.absolute())))
     if whole > PATH_MAX - NAME_MAX:
-        raise ConfigError(f"{option} {short(str(path))}: the path is {whole} bytes long, more than file systems "
-                          f"allow for it and the names written inside it ({PATH_MAX - NAME_MAX}); choose a shorter path")
+        raise ConfigError.about(key, Path(short(str(path))), f"the path is {whole} bytes long, more than file systems "
+                                f"allow for it and the names written inside it ({PATH_MAX - NAME_MAX}); choose a "
+                                "shorter path")
     for part in path.parts:
         if len(os.fsencode(part)) > NAME_MAX - 32:
-            raise ConfigError(f"{option}: the name {short(part)} is {len(os.fsencode(part))} bytes long; file systems "
-                              f"allow {NAME_MAX}, and a temporary name is added to it while writing: choose a name "
-                              f"under {NAME_MAX - 32} bytes")
+            raise ConfigError.about(key, None, f"the name {short(part)} is {len(os.fsencode(part))} bytes long; file "
+                                    f"systems allow {NAME_MAX}, and a temporary name is added to it while writing: "
+                                    f"choose a name under {NAME_MAX - 32} bytes")
     return path
 
 
-def output_folder(path: Path, option: str = "--out", *, dataset_ok: bool = False) -> Path:
+def output_folder(path: Path, key: str = "out", *, dataset_ok: bool = False) -> Path:
     """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
     ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results;
     nor a path too long to write (:func:`check_path_length`)."""
-    check_path_length(path, option)
+    check_path_length(path, key)
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
                 what = "is a file" if p == path else f"is under {p}, which is a file"
-                raise ConfigError(f"{option} {path} {what}; pass a folder path")
+                raise ConfigError.about(key, path, f"{what}; pass a folder path")
             break
     if not dataset_ok and is_dataset(path):
-        raise ConfigError(f"{option} {path} is a dataset folder; write results to another folder")
+        raise ConfigError.about(key, path, "is a dataset folder; write results to another folder")
     return path
 
 
-def output_file(path: Path, option: str = "--out") -> Path:
+def output_file(path: Path, key: str = "out") -> Path:
     """``path`` may be written as a file: not an existing folder, nor under a file, nor too long
     (:func:`check_path_length`)."""
-    check_path_length(path, option)
+    check_path_length(path, key)
     if path.is_dir():
-        raise ConfigError(f"{option} {path} is a folder; pass a file path")
+        raise ConfigError.about(key, path, "is a folder; pass a file path")
     for p in path.parents:
         if p.exists():
             if not p.is_dir():
-                raise ConfigError(f"{option} {path} is under {p}, which is a file; pass a path inside a folder")
+                raise ConfigError.about(key, path, f"is under {p}, which is a file; pass a path inside a folder")
             break
     return path
 
@@ -79,38 +81,37 @@ def is_dataset(path: Path) -> bool:
     return (Path(path) / MANIFEST_NAME).is_file()
 
 
-def result_folder(path: Path, option: str = "--out", *, overwrite: bool = False,
+def result_folder(path: Path, key: str = "out", *, overwrite: bool = False,
                   keep: Sequence[Path] = (), earlier: frozenset[str] = frozenset()) -> Path:
     """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
 
     Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
     folder that is, or holds, one of ``keep`` (the inputs, the run, the dataset) or the current
-    directory, even with ``--overwrite``; a non-empty folder that is not an earlier result
+    directory, even with ``overwrite``; a non-empty folder that is not an earlier result
     (no :data:`RESULT_MARKER`, nor only the names in ``earlier``: what an older version wrote) unless
     ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
     writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
     """
-    output_folder(path, option)
+    output_folder(path, key)
     where = path.resolve()
     for kept in [*keep, Path.cwd()]:
         k = Path(kept).resolve()
         if k == where or where in k.parents:
             what = "the current directory" if kept == Path.cwd() else printable(kept)
-            raise ConfigError(f"{option} {printable(path)} holds {what}, and a result folder is replaced whole; "
-                              f"write the results to a folder of their own, e.g. {option} "
-                              f"{printable(path / 'results')}")
+            raise ConfigError.about(key, path, f"holds {what}, and a result folder is replaced whole; write the "
+                                    f"results to a folder of their own, e.g. `{key}={printable(path / 'results')}`")
     if path.is_dir():
         check_unlocked(path)
         held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))
         earlier_result = (path / RESULT_MARKER).is_file() or (earlier and set(held) <= earlier)
         if held and not earlier_result and not overwrite:
             shown = ", ".join(printable(n) for n in held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
-            raise ConfigError(f"{option} {printable(path)} is not empty (it holds {shown}) and holds no earlier "
-                              f"Cerberus results; pass --overwrite to replace everything in it, or another {option}")
+            raise ConfigError.about(key, path, f"is not empty (it holds {shown}) and holds no earlier Cerberus "
+                                    f"results; pass `overwrite=True` to replace everything in it, or another `{key}`")
     existing = next(p for p in (path.parent.absolute(), *path.parent.absolute().parents) if p.exists())
     if not os.access(existing, os.W_OK | os.X_OK):  # also false on a read-only file system, even for root
         raise OutputError(f"cannot write {printable(path)}: {printable(existing)} is not writable (read-only "
-                          f"file system or no permission); choose a writable {option}")
+                          f"file system or no permission); choose a writable `{key}`")
     return path
 
 

@@ -77,7 +77,7 @@ class OptimConfig(Checked):
 
     def validate(self) -> None:
         if len(self.betas) != 2 or not all(Range(ge=0, lt=1).admits(b) for b in self.betas):
-            raise ConfigError(f"optim.betas must be two numbers in [0, 1), got {self.betas} (--set optim.betas=[0.9,0.999])")
+            raise ConfigError.about("optim.betas", self.betas, "must be two numbers in [0, 1), e.g. `optim.betas=[0.9,0.999]`")
 
 
 @dataclass
@@ -177,9 +177,9 @@ class TrainConfig(Checked):
         nothing is checked twice)."""
         if self.losses.silhouette > 0 and not self.render.antialias:
             raise ConfigError("losses.silhouette needs render.antialias: true (the paper's renderer gives the coverage "
-                              "no gradient); add --set render.antialias=true, or --set losses.silhouette=0")
+                              "no gradient); add `render.antialias=true`, or `losses.silhouette=0`")
         if not is_device_name(self.device):
-            raise ConfigError(f"device must be 'auto', 'cpu', 'cuda' or 'cuda:N', got {self.device!r} (--set device=cpu)")
+            raise ConfigError.about("device", self.device, "must be 'auto', 'cpu', 'cuda' or 'cuda:N', e.g. `device=cpu`")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

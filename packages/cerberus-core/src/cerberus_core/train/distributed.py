@@ -38,7 +38,7 @@ def resolve_device(name: str, local_rank: int = 0) -> torch.device:
     """``auto`` → CUDA (this process's local GPU) if available, else CPU; ``cpu``; ``cuda[:N]``.
 
     The name is checked by :func:`cerberus_core.devices.check_device` (the config key ``device``)."""
-    check_device(name, "device")
+    check_device(name)
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name.startswith("cuda"):

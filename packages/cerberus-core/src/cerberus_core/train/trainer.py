@@ -246,25 +246,25 @@ def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False)
     taken, so a refused run does not even touch the folder, and again under the lock)."""
     last = checkpoint_dir(run_dir) / LAST
     if run_dir.exists() and not run_dir.is_dir():
-        raise RunExistsError(f"{run_dir} is a file, not a folder; pass --out a folder path")
+        raise RunExistsError(f"{run_dir} is a file, not a folder; pass a folder as `run_dir`")
     if not holding_lock:
         check_unlocked(run_dir)  # a live writer is the first thing to name
     if not resume:
         if last.exists():
-            raise RunExistsError(f"{run_dir} already holds a training run ({last}); pass --resume to continue it "
-                                 "or --out to start a new run elsewhere")
+            raise RunExistsError(f"{run_dir} already holds a training run ({last}); pass `resume=True` to continue "
+                                 "it, or another `run_dir` to start a new run")
         held = sorted(p.name for p in run_dir.iterdir() if not is_lock_file(p)) if run_dir.is_dir() else []
         if held and not unfinished_start(run_dir):
             shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
             raise RunExistsError(f"{run_dir} is not empty (it holds {shown}) and is not a resumable run; training "
-                                 "starts only in a new or empty folder: pass another --out")
+                                 "starts only in a new or empty folder: pass another `run_dir`")
         return
     if not last.exists():
         if run_dir.is_dir() and unfinished_start(run_dir):
-            raise NoCheckpointError(f"--resume: the training in {run_dir} stopped before its first checkpoint, so "
-                                    "there is nothing to resume; run the same command without --resume to start it "
-                                    "again (what it left is cleared)")
-        raise NoCheckpointError(f"--resume: no checkpoint at {last}; run without --resume to start training")
+            raise NoCheckpointError(f"`resume=True`: the training in {run_dir} stopped before its first checkpoint, "
+                                    "so there is nothing to resume; start it anew (`resume=False`: what it left is "
+                                    "cleared)")
+        raise NoCheckpointError(f"`resume=True`: no checkpoint at {last}; start the training anew (`resume=False`)")
 
 
 def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: bool = True) -> dict[str, Any] | None:
@@ -280,8 +280,8 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: 
     saved = TrainConfig.from_dict(yaml.safe_load(payload["config"]))
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
-        raise ConfigError(f"--resume: the config differs from the run's saved config in {changed}; only "
-                          f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
+        raise ConfigError.about("resume", True, f"the config differs from the run's saved config in {changed}; only "
+                                f"{sorted(RESUMABLE_CHANGES)} may change when resuming")
     return payload
 
 
@@ -309,7 +309,7 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
         cores = os.cpu_count() or 1
         if config.threads > cores:
             warnings.warn(f"threads={config.threads} is more than this machine's {cores} cores: using {cores} "
-                          f"(--set threads={cores})", stacklevel=2)
+                          f"(`threads={cores}`)", stacklevel=2)
             config.threads = cores
         torch.set_num_threads(config.threads)
     info = init_distributed(device)
@@ -331,9 +331,10 @@ class _Trainer:
         self.dataset = dataset if dataset is not None else build_dataset(config.data.root, config.data.split)
         check_dataset(self.dataset)
         if config.train.batch_size > len(self.dataset):
-            raise ConfigError(f"train.batch_size={config.train.batch_size} is larger than the {len(self.dataset)} "
-                              f"quadruplets of the training data {config.data.root}: every step would repeat them; "
-                              f"set train.batch_size to at most {len(self.dataset)} (--set train.batch_size=N)")
+            raise ConfigError.about("train.batch_size", config.train.batch_size,
+                                    f"more than the {len(self.dataset)} quadruplets of the training data "
+                                    f"{config.data.root}: every step would repeat them; use at most {len(self.dataset)}",
+                                    f"`train.batch_size={len(self.dataset)}`")
         if dataset is None and info.is_main:
             verify_split(config.data.root, config.data.split)
         self.scene = self.dataset.scene
@@ -463,7 +464,7 @@ class _Trainer:
                     if any_true(stop.requested, info, self.device):
                         if not self._due(done, loop.checkpoint_every):
                             self._checkpoint(done)
-                        bar.write(f"interrupted: checkpoint written at step {done}; continue with --resume")
+                        bar.write(f"interrupted: checkpoint written at step {done} (a resumed training continues from it)")
                         interrupted, stop_signal = True, stop.signum or signal.SIGINT
                         break
         finally:
