@@ -20,10 +20,6 @@ OTHER_TOOLS = re.compile(r"pip install.*")
 #: Only the command line: the ``cerberus`` and ``cerberus-metrics`` commands, ``python -m`` entry points.
 COMMAND_LINE = ("cerberus_core/cli/", "cerberus_metrics/cli.py", "__main__.py")
 
-#: Being rewritten by another change (the dataset format and readers, the generator); their flags are
-#: listed in its hand-over, and go with it.
-PENDING = ("cerberus_core/datasets/format.py", "cerberus_core/datasets/readers.py",
-           "cerberus_core/datasets/generate.py")
 
 #: Strings that are not messages, by module and the function or name that holds them: the command that
 #: resumes a dataset (which ``datasets/readers.py`` names) and its flag table; the conformance suite's
@@ -38,7 +34,7 @@ def library_modules() -> dict[str, Path]:
     out = {}
     for path in sorted(PACKAGES.glob("*/src/*/**/*.py")):
         name = path.relative_to(path.parents[len(path.relative_to(PACKAGES).parts) - 3]).as_posix()
-        if not any(part in name for part in COMMAND_LINE) and name not in PENDING:
+        if not any(part in name for part in COMMAND_LINE):
             out[name] = path
     return out
 

@@ -13,7 +13,7 @@ from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.generate import generate
 from cerberus_core.datasets.manifest import Manifest, SourceRecord
-from cerberus_core.datasets.plan import preset_config
+from cerberus_core.datasets.plan import GenerationConfig, preset_config
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, verify_dataset
 
 
@@ -186,7 +186,8 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
         assert main([*base, "--source", str(z_root), "--out", str(tmp_path / "dz"), "--up-axis", "+z"]) == 0
         assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "dy")]) == 0
     manifest = Manifest.read(tmp_path / "dz")
-    assert manifest.source.options["up_axis"] == "+z" and manifest.generation_config().source["up_axis"] == "+z"
+    assert manifest.source.options["up_axis"] == "+z"
+    assert GenerationConfig.from_dict(manifest.config).source["up_axis"] == "+z"
     z_test, y_test = ViewDataset(tmp_path / "dz"), ViewDataset(tmp_path / "dy")
     np.testing.assert_allclose(z_test.gt_mesh(0).vertices, y_test.gt_mesh(0).vertices, atol=1e-6)
     capsys.readouterr()
@@ -305,8 +306,8 @@ def test_a_subject_mixing_units_is_refused_with_the_reason(tmp_path, factor, uni
 
 
 def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
-    """One subject at the default --test-fraction 0.3 gives round(0.3 x 1) = 0 test subjects. The hint
-    used to blame '--test-fraction 1', which empties the *train* split instead."""
+    """One subject at the default test_fraction 0.3 gives round(0.3 x 1) = 0 test subjects. The hint
+    used to blame test_fraction 1, which empties the *train* split instead."""
     root = _figures(tmp_path / "m", poses=(1, 2), subjects=1)
     out = tmp_path / "ds"
     generate(preset_config("folder", "pairs", image_size=32), out,
@@ -314,13 +315,13 @@ def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
     with pytest.raises(DatasetError) as info:
         ViewDataset(out)
     msg = str(info.value)
-    assert "split 'test' is empty" in msg and "--test-fraction 0.3 of its 1 subject gives round(0.3 x 1) = 0 test" in msg
-    assert "--test-fraction 1 (every subject a test subject" in msg and "made with --test-fraction 1" not in msg
+    assert "split 'test' is empty" in msg and "`test_fraction=0.3` of its 1 subject gives round(0.3 x 1) = 0 test" in msg
+    assert "`test_fraction=1` (every subject a test subject" in msg and "made with" not in msg
     from cerberus_core.datasets.readers import empty_split_hint
 
     manifest = Manifest.read(out)
     three = replace(manifest, subjects=manifest.subjects * 3, source=SourceRecord("folder", {"test_fraction": 0.0}))
-    assert "--test-fraction 0 of its 3 subjects gives 0 (a fraction of 0) test subjects" in empty_split_hint(three,
+    assert "`test_fraction=0` of its 3 subjects gives 0 (a fraction of 0) test subjects" in empty_split_hint(three,
                                                                                                               "test")
     train = replace(manifest, source=SourceRecord("folder", {"test_fraction": 1.0}))
-    assert "(its only subject is a test subject, --test-fraction 1)" in empty_split_hint(train, "train", out)
+    assert "(its only subject is a test subject, `test_fraction=1`)" in empty_split_hint(train, "train", out)

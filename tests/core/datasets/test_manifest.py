@@ -18,6 +18,7 @@ from cerberus_core.datasets.manifest import (
     ShardRecord,
     SplitRecord,
 )
+from cerberus_core.datasets.plan import GenerationConfig
 from cerberus_core.datasets.readers import ViewDataset, verify_dataset
 from cerberus_core.datasets.scene import SceneSetup
 
@@ -40,7 +41,7 @@ def test_read_gives_typed_records(pairs_dataset):
     assert isinstance(train.shards[0].files["images"], FileRecord)
     assert train.totals()["images"] == train.planned_images
     assert m.subjects[0].subject.name == m.subjects[0].name and "train" in m.subjects[0].splits
-    assert m.generation_config().to_dict() == m.config
+    assert GenerationConfig.from_dict(m.config).to_dict() == m.config
     assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
     with pytest.raises(DatasetError, match="no split 'val'; this dataset has \\['test', 'train'\\]"):
         m.split("val")
@@ -103,5 +104,5 @@ def test_a_manifest_written_by_the_first_release_still_reads(tmp_path):
     assert m.generator == {"cerberus_core": "0.1.0"}
     assert sorted(m.splits) == ["test", "train"] and all(s.complete for s in m.splits.values())
     assert m.split("train").shards[0].files["images"].shape == (24, 3, 64, 64)
-    assert m.generation_config().splits["train"].layout == "pairs"
+    assert GenerationConfig.from_dict(m.config).splits["train"].layout == "pairs"
     assert m.to_json() == json.loads(OLD_MANIFEST.read_text())  # rewritten on resume without loss

@@ -123,7 +123,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
     """
     check_device(device)
     if batch_size < 1:
-        raise ConfigError(f"--batch-size {batch_size}: must be >= 1")
+        raise ConfigError.about("batch_size", batch_size, "must be >= 1")
     try:
         if source is None:
             source = make_source(config.dataset, **dict(source_options or {}), **dict(source_runtime or {}))
@@ -147,8 +147,8 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               f"{where} ({images / 2**30:.1f} GiB for a shard of {views} images"
                               + (f", {buffers / 2**30:.1f} GiB to render {min(batch_size, views)} views at once"
                                  if renders else "")
-                              + f"), more than it has ({total / 2**30:.1f} GiB); lower --image-size, --batch-size "
-                              "or --shard-images")
+                              + f"), more than it has ({total / 2**30:.1f} GiB); lower `image_size`, `batch_size` "
+                              "or `shard_images`")
     if out is not None:
         check_folder(Path(out), jsonable(config.to_dict()), overwrite)
     return GenerationJob(config, source, plan, images + buffers)
@@ -270,28 +270,28 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, Manifes
     if not out.exists():
         return "new", None
     if not out.is_dir():
-        raise DatasetError(f"{out} exists and is not a folder; choose another --out")
+        raise DatasetError(f"{out} exists and is not a folder; choose another `out`")
     if (out / MANIFEST).exists():
         try:
             old = Manifest.read(out)
         except DatasetError as exc:
             if not overwrite:
-                raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass --overwrite to "
-                                   "replace it, or choose another --out") from exc
+                raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass `overwrite=True` to "
+                                   "replace it, or choose another `out`") from exc
             return "overwrite", None
         if old.config == config:
             return "resume", old
         if not overwrite:
             diff = "; ".join(_differences(dict(old.config), config)[:6])
             raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
-                               "--overwrite to replace it, or choose another --out")
+                               "`overwrite=True` to replace it, or choose another `out`")
         return "overwrite", old
     entries = [p for p in out.iterdir() if not (p.name.startswith(".") and p.name.endswith(".tmp")) and not is_lock_file(p)]
     if not entries:
         return "new", None
     if not overwrite:
         raise DatasetError(f"{out} is not empty and holds no Cerberus dataset ({len(entries)} entries, e.g. "
-                           f"{entries[0].name}); choose an empty or new --out, or pass --overwrite to write "
+                           f"{entries[0].name}); choose an empty or new `out`, or pass `overwrite=True` to write "
                            "there anyway")
     return "overwrite", None
 
@@ -304,7 +304,7 @@ def _prepare(out: Path, config: GenerationConfig, cfg: dict, overwrite: bool,
         return old
     if action == "overwrite":
         log(f"overwriting the dataset in {out}" if (out / MANIFEST).exists()
-            else f"writing into the non-empty folder {out} (--overwrite)")
+            else f"writing into the non-empty folder {out} (`overwrite=True`)")
         _remove_dataset(out, list(config.splits) + list(old.splits if old is not None else ()))
     out.mkdir(parents=True, exist_ok=True)
     return None

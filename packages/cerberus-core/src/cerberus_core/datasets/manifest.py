@@ -23,7 +23,7 @@ import json
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -31,9 +31,6 @@ from cerberus_core.bodies.body import Subject
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.plumbing.atomic import atomic_write
-
-if TYPE_CHECKING:
-    from cerberus_core.datasets.plan import GenerationConfig
 
 FORMAT_NAME = "cerberus-dataset"
 FORMAT_VERSION = 1
@@ -394,20 +391,6 @@ class Manifest:
     @property
     def subject_names(self) -> list[str]:
         return [s.name for s in self.subjects]
-
-    def generation_config(self) -> GenerationConfig:
-        """:attr:`config` as the typed :class:`~cerberus_core.datasets.plan.GenerationConfig`.
-
-        Raises:
-            DatasetError: the stored config does not build with this version (keys it no longer knows).
-        """
-        from cerberus_core.datasets.plan import GenerationConfig  # plan builds manifests: imported late
-
-        try:
-            return GenerationConfig.from_dict(dict(self.config))
-        except ConfigError as exc:
-            raise DatasetError(f"{self.path}: its generation config does not build with this version ({exc}); "
-                               "regenerate the dataset with this version") from None
 
     def split(self, name: str) -> SplitRecord:
         """The record of split ``name``.

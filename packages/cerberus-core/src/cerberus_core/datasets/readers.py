@@ -46,8 +46,8 @@ def empty_split_hint(manifest: Manifest, split: str, root: str | Path = "ROOT") 
         split: the empty split (``"train"`` or ``"test"``).
         root: the dataset folder, for the command the hint names.
     Returns:
-        One line, e.g. for a folder of one subject with the default ``--test-fraction 0.3``: "the
-        dataset has no test subjects: --test-fraction 0.3 of its 1 subject gives round(0.3 x 1) = 0
+        One line, e.g. for a folder of one subject with the default ``test_fraction=0.3``: "the
+        dataset has no test subjects: `test_fraction=0.3` of its 1 subject gives round(0.3 x 1) = 0
         test subjects; ...". The count follows :class:`~cerberus_core.bodies.folder.FolderSource`'s
         rule (the last ``round(f * n)`` subjects, at least one when ``f > 0`` and ``n >= 2``).
     """
@@ -57,22 +57,23 @@ def empty_split_hint(manifest: Manifest, split: str, root: str | Path = "ROOT") 
     head = f"the dataset has no {split} subjects"
     if split == "train":
         cause = " (its only subject is a test subject" if n == 1 else f" (all {n} subjects are test subjects"
-        cause += ", --test-fraction 1)" if options.get("test_fraction") == 1 else ")"
-        return (f"{head}{cause}; a dataset without train subjects is for `cerberus eval RUN --data {root}`; "
+        cause += ", `test_fraction=1`)" if options.get("test_fraction") == 1 else ")"
+        return (f"{head}{cause}; a dataset without train subjects is for evaluation (`Run.evaluate` on {root}, or "
+                "`cerberus eval`); "
                 "train on a dataset with train subjects")
     if options.get("test_subjects"):
-        cause = f": --test-subjects named {len(options['test_subjects'])} subject(s), none of them in it"
+        cause = f": `test_subjects` named {len(options['test_subjects'])} subject(s), none of them in it"
     elif "test_fraction" in options:
         f = float(options["test_fraction"])
         k = int(round(f * n))
         if f > 0 and n >= 2:
             k = max(1, k)
-        cause = (f": --test-fraction {f:g} of its {n} subject{plural} gives "
+        cause = (f": `test_fraction={f:g}` of its {n} subject{plural} gives "
                  f"{'0 (a fraction of 0)' if f == 0 else f'round({f:g} x {n}) = {k}'} test subjects")
     else:
         cause = f" (its {n} subject{plural} are all in other splits)"
-    fix = ("regenerate it with --test-fraction 1 (every subject a test subject, for evaluation) or "
-           "--test-subjects NAME[,NAME], or add subjects" if "test_fraction" in options or options.get("test_subjects")
+    fix = ("regenerate it with `test_fraction=1` (every subject a test subject, for evaluation) or "
+           "`test_subjects=NAME[,NAME]`, or add subjects" if "test_fraction" in options or options.get("test_subjects")
            else "use a dataset with test subjects")
     return f"{head}{cause}; {fix}"
 
@@ -185,39 +186,28 @@ class _SplitReader:
 
 
 class _Base(Dataset):
-    """Manifest-level accessors shared by both datasets."""
+    """Manifest-level accessors shared by both datasets.
 
-    _reader: _SplitReader
-    _scene: SceneSetup | None
+    Attributes:
+        root: the dataset folder; split: the split read; manifest: the dataset's :class:`Manifest`;
+        image_size: square image size in pixels.
+    """
 
-    @property
-    def root(self) -> Path:
-        return self._reader.root
-
-    @property
-    def split(self) -> str:
-        return self._reader.split
-
-    @property
-    def manifest(self) -> Manifest:
-        return self._reader.manifest
-
-    @property
-    def image_size(self) -> int:
-        """Square image size in pixels."""
-        return self._reader.image_size
+    def __init__(self, root: str | Path, split: str, *, allow_partial: bool, verify: bool) -> None:
+        self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
+        self.root, self.split = self._reader.root, self._reader.split
+        self.manifest: Manifest = self._reader.manifest
+        self.image_size: int = self._reader.image_size
 
     @property
     def scene(self) -> SceneSetup:
         """The scene set-up (cameras of view records, light, background, albedo): :attr:`Manifest.scene`."""
-        if self._scene is None:
-            self._scene = self.manifest.scene
-        return self._scene
+        return self.manifest.scene
 
     @property
     def part_names(self) -> list[str]:
         """Names of the ground-truth parts (evaluation only)."""
-        return self.manifest.part_names
+        return list(self.manifest.part_names)
 
     @property
     def subject_names(self) -> list[str]:
@@ -260,8 +250,7 @@ class QuadrupletDataset(_Base):
 
     def __init__(self, root: str | Path, split: str = "train", *, allow_partial: bool = False,
                  verify: bool = False) -> None:
-        self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
-        self._scene = None
+        super().__init__(root, split, allow_partial=allow_partial, verify=verify)
         if self._reader.quad_offsets[-1] == 0:
             raise DatasetError(f"{self._reader.root}: split {split!r} has no quadruplets (a "
                                f"{self._reader.info.layout} test split?); use ViewDataset for single images")
@@ -301,8 +290,7 @@ class ViewDataset(_Base):
 
     def __init__(self, root: str | Path, split: str = "test", *, allow_partial: bool = False,
                  verify: bool = False) -> None:
-        self._reader = _SplitReader(root, split, allow_partial=allow_partial, verify=verify)
-        self._scene = None
+        super().__init__(root, split, allow_partial=allow_partial, verify=verify)
         self._records: np.ndarray | None = None
         self._source = None
 
