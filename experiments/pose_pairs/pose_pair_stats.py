@@ -27,11 +27,12 @@ import argparse
 import numpy as np
 
 from cerberus_core.bodies.human_motion import MOTIONS, clip_of, is_motion_id
-from cerberus_core.bodies.sources import Subject, make_source
+from cerberus_core.bodies.sources import make_source
+from cerberus_core.datasets.manifest import SubjectRecord
 from cerberus_core.datasets.plan import load_generation_config, make_plan
 
 
-def plan_pairs(mode: str, size: str, seed: int, n: int, source) -> list[tuple[dict, int, int]]:
+def plan_pairs(mode: str, size: str, seed: int, n: int, source) -> list[tuple[SubjectRecord, int, int]]:
     """The first ``n`` training pairs ``(subject record, pose a, pose b)`` that the plan builds, taken
     round-robin over the subjects (so every subject contributes)."""
     config = load_generation_config("human", size, [f"splits.train.pose_pairs={mode}", f"seed={seed}"])
@@ -41,7 +42,7 @@ def plan_pairs(mode: str, size: str, seed: int, n: int, source) -> list[tuple[di
         for a0, _, b0, _ in shard.quads:
             subject = int(shard.views["subject"][a0])
             per_subject.setdefault(subject, []).append((int(shard.views["pose"][a0]), int(shard.views["pose"][b0])))
-    out: list[tuple[dict, int, int]] = []
+    out: list[tuple[SubjectRecord, int, int]] = []
     queues = [(s, iter(p)) for s, p in sorted(per_subject.items())]
     while len(out) < n and queues:
         for s, it in list(queues):
@@ -53,18 +54,18 @@ def plan_pairs(mode: str, size: str, seed: int, n: int, source) -> list[tuple[di
     return out
 
 
-def pair_records(pairs: list[tuple[dict, int, int]], source) -> list[dict]:
+def pair_records(pairs: list[tuple[SubjectRecord, int, int]], source) -> list[dict]:
     """Per pair: its motion primitive (``None`` for independent poses), ``dtheta`` ``(D,)`` absolute
     joint-angle differences (degrees), ``theta_a`` ``(D,)`` absolute angles of pose ``a`` and ``disp``
     (mean vertex distance, normalised units)."""
     by_subject: dict[str, list[tuple[int, int]]] = {}
     records = {}
     for record, a, b in pairs:
-        by_subject.setdefault(record["name"], []).append((a, b))
-        records[record["name"]] = record
+        by_subject.setdefault(record.name, []).append((a, b))
+        records[record.name] = record
     out = []
     for name, ab in by_subject.items():
-        who = Subject.from_dict(records[name])
+        who = records[name].subject
         bodies = source.bodies(who, [p for pair in ab for p in pair])
         for k, (a, _) in enumerate(ab):
             body_a, body_b = bodies[2 * k], bodies[2 * k + 1]

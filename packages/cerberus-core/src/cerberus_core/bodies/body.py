@@ -16,7 +16,7 @@ keeps part shapes identical across poses, which pose consistency relies on.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -103,14 +103,6 @@ class Subject:
 
     name: str
     info: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "info": dict(self.info)}
-
-    @classmethod
-    def from_dict(cls, record: Mapping[str, Any]) -> Subject:
-        """The subject of a manifest entry (``{"name": ..., "info": {...}, ...}``; other keys ignored)."""
-        return cls(str(record["name"]), dict(record.get("info", {})))
 
     def need(self, source: str, *keys: str) -> list[Any]:
         """``info[key]`` for each key, or a ``KeyError`` naming the missing ones (an older manifest)."""

@@ -13,7 +13,7 @@ options (and, for ``folder``, the files it reads):
 A :class:`~cerberus_core.bodies.body.Subject` is a small JSON-ready record (its ``name`` and
 ``info``: phenotype, species parameters, pose seed, file names ...) that holds everything :meth:`~BodySource.bodies` needs. The
 dataset manifest stores these records (:attr:`Manifest.subjects <cerberus_core.datasets.manifest.Manifest.subjects>`), so a reader rebuilds any body from
-the manifest alone (:meth:`Subject.from_dict`), without replaying the generator's calls; no call
+the manifest alone (:attr:`SubjectRecord.subject <cerberus_core.datasets.manifest.SubjectRecord.subject>`), without replaying the generator's calls; no call
 depends on an earlier one. Sources may cache (a loaded model, a subject's scale), never remember.
 
 Sources: ``human`` (anny, :mod:`cerberus_core.bodies.human`), ``animal`` (procedural quadrupeds,
