@@ -139,8 +139,7 @@ class DebugConfig(Checked):
 
     def validate(self) -> None:
         if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in self.poison_steps):
-            raise ConfigError(f"debug.poison_steps = {self.poison_steps!r}: must be step numbers >= 0",
-                              key="debug.poison_steps", value=self.poison_steps, problem="must be step numbers >= 0")
+            raise ConfigError.about("debug.poison_steps", self.poison_steps, "must be step numbers >= 0")
 
 
 @dataclass
