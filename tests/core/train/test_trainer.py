@@ -194,3 +194,43 @@ def test_resources_a_setting_cannot_have_are_capped_or_refused(tiny_config, tiny
         torch.set_num_threads(before)
     with pytest.raises(ConfigError, match=r"train.batch_size = 1000000000: more than the 4 quadruplets"):
         train(tiny_config("train.batch_size=1000000000"), tmp_path / "big", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+
+
+def test_adam_is_fused_and_loads_the_state_of_the_foreach_adam_before_it():
+    """Issue 33: torch's fused Adam where torch has it (the CPU in torch >= 2.4), the same update up to
+    rounding. A checkpoint written by the earlier foreach Adam loads, and its saved settings come with
+    it, so a run started before the change resumes bit for bit as it would have."""
+    import copy
+
+    from cerberus_core.train.config import OptimConfig
+    from cerberus_core.train.trainer import fused_adam_devices, make_optimizer
+
+    def net():
+        torch.manual_seed(0)
+        return torch.nn.Sequential(torch.nn.Linear(6, 5), torch.nn.Tanh(), torch.nn.Linear(5, 2))
+
+    def steps(model, opt, n, seed):
+        g = torch.Generator().manual_seed(seed)
+        for _ in range(n):
+            opt.zero_grad()
+            model(torch.randn(4, 6, generator=g)).square().sum().backward()
+            opt.step()
+
+    cfg = OptimConfig(lr=1e-2, weight_decay=1e-3)
+    fused = net()
+    fused_opt = make_optimizer(fused, cfg)
+    assert fused_opt.param_groups[0]["fused"] == ("cpu" in fused_adam_devices())
+    old = net()
+    old_opt = torch.optim.Adam(old.parameters(), lr=cfg.lr, betas=tuple(cfg.betas), eps=cfg.eps,
+                               weight_decay=cfg.weight_decay)  # the optimiser before issue 33
+    steps(fused, fused_opt, 3, 1)
+    steps(old, old_opt, 3, 1)
+    for a, b in zip(fused.parameters(), old.parameters(), strict=True):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=1e-5)
+    resumed = net()
+    resumed.load_state_dict(old.state_dict())
+    resumed_opt = make_optimizer(resumed, cfg)
+    resumed_opt.load_state_dict(copy.deepcopy(old_opt.state_dict()))  # as from a checkpoint file
+    steps(resumed, resumed_opt, 2, 2)
+    steps(old, old_opt, 2, 2)
+    assert all(torch.equal(a, b) for a, b in zip(resumed.parameters(), old.parameters(), strict=True))

@@ -29,6 +29,7 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.losses import (
     VIEW_PARTNER,
+    NearestSearch,
     background_loss,
     background_mask,
     hidden_part_pull,
@@ -145,8 +146,8 @@ def render_quadruplets(renderer: Renderer, parts: PartSet, batch: QuadrupletBatc
     else:
         cameras, verts = batch.camera, own.flatten(0, 1)
     out = render_parts(renderer, verts, parts.faces, cameras, scene.light(cameras), **style)
-    halves = [RenderOutput(**{f.name: quad(getattr(out, f.name)[k * 4 * bsz:(k + 1) * 4 * bsz]) for f in fields(out)})
-              for k in range(2 if viewpoint_consistency else 1)]
+    views = {f.name: getattr(out, f.name).split(4 * bsz) for f in fields(out)}  # own, then cross
+    halves = [RenderOutput(**{name: quad(t[k]) for name, t in views.items()}) for k in range(len(views["image"]))]
     if not viewpoint_consistency:
         return QuadrupletRender(halves[0], None, own)
     return QuadrupletRender(halves[0], halves[1], own, cross)
@@ -165,6 +166,8 @@ class ObjectiveInputs:
             ``losses.render_background: black``).
         render: the renderings (:class:`QuadrupletRender`).
         dihedral: the template's dihedral quadruples; ``smoothness_once``: see :func:`smoothness_term`.
+        search: the pulls' nearest-neighbour search (the renderer backend's kernel,
+            :meth:`Renderer.nearest_indices`).
     """
 
     batch: QuadrupletBatch
@@ -175,6 +178,7 @@ class ObjectiveInputs:
     render: QuadrupletRender
     dihedral: Tensor
     smoothness_once: bool
+    search: NearestSearch
     cross_pulls: bool = False
     _uv: Tensor | None = field(default=None, repr=False)
     _uv_cross: Tensor | None = field(default=None, repr=False)
@@ -227,8 +231,8 @@ def _per_image(values: Tensor, x: ObjectiveInputs) -> Tensor:  # (4B,) -> (B, 4)
 
 
 def _chamfer(x: ObjectiveInputs) -> Tensor:
-    own = _per_image(silhouette_chamfer(x.uv, x.foreground.flatten(0, 1)), x)
-    cross = (_per_image(silhouette_chamfer(x.uv_cross, _partner(x.foreground).flatten(0, 1)), x)
+    own = _per_image(silhouette_chamfer(x.uv, x.foreground.flatten(0, 1), search=x.search), x)
+    cross = (_per_image(silhouette_chamfer(x.uv_cross, _partner(x.foreground).flatten(0, 1), search=x.search), x)
              if x.pulls_cross else None)
     return viewpoint_reconstruction(own, cross)
 
@@ -237,7 +241,8 @@ def _hidden_in(render: RenderOutput, uv: Tensor, foreground: Tensor, x: Objectiv
     part_id = render.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
     n, v = x.parts.num_parts, x.parts.num_vertices
     uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
-    return _per_image(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered), x)
+    return _per_image(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered,
+                                       search=x.search), x)
 
 
 def _hidden(x: ObjectiveInputs) -> Tensor:
@@ -425,7 +430,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                 viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias,
                                 cross_view=losses.cross_view_at(step))
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
-                             smoothness_once and losses.pose_consistency, losses.cross_pulls)
+                             smoothness_once and losses.pose_consistency, renderer.nearest_indices, losses.cross_pulls)
     weights = losses.weights
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}

@@ -139,6 +139,24 @@ def lr_factor(optim: OptimConfig, total_steps: int) -> Callable[[int], float]:
     return factor
 
 
+def make_optimizer(model: torch.nn.Module, optim: OptimConfig) -> torch.optim.Adam:
+    """Adam over ``model``'s parameters (on their device), with torch's fused kernel where it has one
+    for that device (CPU and CUDA in torch >= 2.4): one kernel for the whole update instead of a few
+    dozen ``foreach`` ops, the same algorithm up to float rounding. Its state dict is the same, so
+    checkpoints load either way."""
+    params = list(model.parameters())
+    fused = params[0].device.type in fused_adam_devices()
+    return torch.optim.Adam(params, lr=optim.lr, betas=tuple(optim.betas), eps=optim.eps,
+                            weight_decay=optim.weight_decay, fused=fused or None)
+
+
+def fused_adam_devices() -> tuple[str, ...]:
+    """The device types torch's fused Adam runs on in this torch (``("cuda",)`` in torch < 2.4)."""
+    from torch.utils import _foreach_utils
+
+    return tuple(getattr(_foreach_utils, "_get_fused_kernels_supported_devices", lambda: ["cuda"])())
+
+
 def step_generator(seed: int, step: int, rank: int) -> torch.Generator:
     """The random source of one step's pose-consistency draws (a pure function of its arguments)."""
     state = np.random.SeedSequence([int(seed), int(step), int(rank), 0x9E37]).generate_state(2, dtype=np.uint32)
@@ -352,10 +370,8 @@ class _Trainer:
         cfg = self.config
         seed_everything(cfg.seed)
         self.model = apply_speed(Cerberus(cfg.model).to(self.device), cfg.speed)
-        o = cfg.optim
-        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=o.lr, betas=tuple(o.betas), eps=o.eps,
-                                          weight_decay=o.weight_decay)
-        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lr_factor(o, cfg.train.steps))
+        self.optimizer = make_optimizer(self.model, cfg.optim)
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lr_factor(cfg.optim, cfg.train.steps))
         start, self.skipped = 0, 0
         if payload is not None:
             self.model.load_state_dict(payload["model"])
