@@ -26,36 +26,36 @@ wp.set_module_options(KERNEL_OPTIONS)
 def _nearest_sorted(p: Any, pool: wp.array2d(dtype=Any), order: wp.array2d(dtype=wp.int64), b: int, count: int):
     """Index (in the unsorted set) of the point of ``pool[b, :count]`` (sorted by ``y``, ``order``
     mapping back) nearest to ``p``: the smallest index among equal squared distances."""
-    lo = 0
-    hi = count
+    lo = wp.int32(0)
+    hi = wp.int32(count)
     while lo < hi:  # first sorted position with y >= p.y
         mid = (lo + hi) / 2
         if pool[b, mid][1] < p[1]:
             lo = mid + 1
         else:
             hi = mid
-    best = -1
+    best = wp.int32(-1)
     best_d = p[0] * p[0]  # any value: replaced by the first candidate
-    j = lo
+    j = wp.int32(lo)
     while j < count:
         q = pool[b, j]
         dy = q[1] - p[1]
         if best >= 0 and dy * dy > best_d:
             break
         d = wp.length_sq(q - p)
-        k = int(order[b, j])
+        k = wp.int32(order[b, j])
         if best < 0 or d < best_d or (d == best_d and k < best):
             best_d = d
             best = k
         j += 1
-    j = lo - 1
+    j = wp.int32(lo - 1)
     while j >= 0:
         q = pool[b, j]
         dy = p[1] - q[1]
         if best >= 0 and dy * dy > best_d:
             break
         d = wp.length_sq(q - p)
-        k = int(order[b, j])
+        k = wp.int32(order[b, j])
         if best < 0 or d < best_d or (d == best_d and k < best):
             best_d = d
             best = k
