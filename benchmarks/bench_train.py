@@ -199,10 +199,10 @@ def dataclass_dict(obj) -> dict:
 
 
 def optimizer_kind(opt) -> str:
-    """``Adam (fused)``, ``Adam (foreach)`` or ``Adam``: how the optimiser runs its update."""
+    """How the optimiser runs its update: ``Adam(fused=True)``, or ``Adam(fused=None, foreach=None)``
+    (torch's default: the per-parameter loop on the CPU, ``foreach`` on CUDA)."""
     group = opt.param_groups[0]
-    how = "fused" if group.get("fused") else "foreach" if group.get("foreach") is not False else "for-loop"
-    return f"{type(opt).__name__} ({how})"
+    return f"{type(opt).__name__}(fused={group.get('fused')}, foreach={group.get('foreach')})"
 
 
 # ------------------------------------------------------------------ the parent: workers, interleaved

@@ -23,6 +23,29 @@ wp.set_module_options(KERNEL_OPTIONS)
 
 
 @wp.func
+def _scan(p: Any, pool: wp.array2d(dtype=Any), order: wp.array2d(dtype=wp.int64), b: int, first: int, end: int,
+          step: int, best_in: int, best_d_in: Any):
+    """Scan ``pool[b, first], pool[b, first + step], ..`` (up to ``end``, excluded) for a point nearer
+    to ``p`` than ``(best_in, best_d_in)`` (index, squared distance; index -1: none yet), until the
+    ``y`` gap alone exceeds the best squared distance; returns the new best."""
+    best = wp.int32(best_in)
+    best_d = best_d_in * type(best_d_in)(1.0)
+    j = wp.int32(first)
+    while j != end:
+        q = pool[b, j]
+        dy = q[1] - p[1]
+        if best >= 0 and dy * dy > best_d:
+            break
+        d = wp.length_sq(q - p)
+        k = wp.int32(order[b, j])
+        if best < 0 or d < best_d or (d == best_d and k < best):
+            best_d = d
+            best = k
+        j += step
+    return best, best_d
+
+
+@wp.func
 def _nearest_sorted(p: Any, pool: wp.array2d(dtype=Any), order: wp.array2d(dtype=wp.int64), b: int, count: int):
     """Index (in the unsorted set) of the point of ``pool[b, :count]`` (sorted by ``y``, ``order``
     mapping back) nearest to ``p``: the smallest index among equal squared distances."""
@@ -34,32 +57,8 @@ def _nearest_sorted(p: Any, pool: wp.array2d(dtype=Any), order: wp.array2d(dtype
             lo = mid + 1
         else:
             hi = mid
-    best = wp.int32(-1)
-    best_d = p[0] * p[0]  # any value: replaced by the first candidate
-    j = wp.int32(lo)
-    while j < count:
-        q = pool[b, j]
-        dy = q[1] - p[1]
-        if best >= 0 and dy * dy > best_d:
-            break
-        d = wp.length_sq(q - p)
-        k = wp.int32(order[b, j])
-        if best < 0 or d < best_d or (d == best_d and k < best):
-            best_d = d
-            best = k
-        j += 1
-    j = wp.int32(lo - 1)
-    while j >= 0:
-        q = pool[b, j]
-        dy = p[1] - q[1]
-        if best >= 0 and dy * dy > best_d:
-            break
-        d = wp.length_sq(q - p)
-        k = wp.int32(order[b, j])
-        if best < 0 or d < best_d or (d == best_d and k < best):
-            best_d = d
-            best = k
-        j -= 1
+    best, best_d = _scan(p, pool, order, b, lo, count, 1, -1, p[0] * p[0])  # upwards from there
+    best, best_d = _scan(p, pool, order, b, lo - 1, -1, -1, best, best_d)  # and downwards
     return best
 
 
