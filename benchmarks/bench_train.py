@@ -338,19 +338,17 @@ def precision_variants(preset: str) -> list[tuple[str, dict]]:
     return [(label, {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
 
 
-def native_variants(variants: list[tuple[str, dict]], emulated: bool, device: str) -> list[tuple[str, dict]]:
-    """``variants`` less those with ``speed.autocast: bf16`` on a CPU that would emulate it (said)."""
+def bf16_left_out(emulated: bool, device: str) -> bool:
+    """Whether ``speed.autocast: bf16`` variants are left out here: on a CPU that would emulate
+    bfloat16, unless ``emulated`` (said when they are)."""
     from cerberus_core.devices import native_bf16
 
     native, why = native_bf16(device)
     if native or emulated:
-        return variants
-    kept = [(label, speed) for label, speed in variants if speed.get("autocast") != "bf16"]
-    gone = [label for label, speed in variants if speed.get("autocast") == "bf16"]
-    if gone:
-        print(f"left out: {', '.join(gone)} (speed.autocast: bf16): {why}; PyTorch's bfloat16 convolutions leave "
-              "oneDNN there and run over ten times slower. --emulated-bf16 times them anyway, each in its own process")
-    return kept
+        return False
+    print(f"left out: speed.autocast bf16: {why}; PyTorch's bfloat16 convolutions leave oneDNN there and run "
+          "over ten times slower. --emulated-bf16 times it anyway, in a process of its own like every variant")
+    return True
 
 
 def run_switches(args: argparse.Namespace) -> None:
@@ -359,12 +357,15 @@ def run_switches(args: argparse.Namespace) -> None:
     if names and "compile" in names:
         args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
     rows = []
+    drop = bf16_left_out(args.emulated_bf16, args.device)
     with tempfile.TemporaryDirectory() as tmp:
         for preset in args.presets:
             root = dataset_for(args, preset, Path(tmp))
             for name in args.renderers:
-                variants = precision_variants(preset) if args.precision else switch_variants(names)
-                variants = native_variants(variants, args.emulated_bf16, args.device)
+                if args.precision:
+                    variants = [v for v in precision_variants(preset) if v[1]["autocast"] != "bf16" or not drop]
+                else:
+                    variants = switch_variants([n for n in names if n != "autocast" or not drop])
                 workers = start([(label, base_spec(args, preset, name, root) | {"speed": speed}, None)
                                  for label, speed in variants])
                 try:
