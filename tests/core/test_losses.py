@@ -259,17 +259,18 @@ def _trunk_and_limb():
     return fg
 
 
-def test_thinness_weights_are_one_over_the_depth_inside_the_silhouette():
+def test_thinness_weights_are_one_over_the_squared_depth_inside_the_silhouette():
     from cerberus_core.losses import thinness_weights
 
     w = thinness_weights(_trunk_and_limb())
     assert w.shape == (1, 32, 32)
     torch.testing.assert_close(w[0, 15, 2:4], torch.ones(2))  # the limb: every pixel on the edge
-    torch.testing.assert_close(w[0, 15, 10:20], 1 / torch.tensor([1.0, 2, 3, 4, 5, 5, 4, 3, 2, 1]))
+    torch.testing.assert_close(w[0, 15, 10:20], torch.tensor([1.0, 2, 3, 4, 5, 5, 4, 3, 2, 1]) ** -2)
+    assert float(w[0, 15].sum()) == pytest.approx(2 + 2 * (1 + 1 / 4 + 1 / 9 + 1 / 16 + 1 / 25))  # limb 2, trunk 2.9
     assert (w[0, 15, 4:10] == 0).all() and (w[0, :4] == 0).all()  # background
     edge = torch.zeros(1, 8, 8)
     edge[0, :, :3] = 1  # touching the image's border: the outside counts as background
-    torch.testing.assert_close(thinness_weights(edge)[0, 4, :3], 1 / torch.tensor([1.0, 2, 1]))
+    torch.testing.assert_close(thinness_weights(edge)[0, 4, :3], torch.tensor([1.0, 0.25, 1.0]))
 
 
 def test_silhouette_coverage_pulls_the_nearest_vertex_onto_an_uncovered_thin_limb():
@@ -288,10 +289,10 @@ def test_silhouette_coverage_pulls_the_nearest_vertex_onto_an_uncovered_thin_lim
     assert pulled.any() and (pts.grad[0, pulled, 0] > 0).all()  # descending moves them left, toward the limb
     assert (pts[0, pulled, 0] == 10.5).all()  # only the trunk's leftmost column, the limb's nearest
     # All the loss is the limb's, each pixel 7 or 8 pixels from the nearest vertex, weighted 1 (its depth
-    # is 1) against the trunk's 1/d: the limb holds more of the weight than of the pixels.
+    # is 1) against the trunk's 1/d^2: the limb holds over a third of the weight and a sixth of the pixels.
     w = thinness_weights(fg)
     assert float(loss.detach()) == pytest.approx(24 * (8 + 7) / float(w.sum()) / 32, rel=1e-5)
-    assert float(w[0, :, 2:4].sum() / w.sum()) > 48 / 288 * 1.5
+    assert float(w[0, :, 2:4].sum() / w.sum()) > 1 / 3 > 48 / 288
     assert float(silhouette_coverage(pts.detach(), torch.zeros(1, 32, 32))) == 0.0
     with pytest.raises(ValueError, match="silhouette_coverage"):
         silhouette_coverage(pts.detach()[0], fg)
