@@ -24,7 +24,10 @@ at weight ``W`` alone, interleaved): what a term beyond the preset adds to a ste
 terms on human data:
 
     python benchmarks/bench_train.py --losses coverage=0.3 keypoint_coverage=0.1 overlap=0.1 rotation=0.1 \
-        --presets cpu --renderers warp --threads 1 --steps 20 --data DATA
+        --presets cpu --renderers warp --threads 1 --steps 20 --data DATA --cpu-time
+
+On a machine other jobs load, ``--cpu-time`` times the process's CPU seconds instead of wall-clock (with
+one thread, the step's own work, without the waits for the other jobs).
 
 ``--switches [NAME ...]`` times the training speed switches instead (``speed.autocast: bf16``,
 ``speed.channels_last``, ``speed.compile``, ``speed.smoothness_once``; all of them without NAMEs):
@@ -196,7 +199,8 @@ def loss_variants(settings: list[str]):
 
 
 def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int,
-                   batch_size: int | None, names: list[str] | None, variants_of=None) -> list[dict]:
+                   batch_size: int | None, names: list[str] | None, variants_of=None,
+                   timer=time.perf_counter) -> list[dict]:
     """Full steps of one model per switch variant, interleaved: each round times one step of every
     variant in turn (so load changes hit all alike); the median over rounds is reported. The variants
     are :func:`switch_variants` of ``names``, or ``variants_of(preset)``: ``(label, speed settings)``
@@ -218,9 +222,9 @@ def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int,
                          "times": []})
     for i in range(steps):
         for v in variants:
-            t0 = time.perf_counter()
+            t0 = timer()
             v["step"](warmup + i)
-            v["times"].append(time.perf_counter() - t0)
+            v["times"].append(timer() - t0)
     rows = []
     for v in variants:
         step_s = statistics.median(v["times"])
@@ -268,10 +272,12 @@ def run_switches(args: argparse.Namespace) -> None:
             for name in args.renderers:
                 rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names,
                                        loss_variants(args.losses) if args.losses else
-                                       precision_variants if args.precision else None)
+                                       precision_variants if args.precision else None,
+                                       time.process_time if args.cpu_time else time.perf_counter)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
-          f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps")
+          f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps"
+          + (", CPU seconds of this process (time.process_time)" if args.cpu_time else ""))
     if args.precision:
         print_cpu_precision()
     print_switches(rows)
@@ -298,6 +304,9 @@ def main() -> None:
                    help="instead: time the speed switches (speed.* of the config) side by side, interleaved: "
                         "off, each NAME alone and all NAMEs together (default with no NAME: "
                         f"{' '.join(SWITCHES)}); the median of --steps rounds")
+    p.add_argument("--cpu-time", action="store_true",
+                   help="with --switches/--precision/--losses: time the process's CPU seconds (time.process_time), "
+                        "not wall-clock, so waits for other jobs on a loaded machine do not count")
     p.add_argument("--losses", nargs="+", default=None, metavar="NAME=W",
                    help="instead: time the preset, then each losses.NAME at weight W alone on top, interleaved")
     args = p.parse_args()
