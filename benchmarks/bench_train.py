@@ -26,7 +26,13 @@ step's render call alone, forward and backward, over the step's wall time).
 one worker per variant (off, each switch alone, all together), with each variant's first-step loss
 (same weights, same batch: they differ by rounding only). ``--precision`` times the preset with
 ``speed.autocast`` at ``null`` (float32), ``bf16`` and ``auto`` (its other switches as the preset has
-them). On a CPU without native bfloat16 both leave the ``bf16`` variants out and say so (PyTorch
+them). ``--losses NAME=W [...]`` times loss terms the same way (the preset as it is, then each
+``losses.NAME`` at weight ``W`` alone on top): what a term beyond the preset adds to a step, e.g. issue
+30's limb terms:
+
+    python benchmarks/bench_train.py --losses coverage=1.0 keypoint_coverage=1.0 overlap=0.1 rotation=0.1 \
+        --presets cpu --renderers warp --threads 1 --steps 8 --warmup 2 --data DATA
+ On a CPU without native bfloat16 both leave the ``bf16`` variants out and say so (PyTorch
 emulates bfloat16 convolutions there, over ten times slower); ``--emulated-bf16`` times them anyway.
 
 Every run starts with the machine's instruction set (torch's CPU capability, the CPU's vector and
@@ -88,6 +94,8 @@ def trainer_step(spec: dict):
         cfg.train.batch_size = spec["batch_size"]
     if spec.get("speed") is not None:
         cfg.speed = dataclasses.replace(cfg.speed, **spec["speed"])
+    if spec.get("losses"):
+        cfg.losses = dataclasses.replace(cfg.losses, **spec["losses"])
     device = torch.device(spec["device"])
     data = QuadrupletDataset(spec["data"])
     trainer = _Trainer(cfg, Path(spec["run_dir"]), init_distributed(device), device, data)
@@ -338,6 +346,13 @@ def precision_variants(preset: str) -> list[tuple[str, dict]]:
     return [(label, {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
 
 
+def loss_variants(settings: list[str]) -> list[tuple[str, dict | None, dict]]:
+    """For ``--losses``: the preset as it is, then each ``NAME=W`` setting alone on top
+    (``(label, speed settings, loss weights)``)."""
+    pairs = [s.split("=", 1) for s in settings]
+    return [("preset", None, {})] + [(f"+ {k}={w}", None, {k: float(w)}) for k, w in pairs]
+
+
 def bf16_left_out(emulated: bool, device: str) -> bool:
     """Whether ``speed.autocast: bf16`` variants are left out here: on a CPU that would emulate
     bfloat16, unless ``emulated`` (said when they are)."""
@@ -352,22 +367,26 @@ def bf16_left_out(emulated: bool, device: str) -> bool:
 
 
 def run_switches(args: argparse.Namespace) -> None:
-    """``--switches`` / ``--precision``: the variants side by side, one worker each, interleaved."""
-    names = None if args.precision else (args.switches or list(SWITCHES))
+    """``--switches`` / ``--precision`` / ``--losses``: the variants side by side, one worker each,
+    interleaved."""
+    names = None if args.precision or args.losses else (args.switches or list(SWITCHES))
     if names and "compile" in names:
         args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
     rows = []
-    drop = bf16_left_out(args.emulated_bf16, args.device)
+    drop = not args.losses and bf16_left_out(args.emulated_bf16, args.device)
     with tempfile.TemporaryDirectory() as tmp:
         for preset in args.presets:
             root = dataset_for(args, preset, Path(tmp))
             for name in args.renderers:
-                if args.precision:
+                if args.losses:
+                    variants = loss_variants(args.losses)
+                elif args.precision:
                     variants = [v for v in precision_variants(preset) if v[1]["autocast"] != "bf16" or not drop]
                 else:
                     variants = switch_variants([n for n in names if n != "autocast" or not drop])
-                workers = start([(label, base_spec(args, preset, name, root) | {"speed": speed}, None)
-                                 for label, speed in variants])
+                specs = [(label, base_spec(args, preset, name, root) | {"speed": speed, "losses": rest[0] if rest else {}},
+                          None) for label, speed, *rest in variants]
+                workers = start(specs)
                 try:
                     interleave(workers, args.steps, args.warmup)
                 finally:
@@ -381,13 +400,16 @@ def run_switches(args: argparse.Namespace) -> None:
     print("\n".join(machine_lines(args.device)))
     print(load_line(args, "each variant in its own process"))
     w = max(10, *(len(r["switches"]) + 2 for r in rows))
-    head = f"{'preset':<8}{'renderer':>9}  {'switches':<{w}}{'s/step':>8}{'CPU s':>8}{'x off':>7}{'x off CPU':>10}" \
+    base = rows[0]["switches"] if rows else "off"
+    head = f"{'preset':<8}{'renderer':>9}  {'variant':<{w}}{'s/step':>8}{'CPU s':>8}{'x ' + base:>10}" \
+           f"{'x ' + base + ' CPU':>{len(base) + 7}}" \
            f"{'loss 1st step':>15}{'warm-up s':>11}"
     print(head)
     print("-" * len(head))
     for r in rows:
         print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['wall']:>8.3f}{r['cpu']:>8.3f}"
-              f"{r['speedup']:>7.2f}{r['speedup_cpu']:>10.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
+              f"{r['speedup']:>10.2f}{r['speedup_cpu']:>{len(base) + 7}.2f}{r['first_loss']:>15.7f}"
+              f"{r['warmup_s']:>11.1f}")
 
 
 def run_presets(args: argparse.Namespace) -> None:
@@ -447,10 +469,12 @@ def main() -> None:
     p.add_argument("--switches", nargs="*", default=None, choices=sorted(SWITCHES), metavar="NAME",
                    help="instead: time the speed switches (speed.* of the config) side by side: off, each NAME alone "
                         f"and all NAMEs together (default with no NAME: {' '.join(SWITCHES)})")
+    p.add_argument("--losses", nargs="+", default=None, metavar="NAME=W",
+                   help="instead: time the preset, then each losses.NAME at weight W alone on top, interleaved")
     p.add_argument("--emulated-bf16", action="store_true",
                    help="with --switches/--precision: time bf16 autocast even where the CPU only emulates bfloat16")
     args = p.parse_args()
-    if args.switches is not None or args.precision:
+    if args.switches is not None or args.precision or args.losses:
         run_switches(args)
     else:
         run_presets(args)
