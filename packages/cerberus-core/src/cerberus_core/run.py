@@ -23,10 +23,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import torch
-import yaml
 from safetensors import safe_open
 from safetensors.torch import load_file
 
+from cerberus_core.config import load_yaml
 from cerberus_core.datasets.manifest import MANIFEST, Manifest
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
@@ -39,7 +39,7 @@ from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, wri
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.eval.visibility import visibility_line
-from cerberus_core.fields import ranged
+from cerberus_core.fields import Range, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import printable
@@ -236,10 +236,10 @@ def _load_weights(path: str | Path, device: str | torch.device = "cpu") -> tuple
                               f"{bad[0]}); the training diverged: use an earlier checkpoint "
                               "(RUN/checkpoints/step_*.pt) or retrain with a lower optim.lr")
     try:
-        config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
+        config = TrainConfig.from_dict(load_yaml(config_yaml, shown))
         model = Cerberus(config.model)
         model.load_state_dict(state)
-    except (ValueError, TypeError, KeyError, RuntimeError, yaml.YAMLError) as exc:
+    except (ValueError, TypeError, KeyError, RuntimeError) as exc:
         raise CheckpointError(f"{shown}: the saved config and weights do not form a Cerberus model "
                               f"({error_reason(exc)}); it was written by another version or is damaged") from None
     return model.to(device).eval(), config, scene
@@ -542,9 +542,11 @@ class Run:
             renderer: the backend for the pictures (default: the run's).
             viewer_images: cards in ``out/index.html`` (0: no viewer).
         """
-        if viewer_images < 0:
-            raise ConfigError.about("viewer_images", viewer_images, "must be >= 0 (0: no viewer)")
+        check_value("viewer_images", viewer_images, Range(ge=0, integer=True), "0: no viewer")
+        check_value("azimuth", azimuth, Range())
         images = [Path(p) for p in images]
+        if not images:
+            raise ConfigError.about("images", None, "no image given; pass at least one image file")
         mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(Path(out), overwrite=overwrite, keep=keep)

@@ -12,10 +12,12 @@ from cerberus_core.plumbing.outputs import (  # noqa: F401 - re-exported: the su
     NAME_MAX,
     PATH_MAX,
     RESULT_MARKER,
+    check_apart,
     check_path_length,
     is_dataset,
     output_file,
     output_folder,
+    resolved,
     result_folder,
     writing_results,
 )

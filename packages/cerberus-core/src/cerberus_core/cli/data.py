@@ -8,7 +8,7 @@ from pathlib import Path
 
 from cerberus_core.bodies.folder import DEFAULT_UP_AXIS, UP_AXES
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import output_file, output_folder, positive_int
+from cerberus_core.cli.checks import check_apart, output_file, output_folder, positive_int, resolved
 from cerberus_core.datasets.plan import SHORTCUT_FLAGS, GenerationConfig, load_generation_config
 from cerberus_core.errors import ConfigError, DatasetError
 
@@ -126,7 +126,7 @@ def _source_options(args: argparse.Namespace) -> dict:
         if args.up_axis is not None or args.canonical is not None:
             raise ConfigError("--up-axis and --canonical apply to --dataset folder only; drop them or use --dataset folder")
         return {}
-    options = {"root": str(args.source.resolve()),
+    options = {"root": str(resolved(args.source, "source")),
                "test_fraction": DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction,
                "up_axis": args.up_axis or DEFAULT_UP_AXIS}
     if args.canonical is not None:
@@ -152,6 +152,8 @@ def run_generate(args: argparse.Namespace) -> int:
         print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
         return 0
     output_folder(args.out, dataset_ok=True)
+    if "root" in options:  # the meshes read must not be inside the dataset folder written
+        check_apart(args.out, [options["root"]], what="a dataset is written there")
     runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
     job = validate_generation(config, source_options=options, source_runtime=runtime, device=args.device,
                               batch_size=args.batch_size, out=args.out, overwrite=args.overwrite)

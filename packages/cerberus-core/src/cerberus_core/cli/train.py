@@ -7,7 +7,7 @@ from pathlib import Path
 
 from cerberus_core.cli import Terms
 from cerberus_core.cli.checks import output_folder
-from cerberus_core.config import load_yaml, yaml_problem
+from cerberus_core.config import load_yaml
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 
@@ -66,16 +66,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def _check_config_file(path: Path) -> None:
     """A --config file must exist, parse and hold at least one setting (an empty file is refused, not the
     100,000-step paper preset)."""
-    import yaml
-
     if not path.is_file():
         what = ("is a folder" if path.is_dir() else "is not a regular file (a FIFO or device?)" if path.exists()
                 else "no such file")
         raise ConfigError(f"--config {path}: {what}; pass a YAML config, or --preset NAME")
     try:
-        raw = load_yaml(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(yaml_problem(exc, path) + "; fix the file") from None
+        raw = load_yaml(path.read_text(), path)
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"--config {path}: cannot be read ({exc})") from None
     if not raw:

@@ -24,6 +24,7 @@ from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
+    check_shard_arrays,
     check_shard_files,
     empty_views,
     resolve_inside,
@@ -101,7 +102,8 @@ def verify_dataset(root: Path, *, checksums: bool = True,
     problems: list[str] = []
     shards = [(name, s) for name, info in manifest.splits.items() for s in info.shards]
     for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
-        problems.extend(check_shard_files(root, shard, checksums=checksums) or empty_views(manifest, split, shard))
+        problems.extend(check_shard_files(root, shard, checksums=checksums) or check_shard_arrays(manifest, split, shard)
+                        or empty_views(manifest, split, shard))
     problems += [incomplete_split(root, manifest, name) for name, info in manifest.splits.items() if not info.complete]
     return manifest, problems
 
@@ -120,7 +122,8 @@ class _SplitReader:
             raise DatasetError(f"{self.root}: {incomplete_split(self.root, self.manifest, split)}")
         self.shards: tuple[ShardRecord, ...] = self.info.shards
         for shard in self.shards:
-            problems = check_shard_files(self.root, shard, checksums=verify)
+            problems = (check_shard_files(self.root, shard, checksums=verify)
+                        or check_shard_arrays(self.manifest, split, shard))
             if problems:
                 more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
                 raise DatasetError(problems[0] + more)

@@ -40,16 +40,18 @@ from typing import Any
 
 import numpy as np
 import torch
-import yaml
 from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from cerberus_core.config import load_yaml
 from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.plumbing.lock import LockedError, acquire, check_unlocked, is_lock_file
+from cerberus_core.plumbing.machine import capped_to_cores
+from cerberus_core.plumbing.outputs import resolved
 from cerberus_core.plumbing.signals import interrupt_for
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
@@ -228,7 +230,6 @@ def unfinished_start(run_dir: Path) -> list[Path]:
 def _clear_unfinished_start(run_dir: Path, entries: list[Path]) -> None:
     """Remove what a start that never checkpointed left (``config.yaml`` last: until it goes, the folder
     still reads as such a start to a rank that looks meanwhile)."""
-    import warnings
 
     names = ", ".join(sorted(p.name for p in entries))
     warnings.warn(f"{run_dir} holds a training that stopped before its first checkpoint ({names}); nothing there "
@@ -277,7 +278,11 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: 
         return None
     last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
-    saved = TrainConfig.from_dict(yaml.safe_load(payload["config"]))
+    if config.train.steps < int(payload["step"]):
+        raise ConfigError.about("train.steps", config.train.steps, f"the run in {run_dir} already reached step "
+                                f"{int(payload['step'])}; a resumed run cannot end before it", "`train.steps=VALUE` "
+                                "at least that, or leave it out to keep the run's own")
+    saved = TrainConfig.from_dict(load_yaml(payload["config"], last, "the checkpoint is damaged"))
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
         raise ConfigError.about("resume", True, f"the config differs from the run's saved config in {changed}; only "
@@ -303,15 +308,12 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
     config = dataclasses.replace(config)
     config.model = dataclasses.replace(config.model)
     if dataset is None:  # stored absolute: eval, reconstruct and --resume work from any directory
-        config.data = dataclasses.replace(config.data, root=str(Path(config.data.root).expanduser().resolve()))
+        config.data = dataclasses.replace(config.data, root=str(resolved(config.data.root, "data.root")))
     device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
     if config.threads is not None:
-        cores = os.cpu_count() or 1
-        if config.threads > cores:
-            warnings.warn(f"threads={config.threads} is more than this machine's {cores} cores: using {cores} "
-                          f"(`threads={cores}`)", stacklevel=2)
-            config.threads = cores
+        config.threads = capped_to_cores("threads", config.threads)
         torch.set_num_threads(config.threads)
+    config.data = dataclasses.replace(config.data, num_workers=capped_to_cores("data.num_workers", config.data.num_workers))
     info = init_distributed(device)
     try:
         return _Trainer(config, Path(run_dir), info, device, dataset).run(resume)
@@ -341,6 +343,7 @@ class _Trainer:
         if config.model.depth_offset == "auto":
             config.model.depth_offset = self.scene.distance
         self.image_size = config.data.image_size or int(self.dataset.image_size)
+        config.check_memory(self.image_size, device)
         config.renderer = resolve_renderer(config.renderer)  # the saved config names the backend used
         self.renderer = make_renderer(config.renderer)
         autocast, why = resolve_autocast(config.speed.autocast, device)  # saved resolved, like the renderer
