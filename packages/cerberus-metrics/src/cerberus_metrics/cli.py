@@ -326,7 +326,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         pairs = pairs_from_folders(args.pred_dir, args.gt_dir)
     if not pairs:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
-    check_not_input({"--out": out, "--csv": csv_out}, pairs, [args.pairs] if args.pairs else [])
+    check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [])
     result = run_batch(
         pairs,
         metrics,

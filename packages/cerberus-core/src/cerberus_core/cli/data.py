@@ -81,7 +81,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.set_defaults(func=run_generate, terms=Terms({
         **SHORTCUT_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",
         "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device", "test_fraction": "--test-fraction",
-        "test_subjects": "--test-subjects", "up_axis": "--up-axis", "canonical": "--canonical"}, GenerationConfig))
+        "test_subjects": "--test-subjects", "up_axis": "--up-axis", "canonical": "--canonical", "source": "--source"},
+        GenerationConfig))
 
     c = dsub.add_parser("check", help="verify a dataset's checksums and report its contents",
                         description="Verify the manifest (format version, paths), every shard file (size, sha256, "

@@ -87,7 +87,10 @@ def _counts(values: Any, where: str) -> tuple[int, ...]:
     """A list of counts (an array shape, subject indices) as a tuple."""
     if not isinstance(values, list):
         raise _Damaged(f"{where} is {values!r}, not a list of counts")
-    return tuple(_count({"item": v}, "item", where) for v in values)
+    for i, v in enumerate(values):
+        if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_COUNT:
+            raise _Damaged(f"{where}[{i}] is {v!r}, not a count in [0, {MAX_COUNT}]")
+    return tuple(values)
 
 
 def _strings(values: Any, where: str) -> tuple[str, ...]:

@@ -54,8 +54,8 @@ def resolved(path: str | os.PathLike, key: str = "path") -> Path:
     try:
         return Path(path).expanduser().resolve()
     except (RuntimeError, OSError) as exc:  # Python < 3.13 raises RuntimeError for a loop, later ones OSError
-        raise ConfigError.about(key, Path(path), f"cannot be resolved ({getattr(exc, 'strerror', None) or exc}): "
-                                "a symlink loop? fix or remove the link") from None
+        raise ConfigError.about(key, printable(path), f"cannot be resolved: a symlink loop "
+                                f"({getattr(exc, 'strerror', None) or exc}); fix or remove the link") from None
 
 
 def check_apart(path: Path, inputs: Sequence[str | os.PathLike], key: str = "out", *,
@@ -64,7 +64,7 @@ def check_apart(path: Path, inputs: Sequence[str | os.PathLike], key: str = "out
     symlinks followed): the one rule that no output may be or contain an input."""
     where = resolved(path, key)
     for kept in inputs:
-        k = resolved(kept)
+        k = resolved(kept, "input")
         if k == where or where in k.parents:
             relation = "is" if k == where else "holds"
             raise ConfigError.about(key, Path(path), f"{relation} the input {printable(kept)}, and {what}; choose "
