@@ -268,6 +268,17 @@ def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False)
         raise NoCheckpointError(f"`resume=True`: no checkpoint at {last}; start the training anew (`resume=False`)")
 
 
+def check_not_shorter(run_dir: Path, config: TrainConfig) -> None:
+    """A resumed run may not end before the step its last checkpoint reached (its saved config would say fewer
+    steps than it ran): :class:`ConfigError` naming ``train.steps``, before the run folder is locked or written.
+    Without a checkpoint there is nothing to compare (:func:`check_run_folder` says so)."""
+    last = checkpoint_dir(run_dir) / LAST
+    if last.is_file() and config.train.steps < (reached := int(load_checkpoint(last)["step"])):
+        raise ConfigError.about("train.steps", config.train.steps, f"the run in {run_dir} already reached step "
+                                f"{reached}; a resumed run cannot end before it", f"`train.steps={reached}` or more, "
+                                "or leave it out to keep the run's own")
+
+
 def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: bool = True) -> dict[str, Any] | None:
     """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``).
     A fresh run clears what a start that never checkpointed left (``clear``: the main process only)."""
@@ -278,10 +289,6 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: 
         return None
     last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
-    if config.train.steps < int(payload["step"]):
-        raise ConfigError.about("train.steps", config.train.steps, f"the run in {run_dir} already reached step "
-                                f"{int(payload['step'])}; a resumed run cannot end before it", "`train.steps=VALUE` "
-                                "at least that, or leave it out to keep the run's own")
     saved = TrainConfig.from_dict(load_yaml(payload["config"], last, "the checkpoint is damaged"))
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
@@ -314,6 +321,8 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
         config.threads = capped_to_cores("threads", config.threads)
         torch.set_num_threads(config.threads)
     config.data = dataclasses.replace(config.data, num_workers=capped_to_cores("data.num_workers", config.data.num_workers))
+    if resume:
+        check_not_shorter(Path(run_dir), config)
     info = init_distributed(device)
     try:
         return _Trainer(config, Path(run_dir), info, device, dataset).run(resume)
