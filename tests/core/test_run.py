@@ -121,3 +121,32 @@ def test_domain_notes_name_another_kind_of_body_and_another_camera(human_run, pa
     notes = human_run.domain_notes(pairs_dataset)
     assert any("trained on human bodies" in n and "primitives bodies" in n for n in notes)
     assert any("differs from the model's training scenes" in n for n in notes)
+
+
+@pytest.mark.parametrize(("images", "options", "words"), [
+    ([], {}, "images: no image given; pass at least one image file"),
+    (["x.png"], {"azimuth": float("nan")}, "azimuth = nan: must be a finite number"),
+    (["x.png"], {"azimuth": float("inf")}, "azimuth = inf: must be a finite number"),
+    (["x.png"], {"azimuth": "north"}, "azimuth = 'north': must be a finite number"),
+    (["x.png"], {"viewer_images": -1}, "viewer_images = -1: must be an integer >= 0"),
+], ids=["no-images", "azimuth-nan", "azimuth-inf", "azimuth-text", "viewer-negative"])
+def test_reconstruct_images_checks_what_the_cli_checks(tiny_run, tmp_path, images, options, words):
+    """Issue 34: the API refuses, with the CLI's own check (the command passes its flags straight to it), before
+    anything is read or written."""
+    run = Run.load(tiny_run)
+    with pytest.raises(ConfigError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        run.reconstruct_images([tmp_path / p for p in images], tmp_path / "out", **options)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_model_reconstruct_refuses_nan_images(tiny_run):
+    """Issue 34: NaN passes a ``max() <= 1`` range check; the input contract refuses it by name."""
+    from cerberus_core.errors import ShapeError
+    from cerberus_core.render.camera import Camera
+
+    run = Run.load(tiny_run)
+    images = torch.full((2, 3, 32, 32), 0.5)
+    images[1, 0, 3, 4] = float("nan")
+    camera = Camera.look_at(torch.zeros(2), torch.zeros(2), 2.0, image_size=32)
+    with pytest.raises(ShapeError, match="reconstruct: 1 of 6144 image values are NaN or infinite"):
+        run.model.reconstruct(images, camera)
