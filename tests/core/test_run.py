@@ -12,7 +12,6 @@ from cerberus_core import Run
 from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import (
     METRIC_GROUP,
-    UnknownPluginError,
 )
 from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
 from cerberus_core.train import train
@@ -99,13 +98,23 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
 def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, monkeypatch) -> None:
     """core + a backend alone: `cerberus eval` / Run.evaluate say to install cerberus-metrics (issue 26),
     not '--protocol ...: unknown plugin' for a flag nobody gave."""
+    from importlib.util import find_spec
+
     import cerberus_core.run as run_module
+    from cerberus_core.errors import MissingPackageError
     from cerberus_core.plugins import get_plugin as real_get_plugin
 
     monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
-    with pytest.raises(UnknownPluginError) as err:
+    with pytest.raises(MissingPackageError) as err:
         run_module.EvalSettings()
-    assert "pip install cerberus-metrics" in str(err.value) and "--protocol" not in str(err.value)
+    assert "pip install 'cerberus-core[eval]'" in str(err.value) and "--protocol" not in str(err.value)
+    assert "needs cerberus-metrics," in str(err.value)
+    # issue 34: every missing piece at once, before anything starts, and the extra that brings them
+    monkeypatch.setattr(run_module, "find_spec", lambda name: None if name == "scipy" else find_spec(name))
+    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics and scipy, .*cerberus-core\[eval\]"):
+        run_module.EvalSettings()
+    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics, "):
+        run_module.EvalSettings(part_quality=False)
 
 
 

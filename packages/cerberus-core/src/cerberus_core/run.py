@@ -20,6 +20,7 @@ import stat
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from importlib.util import find_spec
 from pathlib import Path
 
 import torch
@@ -31,7 +32,7 @@ from cerberus_core.datasets.manifest import MANIFEST, Manifest
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, MissingPackageError
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
@@ -41,7 +42,7 @@ from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.fields import Range, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plugins import get_metric
+from cerberus_core.plugins import UnknownPluginError, get_metric
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import is_dataset, result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
@@ -276,6 +277,23 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
 
 
 # ------------------------------------------------------------------ evaluation settings
+def check_eval_packages(part_quality: bool = True) -> None:
+    """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
+    metric entry point; scipy, for the part quality), else one :class:`MissingPackageError` naming them all and
+    the extra that brings them, ``cerberus-core[eval]``."""
+    missing = []
+    try:
+        get_metric(SCORER_ENTRY_POINT)
+    except UnknownPluginError:
+        missing.append("cerberus-metrics")
+    if part_quality and find_spec("scipy") is None:
+        missing.append("scipy")
+    if missing:
+        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which are not installed: pip install "
+                                  "'cerberus-core[eval]' brings them (from the toolkit's wheelhouse: README, "
+                                  "'Installing with pip')")
+
+
 def check_protocol(name: str) -> str:
     """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
     anything runs; a missing cerberus-metrics is named as such)."""
@@ -309,6 +327,7 @@ class EvalSettings(EvalConfig):
     overwrite: bool = False
 
     def validate(self) -> None:
+        check_eval_packages(self.part_quality)
         check_protocol(self.protocol)
 
 
