@@ -126,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
         "from images alone: generate data, train, evaluate, reconstruct.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    from cerberus_core.release import VERSION
+
+    parser.add_argument("--version", action="version", version=f"cerberus {VERSION}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMAND_MODULES:

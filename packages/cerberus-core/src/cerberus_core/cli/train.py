@@ -57,10 +57,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="cpu, cuda, cuda:N or auto (CUDA when available); same as --set device=... (default: the "
                    "config's: cpu in the cpu presets, auto in paper). On CUDA the torch and Warp renderers run there "
                    "too; speed.autocast auto picks bf16 where the device computes it natively")
+    p.add_argument("--renderer", default=None, metavar="NAME",
+                   help="renderer backend by name (see cerberus renderers) or auto; same as --set renderer=NAME "
+                   "(default: the config's, auto: Warp if it works, else torch)")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
     # The flag of each setting of train() and check_run_folder(); the config's keys are said with --set.
     p.set_defaults(func=run, terms=Terms({"run_dir": "--out", "out": "--out", "resume": "--resume",
-                                          "overrides": "--set", "device": "--device"}, TrainConfig))
+                                          "overrides": "--set", "device": "--device",
+                                          "renderer": "--renderer"}, TrainConfig))
 
 
 def _check_config_file(path: Path) -> None:
@@ -107,8 +111,9 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
     out = output_folder(args.out or Path("runs") / name)
-    if args.device is not None:  # one mechanism: --device is the config key device
-        args.overrides = [*args.overrides, f"device={args.device}"]
+    for key in ("device", "renderer"):  # one mechanism: --device and --renderer are the config keys of their names
+        if getattr(args, key) is not None:
+            args.overrides = [*args.overrides, f"{key}={getattr(args, key)}"]
     config = resolve_config(args, out)
     if args.print_config:
         print(config.to_yaml(), end="")
