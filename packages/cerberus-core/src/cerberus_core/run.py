@@ -46,6 +46,7 @@ from cerberus_core.plugins import UnknownPluginError, get_metric
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import is_dataset, result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
+from cerberus_core.render.interface import Renderer
 from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.config import TrainConfig
 from cerberus_core.zoo import available, model_path
@@ -533,7 +534,7 @@ class Run:
             indices = range(min(s.limit, len(dataset))) if s.limit else None
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
                                       device=self.device)
-            self._write_report(result, tmp, at_step)
+            self._write_report(result, tmp, at_step, backend)
             evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
                                device=self.device, viewer_images=s.viewer_images,
                                title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
@@ -574,12 +575,15 @@ class Run:
                                   viewer_images=viewer_images, device=self.device,
                                   title=f"cerberus reconstruct: {printable(self.source)}")
 
-    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str) -> None:
-        """``results.json`` (the scores and which weights) and ``results.md`` (with the stale warning)."""
+    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
+        """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and
+        ``results.md`` (with the stale warning)."""
         weights = self.weights_info
         record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
                                                   "newer_checkpoint": None if weights.newer is None else
-                                                  {"path": str(weights.newer), "step": weights.newer_step}}}
+                                                  {"path": str(weights.newer), "step": weights.newer_step}},
+                                        "computed_with": {"renderer": backend.name, "device": str(self.device),
+                                                          "dtype": str(next(self.model.parameters()).dtype)}}
         write_json(record, folder / "results.json")
         report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}")
         if weights.stale_warning():
