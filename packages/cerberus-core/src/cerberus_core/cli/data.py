@@ -9,7 +9,7 @@ from pathlib import Path
 from cerberus_core.bodies.folder import DEFAULT_UP_AXIS, UP_AXES
 from cerberus_core.cli import Terms
 from cerberus_core.cli.checks import check_apart, output_file, output_folder, positive_int, resolved
-from cerberus_core.datasets.plan import SHORTCUT_FLAGS, GenerationConfig, load_generation_config
+from cerberus_core.datasets.plan import SHORTCUT_FLAGS, GenerationConfig, load_generation_config, sizes
 from cerberus_core.errors import ConfigError, DatasetError
 
 _DATASETS = ("human", "animal", "folder", "primitives")  # the order --help lists them
@@ -44,7 +44,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "splits.<split>.<field>, e.g. --set splits.train.pairs=2000 --set scene.elevation=20")
     g.add_argument("--dataset", choices=_DATASETS, required=True, help="body source")
     g.add_argument("--size", default=None, metavar="NAME",
-                   help="size preset: large (human), paper, small, tiny (folder: pairs, grid); default small (folder: pairs)")
+                   help="size preset (the bundled ones: " + "; ".join(f"{d}: {', '.join(sizes(d))}" for d in _DATASETS)
+                   + "); default small (folder: pairs)")
     g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
