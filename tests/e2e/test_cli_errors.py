@@ -19,7 +19,7 @@ import torch
 
 from cerberus_core.cli import main
 from cerberus_core.cli.checks import RESULT_MARKER
-from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
@@ -41,7 +41,7 @@ def fake_png(path: Path, width: int, height: int) -> Path:
 def place(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("cli_errors")
     data, run = root / "data", root / "run"
-    generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
+    Dataset.generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
     torch_threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.manifest import (
     FORMAT_VERSION,
@@ -19,7 +20,7 @@ from cerberus_core.datasets.manifest import (
     SplitRecord,
 )
 from cerberus_core.datasets.plan import GenerationConfig
-from cerberus_core.datasets.readers import ViewDataset, verify_dataset
+from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 
 OLD_MANIFEST = Path(__file__).with_name("old_manifest.json")
@@ -93,8 +94,8 @@ def test_read_errors_name_the_problem(tmp_path, pairs_dataset):
     ds = tmp_path / "ds"
     shutil.copytree(pairs_dataset, ds)
     (ds / MANIFEST).write_text(json.dumps(cases["format version 2"]))
-    _, problems = verify_dataset(ds)
-    assert problems and "format version" in problems[0]
+    with pytest.raises(DatasetError, match="format version"):  # `cerberus data check` exits 2 on it
+        Dataset.open(ds)
 
 
 def test_a_manifest_written_by_the_first_release_still_reads(tmp_path):

@@ -125,18 +125,19 @@ def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> d
 
 # ------------------------------------------------------------------ preset folders and files
 class Presets:
-    """A folder of bundled YAML presets inside the ``cerberus_core`` package.
+    """A folder of bundled YAML presets inside a package (``cerberus_core``, or a plugin's own).
 
     Args:
         folder: path inside the package, ``/``-separated (``"configs"``, ``"configs/data"``).
         kind: what a preset is called in messages (``"preset"``).
+        package: the importable package that holds the folder.
     """
 
-    def __init__(self, folder: str, kind: str = "preset") -> None:
-        self.folder, self.kind = folder, kind
+    def __init__(self, folder: str, kind: str = "preset", package: str = "cerberus_core") -> None:
+        self.folder, self.kind, self.package = folder, kind, package
 
     def _dir(self):
-        return resources.files("cerberus_core").joinpath(*self.folder.split("/"))
+        return resources.files(self.package).joinpath(*self.folder.split("/"))
 
     def names(self) -> list[str]:
         """Names of the bundled presets (file stems)."""

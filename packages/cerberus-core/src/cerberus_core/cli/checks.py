@@ -8,12 +8,10 @@ import argparse
 import math
 
 from cerberus_core.plumbing.outputs import (  # noqa: F401 - re-exported: the sub-commands import them from here
-    MANIFEST_NAME,
     NAME_MAX,
     PATH_MAX,
     RESULT_MARKER,
     check_path_length,
-    is_dataset,
     output_file,
     output_folder,
     result_folder,

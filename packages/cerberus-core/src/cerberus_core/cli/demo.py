@@ -32,7 +32,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.image_size > MAX_IMAGE_SIZE:
         raise ConfigError(f"--image-size {args.image_size}: at most {MAX_IMAGE_SIZE}")
-    out = output_folder(args.out)
+    from cerberus_core.datasets.dataset import Dataset
+
+    out = output_folder(args.out, refuse=Dataset.not_an_output)
     names = args.renderer or available_renderers()
     if not names:
         raise ConfigError("no renderer backend is installed: pip install cerberus-render-torch "

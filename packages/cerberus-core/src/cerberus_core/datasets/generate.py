@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -19,8 +19,7 @@ import numpy as np
 import torch
 
 from cerberus_core import __version__
-from cerberus_core.bodies.body import PosedBody
-from cerberus_core.bodies.sources import BodySource, make_source
+from cerberus_core.bodies.body import BodySource, PosedBody, source_class
 from cerberus_core.datasets.format import (
     DatasetError,
     check_shard_files,
@@ -65,12 +64,15 @@ class GenerationJob:
         config: the config with its renderer resolved (``auto`` → the backend) and the source's
             description filled in: what the manifest stores.
         source: the body source.
+        source_options: the source's options as the manifest stores them
+            (:meth:`BodySource.stored_options`).
         plan: the shard plan of every split.
         peak_bytes: the memory the largest shard needs while it is built (images and render buffers).
     """
 
     config: GenerationConfig
     source: BodySource
+    source_options: dict[str, Any]
     plan: DatasetPlan
     peak_bytes: int
 
@@ -101,9 +103,8 @@ def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
 
 
 def validate_generation(config: GenerationConfig, *, source: BodySource | None = None,
-                        source_options: dict[str, Any] | None = None, source_runtime: dict[str, Any] | None = None,
-                        device: str = "cpu", batch_size: int = 64, out: str | Path | None = None,
-                        overwrite: bool = False) -> GenerationJob:
+                        source_options: Mapping[str, Any] | None = None, device: str = "cpu", batch_size: int = 64,
+                        out: str | Path | None = None, overwrite: bool = False) -> GenerationJob:
     """Check a whole generation before anything is written (``--dry-run`` stops after this).
 
     Checks the device, the batch size, the body source and its options, the renderer (resolved
@@ -114,8 +115,9 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
     :class:`GenerationConfig`'s; the folder's lock is the caller's (:mod:`cerberus_core.plumbing.lock`).
 
     Args:
-        source: the body source (default: built from ``config.dataset``, ``source_options`` and
-            ``source_runtime``: options with no effect on the content, e.g. the human source's ``device``).
+        source: the body source, built by the caller (default: the source registered as ``config.dataset``,
+            built from ``source_options`` checked by its ``Options``, posing on ``device``).
+        source_options: the source's options (stored in the manifest: with ``source`` given, as they are).
         out, overwrite: the dataset folder to check, and whether it may be replaced.
 
     Raises:
@@ -126,7 +128,11 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
         raise ConfigError.about("batch_size", batch_size, "must be >= 1")
     try:
         if source is None:
-            source = make_source(config.dataset, **dict(source_options or {}), **dict(source_runtime or {}))
+            cls = source_class(config.dataset)
+            options = cls.options(source_options)
+            source, stored = cls.from_options(options, device=device), cls.stored_options(options)
+        else:
+            stored = dict(source_options or {})
         renderer = resolve_renderer(config.renderer)
         make_renderer(renderer)  # installed, imports, builds: before the manifest names it
         # The manifest names the backend that draws the images (``auto`` resolved).
@@ -151,7 +157,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               "or `shard_images`")
     if out is not None:
         check_folder(Path(out), jsonable(config.to_dict()), overwrite)
-    return GenerationJob(config, source, plan, images + buffers)
+    return GenerationJob(config, source, jsonable(stored), plan, images + buffers)
 
 
 # ------------------------------------------------------------------------------------ rendering
@@ -325,18 +331,16 @@ def _manifest(out: Path, config: GenerationConfig, cfg: dict, source: BodySource
 
 
 # ------------------------------------------------------------------------------------ driver
-def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | None = None,
-             source_options: dict[str, Any] | None = None, overwrite: bool = False, device: str = "cpu",
-             batch_size: int = 64, progress: bool = True, log: Callable[[str], None] = print,
-             on_shard: ShardCallback | None = None) -> Manifest:
-    """Generate (or resume) a dataset in ``out``.
+def write_dataset(job: GenerationJob, out: str | Path, *, overwrite: bool = False, device: str = "cpu",
+                  batch_size: int = 64, progress: bool = True, log: Callable[[str], None] = print,
+                  on_shard: ShardCallback | None = None) -> Manifest:
+    """Generate (or resume) the dataset of a validated ``job`` in ``out``: the engine of
+    :meth:`cerberus_core.datasets.dataset.Dataset.generate`, which checks the job and holds the folder's
+    lock around this call.
 
     Args:
-        config: what to generate (:func:`cerberus_core.datasets.plan.preset_config`).
+        job: what :func:`validate_generation` gave.
         out: the dataset folder (created if needed).
-        source: the body source (default: built from ``config.dataset`` and ``source_options``).
-        source_options: JSON-ready options of the source (e.g. the folder's ``root``), stored in
-            the manifest so that a reader can rebuild the source.
         overwrite: replace a different dataset (or other files' dataset folders) in ``out``.
         device: torch device for posing and rendering (not part of the dataset's identity).
         batch_size: views per render call (results do not depend on it).
@@ -347,15 +351,10 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
         The final manifest.
 
     Raises:
-        ConfigError: the generation is invalid (:func:`validate_generation`; nothing written).
         DatasetError: ``out`` holds something else (see :func:`_prepare`).
     """
     out = Path(out)
-    source_options = dict(source_options or {})
-    # Nothing is written before these two: the whole generation is checked, then the folder (_prepare).
-    job = validate_generation(config, source=source, source_options=source_options, device=device,
-                              batch_size=batch_size)
-    config, source, plan = job.config, job.source, job.plan
+    config, source, plan, source_options = job.config, job.source, job.plan, job.source_options
     cfg = jsonable(config.to_dict())
     resume = _prepare(out, config, cfg, overwrite, log)
     clean_temporaries(out)

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import Subject
+from cerberus_core.bodies.body import BodySource, Subject, no_subjects_hint, source_class
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError
 from cerberus_core.plumbing.atomic import atomic_write
 
 FORMAT_NAME = "cerberus-dataset"
@@ -54,6 +54,17 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     return obj
+
+
+class IncompleteDatasetError(DatasetError):
+    """A split whose generation has not finished. ``root`` is the dataset folder and ``problem`` the message
+    without its fix, so that a front end can name its own way to finish it (the ``cerberus`` command: the
+    ``cerberus data generate`` command that resumes it)."""
+
+    def __init__(self, root: Path, problem: str) -> None:
+        self.root, self.problem = Path(root), problem
+        super().__init__(f"{problem}; finish generating it (it resumes) with `Dataset.open(root).resume()` "
+                         "(cerberus_core.datasets.dataset)")
 
 
 class _Damaged(Exception):
@@ -254,6 +265,27 @@ class SourceRecord:
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "options": dict(self.options)}
 
+    def build(self, device: str = "cpu") -> BodySource:
+        """The body source again, from its registered name and these options (its ``Options`` check them).
+
+        Raises:
+            DatasetError: the source is not installed here or refuses the options (its reason kept).
+        """
+        try:
+            cls = source_class(self.name)
+            return cls.from_options(cls.options(self.options), device=device)
+        except CerberusError as exc:
+            raise DatasetError(f"the dataset's body source {self.name!r} cannot be rebuilt here ({exc})") from exc
+
+    def empty_split_hint(self, subjects: int, split: str, root: Path) -> str:
+        """Why ``split`` has no subject, in the source's own terms (:meth:`BodySource.empty_split_hint`; a
+        generic hint when the source is not installed here)."""
+        try:
+            cls = source_class(self.name)
+        except CerberusError:
+            return no_subjects_hint(split, subjects, root)
+        return cls.empty_split_hint(self.options, subjects, split, root)
+
 
 @dataclass(frozen=True)
 class Manifest:
@@ -402,6 +434,30 @@ class Manifest:
             raise DatasetError(f"{self.path}: no split {name!r}; this dataset has {sorted(self.splits)}")
         return self.splits[name]
 
+    def incomplete(self, name: str) -> str | None:
+        """What is missing from split ``name`` (``"split 'train' is incomplete (1 of 3 shards)"``), ``None``
+        when every planned shard is written."""
+        info = self.split(name)
+        if info.complete:
+            return None
+        return f"split {name!r} is incomplete ({len(info.shards)} of {info.planned_shards} shards)"
+
+    def readable_split(self, name: str, *, allow_partial: bool = False) -> SplitRecord:
+        """The record of split ``name``, which a reader may open: it has subjects and (unless
+        ``allow_partial``) every shard.
+
+        Raises:
+            DatasetError: no such split, or an empty one (why, in its source's terms).
+            IncompleteDatasetError: a split whose generation has not finished.
+        """
+        info = self.split(name)
+        if info.planned_shards == 0:
+            raise DatasetError(f"{self.root}: split {name!r} is empty: "
+                               f"{self.source.empty_split_hint(len(self.subjects), name, self.root)}")
+        if not allow_partial and (problem := self.incomplete(name)):
+            raise IncompleteDatasetError(self.root, f"{self.root}: {problem}")
+        return info
+
 
 def _scene(record: Any, path: Path) -> SceneSetup:
     try:
@@ -411,5 +467,5 @@ def _scene(record: Any, path: Path) -> SceneSetup:
                            "dataset") from None
 
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "Manifest", "ShardRecord", "SourceRecord",
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "IncompleteDatasetError", "Manifest", "ShardRecord", "SourceRecord",
            "SplitRecord", "SubjectRecord", "canonical_json", "jsonable"]

@@ -23,21 +23,18 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shlex
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
 
-from cerberus_core.bodies.sources import BodySource, Subject
-from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw, omit_defaults
+from cerberus_core.bodies.body import BodySource, Subject, source_class
+from cerberus_core.config import build, did_you_mean, flatten, load_raw, omit_defaults
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.fields import Checked, ranged
 
 LAYOUTS = ("pairs", "grid")
@@ -143,9 +140,9 @@ class GenerationConfig(Checked):
     """Everything that determines a dataset's content (its hash identifies the dataset).
 
     Attributes:
-        dataset: source name (``human``, ``animal``, ``primitives``, ``folder``).
-        preset: name of the size preset it came from (``--size``; informational, recorded as
-            ``preset`` in the manifest).
+        dataset: the body source's registered name (``cerberus.bodies`` entry points: ``human``,
+            ``animal``, ``primitives``, ``folder``, or a plugin's).
+        preset: name of the size preset it came from (informational, recorded as ``preset`` in the manifest).
         splits: split name → :class:`SplitConfig`, in generation order.
         seed: the seed every random choice derives from.
         image_size: square image size in pixels.
@@ -197,54 +194,30 @@ class GenerationConfig(Checked):
 
 
 # ------------------------------------------------------------------------------------ presets
-DATASETS: tuple[str, ...] = ("human", "animal", "primitives", "folder")
-"""The body sources a dataset can be generated from (``--dataset``)."""
-
-DATA_PRESETS = Presets("configs/data", kind="dataset preset")
-"""The bundled dataset presets, ``cerberus_core/configs/data/<dataset>_<size>.yaml``: ``paper``
-follows the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in seconds (tests);
-``folder`` has ``pairs`` (the Human protocol) and ``grid`` (the Animal protocol) instead."""
-
 SET_EXAMPLE = "splits.train.pairs=2000"
 """The override example that error messages show."""
 
-SHORTCUT_FLAGS: dict[str, str] = {"seed": "--seed", "image_size": "--image-size", "renderer": "--renderer",
-                                  "shard_images": "--shard-images"}
-"""Config keys that ``cerberus data generate`` also takes as a flag of their own (same as ``--set KEY=...``)."""
-
-
-def sizes(dataset: str) -> list[str]:
-    """The bundled size presets of ``dataset`` (``paper``, ``small``, ``tiny``; folder: ``pairs``, ``grid``)."""
-    if dataset not in DATASETS:
-        raise ConfigError(f"unknown dataset {dataset!r}{did_you_mean(dataset, DATASETS)}; choose one of "
-                          f"{', '.join(DATASETS)}")
-    prefix = f"{dataset}_"
-    return [n[len(prefix):] for n in DATA_PRESETS.names() if n.startswith(prefix)]
-
-
-def default_size(dataset: str) -> str:
-    """The size ``cerberus data generate`` uses without ``--size``: ``small`` (folder: ``pairs``)."""
-    return "pairs" if dataset == "folder" else "small"
-
 
 def load_generation_config(dataset: str, size: str | None = None, overrides: Iterable[str] = ()) -> GenerationConfig:
-    """The :class:`GenerationConfig` of a bundled preset plus ``--set`` overrides (YAML values).
+    """The :class:`GenerationConfig` of a size preset of a body source, plus ``overrides`` (YAML values).
 
     Args:
-        dataset: the body source (:data:`DATASETS`).
-        size: the size preset (:func:`sizes`; default :func:`default_size`).
+        dataset: the body source's registered name (``cerberus.bodies`` entry points).
+        size: its size preset (:meth:`BodySource.sizes`; default its :attr:`BodySource.default_size`).
         overrides: ``KEY=VALUE`` strings over the config's keys: ``seed``, ``image_size``,
             ``renderer``, ``shard_images``, ``scene.<field>`` and ``splits.<split>.<field>``.
 
     Raises:
-        ConfigError: an unknown dataset or size, or a bad key or value (named, with what is allowed).
+        ConfigError: an unknown size, or a bad key or value (named, with what is allowed).
+        UnknownPluginError: no body source of that name is installed (with the closest name).
     """
-    size = default_size(dataset) if size is None else size
-    known = sizes(dataset)
+    cls = source_class(dataset)
+    size = cls.default_size if size is None else size
+    known = cls.sizes()
     if size not in known:
         raise ConfigError.about("size", size, f"unknown size preset for dataset {dataset!r}"
                                 f"{did_you_mean(size, known)}; choose one of {', '.join(known)}")
-    raw = load_raw(DATA_PRESETS, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
+    raw = load_raw(cls.presets, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
     for key, why in (("dataset", "`dataset`"), ("preset", "`size`"), ("source", "the body source")):
         if key in raw:
             raise ConfigError(f"{key}: set by {why}, not by a preset file or `overrides`")
@@ -257,34 +230,40 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
     return replace(load_generation_config(dataset, size), **overrides)
 
 
-def generate_command(root: str | Path, manifest: Manifest) -> str:
-    """The ``cerberus data generate`` command that resumes the dataset of ``manifest`` in ``root``.
+@dataclass(frozen=True)
+class GenerationRequest:
+    """A dataset as it is asked for: a body source, a size preset, the config keys set over the preset and
+    the source's options. :meth:`Dataset.request <cerberus_core.datasets.dataset.Dataset.request>` gives the
+    one that resumes a dataset; ``cerberus data`` says it as a command.
 
-    It names the dataset, the size preset, the body source's options and, as a flag or ``--set``,
-    every config key whose value differs from the bundled preset's, so that the command rebuilds
-    exactly the stored config (``generate`` then resumes instead of refusing a different dataset).
+    Attributes:
+        dataset: the body source's name.
+        size: the size preset.
+        overrides: flat config key (``seed``, ``splits.train.pairs``) → value, where it differs from the preset.
+        source_options: the source's stored options.
     """
-    config = manifest.config
-    dataset, size = manifest.dataset, str(manifest.preset)
-    words = ["cerberus", "data", "generate", "--dataset", dataset, "--size", size, "--out", str(root)]
-    options = manifest.source.options
-    if "root" in options:
-        words += ["--source", str(options["root"])]
-    if options.get("test_subjects"):
-        words += ["--test-subjects", ",".join(options["test_subjects"])]
-    elif "test_fraction" in options:
-        words += ["--test-fraction", str(options["test_fraction"])]
-    try:
-        preset = flatten(json.loads(json.dumps(load_generation_config(dataset, size).to_dict())))
-    except ConfigError:  # a preset this version no longer bundles: every stored key is given
-        preset = {}
-    stored = flatten({k: v for k, v in config.items() if k not in ("dataset", "preset", "source")})
-    for key, value in stored.items():
-        if key in preset and preset[key] == value:
-            continue
-        text = value if isinstance(value, str) and yaml.safe_load(value) == value else json.dumps(value)
-        words += [SHORTCUT_FLAGS[key], text] if key in SHORTCUT_FLAGS else ["--set", f"{key}={text}"]
-    return shlex.join(words)
+
+    dataset: str
+    size: str
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    source_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def config(self) -> GenerationConfig:
+        """The config asked for (:func:`load_generation_config`)."""
+        return load_generation_config(self.dataset, self.size, [f"{k}={json.dumps(v)}" for k, v in self.overrides.items()])
+
+    @classmethod
+    def of(cls, manifest: Manifest) -> GenerationRequest:
+        """The request that rebuilds exactly the config ``manifest`` stores (so a generation resumes it): every
+        stored key whose value differs from the size preset's (every key, if this version lacks the preset)."""
+        dataset, size = manifest.dataset, str(manifest.preset)
+        try:
+            preset = flatten(json.loads(json.dumps(load_generation_config(dataset, size).to_dict())))
+        except CerberusError:  # a preset (or a source) this version no longer has: every stored key is given
+            preset = {}
+        stored = flatten({k: v for k, v in manifest.config.items() if k not in ("dataset", "preset", "source")})
+        overrides = {k: v for k, v in stored.items() if not (k in preset and preset[k] == v)}
+        return cls(dataset, size, overrides, dict(manifest.source.options))
 
 
 # ------------------------------------------------------------------------------------ plan
