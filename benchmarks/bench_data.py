@@ -23,8 +23,9 @@ import torch
 from cerberus_core.bodies.body import source_class
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.generate import render_views
-from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
+from cerberus_core.datasets.plan import make_plan, preset_config
 from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.render.backends import available_renderers, make_renderer
 
 CPU = {"wall": 0.0, "cpu": 0.0}

@@ -11,7 +11,7 @@ from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.manifest import Manifest, SourceRecord
-from cerberus_core.datasets.plan import GenerationConfig, preset_config
+from cerberus_core.datasets.plan import preset_config
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 
 
@@ -185,7 +185,7 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
         assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "dy")]) == 0
     manifest = Manifest.read(tmp_path / "dz")
     assert manifest.source.options["up_axis"] == "+z"
-    assert GenerationConfig.from_dict(manifest.config).source["up_axis"] == "+z"
+    assert manifest.config.source["up_axis"] == "+z"
     z_test, y_test = ViewDataset(tmp_path / "dz"), ViewDataset(tmp_path / "dy")
     np.testing.assert_allclose(z_test.gt_mesh(0).vertices, y_test.gt_mesh(0).vertices, atol=1e-6)
     capsys.readouterr()

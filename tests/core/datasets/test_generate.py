@@ -72,7 +72,7 @@ def test_killed_mid_shard_leaves_no_accepted_half_shard(pairs_dataset, pairs_con
         import os, signal
         from cerberus_core.datasets import format as fmt
         from cerberus_core.datasets.dataset import Dataset
-        from cerberus_core.datasets.plan import GenerationConfig, SplitConfig
+        from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
         saves = []
         original = fmt.atomic_save_npy
         def save(path, array):

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from cerberus_core.bodies.body import source_class
-from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
+from cerberus_core.datasets.plan import make_plan, preset_config
+from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 
 
 def _plan(config):

@@ -323,8 +323,8 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
 
     Raises:
         ConfigError: an unknown key (with the closest valid one and the list of valid keys), a
-            missing required key, a value of the wrong type or outside a ``Literal``, or a
-            ``ValueError`` of the dataclass's own checks (prefixed with the section's key).
+            missing required key, a value of the wrong type or outside a ``Literal``, or the
+            dataclass's own checks (:class:`~cerberus_core.fields.Checked`: its key under this section).
     """
     section = prefix[:-1] if prefix else "config"
     if not isinstance(d, Mapping):
@@ -343,7 +343,5 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     kwargs = {k: coerce(v, hints[k], prefix + k) for k, v in d.items()}
     try:
         return cls(**kwargs)
-    except ConfigError:
-        raise
-    except ValueError as exc:
-        raise ConfigError(f"{section}: {exc}" if prefix else str(exc)) from exc
+    except ConfigError as exc:  # a settings class's own check (fields.Checked): its key said under this section
+        raise exc.within(prefix) from None

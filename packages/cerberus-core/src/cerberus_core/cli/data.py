@@ -83,7 +83,7 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
     g.add_argument("--print-config", action="store_true", help="print the resolved config (YAML) and exit")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
-    from cerberus_core.datasets.plan import GenerationConfig
+    from cerberus_core.datasets.settings import GenerationConfig
 
     g.set_defaults(func=run_generate, terms=Terms({
         **CONFIG_FLAGS, **SOURCE_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",

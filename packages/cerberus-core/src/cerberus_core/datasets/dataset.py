@@ -25,9 +25,10 @@ from cerberus_core.bodies.body import BodySource, source_class
 from cerberus_core.datasets.format import check_shard_files, empty_views
 from cerberus_core.datasets.generate import GenerationJob, ShardCallback, validate_generation, write_dataset
 from cerberus_core.datasets.manifest import FORMAT_VERSION, MANIFEST, Manifest
-from cerberus_core.datasets.plan import GenerationConfig, GenerationRequest
+from cerberus_core.datasets.plan import GenerationRequest
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.datasets.show import save_contact_sheet
 from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin

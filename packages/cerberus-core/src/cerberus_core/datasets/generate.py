@@ -37,8 +37,9 @@ from cerberus_core.datasets.manifest import (
     SubjectRecord,
     jsonable,
 )
-from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
+from cerberus_core.datasets.plan import DatasetPlan, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plumbing.lock import is_lock_file
@@ -285,10 +286,11 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, Manifes
                 raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass `overwrite=True` to "
                                    "replace it, or choose another `out`") from exc
             return "overwrite", None
-        if old.config == config:
+        stored = jsonable(old.config.to_dict())
+        if stored == config:
             return "resume", old
         if not overwrite:
-            diff = "; ".join(_differences(dict(old.config), config)[:6])
+            diff = "; ".join(_differences(stored, config)[:6])
             raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
                                "`overwrite=True` to replace it, or choose another `out`")
         return "overwrite", old
@@ -324,7 +326,7 @@ def _manifest(out: Path, config: GenerationConfig, cfg: dict, source: BodySource
         t = plan.totals(name)
         splits[name] = SplitRecord(split_cfg.layout, split_cfg.meshes, t["shards"], t["images"], t["quadruplets"],
                                    t["meshes"])
-    return Manifest(dataset=config.dataset, preset=config.preset, config=cfg, config_sha256=config_hash(cfg),
+    return Manifest(dataset=config.dataset, preset=config.preset, config=config, config_sha256=config_hash(cfg),
                     scene=config.scene, image_size=config.image_size, part_names=tuple(source.part_names),
                     subjects=tuple(plan.subjects), source=SourceRecord(source.name, jsonable(source_options)),
                     splits=splits, generator={"cerberus_core": __version__}, root=out)

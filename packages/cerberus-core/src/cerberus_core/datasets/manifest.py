@@ -29,6 +29,7 @@ import numpy as np
 
 from cerberus_core.bodies.body import BodySource, Subject, no_subjects_hint, source_class
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.errors import CerberusError, ConfigError, DatasetError
 from cerberus_core.plumbing.atomic import atomic_write
 
@@ -294,8 +295,8 @@ class Manifest:
     Attributes:
         dataset: the body source's name: ``human``, ``animal``, ``primitives``, ``folder``.
         preset: the size preset it was generated with.
-        config: the resolved generation config (:meth:`GenerationConfig.to_dict` form, JSON), as
-            stored: a resume compares it whole.
+        config: the resolved generation config, typed (stored in its :meth:`GenerationConfig.to_dict`
+            form): a resume compares it whole.
         config_sha256: its hash (:func:`cerberus_core.datasets.format.config_hash`).
         scene: the scene set-up the images were rendered with (checked).
         image_size: images are ``image_size`` pixels square.
@@ -310,7 +311,7 @@ class Manifest:
 
     dataset: str
     preset: str | None
-    config: Mapping[str, Any]
+    config: GenerationConfig
     config_sha256: str
     scene: SceneSetup
     image_size: int
@@ -366,10 +367,10 @@ class Manifest:
                                "install the cerberus-core release that wrote it")
         try:
             dataset = _need(record, "dataset", str, "manifest")
-            config = _mapping(_need(record, "config", Mapping, "manifest"), "config")
+            config = _config(_mapping(_need(record, "config", Mapping, "manifest"), "config"), path)
             splits = _mapping(_need(record, "splits", Mapping, "manifest"), "splits")
             return cls(
-                dataset=dataset, preset=record.get("preset"), config=dict(config),
+                dataset=dataset, preset=record.get("preset"), config=config,
                 config_sha256=str(record.get("config_sha256", "")), scene=_scene(record.get("scene"), path),
                 image_size=_need(record, "image_size", int, "manifest"),
                 part_names=tuple(str(n) for n in _need(record, "part_names", list, "manifest")),
@@ -385,7 +386,7 @@ class Manifest:
     def to_json(self) -> dict[str, Any]:
         """The JSON object :meth:`write` stores (:meth:`from_json` reads it back equal)."""
         return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "dataset": self.dataset,
-                "preset": self.preset, "config": dict(self.config), "config_sha256": self.config_sha256,
+                "preset": self.preset, "config": jsonable(self.config.to_dict()), "config_sha256": self.config_sha256,
                 "scene": self.scene.to_dict(), "image_size": self.image_size, "part_names": list(self.part_names),
                 "subjects": [s.to_json() for s in self.subjects], "source": self.source.to_json(),
                 "splits": {name: rec.to_json() for name, rec in self.splits.items()}, "complete": self.complete,
@@ -457,6 +458,14 @@ class Manifest:
         if not allow_partial and (problem := self.incomplete(name)):
             raise IncompleteDatasetError(self.root, f"{self.root}: {problem}")
         return info
+
+
+def _config(record: Mapping[str, Any], path: Path) -> GenerationConfig:
+    try:
+        return GenerationConfig.from_dict(dict(record))
+    except ConfigError as exc:
+        raise DatasetError(f"{path}: invalid generation config ({exc}); the manifest is damaged or of a newer "
+                           "version: regenerate the dataset with this version") from None
 
 
 def _scene(record: Any, path: Path) -> SceneSetup:

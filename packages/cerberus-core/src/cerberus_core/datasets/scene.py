@@ -29,7 +29,7 @@ import torch
 from cerberus_core.bodies.body import FILL
 from cerberus_core.config import omit_defaults
 from cerberus_core.errors import ConfigError
-from cerberus_core.fields import check_fields, ranged
+from cerberus_core.fields import Checked, ranged
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 
@@ -95,7 +95,7 @@ def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, m
 
 
 @dataclass(frozen=True)
-class SceneSetup:
+class SceneSetup(Checked):
     """Fixed camera and lighting of a dataset; only the azimuth varies per view.
 
     Attributes:
@@ -131,8 +131,11 @@ class SceneSetup:
     fitted_extent: float = ranged(FILL, gt=0)
     fitted_radius: float | None = ranged(None, gt=0, integer=False)
 
-    def __post_init__(self) -> None:
-        check_fields(self, "scene")
+    SECTION = "scene"
+
+    def validate(self) -> None:
+        """Fits a missing ``distance`` (:func:`fit_distance`), then checks the clipping planes around it and
+        the colours."""
         if self.distance is None:
             object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent,
                                                                radius=self.fitted_radius))
