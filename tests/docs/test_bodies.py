@@ -38,7 +38,7 @@ def test_the_guides_minimal_source_generates_a_dataset_that_trains(tmp_path: Pat
     from cerberus_core.datasets.dataset import Dataset
 
     dataset = Dataset.open(data)
-    assert dataset.manifest.source.options == {"arm_length": 0.5} and dataset.part_names == ["torso", "arm"]
+    assert dataset.manifest.source.options == {"arm_length": 0.5} and dataset.manifest.part_names == ("torso", "arm")
     quads, views = dataset.quadruplets(), dataset.views()
     assert len(quads) == 8 and len(views) == 8
     assert set(views.gt_mesh(0).vertex_parts.tolist()) == {0, 1}

@@ -18,9 +18,9 @@ import pytest
 import torch
 
 from cerberus_core.cli import main
-from cerberus_core.cli.checks import RESULT_MARKER
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
+from cerberus_core.plumbing.outputs import RESULT_MARKER
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are

@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cerberus_core.errors import DatasetError
+
 
 @pytest.mark.parametrize("name", ["primitives", "animal"])
 def test_sources_are_stateless(name):
@@ -22,5 +24,5 @@ def test_sources_are_stateless(name):
     again = source_class(name)().bodies(SubjectRecord.from_json(stored).subject, [pose])[0]
     np.testing.assert_array_equal(again.vertices, expected.vertices)
     np.testing.assert_array_equal(again.vertex_parts, expected.vertex_parts)
-    with pytest.raises(KeyError, match="rerun the same"):
+    with pytest.raises(DatasetError, match="rerun the same"):
         src.bodies(Subject(subject.name), [pose])

@@ -25,10 +25,17 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cerberus_core.config import Presets, build
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError
 from cerberus_core.fields import Checked
 from cerberus_core.plugins import BODY_GROUP, get_plugin
 from cerberus_core.shapes import check_shapes
+
+
+class BodyError(CerberusError, ValueError):
+    """A body source was asked for, or produced, what no dataset can hold: a count or pose id out of its
+    range, a degenerate body, one outside the unit cube; the message names the subject, the pose and the fix
+    (a ``ValueError`` too, for callers that caught one)."""
+
 
 FILL: float = 0.9
 """Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""
@@ -61,11 +68,11 @@ class PosedBody:
         f = np.asarray(self.faces)
         check_shapes("PosedBody", vertices=(v, "V 3"), faces=(f, "F 3"))
         if not np.isfinite(v).all():
-            raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: vertices contain NaN or inf")
+            raise BodyError(f"PosedBody {self.subject}/{self.pose_id}: vertices contain NaN or inf")
         if f.size and (f.min() < 0 or f.max() >= len(v)):
-            raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: faces index outside 0..{len(v) - 1}")
+            raise BodyError(f"PosedBody {self.subject}/{self.pose_id}: faces index outside 0..{len(v) - 1}")
         if np.asarray(self.vertex_parts).shape != (len(v),):
-            raise ValueError("PosedBody.vertex_parts must have one label per vertex")
+            raise BodyError("PosedBody.vertex_parts must have one label per vertex")
         self.vertices = v.astype(np.float32, copy=False)
         self.faces = f.astype(np.int64, copy=False)
         self.vertex_parts = np.asarray(self.vertex_parts).astype(np.int16, copy=False)
@@ -84,11 +91,11 @@ def normalise_subject(poses: Sequence[np.ndarray], fill: float = FILL) -> tuple[
         ``[-fill/2, fill/2]^3``.
     """
     if len(poses) == 0:
-        raise ValueError("normalise_subject needs at least one pose")
+        raise BodyError("normalise_subject needs at least one pose")
     extents = [float((p.max(0) - p.min(0)).max()) for p in poses]
     largest = max(extents)
     if not np.isfinite(largest) or largest <= 0:
-        raise ValueError(f"normalise_subject: degenerate subject (largest extent {largest})")
+        raise BodyError(f"normalise_subject: degenerate subject (largest extent {largest})")
     scale = fill / largest
     out = []
     for p in poses:
@@ -110,10 +117,10 @@ class Subject:
     info: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
     def need(self, source: str, *keys: str) -> list[Any]:
-        """``info[key]`` for each key, or a ``KeyError`` naming the missing ones (an older manifest)."""
+        """``info[key]`` for each key, or a :class:`DatasetError` naming the missing ones (an older manifest)."""
         missing = [k for k in keys if k not in self.info]
         if missing:
-            raise KeyError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
+            raise DatasetError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
                            "self-contained subject records: rerun the same `cerberus data generate` command (it "
                            "resumes and rewrites the manifest)")
         return [self.info[k] for k in keys]

@@ -48,7 +48,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from cerberus_core.bodies.body import FILL, BodySource, PosedBody, Subject, no_subjects_hint, normalise_subject
+from cerberus_core.bodies.body import (
+    FILL,
+    BodySource,
+    PosedBody,
+    Subject,
+    no_subjects_hint,
+    normalise_subject,
+)
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.fields import Checked, ranged
 
@@ -373,7 +380,8 @@ class FolderSource(BodySource):
     # -- BodySource ----------------------------------------------------------------------------
     def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         if split not in self._split:
-            raise ValueError(f"the folder source has splits train and test, not {split!r}")
+            raise ConfigError.about("splits", split, "the folder source has splits train and test only",
+                                    "name the splits `train` and `test`")
         names = self._split[split][: n if n is not None else None]
         return [Subject(s, {"poses": [f.stem for f in self._files[s]], "folder": s}) for s in names]
 

@@ -43,7 +43,8 @@ class _SeededSubjects(BodySource):
 
     def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         if n is None:
-            raise ValueError(f"the {self.name} source needs a subject count for split {split!r}")
+            raise ConfigError.about(f"splits.{split}.subjects", None, f"the {self.name} source needs a subject count",
+                                    f"`splits.{split}.subjects=N`")
         return [Subject(s.subject_id, self._info(s)) for s in self._sample(n, seed, split)]
 
     def _sample(self, n: int, seed: int, split: str) -> list[Any]:
@@ -54,7 +55,8 @@ class _SeededSubjects(BodySource):
 
     def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
         if n is None:
-            raise ValueError(f"the {self.name} source has unlimited poses; give a pose count")
+            raise ConfigError.about(f"splits.{split}.poses", None, f"the {self.name} source has unlimited poses; give "
+                                    "a pose count", f"`splits.{split}.poses=N`")
         return list(range(1, n + 1))
 
     def canonical_pose(self, subject: Subject) -> int | None:
@@ -162,7 +164,8 @@ class AnimalSource(BodySource):
             n = self._animal.N_TRAIN_POSES if split == "train" else self._animal.N_TEST_POSES
         base = 0 if split == "train" else self.TEST_POSE_BASE
         if split == "train" and n > self.TEST_POSE_BASE:
-            raise ValueError(f"at most {self.TEST_POSE_BASE} training poses per species")
+            raise ConfigError.about(f"splits.{split}.poses", n, f"at most {self.TEST_POSE_BASE} training poses per "
+                                    "species")
         return [base + k for k in range(n)]
 
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:

@@ -45,8 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     dsub = p.add_subparsers(dest="data_command", metavar="ACTION")
     dsub.required = True
     _add_generate(dsub)
-    _add_check(dsub)
-    _add_show(dsub)
+    _add_check_and_show(dsub)
 
 
 def _add_generate(dsub: argparse._SubParsersAction) -> None:
@@ -90,16 +89,13 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
         "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device"}, GenerationConfig))
 
 
-def _add_check(dsub: argparse._SubParsersAction) -> None:
+def _add_check_and_show(dsub: argparse._SubParsersAction) -> None:
     c = dsub.add_parser("check", help="verify a dataset's checksums and report its contents",
                         description="Verify the manifest (format version, paths), every shard file (size, sha256, "
                         "array shapes) and completeness. Exit status 1 on any problem.")
     c.add_argument("root", type=Path, help="dataset folder")
     c.add_argument("--quick", action="store_true", help="sizes and headers only, no sha256")
     c.set_defaults(func=run_check)
-
-
-def _add_show(dsub: argparse._SubParsersAction) -> None:
     s = dsub.add_parser("show", help="write a contact sheet PNG of a split",
                         description="Rows of quadruplets (a0 a1 b0 b1) for training splits, or the views of each "
                         "pose for test splits; --parts adds the ground-truth parts in colour.")

@@ -6,8 +6,9 @@ import time
 from pathlib import Path
 
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import output_folder, positive_int
+from cerberus_core.cli.checks import positive_int
 from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.outputs import output_folder
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.demo import demo_scene

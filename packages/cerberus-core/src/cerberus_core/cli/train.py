@@ -6,10 +6,10 @@ import sys
 from pathlib import Path
 
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import output_folder
 from cerberus_core.config import load_yaml, yaml_problem
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.outputs import output_folder
 
 EPILOG = """\
 examples:

@@ -89,11 +89,6 @@ class Dataset:
         return self.manifest.scene
 
     @property
-    def part_names(self) -> list[str]:
-        """Names of the ground-truth parts (evaluation only)."""
-        return list(self.manifest.part_names)
-
-    @property
     def body_kind(self) -> str | None:
         """The kind of bodies it holds (its source's :meth:`BodySource.body_kind`; ``None``: any kind, or a
         source not installed here that is not named after a kind)."""

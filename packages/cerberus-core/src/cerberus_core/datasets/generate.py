@@ -18,8 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core import __version__
-from cerberus_core.bodies.body import BodySource, PosedBody, source_class
+from cerberus_core.bodies.body import BodyError, BodySource, PosedBody, source_class
 from cerberus_core.datasets.format import (
     DatasetError,
     check_shard_files,
@@ -41,8 +40,9 @@ from cerberus_core.datasets.plan import DatasetPlan, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.devices import check_device
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.lock import is_lock_file
+from cerberus_core.release import VERSION
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.render.interface import Renderer
@@ -139,9 +139,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
         # The manifest names the backend that draws the images (``auto`` resolved).
         config = replace(config, source=jsonable(source.describe()), renderer=renderer)
         plan = make_plan(config, source)
-    except CerberusError:
-        raise
-    except (ValueError, ImportError) as exc:  # the sources' and the plan's checks; a missing extra
+    except ImportError as exc:  # a source's optional package missing (the sources' and the plan's checks are typed)
         raise ConfigError(str(exc)) from exc
     views = max(len(s.views) for shards in plan.shards.values() for s in shards)
     pixels = config.image_size ** 2
@@ -219,7 +217,7 @@ def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list
     """Pose every (subject index, pose id) of a shard, one batched call per subject, and check them.
 
     Raises:
-        ValueError: a body outside ``[-0.5, 0.5]^3`` or with part labels outside ``0..n_parts-1``.
+        BodyError: a body outside ``[-0.5, 0.5]^3`` or with part labels outside ``0..n_parts-1``.
     """
     by_subject: dict[int, list[int]] = {}
     for s, p in meshes:
@@ -232,14 +230,16 @@ def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list
         name = who.name
         bodies = source.bodies(who, poses)
         if len(bodies) != len(poses):
-            raise RuntimeError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}")
+            raise BodyError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}; "
+                            "BodySource.bodies must return one body per pose id")
         for p, b in zip(poses, bodies, strict=True):
             reach = float(np.abs(b.vertices).max()) if len(b.vertices) else 0.0
             if reach > 0.5 + 1e-6:
-                raise ValueError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "
+                raise BodyError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "
                                  "[-0.5, 0.5]^3 every body must lie in (see cerberus_core.bodies.body)")
             if len(b.vertex_parts) and (b.vertex_parts.min() < 0 or b.vertex_parts.max() >= n_parts):
-                raise ValueError(f"{source.name} body {name} pose {p}: part labels outside 0..{n_parts - 1}")
+                raise BodyError(f"{source.name} body {name} pose {p}: part labels outside 0..{n_parts - 1}; label "
+                                f"each vertex with a part of the source's {n_parts} `part_names`")
             built[(s, p)] = b
     return [built[m] for m in meshes]
 
@@ -329,7 +329,7 @@ def _manifest(out: Path, config: GenerationConfig, cfg: dict, source: BodySource
     return Manifest(dataset=config.dataset, preset=config.preset, config=config, config_sha256=config_hash(cfg),
                     scene=config.scene, image_size=config.image_size, part_names=tuple(source.part_names),
                     subjects=tuple(plan.subjects), source=SourceRecord(source.name, jsonable(source_options)),
-                    splits=splits, generator={"cerberus_core": __version__}, root=out)
+                    splits=splits, generator={"cerberus_core": VERSION}, root=out)
 
 
 # ------------------------------------------------------------------------------------ driver

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodySource, Subject, source_class
+from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class
 from cerberus_core.config import build, did_you_mean, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
@@ -178,7 +178,8 @@ def _independent_pairs(who: Subject, n_pairs: int | None, source: BodySource, sp
     if n_pairs == 0:
         return []
     if len(pool) < 2:
-        raise ValueError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
+        raise BodyError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2: give "
+                        "it a second pose, or move it to a grid split")
     if len(pool) >= 2 * n_pairs:
         return [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
     a = rng.integers(0, len(pool), n_pairs)
@@ -294,8 +295,9 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     empty split, naming it).
 
     Raises:
-        ValueError: if splits share a subject while the source promises disjoint subjects, no split
+        ConfigError: if splits share a subject while the source promises disjoint subjects, no split
             has a subject, or a split with subjects would hold no image.
+        BodyError: a subject of a ``pairs`` split with fewer than 2 poses.
     """
     table: list[SubjectRecord] = []
     index: dict[str, int] = {}
@@ -309,8 +311,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
             if s.name in index:
                 entry = table[index[s.name]]
                 if not source.shared_subjects:
-                    raise ValueError(f"subject {s.name!r} is in splits {list(entry.splits)} and {split!r}; "
-                                     "splits must hold disjoint subjects")
+                    raise ConfigError(f"subject {s.name!r} is in splits {list(entry.splits)} and {split!r}; "
+                                      "splits must hold disjoint subjects: give each split its own")
                 table[index[s.name]] = entry.in_split(split)
             else:
                 index[s.name] = len(table)
@@ -329,8 +331,9 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 units += _grid_units(index[s.name], s, cfg, source, split, rng, config.shard_images)
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
-            raise ValueError(f"split {split!r} would be empty; check the preset's counts")
+            raise ConfigError.about(f"splits.{split}", None, "would hold no image; raise its counts (`pairs`, "
+                                    "`poses`, `views`)")
     if not table:
-        raise ValueError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset or the folder's "
-                         "split options")
+        raise ConfigError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset's `subjects` or "
+                          "the body source's split options")
     return DatasetPlan(table, shards)

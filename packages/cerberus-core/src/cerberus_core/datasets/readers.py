@@ -289,8 +289,8 @@ class ViewDataset(_Base):
                 raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and {exc}") from exc
         try:
             return self._source.bodies(self.manifest.subjects[subject].subject, [pose])[0]
-        except KeyError as exc:
-            raise DatasetError(f"{self.manifest.path}: {exc.args[0]}") from exc
+        except DatasetError as exc:  # a subject record of an older manifest
+            raise DatasetError(f"{self.manifest.path}: {exc}") from exc
 
 
 __all__ = ["QuadrupletDataset", "ViewDataset"]

@@ -28,7 +28,7 @@ import torch
 
 from cerberus_core.bodies.body import FILL
 from cerberus_core.config import omit_defaults
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
@@ -87,7 +87,8 @@ def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, m
 
     lo, hi = extent * 0.5, extent * 100.0
     if not fits(hi):
-        raise ValueError(f"fit_distance: field of view {fov_y_deg} deg is too narrow")
+        raise ConfigError.about("scene.fov_y", fov_y_deg, "too narrow to frame a body at any distance",
+                                "widen `scene.fov_y`")
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if fits(mid) else (mid, hi)
@@ -230,7 +231,7 @@ class SceneSetup(Checked):
             try:
                 value = views[key]
             except (KeyError, ValueError, IndexError):
-                raise KeyError(f"view records lack {key!r}; every view needs {', '.join(self.VIEW_KEYS)}") from None
+                raise DatasetError(f"view records lack {key!r}; every view needs {', '.join(self.VIEW_KEYS)}") from None
             if isinstance(value, (np.ndarray, np.generic)):
                 value = np.array(value, dtype=np.float32)  # a copy: memory-mapped records are read-only
             t = torch.as_tensor(value).to(device=device, dtype=torch.float32)

@@ -1,7 +1,7 @@
 """Where commands and the library write results: path checks that raise
 :class:`~cerberus_core.errors.ConfigError` before anything is written, and result folders written
-whole (:func:`result_folder`, :func:`writing_results`). :mod:`cerberus_core.cli.checks` re-exports
-them for the sub-commands; :class:`cerberus_core.run.Run` uses them directly."""
+whole (:func:`result_folder`, :func:`writing_results`). The sub-commands and
+:class:`cerberus_core.run.Run` use them directly; a caller adds its own refusal of a folder (``refuse``)."""
 from __future__ import annotations
 
 import contextlib
