@@ -123,7 +123,7 @@ class FolderOptions(Checked):
 
     def validate(self) -> None:
         if self.root is None:
-            raise ConfigError.about("root", None, "the folder source needs its folder of meshes", "`root=DIR`")
+            raise ConfigError.about("root", None, "the folder source needs its folder of meshes: `root=DIR`")
         object.__setattr__(self, "root", str(Path(self.root).resolve()))
         if self.test_subjects is not None and not self.test_subjects:
             raise ConfigError.about("test_subjects", [], "names no subject; name the test subjects, or leave it out "

@@ -198,8 +198,9 @@ def finish(dataset) -> str:  # noqa: ANN001 - a Dataset
 def incomplete_message(exc) -> str:  # noqa: ANN001 - an IncompleteDatasetError
     """An incomplete dataset's error said with the command that finishes it (the CLI's error boundary)."""
     from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.errors import CerberusError
 
     try:
         return f"{exc.problem}; {finish(Dataset.open(exc.root))}"
-    except Exception:  # noqa: BLE001 - the library's own message, when the command cannot be built
+    except CerberusError:  # the library's own message, when the command cannot be built
         return str(exc)

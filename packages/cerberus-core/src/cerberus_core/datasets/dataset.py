@@ -30,7 +30,7 @@ from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.datasets.show import save_contact_sheet
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
 from cerberus_core.plumbing.outputs import output_file, output_folder
@@ -94,7 +94,7 @@ class Dataset:
         source not installed here that is not named after a kind)."""
         try:
             return self.source_class().body_kind()
-        except Exception:  # noqa: BLE001 - a source not installed here: its name is the best guess
+        except CerberusError:  # a source not installed here (or failing to load): its name is the best guess
             return self.name
 
     def source_class(self) -> type[BodySource]:

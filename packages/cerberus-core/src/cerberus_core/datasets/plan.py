@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class
-from cerberus_core.config import build, did_you_mean, flatten, load_raw
+from cerberus_core.config import build, did_you_mean_hint, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
@@ -60,7 +60,7 @@ def load_generation_config(dataset: str, size: str | None = None, overrides: Ite
     known = cls.sizes()
     if size not in known:
         raise ConfigError.about("size", size, f"unknown size preset for dataset {dataset!r}"
-                                f"{did_you_mean(size, known)}; choose one of {', '.join(known)}")
+                                f"{did_you_mean_hint(size, known)}; choose one of {', '.join(known)}")
     raw = load_raw(cls.presets, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
     for key, why in (("dataset", "`dataset`"), ("preset", "`size`"), ("source", "the body source")):
         if key in raw:
@@ -331,8 +331,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 units += _grid_units(index[s.name], s, cfg, source, split, rng, config.shard_images)
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
-            raise ConfigError.about(f"splits.{split}", None, "would hold no image; raise its counts (`pairs`, "
-                                    "`poses`, `views`)")
+            raise ConfigError(f"split {split!r} would be empty (no image); raise its counts: `splits.{split}.pairs`, "
+                              f"`splits.{split}.poses` or `splits.{split}.views`")
     if not table:
         raise ConfigError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset's `subjects` or "
                           "the body source's split options")
