@@ -161,3 +161,6 @@ def test_the_own_cross_view_must_start_before_the_end():
         load_config(preset="cpu", overrides=["train.steps=300"])
     assert load_config(preset="cpu", overrides=["train.steps=301"]).losses.cross_view_warmup == 300
     assert load_config(preset="paper", overrides=["losses.cross_view_warmup=10", "train.steps=5"])  # partner: unused
+    for preset in ("paper", "paper_faithful", "cpu"):  # issue 30's limb terms: screened, in no preset yet
+        c = load_config(preset=preset)
+        assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
