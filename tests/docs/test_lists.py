@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 
 from cerberus_core.cli import build_parser
-from cerberus_core.datasets.plan import DATASETS, sizes
+from cerberus_core.plugins import BODY_GROUP, get_plugin, plugin_names
 from cerberus_core.train.config import preset_names
 from tests.support.paths import REPO
 
@@ -27,7 +27,7 @@ def test_every_training_preset_is_in_the_help_and_in_the_preset_table():
 def test_every_dataset_size_is_in_the_help_and_in_the_data_docs():
     helptext = " ".join(_sub(build_parser(), "data", "generate").format_help().split())
     docs = (REPO / "docs" / "data_format.md").read_text()
-    for dataset in DATASETS:
-        for size in sizes(dataset):
+    for dataset in plugin_names(BODY_GROUP):
+        for size in get_plugin(BODY_GROUP, dataset).sizes():
             assert size in helptext, (dataset, size)
             assert f"`{size}`" in docs, (dataset, size)
