@@ -33,7 +33,7 @@ from cerberus_core.datasets.show import save_contact_sheet
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
-from cerberus_core.plumbing.outputs import output_file, output_folder
+from cerberus_core.plumbing.outputs import check_apart, output_file, output_folder, resolved
 from cerberus_core.render.backends import AUTO_RENDERER
 
 MAX_SHEET_ROWS, MAX_SHEET_SCALE = 256, 16
@@ -190,6 +190,8 @@ class Dataset:
         """
         if out is not None:
             output_folder(Path(out))
+            if source_options and source_options.get("root"):  # the meshes read are not in the folder written
+                check_apart(Path(out), [resolved(source_options["root"], "root")], what="a dataset is written there")
         job = validate_generation(config, source=source, source_options=source_options, device=device,
                                   batch_size=batch_size, out=out, overwrite=overwrite)
         for advice in job.source.warnings():
