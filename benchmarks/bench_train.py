@@ -59,12 +59,13 @@ def make_data(root: Path, image_size: int) -> Path:
     """A small ``primitives`` quadruplet dataset at ``image_size`` pixels in ``root``."""
     from dataclasses import replace
 
-    from cerberus_core.datasets.generate import generate
-    from cerberus_core.datasets.plan import SplitConfig, preset_config
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.datasets.plan import preset_config
+    from cerberus_core.datasets.settings import SplitConfig
 
     cfg = preset_config("primitives", "tiny", image_size=image_size)
     cfg = replace(cfg, splits={"train": SplitConfig("pairs", subjects=2, pairs=16, meshes=False)})
-    generate(cfg, root, progress=False, log=lambda _: None)
+    Dataset.generate(cfg, root, progress=False, log=lambda _: None)
     return root
 
 

@@ -18,9 +18,9 @@ import pytest
 import torch
 
 from cerberus_core.cli import main
-from cerberus_core.cli.checks import RESULT_MARKER
-from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
+from cerberus_core.plumbing.outputs import RESULT_MARKER
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are
@@ -41,7 +41,7 @@ def fake_png(path: Path, width: int, height: int) -> Path:
 def place(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("cli_errors")
     data, run = root / "data", root / "run"
-    generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
+    Dataset.generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
     torch_threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -71,6 +71,11 @@ def place(tmp_path_factory) -> dict[str, Path]:
     Image.new("RGB", (40, 40), (200, 10, 10)).save(root / "img.png")
     fake_png(root / "huge.png", 20000, 20000)
     fake_png(root / "big.png", 9000, 5000)
+    (root / "loop.png").symlink_to("loop.png")  # a symlink loop (issue 34)
+    (root / "loopdir").symlink_to("loopdir")
+    (root / "deep.yaml").write_text("train:\n" + "".join("  " * i + f"k{i}:\n" for i in range(1, 40)))
+    (root / "listkey.yaml").write_text("? [1, 2]\n: 3\n")
+    (root / "dup.yaml").write_text("extends: tiny\ntrain:\n  steps: 3\n  steps: 5\n")
     return {"root": root, "data": data, "run": run}
 
 
@@ -113,6 +118,39 @@ CASES = [
     ("train-data-missing", "train --preset tiny --set data.root={root}/nodata --out {root}/new", "does not exist"),
     ("train-steps-0", "train --preset tiny --set data.root={data} --set train.steps=0 --out {root}/new",
      "train.steps = 0: must be an integer >= 1"),
+    # issue 34: numbers bounded before anything is allocated, rules between settings, one strict YAML reader
+    ("train-image-size-huge", "train --preset tiny --set data.root={data} --set data.image_size=100000 --out {root}/new",
+     "data.image_size = 100000: must be an integer in [32, 4096] (--set data.image_size=VALUE)"),
+    ("train-num-parts-huge", "train --preset tiny --set data.root={data} --set model.num_parts=100000 --out {root}/new",
+     "model.num_parts = 100000: must be an integer in [1, 64]"),
+    ("train-num-workers-huge", "train --preset tiny --set data.root={data} --set data.num_workers=100000 "
+     "--out {root}/new", "data.num_workers = 100000: must be an integer in [0, 256]"),
+    ("train-memory", "train --preset tiny --set data.root={data} --set data.image_size=4096 --set model.width=1024 "
+     "--out {root}/new", "data.image_size = 4096: needs at least"),
+    ("train-warmup", "train --preset tiny --set data.root={data} --set losses.cross_view=own "
+     "--set losses.cross_view_warmup=10 --out {root}/new", "losses.cross_view_warmup = 10: must be less than train.steps (4)"),
+    ("train-resume-shorter", "train --out {run} --resume --set train.steps=1", "already reached step 2"),
+    ("train-set-duplicate", 'train --preset tiny --set train={{"steps":1,"steps":2}} --out {root}/new',
+     "the key 'steps' is given twice"),
+    ("train-set-list-key", "train --preset tiny --set data={{[1]:2}} --out {root}/new", "a list is used as a key"),
+    ("train-set-deep", "train --preset tiny --set train.steps=" + "[" * 40 + "1" + "]" * 40 + " --out {root}/new",
+     "nested deeper than 16 levels"),
+    ("train-set-deep-unclosed", "train --preset tiny --set train.steps=" + "[" * 5000 + " --out {root}/new",
+     "nested deeper than 16 levels"),
+    ("train-config-deep", "train --config {root}/deep.yaml --out {root}/new", "deep.yaml:16: not valid YAML (nested"),
+    ("train-config-list-key", "train --config {root}/listkey.yaml --out {root}/new", "a list is used as a key"),
+    ("train-config-duplicate", "train --config {root}/dup.yaml --out {root}/new", "given twice (lines 3 and 4)"),
+    ("train-data-loop", "train --preset tiny --set data.root={root}/loopdir --out {root}/new", "a symlink loop"),
+    ("reconstruct-image-loop", "reconstruct {run} {root}/loop.png --out {root}/rec", "a symlink loop"),
+    ("reconstruct-azimuth-inf", "reconstruct {run} {root}/img.png --azimuth inf --out {root}/rec",
+     "--azimuth inf: must be a finite number"),
+    ("eval-data-loop", "eval {run} --data {root}/loopdir --out {root}/ev", "loopdir"),
+    ("data-check-loop", "data check {root}/loopdir", "loopdir"),
+    ("data-show-out-manifest", "data show {data} --out {data}/manifest.json", "is the input"),
+    ("data-generate-source-loop", "data generate --dataset folder --source {root}/loopdir --out {root}/new",
+     "--source {root}/loopdir: cannot be resolved: a symlink loop"),
+    ("data-generate-out-holds-source", "data generate --dataset folder --source {root}/notes --out {root}",
+     "holds the input"),
     pytest.param("eval-cuda", "eval {run} --device cuda", "CUDA is not available", marks=NO_CUDA),
     ("eval-truncated", "eval {root}/trunc.pt", "not a readable Cerberus checkpoint"),
     ("eval-random", "eval {root}/random.pt", "not a readable Cerberus checkpoint"),
@@ -151,7 +189,7 @@ CASES = [
     ("reconstruct-nan-weights", "reconstruct {root}/nan.safetensors {root}/img.png --out {root}/rec", "NaN"),
     ("reconstruct-scene-value", "reconstruct {root}/scene_value.safetensors {root}/img.png --out {root}/rec",
      "invalid scene set-up"),
-    ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds " + "{root}/img.png"),
+    ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds the input " + "{root}/img.png"),
     ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "a result folder is replaced whole"),
     ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes", "pass --overwrite"),
     ("reconstruct-model-path", "reconstruct --model ./human {root}/img.png --out {root}/rec",
@@ -198,19 +236,20 @@ CASES = [
           ("set-yaml", "--set seed=[1 --out {root}/new", "not valid YAML"),
           ("set-key", "--set splits.train.pair=3 --out {root}/new", "did you mean 'splits.train.pairs'"),
           ("set-nan", "--set scene.elevation=.nan --out {root}/new", "scene.elevation = nan: must be a finite"),
-          ("pairs-negative", "--set splits.train.pairs=-1 --out {root}/new", "pairs must be >= 0"),
+          ("pairs-negative", "--set splits.train.pairs=-1 --out {root}/new", "splits.train.pairs = -1: must be an integer >= 0"),
           ("split-empty", "--set splits.train.pairs=0 --out {root}/new", "split 'train' would be empty"),
           ("split-huge", "--set splits.train.pairs=100000000 --out {root}/new", "400,000,000 images, more than"),
-          ("subjects-huge", "--set splits.train.subjects=1000000 --out {root}/new", "subjects 1000000: at most"),
-          ("views-huge", "--set splits.test.views=100000 --out {root}/new", "views 100000: at most 360"),
-          ("quadruplets-negative", "--set splits.test.quadruplets_per_pose=-1 --out {root}/new", "must be >= 0"),
+          ("subjects-huge", "--set splits.train.subjects=1000000 --out {root}/new", "splits.train.subjects = 1000000: must be an integer in [0, 10000]"),
+          ("views-huge", "--set splits.test.views=100000 --out {root}/new", "splits.test.views = 100000: must be an integer in [1, 360]"),
+          ("quadruplets-negative", "--set splits.test.quadruplets_per_pose=-1 --out {root}/new",
+           "splits.test.quadruplets_per_pose = -1: must be an integer >= 0"),
           ("scene-near", "--set scene.near=-1 --out {root}/new", "scene.near = -1.0: must be a number > 0"),
           ("scene-far", "--set scene.far=1 --out {root}/new", "far 1.0 must exceed the distance"),
           ("scene-background", "--set scene.background=[2,0,0] --out {root}/new", "RGB values must lie in [0, 1]"),
           ("seed-negative", "--seed -1 --out {root}/new", "--seed -1: must be an integer >= 0"),
           ("shard-images-0", "--shard-images 0 --out {root}/new", "--shard-images 0: must be an integer >= 4"),
           ("batch-size-0", "--batch-size 0 --out {root}/new", "--batch-size: must be >= 1"),
-          ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--dataset folder only"),
+          ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--test-fraction 0.5: not an option of the primitives body source"),
           ("out-file", "--out {root}/afile", "is a file"),
           ("out-under-file", "--out {root}/afile/sub", "is under"),
           ("out-notes", "--out {root}/notes", "is not empty and holds no Cerberus dataset"),
@@ -218,11 +257,11 @@ CASES = [
       ] for dry in (False, True)],
     pytest.param("data-generate-cuda", GEN + " --device cuda --out {root}/new", "CUDA is not available",
                  marks=NO_CUDA),
-    ("data-generate-folder-no-source", "data generate --dataset folder --out {root}/new", "--source DIR is required"),
+    ("data-generate-folder-no-source", "data generate --dataset folder --out {root}/new", "--source: the folder source needs its folder of meshes: --source DIR"),
     ("data-generate-folder-missing", "data generate --dataset folder --source {root}/nothing --out {root}/new",
      "does not exist"),
     ("data-generate-folder-fraction", "data generate --dataset folder --source {root}/notes --test-fraction 2 "
-     "--out {root}/new", "--test-fraction 2.0: must lie in [0, 1]"),
+     "--out {root}/new", "--test-fraction 2.0: must be a number in [0, 1]"),
     ("data-check-missing", "data check {root}/nothing", "does not exist"),
     ("data-check-file", "data check {root}/afile", "is a file, not a dataset folder"),
     ("data-check-notes", "data check {root}/notes", "is not a Cerberus dataset"),
@@ -230,7 +269,8 @@ CASES = [
     ("data-show-notes", "data show {root}/notes --out {root}/sheet.png", "is not a Cerberus dataset"),
     ("data-show-split", "data show {data} --split nosuch --out {root}/sheet.png", "no split 'nosuch'"),
     ("data-show-count-0", "data show {data} --count 0 --out {root}/sheet.png", "--count: must be >= 1"),
-    ("data-show-scale-huge", "data show {data} --scale 1000 --out {root}/sheet.png", "--scale 1000: at most"),
+    ("data-show-scale-huge", "data show {data} --scale 1000 --out {root}/sheet.png",
+     "--scale 1000: must be an integer in [1, 16]"),
     ("data-show-out-folder", "data show {data} --out {root}/notes", "is a folder"),
     ("data-show-out-under-file", "data show {data} --out {root}/afile/sheet.png", "which is a file"),
     ("data-show-renderer", "data show {data} --renderer nope --out {root}/sheet.png", "unknown renderer 'nope'"),
@@ -242,7 +282,7 @@ CASES = [
 
 
 def snapshot(root: Path) -> dict[str, tuple[int, int]]:
-    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(root.rglob("*"))}
+    return {str(p.relative_to(root)): (p.lstat().st_size, p.lstat().st_mtime_ns) for p in sorted(root.rglob("*"))}
 
 
 @pytest.mark.parametrize(("case", "argv", "expected"), CASES,
@@ -292,18 +332,18 @@ def test_a_run_is_usable_from_another_directory(place, tmp_path, monkeypatch, ca
 
 def test_an_unfinished_dataset_names_the_command_that_finishes_it(tmp_path, monkeypatch, capsys):
     """A reader's refusal (train, eval) gives the exact `cerberus data generate` command, and it resumes."""
-    import cerberus_core.datasets.generate as gen
+    import cerberus_core.datasets.dataset as dataset_module
     from cerberus_core.datasets.readers import QuadrupletDataset
 
     data = tmp_path / "partial"
-    original = gen.generate
+    original = dataset_module.write_dataset
 
     def interrupted_after_one_shard(*args, **kwargs):
         def stop(split, rec):
             raise KeyboardInterrupt
-        return original(*args, **kwargs, on_shard=stop)
+        return original(*args, **{**kwargs, "on_shard": stop})
 
-    monkeypatch.setattr(gen, "generate", interrupted_after_one_shard)
+    monkeypatch.setattr(dataset_module, "write_dataset", interrupted_after_one_shard)
     assert main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--image-size", "24",
                  "--shard-images", "8", "--set", "splits.train.pairs=4", "--set", "scene.albedo=[0.5, 0.6, 0.7]",
                  "--out", str(data), "--quiet"]) == 130

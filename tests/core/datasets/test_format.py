@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cerberus_core.bodies.body import PosedBody
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
@@ -19,7 +20,6 @@ from cerberus_core.datasets.format import (
     write_shard,
 )
 from cerberus_core.datasets.manifest import MANIFEST
-from cerberus_core.datasets.readers import verify_dataset
 
 
 def _body(rng, n_verts, n_faces, pose, faces=None, parts=None):
@@ -107,7 +107,7 @@ def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
     m = json.loads((ds / MANIFEST).read_text())
     m["splits"]["train"]["shards"][0]["files"]["images"]["path"] = "../../etc/passwd"
     (ds / MANIFEST).write_text(json.dumps(m))
-    _, problems = verify_dataset(ds)
+    problems = Dataset.open(ds).verify()
     assert any("escapes the dataset folder" in p for p in problems)
     from cerberus_core.datasets.readers import QuadrupletDataset
 
@@ -118,23 +118,24 @@ def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
 def test_corruption_is_detected(pairs_dataset, tmp_path):
     ds = tmp_path / "ds"
     shutil.copytree(pairs_dataset, ds)
-    manifest, problems = verify_dataset(ds)
+    dataset = Dataset.open(ds)
+    manifest, problems = dataset.manifest, dataset.verify()
     assert problems == [] and manifest.complete
     shard = manifest.split("train").shards[1]
     images = ds / shard.files["images"].path
     data = bytearray(images.read_bytes())
     data[-5] ^= 0xFF  # one flipped pixel byte: same size, wrong sha256
     images.write_bytes(bytes(data))
-    _, problems = verify_dataset(ds)
+    problems = Dataset.open(ds).verify()
     assert len(problems) == 1 and str(images) in problems[0] and "sha256" in problems[0]
-    _, quick = verify_dataset(ds, checksums=False)
+    quick = Dataset.open(ds).verify(checksums=False)
     assert quick == []  # sizes alone cannot see a flipped byte
     views = ds / shard.files["views"].path
     views.write_bytes(views.read_bytes()[:-3])  # truncated
-    _, problems = verify_dataset(ds, checksums=False)
+    problems = Dataset.open(ds).verify(checksums=False)
     assert any(str(views) in p and "bytes" in p for p in problems)
     (ds / shard.files["quads"].path).unlink()
-    _, problems = verify_dataset(ds, checksums=False)
+    problems = Dataset.open(ds).verify(checksums=False)
     assert any("missing" in p for p in problems)
 
 
@@ -146,7 +147,7 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
 
     root = tmp_path / "ds"
     shutil.copytree(pairs_dataset, root)
-    assert verify_dataset(root)[1] == []
+    assert Dataset.open(root).verify() == []
     manifest = json.loads((root / MANIFEST).read_text())
     shard = manifest["splits"]["test"]["shards"][0]
     path = resolve_inside(root, shard["files"]["images"]["path"])
@@ -158,7 +159,7 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
     np.save(path, images)
     shard["files"]["images"]["sha256"] = sha256_file(path)  # a consistent dataset: only the views are wrong
     (root / MANIFEST).write_text(json.dumps(manifest))
-    _, problems = verify_dataset(root)
+    problems = Dataset.open(root).verify()
     assert len(problems) == 1
     subject = manifest["subjects"][int(views[2]["subject"])]["name"]
     assert str(path) in problems[0] and "2 of" in problems[0] and "render empty" in problems[0]
@@ -167,3 +168,68 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
     assert main(["data", "check", str(root)]) == 1
     out = capsys.readouterr()
     assert "render empty" in out.err and "1 problem(s)" in out.out
+
+
+def _rewritten(pairs_dataset, tmp_path, role: str, change) -> tuple:
+    """A copy of the dataset whose first training shard's ``role`` array is replaced by ``change(array)`` (its size and
+    sha256 recorded anew, so only the numbers contradict the manifest)."""
+    from cerberus_core.datasets.format import sha256_file
+
+    root = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, root)
+    manifest = json.loads((root / MANIFEST).read_text())
+    record = manifest["splits"]["train"]["shards"][0]["files"][role]
+    path = resolve_inside(root, record["path"])
+    if path.suffix == ".npz":
+        with np.load(path) as z:
+            arrays = change({k: z[k] for k in z.files})
+        np.savez(path, **arrays)  # allow_pickle is numpy's default when saving: an object array is stored
+    else:
+        array = change(np.load(path))
+        np.save(path, array)
+        record["shape"], record["dtype"] = list(array.shape), array.dtype.str
+    record["bytes"], record["sha256"] = path.stat().st_size, sha256_file(path)
+    (root / MANIFEST).write_text(json.dumps(manifest))
+    return root, path
+
+
+def _subject(views):
+    views = views.copy()
+    views["subject"][1] = 99
+    return views
+
+
+def _mesh_index(views):
+    views = views.copy()
+    views["mesh"][0] = 1000
+    return views
+
+
+@pytest.mark.parametrize(("role", "change", "expected"), [
+    ("views", _subject, "views name subjects 0..99, the manifest has"),
+    ("views", _mesh_index, "views name meshes"),
+    ("quads", lambda q: q + 1000, "quadruplets index images"),
+    ("images", lambda a: a[:-1], "the manifest says uint8["),
+    ("meshes", lambda z: z | {"pose": np.array([object()] * len(z["pose"]), dtype=object)},
+     "meshes.npz holds an array numpy cannot read without pickle"),
+    ("meshes", lambda z: {k: v for k, v in z.items() if k != "faces"}, "meshes.npz lacks the array 'faces'"),
+    ("meshes", lambda z: z | {"vertex_offsets": z["vertex_offsets"] + 7}, "vertex_offsets run over"),
+], ids=["subject", "mesh-index", "quads", "images-count", "npz-object", "npz-missing", "npz-offsets"])
+def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_dataset, tmp_path, capsys, role, change,
+                                                                     expected):
+    """Issue 34: a shard whose files are whole (sizes and checksums agree) but whose arrays contradict the
+    manifest's numbers is a problem of `cerberus data check` (exit 1) and a DatasetError of every reader; no
+    pickle is ever run (the object array is refused unread)."""
+    from cerberus_core.cli import main
+    from cerberus_core.datasets.readers import QuadrupletDataset
+
+    root, path = _rewritten(pairs_dataset, tmp_path, role, change)
+    before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
+    problems = Dataset.open(root).verify(checksums=False)
+    assert len(problems) == 1 and expected in problems[0] and "train/shard-00000" in problems[0], problems
+    assert main(["data", "check", "--quick", str(root)]) == 1
+    out = capsys.readouterr()
+    assert expected in out.err and out.out.endswith("1 problem(s)\n")
+    with pytest.raises(DatasetError, match="regenerate"):
+        QuadrupletDataset(root)
+    assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before

@@ -234,3 +234,43 @@ def test_adam_is_fused_and_loads_the_state_of_the_foreach_adam_before_it():
     steps(resumed, resumed_opt, 2, 2)
     steps(old, old_opt, 2, 2)
     assert all(torch.equal(a, b) for a, b in zip(resumed.parameters(), old.parameters(), strict=True))
+
+
+def test_settings_the_machine_cannot_honour_are_refused_before_anything_is_allocated(tiny_config, tiny_root, tmp_path):
+    """Issue 34: a training whose memory estimate exceeds the machine's is one ConfigError naming the setting,
+    the estimate and the limit, from ``train()`` itself, before the run folder exists; worker processes beyond
+    the cores are lowered to them with a word, like threads."""
+    import os
+
+    from cerberus_core.errors import ConfigError
+    from cerberus_core.plumbing.machine import memory_bytes, size_text
+
+    many = FirstItems(QuadrupletDataset(tiny_root), 100_000)  # no item is read: the refusal comes first
+    cfg = tiny_config("data.image_size=4096", "model.width=1024", "train.batch_size=1000", "train.steps=1")
+    with pytest.raises(ConfigError, match=rf"data.image_size = 4096: needs at least .* of memory \(4000 images of "
+                       rf"4096x4096 pixels per step at train.batch_size = 1000\), more than the "
+                       rf"{size_text(memory_bytes())} this machine has; choose a smaller `data.image_size`"):
+        train(cfg, tmp_path / "run", dataset=many)
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(ConfigError, match="model.num_parts = 64: needs at least .* 20480 faces per step"):
+        train(tiny_config("model.num_parts=64", "model.sphere_level=5", "train.batch_size=1000"), tmp_path / "run",
+              dataset=many)
+    assert not (tmp_path / "run").exists()
+    cores = len(os.sched_getaffinity(0))
+    with pytest.warns(UserWarning, match=rf"data.num_workers=200 is more than this machine's {cores} cores"):
+        result = train(tiny_config("data.num_workers=200", "train.steps=1", "train.image_every=0"), tmp_path / "w",
+                       dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+    assert Run.load(result.run_dir).config.data.num_workers == cores
+
+
+def test_a_resume_may_not_shorten_the_run(tiny_config, tmp_path):
+    """Issue 34: resuming with ``train.steps`` below the step reached would rewrite the run's config to fewer steps
+    than it ran; refused, the run left as it was."""
+    from cerberus_core.errors import ConfigError
+
+    train(tiny_config("train.steps=2", "train.image_every=0"), tmp_path / "run")
+    before = {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")}
+    with pytest.raises(ConfigError, match=r"train.steps = 1: the run in .* already reached step 2; a resumed run "
+                       r"cannot end before it \(`train.steps=2` or more"):
+        train(tiny_config("train.steps=1", "train.image_every=0"), tmp_path / "run", resume=True)
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")} == before

@@ -16,7 +16,6 @@
 from __future__ import annotations
 
 import contextlib
-import difflib
 import math
 import types
 import typing
@@ -29,15 +28,17 @@ from typing import Any
 import yaml
 
 from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.names import did_you_mean
 
-__all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean", "flatten", "load_raw",
-           "load_yaml", "omit_defaults", "parse_overrides", "yaml_problem"]
+__all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean_hint", "flatten", "load_raw",
+           "load_yaml", "omit_defaults", "parse_overrides"]
 
 
-def did_you_mean(word: Any, options: Iterable[Any]) -> str:
-    """`` (did you mean 'x'?)`` for the option closest to ``word``, or ``""`` if none is close."""
-    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
+def did_you_mean_hint(word: Any, options: Iterable[Any]) -> str:
+    """`` (did you mean 'x'?)`` for the option closest to ``word``
+    (:func:`~cerberus_core.plumbing.names.did_you_mean`), or ``""`` if none is close."""
+    close = did_you_mean(str(word), [str(o) for o in options])
+    return f" (did you mean {close!r}?)" if close else ""
 
 
 # ------------------------------------------------------------------ mappings
@@ -70,33 +71,60 @@ def omit_defaults(d: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str
     return {k: v for k, v in d.items() if not (k in defaults and v == defaults[k])}
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
+#: The deepest nesting of mappings and lists a config text may have (the deepest config key has 3 levels).
+MAX_DEPTH = 16
+
+
+class _StrictLoader(yaml.SafeLoader):
     """A safe YAML loader that refuses a mapping with the same key twice (PyYAML keeps the last one
-    silently, so a config with ``steps`` written twice would train with whichever came last)."""
+    silently, so a config with ``steps`` written twice would train with whichever came last), a key
+    that is not a name (a list or a mapping used as a key) and nesting deeper than :data:`MAX_DEPTH`
+    (which would end in a ``RecursionError``)."""
+
+    def __init__(self, stream) -> None:  # noqa: ANN001 - PyYAML's signature
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):  # noqa: ANN001 - PyYAML's signature
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f"nested deeper than {MAX_DEPTH} levels; a config "
+                                                  "needs a few", self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
 
     def construct_mapping(self, node, deep=False):  # noqa: ANN001 - PyYAML's signature
         seen: dict[object, int] = {}
         for key_node, _ in node.value:
+            if not isinstance(key_node, yaml.ScalarNode):
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"a {'list' if isinstance(key_node, yaml.SequenceNode) else 'mapping'} is used as a "
+                    "key; a key is a name", key_node.start_mark)
             key = self.construct_object(key_node, deep=deep)
             if key in seen:
+                lines = sorted({seen[key] + 1, key_node.start_mark.line + 1})
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"the key {key!r} is given twice (lines {seen[key] + 1} and "
-                    f"{key_node.start_mark.line + 1}); keep one", key_node.start_mark)
+                    None, None, f"the key {key!r} is given twice ({'lines' if len(lines) > 1 else 'line'} "
+                    f"{' and '.join(map(str, lines))}); keep one", key_node.start_mark)
             seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)
 
 
-def load_yaml(text: str) -> Any:
-    """``yaml.safe_load`` that refuses a key given twice in one mapping (:class:`yaml.YAMLError`)."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-
-
-def yaml_problem(exc: BaseException, source: object) -> str:
-    """``SOURCE:LINE: not valid YAML (problem)``: a YAML syntax error on one line."""
-    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
-    where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
-    return f"{where}: not valid YAML ({problem})"
+def load_yaml(text: str, source: object = "config", fix: str = "fix the file") -> Any:
+    """The one reader of config text (files, presets, saved configs and ``--set`` values): a safe load that
+    refuses a key given twice in one mapping, a list or mapping as a key and nesting deeper than
+    :data:`MAX_DEPTH`, each as one :class:`ConfigError` line ``SOURCE:LINE: not valid YAML (problem); FIX``."""
+    try:
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
+        where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
+    except RecursionError:  # a guard of last resort: the composer stops at MAX_DEPTH first
+        where, problem = f"{source}", f"nested deeper than {MAX_DEPTH} levels"
+    raise ConfigError(f"{where}: not valid YAML ({problem}); {fix}", problem=problem)
 
 
 def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> dict[str, Any]:
@@ -107,10 +135,9 @@ def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> d
         if not eq or not key.strip() or any(not p for p in key.strip().split(".")):
             raise ConfigError.about("overrides", item, f"expected section.key=value, e.g. `{example}`")
         try:
-            value = yaml.safe_load(text) if text.strip() else None
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ConfigError.about("overrides", item, f"the value is not valid YAML ({problem}); close brackets "
+            value = load_yaml(text, "value") if text.strip() else None
+        except ConfigError as exc:
+            raise ConfigError.about("overrides", item, f"the value is not valid YAML ({exc.problem}); close brackets "
                                     f"and quotes, e.g. `{example}`") from None
         node = out
         parts = key.strip().split(".")
@@ -125,18 +152,19 @@ def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> d
 
 # ------------------------------------------------------------------ preset folders and files
 class Presets:
-    """A folder of bundled YAML presets inside the ``cerberus_core`` package.
+    """A folder of bundled YAML presets inside a package (``cerberus_core``, or a plugin's own).
 
     Args:
         folder: path inside the package, ``/``-separated (``"configs"``, ``"configs/data"``).
         kind: what a preset is called in messages (``"preset"``).
+        package: the importable package that holds the folder.
     """
 
-    def __init__(self, folder: str, kind: str = "preset") -> None:
-        self.folder, self.kind = folder, kind
+    def __init__(self, folder: str, kind: str = "preset", package: str = "cerberus_core") -> None:
+        self.folder, self.kind, self.package = folder, kind, package
 
     def _dir(self):
-        return resources.files("cerberus_core").joinpath(*self.folder.split("/"))
+        return resources.files(self.package).joinpath(*self.folder.split("/"))
 
     def names(self) -> list[str]:
         """Names of the bundled presets (file stems)."""
@@ -146,7 +174,7 @@ class Presets:
         """The YAML text of preset ``name``; a :class:`ConfigError` naming the bundled ones otherwise."""
         res = self._dir().joinpath(f"{name}.yaml")
         if not res.is_file():
-            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; bundled "
+            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean_hint(name, self.names())}; bundled "
                               f"{self.kind}s: {', '.join(self.names())}")
         return res.read_text()
 
@@ -199,10 +227,7 @@ def _layers(text: str, source: str, base_dir: Path | None, presets: Presets,
     """
     if depth > 8:
         raise ConfigError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
-    try:
-        raw = load_yaml(text) or {}
-    except yaml.YAMLError as exc:
-        raise ConfigError(yaml_problem(exc, source) + "; fix the file") from None
+    raw = load_yaml(text, source) or {}
     if not isinstance(raw, dict):
         raise ConfigError(f"{source} must hold a YAML mapping of config sections")
     parents = raw.pop("extends", None)
@@ -247,7 +272,7 @@ def _coerce_literal(value: Any, allowed: tuple, key: str) -> Any:
     if any(value == a and type(value) is type(a) for a in allowed):
         return value
     raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
-                      f"{did_you_mean(value, allowed)}")
+                      f"{did_you_mean_hint(value, allowed)}")
 
 
 def _coerce_int(value: Any, key: str) -> int:
@@ -322,18 +347,18 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
 
     Raises:
         ConfigError: an unknown key (with the closest valid one and the list of valid keys), a
-            missing required key, a value of the wrong type or outside a ``Literal``, or a
-            ``ValueError`` of the dataclass's own checks (prefixed with the section's key).
+            missing required key, a value of the wrong type or outside a ``Literal``, or the
+            dataclass's own checks (:class:`~cerberus_core.fields.Checked`: its key under this section).
     """
     section = prefix[:-1] if prefix else "config"
     if not isinstance(d, Mapping):
         raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {d!r}")
     hints = typing.get_type_hints(cls)
     known = [f.name for f in fields(cls) if f.init]
-    unknown = sorted(set(d) - set(known))
+    unknown = sorted(set(d) - set(known), key=str)  # a YAML key may be a number
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
-                          f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
+                          f"{did_you_mean_hint(prefix + str(unknown[0]), [prefix + k for k in known])}; "
                           f"valid keys here: {sorted(prefix + k for k in known)}")
     missing = [f.name for f in fields(cls)
                if f.init and f.name not in d and f.default is MISSING and f.default_factory is MISSING]
@@ -342,7 +367,5 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     kwargs = {k: coerce(v, hints[k], prefix + k) for k, v in d.items()}
     try:
         return cls(**kwargs)
-    except ConfigError:
-        raise
-    except ValueError as exc:
-        raise ConfigError(f"{section}: {exc}" if prefix else str(exc)) from exc
+    except ConfigError as exc:  # a settings class's own check (fields.Checked): its key said under this section
+        raise exc.within(prefix) from None

@@ -126,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
         "from images alone: generate data, train, evaluate, reconstruct.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    from cerberus_core.release import VERSION
+
+    parser.add_argument("--version", action="version", version=f"cerberus {VERSION}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMAND_MODULES:
@@ -170,12 +173,27 @@ def _os_error_line(exc: OSError) -> str:
     return f"{reason}: {where}" if where else reason
 
 
+def _said(exc: CerberusError, terms: Terms) -> str:
+    """The message of ``exc`` in this command's terms (:meth:`Terms.error`); an incomplete dataset's names the
+    ``cerberus data generate`` command that finishes it."""
+    from cerberus_core.datasets.manifest import IncompleteDatasetError
+
+    if isinstance(exc, IncompleteDatasetError):
+        from cerberus_core.cli.data import incomplete_message
+
+        return incomplete_message(exc)
+    return terms.error(exc)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command. Every way out is one line on standard error and an exit status: a typed error or
     any OSError (2), Ctrl-C at any moment, even while the command's modules are still importing (130),
     SIGTERM (143)."""
     interrupted = []
-    previous = signal.getsignal(signal.SIGINT)
+    previous, previous_term = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+
+    def on_term(signum, frame):  # noqa: ARG001 - SIGTERM while the command's modules import: one line too
+        raise Terminated()
 
     def on_int(signum, frame):  # noqa: ARG001 - remember it: an import it cut short may fail later otherwise
         interrupted.append(True)
@@ -186,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     terms = Terms()
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         signal.signal(signal.SIGINT, on_int)
+        signal.signal(signal.SIGTERM, on_term)
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -194,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
         with _cli_environment(command, terms):
             return int(args.func(args) or 0)
     except CerberusError as exc:  # every typed error, plugin and dataset errors included
-        print(f"cerberus {command}: {one_line(terms.error(exc))}", file=sys.stderr)
+        print(f"cerberus {command}: {one_line(_said(exc, terms))}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_ERROR))
     except Terminated:
         print(f"cerberus {command}: terminated (SIGTERM)", file=sys.stderr)
@@ -213,6 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         with contextlib.suppress(ValueError, TypeError):
             signal.signal(signal.SIGINT, previous)
+            signal.signal(signal.SIGTERM, previous_term)
 
 
 if __name__ == "__main__":

@@ -27,9 +27,10 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import Subject
+from cerberus_core.bodies.body import BodySource, Subject, no_subjects_hint, source_class
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.datasets.settings import GenerationConfig
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError
 from cerberus_core.plumbing.atomic import atomic_write
 
 FORMAT_NAME = "cerberus-dataset"
@@ -56,6 +57,17 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
+class IncompleteDatasetError(DatasetError):
+    """A split whose generation has not finished. ``root`` is the dataset folder and ``problem`` the message
+    without its fix, so that a front end can name its own way to finish it (the ``cerberus`` command: the
+    ``cerberus data generate`` command that resumes it)."""
+
+    def __init__(self, root: Path, problem: str) -> None:
+        self.root, self.problem = Path(root), problem
+        super().__init__(f"{problem}; finish generating it (it resumes) with `Dataset.open(root).resume()` "
+                         "(cerberus_core.datasets.dataset)")
+
+
 class _Damaged(Exception):
     """A record that does not have the form of its type (a key missing or of another type)."""
 
@@ -67,6 +79,42 @@ def _need(record: Any, key: str, kind: type | tuple[type, ...], where: str) -> A
     if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
         raise _Damaged(f"{where}.{key} is {value!r}, not {getattr(kind, '__name__', kind)}")
     return value
+
+
+MAX_COUNT = 1 << 40
+"""The largest count a manifest may state (images, bytes, array sizes): more than any disk holds."""
+
+
+def _count(record: Mapping[str, Any], key: str, where: str, default: int | None = None) -> int:
+    """``record[key]`` as a count: an integer in [0, :data:`MAX_COUNT`] (``default`` when absent, if given)."""
+    if default is not None and key not in record:
+        return default
+    value = _need(record, key, int, where)
+    if not 0 <= value <= MAX_COUNT:
+        raise _Damaged(f"{where}.{key} is {value!r}, not a count in [0, {MAX_COUNT}]")
+    return value
+
+
+def _counts(values: Any, where: str) -> tuple[int, ...]:
+    """A list of counts (an array shape, subject indices) as a tuple."""
+    if not isinstance(values, list):
+        raise _Damaged(f"{where} is {values!r}, not a list of counts")
+    for i, v in enumerate(values):
+        if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_COUNT:
+            raise _Damaged(f"{where}[{i}] is {v!r}, not a count in [0, {MAX_COUNT}]")
+    return tuple(values)
+
+
+def _strings(values: Any, where: str) -> tuple[str, ...]:
+    """A list of strings (part names, split names) as a tuple."""
+    if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
+        raise _Damaged(f"{where} is {values!r}, not a list of strings")
+    return tuple(values)
+
+
+def _optional(record: Mapping[str, Any], key: str, kind: type, where: str) -> Any:
+    """``record[key]``, which may be absent or null."""
+    return None if record.get(key) is None else _need(record, key, kind, where)
 
 
 def _mapping(record: Any, where: str) -> Mapping[str, Any]:
@@ -96,9 +144,9 @@ class FileRecord:
     @classmethod
     def from_json(cls, record: Any, where: str = "file") -> FileRecord:
         shape = _mapping(record, where).get("shape")
-        return cls(_need(record, "path", str, where), _need(record, "bytes", int, where),
-                   _need(record, "sha256", str, where), None if shape is None else tuple(int(n) for n in shape),
-                   record.get("dtype"))
+        return cls(_need(record, "path", str, where), _count(record, "bytes", where),
+                   _need(record, "sha256", str, where), None if shape is None else _counts(shape, f"{where}.shape"),
+                   _optional(record, "dtype", str, where))
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"path": self.path, "bytes": self.bytes, "sha256": self.sha256}
@@ -129,13 +177,13 @@ class ShardRecord:
 
     @classmethod
     def from_json(cls, record: Any, where: str = "shard") -> ShardRecord:
-        index = _need(record, "index", int, where)
+        index = _count(_mapping(record, where), "index", where)
         where = f"{where} {index}"
         files = _mapping(record.get("files", {}), f"{where}.files")
-        return cls(index, _need(record, "name", str, where), _need(record, "images", int, where),
-                   int(record.get("quadruplets", 0)), int(record.get("meshes", 0)),
+        return cls(index, _need(record, "name", str, where), _count(record, "images", where),
+                   _count(record, "quadruplets", where, 0), _count(record, "meshes", where, 0),
                    {role: FileRecord.from_json(rec, f"{where}.files.{role}") for role, rec in files.items()},
-                   tuple(int(s) for s in record.get("subjects", ())))
+                   _counts(record.get("subjects", []), f"{where}.subjects"))
 
     def to_json(self) -> dict[str, Any]:
         return {"index": self.index, "name": self.name, "images": self.images, "quadruplets": self.quadruplets,
@@ -182,9 +230,12 @@ class SplitRecord:
         shards = record.get("shards", []) if isinstance(record, Mapping) else None
         if not isinstance(shards, list):
             raise _Damaged(f"{where}.shards is not a list")
-        return cls(_need(record, "layout", str, where), bool(record.get("meshes", False)),
-                   _need(record, "planned_shards", int, where), int(record.get("planned_images", 0)),
-                   int(record.get("planned_quadruplets", 0)), int(record.get("planned_meshes", 0)),
+        if _need(record, "layout", str, where) not in ("pairs", "grid"):
+            raise _Damaged(f"{where}.layout is {record['layout']!r}, not 'pairs' or 'grid'")
+        return cls(_need(record, "layout", str, where), bool(_need(record, "meshes", bool, where) if "meshes" in record
+                                                            else False),
+                   _count(record, "planned_shards", where), _count(record, "planned_images", where, 0),
+                   _count(record, "planned_quadruplets", where, 0), _count(record, "planned_meshes", where, 0),
                    tuple(ShardRecord.from_json(s, f"{where}.shards") for s in shards))
 
     def to_json(self) -> dict[str, Any]:
@@ -227,9 +278,9 @@ class SubjectRecord:
     @classmethod
     def from_json(cls, record: Any, where: str = "subject") -> SubjectRecord:
         info = _mapping(record, where).get("info", {})
-        canonical = record.get("canonical_pose")
+        canonical = None if record.get("canonical_pose") is None else _count(record, "canonical_pose", where)
         return cls(_need(record, "name", str, where), dict(_mapping(info, f"{where}.info")),
-                   tuple(str(s) for s in record.get("splits", ())), None if canonical is None else int(canonical))
+                   _strings(record.get("splits", []), f"{where}.splits"), canonical)
 
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "info": dict(self.info), "splits": list(self.splits),
@@ -254,6 +305,27 @@ class SourceRecord:
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "options": dict(self.options)}
 
+    def build(self, device: str = "cpu") -> BodySource:
+        """The body source again, from its registered name and these options (its ``Options`` check them).
+
+        Raises:
+            DatasetError: the source is not installed here or refuses the options (its reason kept).
+        """
+        try:
+            cls = source_class(self.name)
+            return cls.from_options(cls.options(self.options), device=device)
+        except CerberusError as exc:
+            raise DatasetError(f"the dataset's body source {self.name!r} cannot be rebuilt here ({exc})") from exc
+
+    def empty_split_hint(self, subjects: int, split: str, root: Path) -> str:
+        """Why ``split`` has no subject, in the source's own terms (:meth:`BodySource.empty_split_hint`; a
+        generic hint when the source is not installed here)."""
+        try:
+            cls = source_class(self.name)
+        except CerberusError:
+            return no_subjects_hint(split, subjects, root)
+        return cls.empty_split_hint(self.options, subjects, split, root)
+
 
 @dataclass(frozen=True)
 class Manifest:
@@ -262,8 +334,8 @@ class Manifest:
     Attributes:
         dataset: the body source's name: ``human``, ``animal``, ``primitives``, ``folder``.
         preset: the size preset it was generated with.
-        config: the resolved generation config (:meth:`GenerationConfig.to_dict` form, JSON), as
-            stored: a resume compares it whole.
+        config: the resolved generation config, typed (stored in its :meth:`GenerationConfig.to_dict`
+            form): a resume compares it whole.
         config_sha256: its hash (:func:`cerberus_core.datasets.format.config_hash`).
         scene: the scene set-up the images were rendered with (checked).
         image_size: images are ``image_size`` pixels square.
@@ -278,7 +350,7 @@ class Manifest:
 
     dataset: str
     preset: str | None
-    config: Mapping[str, Any]
+    config: GenerationConfig
     config_sha256: str
     scene: SceneSetup
     image_size: int
@@ -312,7 +384,10 @@ class Manifest:
         try:
             record = json.loads(path.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
+            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from None
+        except RecursionError:
+            raise DatasetError(f"{path} is nested too deeply to be a manifest; the dataset is corrupt — regenerate "
+                               "it") from None
         return cls.from_json(record, root)
 
     @classmethod
@@ -334,26 +409,41 @@ class Manifest:
                                "install the cerberus-core release that wrote it")
         try:
             dataset = _need(record, "dataset", str, "manifest")
-            config = _mapping(_need(record, "config", Mapping, "manifest"), "config")
+            config = _config(_mapping(_need(record, "config", Mapping, "manifest"), "config"), path)
             splits = _mapping(_need(record, "splits", Mapping, "manifest"), "splits")
             return cls(
-                dataset=dataset, preset=record.get("preset"), config=dict(config),
+                dataset=dataset, preset=_optional(record, "preset", str, "manifest"), config=config,
                 config_sha256=str(record.get("config_sha256", "")), scene=_scene(record.get("scene"), path),
-                image_size=_need(record, "image_size", int, "manifest"),
-                part_names=tuple(str(n) for n in _need(record, "part_names", list, "manifest")),
+                image_size=_image_size(record),
+                part_names=_strings(_need(record, "part_names", list, "manifest"), "manifest.part_names"),
                 subjects=tuple(SubjectRecord.from_json(s, f"subjects[{i}]")
                                for i, s in enumerate(_need(record, "subjects", list, "manifest"))),
                 source=SourceRecord.from_json(record.get("source"), dataset),
                 splits={name: SplitRecord.from_json(rec, f"splits.{name}") for name, rec in splits.items()},
-                complete=bool(record.get("complete", False)), generator=dict(record.get("generator") or {}),
-                root=Path(root))
+                complete=bool(record.get("complete", False)),
+                generator=dict(_mapping(record.get("generator") or {}, "manifest.generator")), root=Path(root))._checked()
         except _Damaged as exc:
             raise DatasetError(f"{path}: {exc}; the dataset is corrupt — regenerate it") from None
+        except DatasetError:
+            raise
+        except (TypeError, ValueError, AttributeError, RecursionError) as exc:  # a field of a form not checked above
+            raise DatasetError(f"{path}: a field has the wrong form ({type(exc).__name__}: {exc}); the dataset is "
+                               "corrupt — regenerate it") from None
+
+    def _checked(self) -> Manifest:
+        """This manifest, after the checks between its records (a shard's subject index within the subjects)."""
+        for name, split in self.splits.items():
+            for shard in split.shards:
+                bad = [i for i in shard.subjects if i >= len(self.subjects)]
+                if bad:
+                    raise _Damaged(f"splits.{name}.shards {shard.index}.subjects names subject {bad[0]}, but the "
+                                   f"manifest has {len(self.subjects)} subjects")
+        return self
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object :meth:`write` stores (:meth:`from_json` reads it back equal)."""
         return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "dataset": self.dataset,
-                "preset": self.preset, "config": dict(self.config), "config_sha256": self.config_sha256,
+                "preset": self.preset, "config": jsonable(self.config.to_dict()), "config_sha256": self.config_sha256,
                 "scene": self.scene.to_dict(), "image_size": self.image_size, "part_names": list(self.part_names),
                 "subjects": [s.to_json() for s in self.subjects], "source": self.source.to_json(),
                 "splits": {name: rec.to_json() for name, rec in self.splits.items()}, "complete": self.complete,
@@ -402,6 +492,49 @@ class Manifest:
             raise DatasetError(f"{self.path}: no split {name!r}; this dataset has {sorted(self.splits)}")
         return self.splits[name]
 
+    def incomplete(self, name: str) -> str | None:
+        """What is missing from split ``name`` (``"split 'train' is incomplete (1 of 3 shards)"``), ``None``
+        when every planned shard is written."""
+        info = self.split(name)
+        if info.complete:
+            return None
+        return f"split {name!r} is incomplete ({len(info.shards)} of {info.planned_shards} shards)"
+
+    def readable_split(self, name: str, *, allow_partial: bool = False) -> SplitRecord:
+        """The record of split ``name``, which a reader may open: it has subjects and (unless
+        ``allow_partial``) every shard.
+
+        Raises:
+            DatasetError: no such split, or an empty one (why, in its source's terms).
+            IncompleteDatasetError: a split whose generation has not finished.
+        """
+        info = self.split(name)
+        if info.planned_shards == 0:
+            raise DatasetError(f"{self.root}: split {name!r} is empty: "
+                               f"{self.source.empty_split_hint(len(self.subjects), name, self.root)}")
+        if not allow_partial and (problem := self.incomplete(name)):
+            raise IncompleteDatasetError(self.root, f"{self.root}: {problem}")
+        return info
+
+
+def _config(record: Mapping[str, Any], path: Path) -> GenerationConfig:
+    try:
+        return GenerationConfig.from_dict(dict(record))
+    except ConfigError as exc:
+        raise DatasetError(f"{path}: invalid generation config ({exc}); the manifest is damaged or of a newer "
+                           "version: regenerate the dataset with this version") from None
+
+
+MAX_IMAGE_SIZE = 4096
+"""The largest image size a manifest may state (pixels per side)."""
+
+
+def _image_size(record: Mapping[str, Any]) -> int:
+    size = _need(record, "image_size", int, "manifest")
+    if not 1 <= size <= MAX_IMAGE_SIZE:
+        raise _Damaged(f"manifest.image_size is {size!r}, not a size in [1, {MAX_IMAGE_SIZE}] pixels")
+    return size
+
 
 def _scene(record: Any, path: Path) -> SceneSetup:
     try:
@@ -411,5 +544,5 @@ def _scene(record: Any, path: Path) -> SceneSetup:
                            "dataset") from None
 
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "Manifest", "ShardRecord", "SourceRecord",
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "IncompleteDatasetError", "Manifest", "ShardRecord", "SourceRecord",
            "SplitRecord", "SubjectRecord", "canonical_json", "jsonable"]

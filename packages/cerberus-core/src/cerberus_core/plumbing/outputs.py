@@ -1,14 +1,14 @@
 """Where commands and the library write results: path checks that raise
 :class:`~cerberus_core.errors.ConfigError` before anything is written, and result folders written
-whole (:func:`result_folder`, :func:`writing_results`). :mod:`cerberus_core.cli.checks` re-exports
-them for the sub-commands; :class:`cerberus_core.run.Run` uses them directly."""
+whole (:func:`result_folder`, :func:`writing_results`). The sub-commands and
+:class:`cerberus_core.run.Run` use them directly; a caller adds its own refusal of a folder (``refuse``)."""
 from __future__ import annotations
 
 import contextlib
 import json
 import os
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from cerberus_core.errors import ConfigError, OutputError
@@ -16,7 +16,6 @@ from cerberus_core.plumbing.atomic import atomic_folder, atomic_write_text
 from cerberus_core.plumbing.lock import check_unlocked, is_lock_file
 from cerberus_core.plumbing.names import printable
 
-MANIFEST_NAME = "manifest.json"
 #: Written last into every result folder (reconstruct, eval): marks a folder a later run may replace.
 RESULT_MARKER = ".cerberus-result.json"
 
@@ -47,10 +46,40 @@ def check_path_length(path: Path, key: str = "out") -> Path:
     return path
 
 
-def output_folder(path: Path, key: str = "out", *, dataset_ok: bool = False) -> Path:
-    """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
-    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results;
-    nor a path too long to write (:func:`check_path_length`)."""
+Refusal = Callable[[Path], "str | None"]
+"""A caller's own check of an output folder: the problem with writing into it (``"is a dataset folder;
+write results to another folder"``), or ``None``."""
+
+
+def resolved(path: str | os.PathLike, key: str = "path") -> Path:
+    """``path`` made absolute with every symlink followed (:meth:`Path.resolve`); the one place a path is
+    resolved, so that a symlink loop is one :class:`ConfigError` naming ``key`` everywhere, not a
+    ``RuntimeError``."""
+    try:
+        return Path(path).expanduser().resolve()
+    except (RuntimeError, OSError) as exc:  # Python < 3.13 raises RuntimeError for a loop, later ones OSError
+        raise ConfigError.about(key, printable(path), f"cannot be resolved: a symlink loop "
+                                f"({getattr(exc, 'strerror', None) or exc}); fix or remove the link") from None
+
+
+def check_apart(path: Path, inputs: Sequence[str | os.PathLike], key: str = "out", *,
+                what: str = "writing it would replace it") -> Path:
+    """:class:`ConfigError` when the output ``path`` is, or holds, one of ``inputs`` (compared by real path,
+    symlinks followed): the one rule that no output may be or contain an input."""
+    where = resolved(path, key)
+    for kept in inputs:
+        k = resolved(kept, "input")
+        if k == where or where in k.parents:
+            relation = "is" if k == where else "holds"
+            raise ConfigError.about(key, Path(path), f"{relation} the input {printable(kept)}, and {what}; choose "
+                                    f"another `{key}`")
+    return path
+
+
+def output_folder(path: Path, key: str = "out", *, refuse: Refusal | None = None) -> Path:
+    """``path`` may be created as a folder: not an existing file, nor under one, nor a path too long to
+    write (:func:`check_path_length`), nor a folder the caller's ``refuse`` finds a problem with (a
+    :class:`ConfigError` about ``key`` with that problem)."""
     check_path_length(path, key)
     for p in (path, *path.parents):
         if p.exists():
@@ -58,15 +87,16 @@ def output_folder(path: Path, key: str = "out", *, dataset_ok: bool = False) -> 
                 what = "is a file" if p == path else f"is under {p}, which is a file"
                 raise ConfigError.about(key, path, f"{what}; pass a folder path")
             break
-    if not dataset_ok and is_dataset(path):
-        raise ConfigError.about(key, path, "is a dataset folder; write results to another folder")
+    if refuse is not None and path.is_dir() and (problem := refuse(path)):
+        raise ConfigError.about(key, path, problem)
     return path
 
 
-def output_file(path: Path, key: str = "out") -> Path:
+def output_file(path: Path, key: str = "out", inputs: Sequence[str | os.PathLike] = ()) -> Path:
     """``path`` may be written as a file: not an existing folder, nor under a file, nor too long
-    (:func:`check_path_length`)."""
+    (:func:`check_path_length`), nor one of ``inputs`` (:func:`check_apart`)."""
     check_path_length(path, key)
+    check_apart(path, inputs, key)
     if path.is_dir():
         raise ConfigError.about(key, path, "is a folder; pass a file path")
     for p in path.parents:
@@ -77,12 +107,8 @@ def output_file(path: Path, key: str = "out") -> Path:
     return path
 
 
-def is_dataset(path: Path) -> bool:
-    return (Path(path) / MANIFEST_NAME).is_file()
-
-
-def result_folder(path: Path, key: str = "out", *, overwrite: bool = False,
-                  keep: Sequence[Path] = (), earlier: frozenset[str] = frozenset()) -> Path:
+def result_folder(path: Path, key: str = "out", *, overwrite: bool = False, keep: Sequence[Path] = (),
+                  earlier: frozenset[str] = frozenset(), refuse: Refusal | None = None) -> Path:
     """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
 
     Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
@@ -92,14 +118,12 @@ def result_folder(path: Path, key: str = "out", *, overwrite: bool = False,
     ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
     writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
     """
-    output_folder(path, key)
-    where = path.resolve()
-    for kept in [*keep, Path.cwd()]:
-        k = Path(kept).resolve()
-        if k == where or where in k.parents:
-            what = "the current directory" if kept == Path.cwd() else printable(kept)
-            raise ConfigError.about(key, path, f"holds {what}, and a result folder is replaced whole; write the "
-                                    f"results to a folder of their own, e.g. `{key}={printable(path / 'results')}`")
+    output_folder(path, key, refuse=refuse)
+    whole = f"a result folder is replaced whole: write the results to a folder of their own, e.g. " \
+            f"`{key}={printable(path / 'results')}`"
+    check_apart(path, keep, key, what=whole)
+    if Path.cwd().is_relative_to(resolved(path, key)):
+        raise ConfigError.about(key, path, f"holds the current directory, and {whole}")
     if path.is_dir():
         check_unlocked(path)
         held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))
