@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from cerberus_core.errors import MissingPackageError
 from cerberus_core.eval.standard import Voxels
 from cerberus_core.render.camera import Camera
 from cerberus_core.shapes import check_shapes
@@ -50,8 +51,11 @@ SPARE_LOSS = 0.003
 def nearest_labels(points: np.ndarray, vertices: np.ndarray, labels: np.ndarray) -> np.ndarray:
     """``(N,)`` the label of the vertex nearest to each of ``points`` ``(N, 3)`` (``vertices`` ``(V, 3)``,
     ``labels`` ``(V,)``; same frame)."""
-    from scipy.spatial import cKDTree
-
+    try:
+        from scipy.spatial import cKDTree
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MissingPackageError("body-segment evaluation needs scipy: pip install 'cerberus-core[eval]', "
+                                  "or pass segments=False") from exc
     if len(points) == 0:
         return np.zeros(0, np.int64)
     _, idx = cKDTree(np.asarray(vertices, np.float64)).query(np.asarray(points, np.float64), k=1)
@@ -144,9 +148,11 @@ def image_segments(voxels: Voxels, gt_vertices: np.ndarray, vertex_parts: np.nda
     """
     labels = np.asarray(vertex_parts, np.int64)
     union = voxels.union
-    gt_seg = nearest_labels(voxels.centers(np.argwhere(voxels.gt)), gt_vertices, labels)
-    hit = union[voxels.gt]  # np.argwhere and boolean indexing share C order
-    off_seg = nearest_labels(voxels.centers(np.argwhere(union & ~voxels.gt)), gt_vertices, labels)
+    occupied = voxels.gt | union
+    seg = nearest_labels(voxels.centers(np.argwhere(occupied)), gt_vertices, labels)  # one k-d tree per image
+    in_gt = voxels.gt[occupied]  # np.argwhere and boolean indexing share C order
+    gt_seg, off_seg = seg[in_gt], seg[~in_gt]
+    hit = union[voxels.gt]
     k = num_segments
     zeros = np.zeros(k, np.int64)
     counts = np.bincount(labels, minlength=k)
