@@ -17,7 +17,6 @@ from .api import (
     inspect_mesh,
     voxel_iou,
     voxel_iou_clamped,
-    voxel_part_grids,
     voxelize,
 )
 from .cache import GridCache
@@ -50,6 +49,5 @@ __all__ = [
     "make_frame",
     "voxel_iou",
     "voxel_iou_clamped",
-    "voxel_part_grids",
     "voxelize",
 ]

@@ -25,7 +25,6 @@ from .voxelize import PartGrids, VoxelGrid, grid_iou, voxelize_parts
 
 __all__ = [
     "voxelize",
-    "voxel_part_grids",
     "voxel_iou",
     "voxel_iou_clamped",
     "grid_iou",
@@ -109,28 +108,18 @@ def _part_grids(mesh: Any, protocol: str, resolution: int, frame: Frame | None, 
     return voxelize_parts(parts, proto, frame, fill=fill, outside=outside)
 
 
-def voxel_part_grids(
-    pred: Any,
-    gt: Any,
-    protocol: str = "kato",
-    resolution: int = 32,
-    *,
-    cache: GridCache | None = None,
-    check_self_intersections: bool | str = True,
-    open_mesh: str = "warn",
-    outside: str = "clamp",
-) -> tuple[PartGrids, VoxelGrid]:
-    """The grids :func:`voxel_iou_clamped` scores, with the prediction kept part by part.
-
-    The ground truth is voxelized (and cached) as by :func:`voxelize`; each part of ``pred`` (one per
-    mesh of the list) is voxelized alone in the ground truth's frame. ``grid_iou(parts.union(), gt)``
-    is the voxel IoU, and ``parts.clamped`` the number of parts clamped into the grid.
-    outside: for the prediction only, see :func:`voxel_iou_clamped`.
+def prediction_grids(pred: Any, gt: Any, protocol: str, resolution: int, cache: GridCache | None, outside: str,
+                     check_self_intersections: bool | str = True, open_mesh: str = "warn") -> tuple[PartGrids, VoxelGrid]:
+    """The grids :func:`voxel_iou_clamped` scores, with the prediction kept part by part: the ground
+    truth voxelized (and cached) as by :func:`voxelize`, each part of ``pred`` (one per mesh of the
+    list) alone in its frame. ``grid_iou(parts.union(), gt)`` is the voxel IoU and ``parts.clamped``
+    the number of parts clamped into the grid. Options as :func:`voxel_iou_clamped`'s.
     Returns ``(prediction's PartGrids, ground-truth VoxelGrid)``.
     """
-    opts = dict(check_self_intersections=check_self_intersections, open_mesh=open_mesh)
-    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", **opts)
-    return _part_grids(pred, protocol, resolution, g.frame, True, name="pred", outside=outside, **opts), g
+    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", check_self_intersections=check_self_intersections,
+                 open_mesh=open_mesh)
+    return _part_grids(pred, protocol, resolution, g.frame, True, check_self_intersections, open_mesh, "pred",
+                       outside), g
 
 
 def voxel_iou_clamped(
@@ -150,7 +139,7 @@ def voxel_iou_clamped(
     outside the ``kato`` grid is always an error, since it is a data problem, not a score.
     Returns ``(iou in [0, 1], number of prediction parts clamped)``.
     """
-    p, g = voxel_part_grids(pred, gt, protocol, resolution, cache=cache, outside=outside,
+    p, g = prediction_grids(pred, gt, protocol, resolution, cache, outside,
                             check_self_intersections=check_self_intersections, open_mesh=open_mesh)
     return grid_iou(p.union(), g), p.clamped
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from .api import voxel_part_grids
+from .api import prediction_grids
 from .cache import GridCache
 from .io import MeshQualityWarning
 from .protocols import Frame, check_resolution, get_protocol
@@ -103,5 +103,5 @@ class VoxelIoUScorer:
     def _voxelize(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeshQualityWarning)
-            return voxel_part_grids(pred_parts, gt, self.protocol, self.resolution, cache=self.cache,
-                                    check_self_intersections=False, outside="clamp")
+            return prediction_grids(pred_parts, gt, self.protocol, self.resolution, self.cache, "clamp",
+                                    check_self_intersections=False)
