@@ -9,7 +9,7 @@ Figure 1 panels: (a) input, (b) 3D output, (c) parts in colours, (d) new lightin
 (f) new pose (the parts of this image with the rotations and translations predicted from another).
 Table 2 columns: input, any number of baselines, ours, parts, turn (ours from another azimuth); the
 figure ``cerberus eval`` writes adds the voxels the IoU scores, seen from the front and the side
-(:func:`voxel_views`: missed and off-body voxels in colour over the hits).
+(:func:`voxel_views`: hits grey, missed voxels red, off-body voxels blue).
 """
 from __future__ import annotations
 
@@ -292,9 +292,8 @@ def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: 
 
 
 # ------------------------------------------------------------------ voxels: hits, missed, off the body
-#: Colours of :func:`voxel_views`, in the order they are painted (a later one covers an earlier one on
-#: the same line of sight): voxels both have, only the prediction has (off the body), only the ground
-#: truth has (missed).
+#: Colours of :func:`voxel_views`, in the order that breaks ties: voxels both have, only the prediction
+#: has (off the body), only the ground truth has (missed); a later one wins a tie.
 VOXEL_COLOURS: dict[str, RGB] = {"hit": (0.7, 0.7, 0.7), "off-body": (0.15, 0.4, 0.95), "missed": (0.9, 0.1, 0.1)}
 
 
@@ -302,9 +301,10 @@ def voxel_views(voxels: Voxels, size: int, background: RGB = DEFAULT_BACKGROUND)
     """The voxels of one score in two orthographic views: front (seen from +z, the way the body faces at
     azimuth 0: x to the right, y up) and side (seen from +x: z to the left, y up).
 
-    A pixel shows a line of voxels: red if any of them is missed (ground truth only), else blue if
-    any is off the body (prediction only), else grey if any is a hit, else the background
-    (:data:`VOXEL_COLOURS`): a limb the prediction misses is red even behind the trunk.
+    A pixel shows a line of voxels in the colour of the kind most of them are (:data:`VOXEL_COLOURS`:
+    grey hit, blue off the body (prediction only), red missed (ground truth only); a tie goes to
+    missed, then off-body), or the background where the line is empty: a forearm the prediction
+    misses is a red limb beside a grey trunk.
 
     Args:
         voxels: :meth:`~cerberus_core.eval.standard.VoxelScorer.voxels` of one image.
@@ -313,17 +313,18 @@ def voxel_views(voxels: Voxels, size: int, background: RGB = DEFAULT_BACKGROUND)
         ``(2, 3, size, size)`` images in [0, 1]: front, side.
     """
     pred, gt = voxels.union, voxels.gt
-    kinds = {"hit": pred & gt, "off-body": pred & ~gt, "missed": gt & ~pred}
+    kinds = [pred & gt, pred & ~gt, gt & ~pred]  # the order of VOXEL_COLOURS
+    palette = torch.tensor([background, *VOXEL_COLOURS.values()], dtype=torch.float32)  # (4, 3)
     views = []
-    for axis, orient in ((2, lambda a: a.T[::-1]), (0, lambda a: a[::-1, ::-1])):  # (X, Y) → rows y, cols x ...
-        first = orient(kinds["hit"].any(axis=axis))  # ... and (Y, Z) → rows y, cols -z
-        side = max(first.shape)
-        image = torch.tensor(background, dtype=torch.float32).view(3, 1, 1).repeat(1, side, side)
-        top, left = (side - first.shape[0]) // 2, (side - first.shape[1]) // 2
-        for kind, colour in VOXEL_COLOURS.items():
-            mask = np.zeros((side, side), bool)
-            mask[top:top + first.shape[0], left:left + first.shape[1]] = orient(kinds[kind].any(axis=axis))
-            image[:, torch.from_numpy(mask)] = torch.tensor(colour).view(3, 1)
+    for axis, orient in ((2, lambda a: a.T[::-1]), (0, lambda a: a[::-1, ::-1])):  # (X, Y) → rows y, cols x;
+        counts = np.stack([orient(k.sum(axis=axis)) for k in kinds])  # (Y, Z) → rows y, cols -z
+        winner = (counts.shape[0] - 1 - counts[::-1].argmax(0)) + 1  # last of the largest: ties to missed
+        winner[counts.sum(0) == 0] = 0
+        side = max(winner.shape)
+        index = np.zeros((side, side), np.int64)
+        top, left = (side - winner.shape[0]) // 2, (side - winner.shape[1]) // 2
+        index[top:top + winner.shape[0], left:left + winner.shape[1]] = winner
+        image = palette[torch.from_numpy(index)].permute(2, 0, 1)
         views.append(torch.nn.functional.interpolate(image[None], size=(size, size), mode="nearest")[0])
     return torch.stack(views)
 
