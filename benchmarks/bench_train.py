@@ -19,6 +19,16 @@ the CPU's bfloat16 flags and what ``auto`` picked on this machine:
 
     python benchmarks/bench_train.py --precision --presets cpu --renderers warp --threads 1 --steps 20
 
+``--losses NAME=W [...]`` times loss terms the same way (the preset as it is, then each ``losses.NAME``
+at weight ``W`` alone, interleaved): what a term beyond the preset adds to a step, e.g. issue 30's limb
+terms on human data:
+
+    python benchmarks/bench_train.py --losses coverage=0.3 keypoint_coverage=0.1 overlap=0.1 rotation=0.1 \
+        --presets cpu --renderers warp --threads 1 --steps 20 --data DATA --cpu-time
+
+On a machine other jobs load, ``--cpu-time`` times the process's CPU seconds instead of wall-clock (with
+one thread, the step's own work, without the waits for the other jobs).
+
 ``--switches [NAME ...]`` times the training speed switches instead (``speed.autocast: bf16``,
 ``speed.channels_last``, ``speed.compile``, ``speed.smoothness_once``; all of them without NAMEs):
 one model per variant (off, each switch alone, all together), steps interleaved round by round,
@@ -174,17 +184,36 @@ def precision_variants(preset: str) -> list[tuple[str, dict]]:
     return [(label, base | {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
 
 
+def loss_variants(settings: list[str]):
+    """For ``--losses``: ``preset`` (its speed switches and loss weights as they are), then each
+    ``NAME=W`` setting alone on top, as ``variants_of(preset)`` of :func:`bench_switches`."""
+    from dataclasses import asdict
+
+    from cerberus_core.train.config import load_config
+
+    def variants(preset: str) -> list[tuple[str, dict, dict]]:
+        base = asdict(load_config(preset=preset).speed)
+        pairs = [s.split("=", 1) for s in settings]
+        return [(preset, base, {})] + [(f"+ {k}={w}", base, {k: float(w)}) for k, w in pairs]
+    return variants
+
+
 def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int,
-                   batch_size: int | None, names: list[str] | None, variants_of=None) -> list[dict]:
+                   batch_size: int | None, names: list[str] | None, variants_of=None,
+                   timer=time.perf_counter) -> list[dict]:
     """Full steps of one model per switch variant, interleaved: each round times one step of every
     variant in turn (so load changes hit all alike); the median over rounds is reported. The variants
-    are :func:`switch_variants` of ``names``, or ``variants_of(preset)``."""
+    are :func:`switch_variants` of ``names``, or ``variants_of(preset)``: ``(label, speed settings)``
+    or ``(label, speed settings, loss weights)``."""
+    from dataclasses import replace
+
     from cerberus_core.train.speed import SpeedConfig
 
     cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)
     variants = []
-    for label, speed in (variants_of(preset) if variants_of else switch_variants(names)):
-        _, step = stepper(cfg, scene, batch, renderer, SpeedConfig(**speed))
+    for label, speed, *weights in (variants_of(preset) if variants_of else switch_variants(names)):
+        config = replace(cfg, losses=replace(cfg.losses, **weights[0])) if weights else cfg
+        _, step = stepper(config, scene, batch, renderer, SpeedConfig(**speed))
         t0 = time.perf_counter()
         first = step(0)  # the first step's loss (same weights and batch for every variant)
         for i in range(1, warmup):
@@ -193,9 +222,9 @@ def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int,
                          "times": []})
     for i in range(steps):
         for v in variants:
-            t0 = time.perf_counter()
+            t0 = timer()
             v["step"](warmup + i)
-            v["times"].append(time.perf_counter() - t0)
+            v["times"].append(timer() - t0)
     rows = []
     for v in variants:
         step_s = statistics.median(v["times"])
@@ -233,7 +262,7 @@ def run_switches(args: argparse.Namespace) -> None:
     """``--switches`` / ``--precision``: the variants side by side, interleaved."""
     from cerberus_core.train.config import load_config
 
-    names = None if args.precision else (args.switches or list(SWITCHES))
+    names = None if args.precision or args.losses else (args.switches or list(SWITCHES))
     if names and "compile" in names:
         args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
     rows = []
@@ -242,10 +271,13 @@ def run_switches(args: argparse.Namespace) -> None:
             root = args.data or make_data(Path(tmp) / preset, load_config(preset=preset).data.image_size or 64)
             for name in args.renderers:
                 rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names,
-                                       precision_variants if args.precision else None)
+                                       loss_variants(args.losses) if args.losses else
+                                       precision_variants if args.precision else None,
+                                       time.process_time if args.cpu_time else time.perf_counter)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
-          f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps")
+          f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps"
+          + (", CPU seconds of this process (time.process_time)" if args.cpu_time else ""))
     if args.precision:
         print_cpu_precision()
     print_switches(rows)
@@ -272,13 +304,18 @@ def main() -> None:
                    help="instead: time the speed switches (speed.* of the config) side by side, interleaved: "
                         "off, each NAME alone and all NAMEs together (default with no NAME: "
                         f"{' '.join(SWITCHES)}); the median of --steps rounds")
+    p.add_argument("--cpu-time", action="store_true",
+                   help="with --switches/--precision/--losses: time the process's CPU seconds (time.process_time), "
+                        "not wall-clock, so waits for other jobs on a loaded machine do not count")
+    p.add_argument("--losses", nargs="+", default=None, metavar="NAME=W",
+                   help="instead: time the preset, then each losses.NAME at weight W alone on top, interleaved")
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     from cerberus_core.train.config import load_config
 
-    if args.switches is not None or args.precision:
+    if args.switches is not None or args.precision or args.losses:
         if args.device != "cpu":
-            p.error("--switches and --precision time the CPU; leave out --device")
+            p.error("--switches, --precision and --losses time the CPU; leave out --device")
         run_switches(args)
         return
     rows = []

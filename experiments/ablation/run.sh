@@ -10,6 +10,9 @@
 # default recipe (docs/results.md, "Beyond the default recipe"), experiments/ablation/depth.txt the depth changes
 # of issue 24 (docs/results.md, "Depth the second view can see"):
 #   VARIANTS=experiments/ablation/beyond.txt STEPS=5000 RUNS=runs/beyond bash experiments/ablation/run.sh
+# experiments/ablation/limbs.txt holds issue 30's changes toward parts on the limbs (docs/training.md, "Beyond the
+# paper: sending parts to the limbs"):
+#   VARIANTS=experiments/ablation/limbs.txt STEPS=3000 RUNS=runs/limbs bash experiments/ablation/run.sh
 # A DATA column "@PATH" uses an existing dataset instead of generating one.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -248,3 +248,96 @@ def test_cross_view_chamfer_pulls_a_part_along_its_own_ray_toward_the_partner_si
     (g_cross,) = torch.autograd.grad(cross, depth)
     assert abs(float(g_own)) < 0.1 * abs(float(g_cross))  # the input view barely sees the depth error
     assert float(g_cross) > 0  # descending the partner-view pull brings the part nearer, toward the truth
+
+
+# ------------------------------------------------------------------ toward parts on the limbs (issue 30)
+def _trunk_and_limb():
+    """A 10-pixel-wide trunk (columns 10-19) and a 2-pixel-wide limb (columns 2-3), rows 4-27."""
+    fg = torch.zeros(1, 1, 32, 32)
+    fg[..., 4:28, 10:20] = 1
+    fg[..., 4:28, 2:4] = 1
+    return fg
+
+
+def test_thinness_weights_are_one_over_the_squared_depth_inside_the_silhouette():
+    from cerberus_core.losses import thinness_weights
+
+    w = thinness_weights(_trunk_and_limb())
+    assert w.shape == (1, 32, 32)
+    torch.testing.assert_close(w[0, 15, 2:4], torch.ones(2))  # the limb: every pixel on the edge
+    torch.testing.assert_close(w[0, 15, 10:20], torch.tensor([1.0, 2, 3, 4, 5, 5, 4, 3, 2, 1]) ** -2)
+    assert float(w[0, 15].sum()) == pytest.approx(2 + 2 * (1 + 1 / 4 + 1 / 9 + 1 / 16 + 1 / 25))  # limb 2, trunk 2.9
+    assert (w[0, 15, 4:10] == 0).all() and (w[0, :4] == 0).all()  # background
+    edge = torch.zeros(1, 8, 8)
+    edge[0, :, :3] = 1  # touching the image's border: the outside counts as background
+    torch.testing.assert_close(thinness_weights(edge)[0, 4, :3], torch.tensor([1.0, 0.25, 1.0]))
+
+
+def test_silhouette_coverage_pulls_the_nearest_vertex_onto_an_uncovered_thin_limb():
+    from cerberus_core.losses import silhouette_coverage, thinness_weights
+
+    fg = _trunk_and_limb()
+    rows, cols = torch.nonzero(fg[0, 0], as_tuple=True)
+    exact = (torch.stack([cols, rows], -1).float() + 0.5)[None]
+    assert float(silhouette_coverage(exact, fg)) == 0.0  # every pixel has a point on it
+    # Points cover the trunk only; the vertex at column 10 is the limb's nearest.
+    grid = torch.stack(torch.meshgrid(torch.arange(10.5, 20), torch.arange(4.5, 28), indexing="xy"), -1).reshape(-1, 2)
+    pts = grid[None].clone().requires_grad_(True)
+    loss = silhouette_coverage(pts, fg)
+    loss.backward()
+    pulled = pts.grad[0].norm(dim=-1) > 0
+    assert pulled.any() and (pts.grad[0, pulled, 0] > 0).all()  # descending moves them left, toward the limb
+    assert (pts[0, pulled, 0] == 10.5).all()  # only the trunk's leftmost column, the limb's nearest
+    # All the loss is the limb's, each pixel 7 or 8 pixels from the nearest vertex, weighted 1 (its depth
+    # is 1) against the trunk's 1/d^2: the limb holds over a third of the weight and a sixth of the pixels.
+    w = thinness_weights(fg)
+    assert float(loss.detach()) == pytest.approx(24 * (8 + 7) / float(w.sum()) / 32, rel=1e-5)
+    assert float(w[0, :, 2:4].sum() / w.sum()) > 1 / 3 > 48 / 288
+    assert float(silhouette_coverage(pts.detach(), torch.zeros(1, 32, 32))) == 0.0
+    with pytest.raises(ValueError, match="silhouette_coverage"):
+        silhouette_coverage(pts.detach()[0], fg)
+
+
+def test_silhouette_coverage_of_keypoints_spreads_stacked_parts_onto_the_limb():
+    """With one point per part (its keypoint) the coverage is a weighted k-means: of two parts stacked
+    on the trunk, the one nearer the uncovered limb is pulled onto it."""
+    from cerberus_core.losses import silhouette_coverage
+
+    keypoints = torch.tensor([[[14.0, 16.0], [16.0, 16.0]]], requires_grad=True)
+    silhouette_coverage(keypoints, _trunk_and_limb()).backward()
+    assert keypoints.grad[0, 0, 0] > 0  # part 0, nearer the limb: descending moves it left, toward it
+    assert keypoints.grad[0, 0, 0] > keypoints.grad[0, 1, 0].abs()  # far more than part 1 moves sideways
+
+
+def test_part_overlap_pushes_overlapping_parts_apart_and_ignores_separate_ones():
+    from cerberus_core.losses import part_overlap
+
+    sphere = icosphere(2).vertices.float() * 0.12
+    def pair(dx):
+        return torch.stack([sphere, sphere + torch.tensor([dx, 0.0, 0.0])])
+    assert float(part_overlap(pair(0.0))) == pytest.approx(2 ** -1.5, rel=1e-4)  # equal parts, one centre
+    assert float(part_overlap(pair(0.24))) < 0.03  # touching spheres pay little
+    assert float(part_overlap(pair(1.0))) < 1e-6
+    assert float(part_overlap(torch.stack([0.2 * sphere, sphere]))) == pytest.approx(0.95 / 2, abs=0.01)
+    assert float(part_overlap(sphere[None])) == 0.0  # one part: nothing to overlap
+    parts = pair(0.1).requires_grad_(True)
+    part_overlap(parts).backward()
+    step = -parts.grad.mean(1)  # descending moves each part's vertices on average ...
+    assert step[0, 0] < 0 < step[1, 0]  # ... part 0 to the left, part 1 to the right: apart
+    assert part_overlap(torch.stack([pair(0.0), pair(0.5)])).shape == (2,)
+
+
+def test_rotation_loss_is_equation_6_for_rotations_and_turns_the_views_toward_each_other():
+    from kornia.geometry.conversions import axis_angle_to_rotation_matrix
+
+    from cerberus_core.losses import rotation_loss
+
+    angles = torch.tensor([0.0, 0.5, 0.2, 0.2], requires_grad=True)  # pose a disagrees, pose b agrees
+    axis = torch.tensor([0.0, 0.0, 1.0])
+    rot = axis_angle_to_rotation_matrix(angles[:, None] * axis).view(1, 4, 1, 3, 3)
+    loss = rotation_loss(rot)
+    assert float(loss.detach()) == pytest.approx(0.5 * 4 * (1 - math.cos(0.5)), rel=1e-5)  # ||R - R'||^2 = 4 (1 - cos)
+    loss.backward()
+    assert angles.grad[0] < 0 < angles.grad[1]  # descending turns a0 and a1 toward each other
+    assert angles.grad[2] == 0 and angles.grad[3] == 0
+    assert (rotation_loss(torch.eye(3).expand(2, 4, 3, 3, 3)) == 0).all()

@@ -151,3 +151,17 @@ def test_unproject_expectation_checks_camera_size():
     maps = expectation(torch.full((1, 1, 8, 8), 1 / 64), torch.ones(1, 1, 8, 8))
     with pytest.raises(ValueError, match="does not match"):
         unproject_expectation(maps, _camera(1, (16, 16)), to_world=True)
+
+
+def test_a_narrow_anchor_width_starts_each_part_on_its_anchor_and_spreads_them():
+    """The default bump (as wide as the grid) starts the outer parts at ~0.35 of the half-image for a
+    grid of 0.4 or 0.7 alike; with `anchor_width` narrower, a part starts on its anchor."""
+    def start(spread, width):
+        head = TranslationHead(16, 9, depth_offset=2.5, anchor_spread=spread, anchor_width=width)
+        with torch.no_grad():
+            head.logits.weight.zero_()
+        return head(torch.randn(1, 16, 16, 16), (64, 64)).uv[0] / 32 - 1  # normalised
+    wide, narrow = start(0.7, None), start(0.7, 0.15)
+    torch.testing.assert_close(narrow, anchor_grid(9, 0.7), atol=0.02, rtol=0)
+    assert wide.abs().max() < 0.4 < 0.65 < narrow.abs().max()
+    torch.testing.assert_close(start(0.4, None), start(0.4, 0.4))  # None: as wide as the grid, as before

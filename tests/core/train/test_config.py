@@ -125,3 +125,6 @@ def test_beyond_the_paper_switches_are_off_in_the_paper_presets_and_checked():
     assert (nmrr.model.num_parts, nmrr.render.antialias, nmrr.losses.silhouette) == (1, True, 1.0)
     with pytest.raises(ValueError, match="losses.silhouette needs render.antialias: true"):
         load_config(preset="paper_faithful", overrides=["losses.silhouette=1"])
+    for preset in ("paper", "paper_faithful", "cpu"):  # issue 30's limb terms: screened, in no preset yet
+        c = load_config(preset=preset)
+        assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)

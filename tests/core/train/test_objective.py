@@ -282,3 +282,27 @@ def test_objective_own_cross_view_renders_each_model_whole_from_the_partner_came
     expected = 0.5 * (own + reconstruction_loss(cross, targets[0, list(VIEW_PARTNER)]))
     assert after.terms["recon"].item() == pytest.approx(expected.mean().item(), rel=1e-5)
     assert after.terms["recon"].item() != pytest.approx(paper.terms["recon"].item(), rel=1e-4)
+
+
+def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off_when_unweighted():
+    """Issue 30's terms: each is its function of the objective's own parts, keypoints and rotations,
+    has a gradient without a renderer in the path, and is not computed at weight 0."""
+    from cerberus_core.losses import part_overlap, rotation_loss, silhouette_coverage
+
+    model, scene, batch, _ = _setup()
+    names = ("coverage", "keypoint_coverage", "overlap", "rotation")
+    off = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(), torch.Generator().manual_seed(0))
+    assert all(off.terms[k].item() == 0.0 for k in names)
+    fg = 1 - background_mask(batch.images[0], scene.background, LossConfig().background_tolerance)
+    images = batch.images.flatten(0, 1)
+    parts = model.pose(model(images), batch.camera)  # rotations and keypoints do not see the mixed latent
+    uv, _ = batch.camera.project(off.parts.flatten(0, 1).flatten(1, 2))  # the rendered (mixed) parts
+    expected = {"coverage": silhouette_coverage(uv, fg),
+                "keypoint_coverage": silhouette_coverage(model(images).maps.uv, fg),
+                "overlap": part_overlap(off.parts.flatten(0, 1)),
+                "rotation": rotation_loss(parts.rotations.view(1, 4, *parts.rotations.shape[1:]))}
+    for name in names:
+        losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, **{name: 1.0})
+        out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+        assert out.terms[name].item() == pytest.approx(expected[name].mean().item(), rel=1e-5), name
+        assert out.terms[name].item() > 0 and _grad_norm(model, out.total) > 0, name

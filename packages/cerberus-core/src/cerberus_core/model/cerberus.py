@@ -50,6 +50,10 @@ class ModelConfig(Checked):
         anchor_spread: parts start at keypoints on a grid spanning ``[-spread, spread]`` of the
             normalised image (0: all at the centre); see
             :class:`~cerberus_core.model.heads.TranslationHead`.
+        anchor_width: ``null`` (the bump each part's keypoint starts as is ``anchor_spread`` wide,
+            which starts the outer parts at 0.32-0.35 of the half-image for any spread from 0.4 to 0.8)
+            or the bump's width in normalised image coordinates: narrower, each part starts on its
+            anchor (beyond the paper, which leaves the initialisation open).
         depth_offset: initial depth of every part (world units); ``"auto"`` in a config means the
             dataset's camera distance, resolved by the trainer before the model is built.
         predict_rotation: predict a rotation per part (Cerberus). ``False`` fixes every part's
@@ -67,6 +71,7 @@ class ModelConfig(Checked):
     displacement_scale: float = ranged(0.05, gt=0)
     vertex_bound: float | None = ranged(None, gt=0, integer=False)
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
+    anchor_width: float | None = ranged(None, gt=0, integer=False)
     depth_offset: float | str = "auto"
     predict_rotation: bool = True
 
@@ -142,7 +147,7 @@ class Cerberus(nn.Module):
                                config.init_scale, config.displacement_scale, config.vertex_bound)
         self.rotation = RotationHead(latent, config.num_parts)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
-                                           config.anchor_spread)
+                                           config.anchor_spread, config.anchor_width)
         self.cnn_autocast: torch.dtype | None = None
         """Run the convolutional trunk (encoder and decoder) under ``torch.autocast`` to this dtype
         (``None``: off). The heads, and so all geometry, stay in the input dtype; set by the

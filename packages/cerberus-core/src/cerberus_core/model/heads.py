@@ -147,19 +147,25 @@ class TranslationHead(nn.Module):
 
     The probability-map logits are a linear map (1x1 convolution) of the features plus a linear map
     of the pixel coordinates ``(x, y, x^2, y^2)`` (normalised to ``[-1, 1]``), whose weights start as
-    a Gaussian bump of width ``anchor_spread`` at a per-part anchor (:func:`anchor_grid`): parts
-    start at distinct image locations, so the background loss pulls each towards the nearest body
-    region instead of all towards the same one. Every weight stays learnable; ``anchor_spread: 0``
-    starts all parts at the image centre with no coordinate term.
+    a Gaussian bump of width ``anchor_width`` (default: ``anchor_spread``) at a per-part anchor
+    (:func:`anchor_grid`): parts start at distinct image locations, so the background loss pulls each
+    towards the nearest body region instead of all towards the same one. Every weight stays
+    learnable; ``anchor_spread: 0`` starts all parts at the image centre with no coordinate term. A
+    bump as wide as the grid, cut off by the image's border, starts its part between the anchor and
+    the centre (at 0.32-0.35 of the half-image for any spread from 0.4 to 0.8); a narrower ``anchor_width``
+    starts it on its anchor, so a wider grid really spreads the parts.
 
     Args:
         in_channels: decoder feature channels.
         num_parts: ``N``.
         depth_offset: added to the depth maps (world units; the typical camera distance).
         anchor_spread: half-extent of the anchor grid in normalised image coordinates.
+        anchor_width: the bumps' standard deviation in normalised image coordinates (``None``:
+            ``anchor_spread``).
     """
 
-    def __init__(self, in_channels: int, num_parts: int, depth_offset: float, anchor_spread: float = 0.4) -> None:
+    def __init__(self, in_channels: int, num_parts: int, depth_offset: float, anchor_spread: float = 0.4,
+                 anchor_width: float | None = None) -> None:
         super().__init__()
         self.logits = nn.Conv2d(in_channels, num_parts, 1)
         self.coords = nn.Linear(4, num_parts, bias=False)
@@ -170,7 +176,8 @@ class TranslationHead(nn.Module):
         with torch.no_grad():
             if anchor_spread > 0:
                 centre = anchor_grid(num_parts, anchor_spread)
-                inv = 1.0 / (2 * anchor_spread**2)  # -(p - c)^2 / (2 s^2), constant dropped
+                width = anchor_spread if anchor_width is None else anchor_width
+                inv = 1.0 / (2 * width**2)  # -(p - c)^2 / (2 s^2), constant dropped
                 self.coords.weight.copy_(torch.cat([2 * inv * centre, -inv * torch.ones(num_parts, 2)], 1))
             else:
                 self.coords.weight.zero_()

@@ -33,9 +33,12 @@ from cerberus_core.losses import (
     background_mask,
     hidden_part_pull,
     mix_shape_latents,
+    part_overlap,
     reconstruction_loss,
     reprojection_loss,
+    rotation_loss,
     silhouette_chamfer,
+    silhouette_coverage,
     silhouette_loss,
     smoothness_loss,
     translation_loss,
@@ -202,7 +205,7 @@ class ObjectiveInputs:
 
     @property
     def pulls_cross(self) -> bool:
-        """Whether the chamfer and hidden-part pulls also act on the cross view."""
+        """Whether the chamfer, coverage and hidden-part pulls also act on the cross view."""
         return self.cross_pulls and self.render.cross is not None
 
 
@@ -222,22 +225,33 @@ def _silhouette(x: ObjectiveInputs) -> Tensor:
     return viewpoint_reconstruction(own, cross)
 
 
-def _per_image(values: Tensor, x: ObjectiveInputs) -> Tensor:  # (4B,) -> (B, 4)
-    return values.view(x.batch.num_quadruplets, 4)
+def _quad(t: Tensor, x: ObjectiveInputs) -> Tensor:  # (4B, ...) -> (B, 4, ...)
+    return t.view(x.batch.num_quadruplets, 4, *t.shape[1:])
 
 
-def _chamfer(x: ObjectiveInputs) -> Tensor:
-    own = _per_image(silhouette_chamfer(x.uv, x.foreground.flatten(0, 1)), x)
-    cross = (_per_image(silhouette_chamfer(x.uv_cross, _partner(x.foreground).flatten(0, 1)), x)
-             if x.pulls_cross else None)
-    return viewpoint_reconstruction(own, cross)
+def _vertex_pull(pull: Callable[[Tensor, Tensor], Tensor]) -> Callable[[ObjectiveInputs], Tensor]:
+    """A pull of the projected part vertices onto the input's foreground (``pull(points, foreground)``
+    ``-> (4 B,)``), in the input view and, with ``cross_pulls``, the cross view, averaged like eq. 4."""
+    def value(x: ObjectiveInputs) -> Tensor:
+        own = _quad(pull(x.uv, x.foreground.flatten(0, 1)), x)
+        cross = _quad(pull(x.uv_cross, _partner(x.foreground).flatten(0, 1)), x) if x.pulls_cross else None
+        return viewpoint_reconstruction(own, cross)
+    return value
+
+
+_chamfer = _vertex_pull(silhouette_chamfer)
+_coverage = _vertex_pull(silhouette_coverage)
+
+
+def _keypoint_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): each image's keypoints over its own foreground
+    return silhouette_coverage(x.pred.maps.uv, x.foreground.flatten(0, 1))
 
 
 def _hidden_in(render: RenderOutput, uv: Tensor, foreground: Tensor, x: ObjectiveInputs) -> Tensor:
     part_id = render.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
     n, v = x.parts.num_parts, x.parts.num_vertices
     uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
-    return _per_image(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered), x)
+    return _quad(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered), x)
 
 
 def _hidden(x: ObjectiveInputs) -> Tensor:
@@ -291,7 +305,7 @@ BEYOND = "beyond the paper"
 TERM_TABLE: tuple[Term, ...] = (
     Term("recon", 1.0, _recon, True, "lambda_r L_r'", "eqs. 2, 4, 7",
          "squared RGB error of each image's rendering, own and partner viewpoint", reconstruction_loss),
-    Term("translation", 1.0, lambda x: translation_loss(x.parts.translations.view(-1, 4, *x.parts.translations.shape[1:])),
+    Term("translation", 1.0, lambda x: translation_loss(_quad(x.parts.translations, x)),
          True, "lambda_t L_t'", "eqs. 5, 6", "disagreement of the translations predicted from the two viewpoints",
          translation_loss),
     Term("background", 1.0, lambda x: background_loss(x.pred.maps.prob, x.mask), True, "lambda_b L_b", "section 5",
@@ -310,6 +324,17 @@ TERM_TABLE: tuple[Term, ...] = (
     Term("reprojection", 0.0, _reprojection, False, "lambda_p L_p", BEYOND,
          "each part's translation projected into the partner camera against the partner's keypoint",
          reprojection_loss),
+    Term("coverage", 0.0, _coverage, False, "lambda_cov L_cov", BEYOND,
+         "every foreground pixel's distance to the nearest projected part vertex, thin structures weighted up",
+         silhouette_coverage),
+    Term("keypoint_coverage", 0.0, _keypoint_coverage, False, "lambda_kc L_kc", BEYOND,
+         "every foreground pixel's distance to the nearest part keypoint, thin structures weighted up (k-means)",
+         silhouette_coverage),
+    Term("overlap", 0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), False, "lambda_o L_o", BEYOND,
+         "share of each part's volume inside another part (each part the Gaussian of its vertices)", part_overlap),
+    Term("rotation", 0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), False, "lambda_R L_R", BEYOND,
+         "disagreement of the world rotations predicted from the two viewpoints (eq. 6 for rotations)",
+         rotation_loss),
 )
 """Every term of the training objective, in logging order."""
 
@@ -354,7 +379,7 @@ SWITCHES: tuple[tuple[str, Any, Any, str], ...] = (
     ("cross_view_warmup", int, ranged(0, ge=0), "with cross_view: own, the first this many steps still use "
      "'partner', so that early training, whose depths are still arbitrary, cannot lose the body off the "
      "partner's screen (cross_view_at)"),
-    ("cross_pulls", bool, False, "apply the chamfer and hidden-part pulls to the cross view as well, against the "
+    ("cross_pulls", bool, False, "apply the chamfer, coverage and hidden-part pulls to the cross view as well, against the "
      "partner's foreground, averaged with the input view's like equation 4; off: the input view only"),
     ("render_background", Literal["black", "dataset"], "black", "the background colour of the reconstruction "
      "loss: 'black' sets the input's background pixels (mask b) to black in the target and composites the "
