@@ -20,10 +20,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from cerberus_core.bodies.sources import make_source
-from cerberus_core.datasets.generate import generate, render_views
-from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
+from cerberus_core.bodies.body import source_class
+from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.datasets.generate import render_views
+from cerberus_core.datasets.plan import make_plan, preset_config
 from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.render.backends import available_renderers, make_renderer
 
 CPU = {"wall": 0.0, "cpu": 0.0}
@@ -58,7 +60,7 @@ def main() -> None:
 
     # --- stages ------------------------------------------------------------------------------------
     t0 = time.perf_counter()
-    source = make_source(args.source)
+    source = source_class(args.source)()
     subjects = source.subjects("train", 2, 0)
     source.bodies(subjects[0], [1])  # loads the model (anny) and computes subject 0's scale
     t_load = time.perf_counter() - t0
@@ -90,7 +92,7 @@ def main() -> None:
     for name in backends:
         with tempfile.TemporaryDirectory() as tmp:
             c = replace(cfg, renderer=name)
-            t = _time(lambda c=c, tmp=tmp: generate(c, Path(tmp) / "ds", source=source, progress=False, log=lambda s: None,
+            t = _time(lambda c=c, tmp=tmp: Dataset.generate(c, Path(tmp) / "ds", source=source, progress=False, log=lambda s: None,
                                        batch_size=args.batch))
             if name == backends[0]:
                 ds = QuadrupletDataset(Path(tmp) / "ds")
@@ -110,7 +112,7 @@ def main() -> None:
           f"times below are up to {args.threads / max(busy, 1e-9):.1f}x what {args.threads} free cores would give)")
     print(f"{'preset':<8} {'images':>7} {'bodies':>7} " + " ".join(f"{n:>12}" for n in backends) + "   target")
     for preset, target in (("small", 300.0), ("paper", 7200.0)):
-        plan = make_plan(preset_config("human", preset), make_source("human") if args.source == "human" else source)
+        plan = make_plan(preset_config("human", preset), source_class("human")() if args.source == "human" else source)
         images = sum(plan.totals(s)["images"] for s in plan.shards)
         meshes = sum(plan.totals(s)["meshes"] for s in plan.shards)
         row = []

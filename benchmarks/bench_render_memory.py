@@ -17,13 +17,13 @@ import sys
 PROBE = """
 import resource, sys
 import numpy as np
-from cerberus_core.bodies.sources import make_source
+from cerberus_core.bodies.body import source_class
 from cerberus_core.datasets.generate import build_bodies, render_views
 from cerberus_core.datasets.plan import make_plan, preset_config
 from cerberus_core.render.backends import make_renderer
 name, size, views = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 config = preset_config("primitives", "tiny", image_size=size)
-source = make_source("primitives")
+source = source_class("primitives")()
 plan = make_plan(config, source)
 shard = plan.shards["train"][0]
 bodies = build_bodies(source, plan.subjects, shard.meshes, len(source.part_names))

@@ -52,12 +52,13 @@ import torch
 def make_data(root: Path, image_size: int) -> Path:
     from dataclasses import replace
 
-    from cerberus_core.datasets.generate import generate
-    from cerberus_core.datasets.plan import SplitConfig, preset_config
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.datasets.plan import preset_config
+    from cerberus_core.datasets.settings import SplitConfig
 
     cfg = preset_config("primitives", "tiny", image_size=image_size)
     cfg = replace(cfg, splits={"train": SplitConfig("pairs", subjects=2, pairs=16, meshes=False)})
-    generate(cfg, root, progress=False, log=lambda _: None)
+    Dataset.generate(cfg, root, progress=False, log=lambda _: None)
     return root
 
 

@@ -26,8 +26,8 @@ import argparse
 
 import numpy as np
 
+from cerberus_core.bodies.body import source_class
 from cerberus_core.bodies.human_motion import MOTIONS, clip_of, is_motion_id
-from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.manifest import SubjectRecord
 from cerberus_core.datasets.plan import load_generation_config, make_plan
 
@@ -104,7 +104,7 @@ def main() -> None:
     parser.add_argument("--size", default="small", help="human size preset whose training split is planned")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    source = make_source("human")
+    source = source_class("human")()
     print(f"human/{args.size} training pairs, seed {args.seed}, first {args.pairs} pairs per mode")
     print(f"{'pose_pairs':<14} {'pairs':>5} {'|dθ| mean':>9} {'median':>8} {'5-25°':>8} {'>25°':>7} "
           f"{'joints>5°':>10} {'|θa| mean':>10} {'vert disp':>9}")

@@ -15,7 +15,7 @@ from pathlib import Path
 import yaml
 
 from cerberus_core.datasets.manifest import Manifest
-from cerberus_core.datasets.plan import GenerationConfig
+from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
@@ -78,7 +78,7 @@ def main() -> None:
                                     ("the pulls on the cross view too", config.losses.cross_pulls),
                                     (f"bfloat16 network ({config.speed.autocast})", config.speed.autocast)) if on]
     recipe = "the paper's losses and renderer" if not extras else "the paper's losses plus " + ", ".join(extras)
-    scene, supersample = manifest.scene, GenerationConfig.from_dict(manifest.config).supersample
+    scene, supersample = manifest.scene, manifest.config.supersample
     look = (f"{'black' if scene.background == (0.0, 0.0, 0.0) else 'white'} background, "
             f"{supersample}x{supersample} samples per pixel, "
             f"camera distance {scene.distance} at elevation {scene.elevation} degrees")

@@ -17,8 +17,9 @@ from pathlib import Path
 import pytest
 
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
-from cerberus_core.datasets.generate import generate
-from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, preset_config
+from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.datasets.plan import preset_config
+from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.plugins import PluginError, get_metric
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.train.config import load_config
@@ -51,14 +52,14 @@ def tiny_grid_config(**overrides) -> GenerationConfig:
 @pytest.fixture(scope="session")
 def pairs_dataset(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("pairs") / "ds"
-    generate(tiny_pairs_config(), out, progress=False, log=lambda s: None)
+    Dataset.generate(tiny_pairs_config(), out, progress=False, log=lambda s: None)
     return out
 
 
 @pytest.fixture(scope="session")
 def grid_dataset(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("grid") / "ds"
-    generate(tiny_grid_config(), out, progress=False, log=lambda s: None)
+    Dataset.generate(tiny_grid_config(), out, progress=False, log=lambda s: None)
     return out
 
 
@@ -83,7 +84,7 @@ def grid_config():
 @pytest.fixture(scope="session")
 def tiny_root(tmp_path_factory):
     root = tmp_path_factory.mktemp("data") / "primitives_tiny"
-    generate(preset_config("primitives", "tiny", image_size=32), root, progress=False, log=lambda _: None)
+    Dataset.generate(preset_config("primitives", "tiny", image_size=32), root, progress=False, log=lambda _: None)
     return root
 
 

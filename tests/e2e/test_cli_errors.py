@@ -18,9 +18,9 @@ import pytest
 import torch
 
 from cerberus_core.cli import main
-from cerberus_core.cli.checks import RESULT_MARKER
-from cerberus_core.datasets.generate import generate
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
+from cerberus_core.plumbing.outputs import RESULT_MARKER
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are
@@ -41,7 +41,7 @@ def fake_png(path: Path, width: int, height: int) -> Path:
 def place(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("cli_errors")
     data, run = root / "data", root / "run"
-    generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
+    Dataset.generate(preset_config("primitives", "tiny", image_size=32), data, progress=False, log=lambda _: None)
     torch_threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -198,19 +198,20 @@ CASES = [
           ("set-yaml", "--set seed=[1 --out {root}/new", "not valid YAML"),
           ("set-key", "--set splits.train.pair=3 --out {root}/new", "did you mean 'splits.train.pairs'"),
           ("set-nan", "--set scene.elevation=.nan --out {root}/new", "scene.elevation = nan: must be a finite"),
-          ("pairs-negative", "--set splits.train.pairs=-1 --out {root}/new", "pairs must be >= 0"),
+          ("pairs-negative", "--set splits.train.pairs=-1 --out {root}/new", "splits.train.pairs = -1: must be an integer >= 0"),
           ("split-empty", "--set splits.train.pairs=0 --out {root}/new", "split 'train' would be empty"),
           ("split-huge", "--set splits.train.pairs=100000000 --out {root}/new", "400,000,000 images, more than"),
-          ("subjects-huge", "--set splits.train.subjects=1000000 --out {root}/new", "subjects 1000000: at most"),
-          ("views-huge", "--set splits.test.views=100000 --out {root}/new", "views 100000: at most 360"),
-          ("quadruplets-negative", "--set splits.test.quadruplets_per_pose=-1 --out {root}/new", "must be >= 0"),
+          ("subjects-huge", "--set splits.train.subjects=1000000 --out {root}/new", "splits.train.subjects = 1000000: must be an integer in [0, 10000]"),
+          ("views-huge", "--set splits.test.views=100000 --out {root}/new", "splits.test.views = 100000: must be an integer in [1, 360]"),
+          ("quadruplets-negative", "--set splits.test.quadruplets_per_pose=-1 --out {root}/new",
+           "splits.test.quadruplets_per_pose = -1: must be an integer >= 0"),
           ("scene-near", "--set scene.near=-1 --out {root}/new", "scene.near = -1.0: must be a number > 0"),
           ("scene-far", "--set scene.far=1 --out {root}/new", "far 1.0 must exceed the distance"),
           ("scene-background", "--set scene.background=[2,0,0] --out {root}/new", "RGB values must lie in [0, 1]"),
           ("seed-negative", "--seed -1 --out {root}/new", "--seed -1: must be an integer >= 0"),
           ("shard-images-0", "--shard-images 0 --out {root}/new", "--shard-images 0: must be an integer >= 4"),
           ("batch-size-0", "--batch-size 0 --out {root}/new", "--batch-size: must be >= 1"),
-          ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--dataset folder only"),
+          ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--test-fraction 0.5: not an option of the primitives body source"),
           ("out-file", "--out {root}/afile", "is a file"),
           ("out-under-file", "--out {root}/afile/sub", "is under"),
           ("out-notes", "--out {root}/notes", "is not empty and holds no Cerberus dataset"),
@@ -218,11 +219,11 @@ CASES = [
       ] for dry in (False, True)],
     pytest.param("data-generate-cuda", GEN + " --device cuda --out {root}/new", "CUDA is not available",
                  marks=NO_CUDA),
-    ("data-generate-folder-no-source", "data generate --dataset folder --out {root}/new", "--source DIR is required"),
+    ("data-generate-folder-no-source", "data generate --dataset folder --out {root}/new", "--source: the folder source needs its folder of meshes: --source DIR"),
     ("data-generate-folder-missing", "data generate --dataset folder --source {root}/nothing --out {root}/new",
      "does not exist"),
     ("data-generate-folder-fraction", "data generate --dataset folder --source {root}/notes --test-fraction 2 "
-     "--out {root}/new", "--test-fraction 2.0: must lie in [0, 1]"),
+     "--out {root}/new", "--test-fraction 2.0: must be a number in [0, 1]"),
     ("data-check-missing", "data check {root}/nothing", "does not exist"),
     ("data-check-file", "data check {root}/afile", "is a file, not a dataset folder"),
     ("data-check-notes", "data check {root}/notes", "is not a Cerberus dataset"),
@@ -230,7 +231,8 @@ CASES = [
     ("data-show-notes", "data show {root}/notes --out {root}/sheet.png", "is not a Cerberus dataset"),
     ("data-show-split", "data show {data} --split nosuch --out {root}/sheet.png", "no split 'nosuch'"),
     ("data-show-count-0", "data show {data} --count 0 --out {root}/sheet.png", "--count: must be >= 1"),
-    ("data-show-scale-huge", "data show {data} --scale 1000 --out {root}/sheet.png", "--scale 1000: at most"),
+    ("data-show-scale-huge", "data show {data} --scale 1000 --out {root}/sheet.png",
+     "--scale 1000: must be an integer in [1, 16]"),
     ("data-show-out-folder", "data show {data} --out {root}/notes", "is a folder"),
     ("data-show-out-under-file", "data show {data} --out {root}/afile/sheet.png", "which is a file"),
     ("data-show-renderer", "data show {data} --renderer nope --out {root}/sheet.png", "unknown renderer 'nope'"),
@@ -292,18 +294,18 @@ def test_a_run_is_usable_from_another_directory(place, tmp_path, monkeypatch, ca
 
 def test_an_unfinished_dataset_names_the_command_that_finishes_it(tmp_path, monkeypatch, capsys):
     """A reader's refusal (train, eval) gives the exact `cerberus data generate` command, and it resumes."""
-    import cerberus_core.datasets.generate as gen
+    import cerberus_core.datasets.dataset as dataset_module
     from cerberus_core.datasets.readers import QuadrupletDataset
 
     data = tmp_path / "partial"
-    original = gen.generate
+    original = dataset_module.write_dataset
 
     def interrupted_after_one_shard(*args, **kwargs):
         def stop(split, rec):
             raise KeyboardInterrupt
-        return original(*args, **kwargs, on_shard=stop)
+        return original(*args, **{**kwargs, "on_shard": stop})
 
-    monkeypatch.setattr(gen, "generate", interrupted_after_one_shard)
+    monkeypatch.setattr(dataset_module, "write_dataset", interrupted_after_one_shard)
     assert main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--image-size", "24",
                  "--shard-images", "8", "--set", "splits.train.pairs=4", "--set", "scene.albedo=[0.5, 0.6, 0.7]",
                  "--out", str(data), "--quiet"]) == 130

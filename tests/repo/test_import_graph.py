@@ -118,3 +118,44 @@ def test_few_function_local_imports_of_our_own_modules_outside_cli() -> None:
 def test_the_cycle_finder_finds_cycles() -> None:
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+#: The layers of cerberus_core, lowest first (docs/architecture.md, "Dependencies point one way"): a module
+#: imports only modules of its own layer or of lower ones. The first matching prefix gives a module's layer.
+LAYERS: list[tuple[str, ...]] = [
+    ("cerberus_core.errors", "cerberus_core.release", "cerberus_core.plumbing", "cerberus_core.shapes",
+     "cerberus_core.fields", "cerberus_core.config", "cerberus_core.devices", "cerberus_core.plugins",
+     "cerberus_core.viz", "cerberus_core.vendor"),
+    ("cerberus_core.render",),
+    ("cerberus_core.bodies",),
+    ("cerberus_core.datasets", "cerberus_core.parts", "cerberus_core.model", "cerberus_core.losses"),
+    ("cerberus_core.train", "cerberus_core.eval"),
+    ("cerberus_core.run", "cerberus_core.zoo", "cerberus_core.testing"),
+    ("cerberus_core.cli", "cerberus_core.__main__", "cerberus_core"),
+]
+
+
+def _layer(module: str) -> int | None:
+    for rank, prefixes in enumerate(LAYERS):
+        if any(module == p or module.startswith(p + ".") for p in prefixes):
+            return rank
+    return None
+
+
+def test_core_dependencies_point_one_way():
+    """A lower layer never imports a higher one at module level: render/ nothing above it, bodies/ no
+    renderer, datasets/ nothing of training or evaluation, plumbing/ no domain concept."""
+    core = [m for m in MODULES if m == "cerberus_core" or m.startswith("cerberus_core.")]
+    unplaced = [m for m in core if _layer(m) is None]
+    assert not unplaced, f"give these modules a layer in LAYERS: {unplaced}"
+    upward = []
+    for module in core:
+        for target in sorted(_imports(module)[0]):
+            if target.startswith("cerberus_core") and _layer(target) > _layer(module):
+                upward.append(f"{module} (layer {_layer(module)}) imports {target} (layer {_layer(target)})")
+    assert not upward, "imports that point up the layers:\n" + "\n".join(upward)
+
+
+def test_the_direction_check_sees_an_upward_import():
+    assert _layer("cerberus_core.render.api") < _layer("cerberus_core.datasets.readers") < _layer("cerberus_core.run")
+    assert _layer("cerberus_core.plumbing.outputs") == 0 and _layer("cerberus_core.cli.data") == len(LAYERS) - 1

@@ -21,12 +21,9 @@ OTHER_TOOLS = re.compile(r"pip install.*")
 COMMAND_LINE = ("cerberus_core/cli/", "cerberus_metrics/cli.py", "__main__.py")
 
 
-#: Strings that are not messages, by module and the function or name that holds them: the command that
-#: resumes a dataset (which ``datasets/readers.py`` names) and its flag table; the conformance suite's
-#: own pytest option.
-NOT_MESSAGES = {("cerberus_core/datasets/plan.py", "generate_command"),
-                ("cerberus_core/datasets/plan.py", "SHORTCUT_FLAGS"),
-                ("cerberus_core/testing/conftest.py", "pytest_addoption"),
+#: Strings that are not messages, by module and the function or name that holds them: the conformance
+#: suite's own pytest option.
+NOT_MESSAGES = {("cerberus_core/testing/conftest.py", "pytest_addoption"),
                 ("cerberus_core/testing/conftest.py", "_select")}
 
 
@@ -85,9 +82,9 @@ def f(x):
     lines = ["ok"]
     lines.append("run it with " + "--data DIR")
     return f"{x} (--set a.b=VALUE)"
-def generate_command():
+def pytest_addoption():
     return ["--out"]
 HINT = "pip install --force-reinstall cerberus-core"
 '''
-    found = flags_named("cerberus_core/datasets/plan.py", src)
+    found = flags_named("cerberus_core/testing/conftest.py", src)
     assert [h.split(": ")[1].split(" in ")[0] for h in found] == ["--overwrite", "--data", "--set"], found

@@ -1,8 +1,6 @@
 """Bring your own meshes: a folder of posed meshes becomes a dataset."""
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 import trimesh
@@ -10,11 +8,11 @@ import trimesh
 from cerberus_core.bodies.body import FILL
 from cerberus_core.bodies.folder import FolderSource
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError
-from cerberus_core.datasets.generate import generate
 from cerberus_core.datasets.manifest import Manifest, SourceRecord
-from cerberus_core.datasets.plan import GenerationConfig, preset_config
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, verify_dataset
+from cerberus_core.datasets.plan import preset_config
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 
 
 def _export(path, vertices, faces):
@@ -71,8 +69,8 @@ def test_folder_source_normalises_each_subject_once(mesh_folder):
 def test_folder_dataset_end_to_end(mesh_folder, tmp_path, preset):
     options = {"root": str(mesh_folder), "test_subjects": ["carol"]}
     cfg = preset_config("folder", preset, image_size=32)
-    generate(cfg, tmp_path / "ds", source_options=options, progress=False, log=lambda s: None)
-    assert verify_dataset(tmp_path / "ds")[1] == []
+    Dataset.generate(cfg, tmp_path / "ds", source_options=options, progress=False, log=lambda s: None)
+    assert Dataset.open(tmp_path / "ds").verify() == []
     quads = QuadrupletDataset(tmp_path / "ds")
     names = {quads.subject_names[int(quads[i]["subject"])] for i in range(len(quads))}
     assert names == {"alice", "bob"}
@@ -187,12 +185,12 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
         assert main([*base, "--source", str(y_root), "--out", str(tmp_path / "dy")]) == 0
     manifest = Manifest.read(tmp_path / "dz")
     assert manifest.source.options["up_axis"] == "+z"
-    assert GenerationConfig.from_dict(manifest.config).source["up_axis"] == "+z"
+    assert manifest.config.source["up_axis"] == "+z"
     z_test, y_test = ViewDataset(tmp_path / "dz"), ViewDataset(tmp_path / "dy")
     np.testing.assert_allclose(z_test.gt_mesh(0).vertices, y_test.gt_mesh(0).vertices, atol=1e-6)
     capsys.readouterr()
     assert main([*base[:3], "primitives", "--out", str(tmp_path / "p"), "--up-axis", "+z", "--dry-run"]) == 2
-    assert "--dataset folder only" in capsys.readouterr().err
+    assert "--up-axis +z: not an option of the primitives body source (it takes none)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("scale", [1e6, 1e-6])
@@ -205,7 +203,7 @@ def test_meshes_in_huge_or_tiny_units_render_like_metres(tmp_path, scale):
                       strict=True):
         np.testing.assert_allclose(b.vertices, ref.vertices, atol=1e-6)
     for root, out in ((metres, "dm"), (scaled, "ds")):
-        generate(cfg, tmp_path / out, source_options={"root": str(root), **options}, progress=False,
+        Dataset.generate(cfg, tmp_path / out, source_options={"root": str(root), **options}, progress=False,
                  log=lambda s: None)
     a, b = ViewDataset(tmp_path / "dm"), ViewDataset(tmp_path / "ds")
     for i in range(len(a)):
@@ -257,11 +255,11 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
     assert source.subjects("train", None, 0) == [] and len(source.subjects("test", None, 0)) == 2
     assert source.describe()["canonical"] == "rest"
     logs = []
-    manifest = generate(preset_config("folder", "pairs", image_size=32), tmp_path / "ds",
-                        source_options={"root": str(root), "test_fraction": 1.0, "canonical": "rest"},
-                        progress=False, log=logs.append)
+    manifest = Dataset.generate(preset_config("folder", "pairs", image_size=32), tmp_path / "ds",
+                                source_options={"root": str(root), "test_fraction": 1.0, "canonical": "rest"},
+                                progress=False, log=logs.append).manifest
     assert logs == ["split 'train' has no subject and is left empty"]
-    assert manifest.split("train").planned_shards == 0 and verify_dataset(tmp_path / "ds")[1] == []
+    assert manifest.split("train").planned_shards == 0 and Dataset.open(tmp_path / "ds").verify() == []
     test = ViewDataset(tmp_path / "ds")
     assert len(test) == 2 * 3 * 4  # 2 poses + the canonical one, 4 views each
     canon = test.canonical_indices()
@@ -276,7 +274,7 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
     assert err.count("\n") == 1 and "split 'train' is empty" in err
     assert not run.exists()  # nothing written
     with pytest.raises(ValueError, match="no split has a subject"):
-        generate(preset_config("folder", "pairs", image_size=32, splits={"train": preset_config(
+        Dataset.generate(preset_config("folder", "pairs", image_size=32, splits={"train": preset_config(
             "folder", "pairs").splits["train"]}), tmp_path / "ds2",
             source_options={"root": str(root), "test_fraction": 1.0}, progress=False, log=lambda s: None)
 
@@ -310,18 +308,14 @@ def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
     used to blame test_fraction 1, which empties the *train* split instead."""
     root = _figures(tmp_path / "m", poses=(1, 2), subjects=1)
     out = tmp_path / "ds"
-    generate(preset_config("folder", "pairs", image_size=32), out,
+    Dataset.generate(preset_config("folder", "pairs", image_size=32), out,
              source_options={"root": str(root), "test_fraction": 0.3}, progress=False, log=lambda s: None)
     with pytest.raises(DatasetError) as info:
         ViewDataset(out)
     msg = str(info.value)
     assert "split 'test' is empty" in msg and "`test_fraction=0.3` of its 1 subject gives round(0.3 x 1) = 0 test" in msg
     assert "`test_fraction=1` (every subject a test subject" in msg and "made with" not in msg
-    from cerberus_core.datasets.readers import empty_split_hint
-
-    manifest = Manifest.read(out)
-    three = replace(manifest, subjects=manifest.subjects * 3, source=SourceRecord("folder", {"test_fraction": 0.0}))
-    assert "`test_fraction=0` of its 3 subjects gives 0 (a fraction of 0) test subjects" in empty_split_hint(three,
-                                                                                                              "test")
-    train = replace(manifest, source=SourceRecord("folder", {"test_fraction": 1.0}))
-    assert "(its only subject is a test subject, `test_fraction=1`)" in empty_split_hint(train, "train", out)
+    hint = SourceRecord("folder", {"test_fraction": 0.0}).empty_split_hint(3, "test", out)
+    assert "`test_fraction=0` of its 3 subjects gives 0 (a fraction of 0) test subjects" in hint
+    hint = FolderSource.empty_split_hint({"test_fraction": 1.0}, 1, "train", out)
+    assert "(its only subject is a test subject, `test_fraction=1`)" in hint

@@ -108,15 +108,15 @@ def test_a_second_writer_of_a_dataset_folder_is_refused_with_the_holders_pid(tmp
 
 
 def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, capsys):
-    """plan.generate_command names the mesh folder and its test split: rerunning it resumes (here:
+    """cli.data.generate_command names the mesh folder and its test split: rerunning it resumes (here:
     nothing left to do) instead of refusing a different dataset."""
     import shlex
 
     import trimesh
 
     from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
-    from cerberus_core.datasets.manifest import Manifest
-    from cerberus_core.datasets.plan import generate_command
+    from cerberus_core.cli.data import generate_command
+    from cerberus_core.datasets.dataset import Dataset
 
     meshes = tmp_path / "meshes"
     source = PrimitiveBodySource()
@@ -128,7 +128,7 @@ def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, ca
     out = tmp_path / "ds"
     assert main(["data", "generate", "--dataset", "folder", "--source", str(meshes), "--test-subjects", "cat",
                  "--image-size", "24", "--out", str(out), "--quiet"]) == 0
-    command = generate_command(out, Manifest.read(out))
+    command = generate_command(Dataset.open(out))
     words = shlex.split(command)
     assert words[words.index("--source") + 1] == str(meshes.resolve()) and "--test-subjects" in words
     capsys.readouterr()

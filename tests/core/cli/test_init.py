@@ -19,11 +19,15 @@ from cerberus_core.config import load_yaml
 def test_unknown_renderer_and_choice_name_the_close_match(capsys, tmp_path):
     assert main(["train", "--preset", "tiny", "--set", "renderer=Warp", "--set", f"data.root={tmp_path}",
                  "--print-config"]) == 2 or True  # print-config resolves the name lazily: check the table below
-    with pytest.raises(SystemExit) as exit_:
-        main(["data", "generate", "--dataset", "humna", "--out", str(tmp_path / "d")])
+    capsys.readouterr()
+    assert main(["data", "generate", "--dataset", "humna", "--out", str(tmp_path / "d")]) == 2  # a body source
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown body source 'humna'" in err[0] and "did you mean 'human'?" in err[0]
+    with pytest.raises(SystemExit) as exit_:  # an argparse choice
+        main(["train", "--preset", "tiyn", "--print-config"])
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "did you mean 'human'?" in err[0]
+    assert len(err) == 1 and "did you mean 'tiny'?" in err[0]
     from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError, get_plugin
     with pytest.raises(UnknownPluginError, match="did you mean 'warp'"):
         get_plugin(RENDERER_GROUP, "Warp")

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cerberus_core.bodies.body import PosedBody
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
@@ -19,7 +20,6 @@ from cerberus_core.datasets.format import (
     write_shard,
 )
 from cerberus_core.datasets.manifest import MANIFEST
-from cerberus_core.datasets.readers import verify_dataset
 
 
 def _body(rng, n_verts, n_faces, pose, faces=None, parts=None):
@@ -107,7 +107,7 @@ def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
     m = json.loads((ds / MANIFEST).read_text())
     m["splits"]["train"]["shards"][0]["files"]["images"]["path"] = "../../etc/passwd"
     (ds / MANIFEST).write_text(json.dumps(m))
-    _, problems = verify_dataset(ds)
+    problems = Dataset.open(ds).verify()
     assert any("escapes the dataset folder" in p for p in problems)
     from cerberus_core.datasets.readers import QuadrupletDataset
 
@@ -118,23 +118,24 @@ def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
 def test_corruption_is_detected(pairs_dataset, tmp_path):
     ds = tmp_path / "ds"
     shutil.copytree(pairs_dataset, ds)
-    manifest, problems = verify_dataset(ds)
+    dataset = Dataset.open(ds)
+    manifest, problems = dataset.manifest, dataset.verify()
     assert problems == [] and manifest.complete
     shard = manifest.split("train").shards[1]
     images = ds / shard.files["images"].path
     data = bytearray(images.read_bytes())
     data[-5] ^= 0xFF  # one flipped pixel byte: same size, wrong sha256
     images.write_bytes(bytes(data))
-    _, problems = verify_dataset(ds)
+    problems = Dataset.open(ds).verify()
     assert len(problems) == 1 and str(images) in problems[0] and "sha256" in problems[0]
-    _, quick = verify_dataset(ds, checksums=False)
+    quick = Dataset.open(ds).verify(checksums=False)
     assert quick == []  # sizes alone cannot see a flipped byte
     views = ds / shard.files["views"].path
     views.write_bytes(views.read_bytes()[:-3])  # truncated
-    _, problems = verify_dataset(ds, checksums=False)
+    problems = Dataset.open(ds).verify(checksums=False)
     assert any(str(views) in p and "bytes" in p for p in problems)
     (ds / shard.files["quads"].path).unlink()
-    _, problems = verify_dataset(ds, checksums=False)
+    problems = Dataset.open(ds).verify(checksums=False)
     assert any("missing" in p for p in problems)
 
 
@@ -146,7 +147,7 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
 
     root = tmp_path / "ds"
     shutil.copytree(pairs_dataset, root)
-    assert verify_dataset(root)[1] == []
+    assert Dataset.open(root).verify() == []
     manifest = json.loads((root / MANIFEST).read_text())
     shard = manifest["splits"]["test"]["shards"][0]
     path = resolve_inside(root, shard["files"]["images"]["path"])
@@ -158,7 +159,7 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
     np.save(path, images)
     shard["files"]["images"]["sha256"] = sha256_file(path)  # a consistent dataset: only the views are wrong
     (root / MANIFEST).write_text(json.dumps(manifest))
-    _, problems = verify_dataset(root)
+    problems = Dataset.open(root).verify()
     assert len(problems) == 1
     subject = manifest["subjects"][int(views[2]["subject"])]["name"]
     assert str(path) in problems[0] and "2 of" in problems[0] and "render empty" in problems[0]

@@ -11,11 +11,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError, sha256_file
-from cerberus_core.datasets.generate import generate
 from cerberus_core.datasets.manifest import MANIFEST, Manifest
 from cerberus_core.datasets.plan import preset_config
-from cerberus_core.datasets.readers import verify_dataset
 from cerberus_core.datasets.scene import SceneSetup
 
 QUIET = {"progress": False, "log": lambda s: None}
@@ -28,10 +27,10 @@ def _fingerprint(root) -> dict[str, str]:
 
 def test_same_seed_same_dataset(pairs_dataset, pairs_config, tmp_path):
     again = tmp_path / "again"
-    generate(pairs_config(), again, **QUIET)
+    Dataset.generate(pairs_config(), again, **QUIET)
     assert _fingerprint(again) == _fingerprint(pairs_dataset)
     other = tmp_path / "other"
-    generate(pairs_config(seed=1), other, **QUIET)
+    Dataset.generate(pairs_config(seed=1), other, **QUIET)
     m0 = json.loads((pairs_dataset / MANIFEST).read_text())
     m1 = json.loads((other / MANIFEST).read_text())
     sha = lambda m: [s["files"]["images"]["sha256"] for s in m["splits"]["train"]["shards"]]  # noqa: E731
@@ -48,7 +47,7 @@ def test_interrupted_run_resumes_to_the_identical_dataset(pairs_dataset, pairs_c
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        generate(pairs_config(), out, on_shard=crash_after_two, **QUIET)
+        Dataset.generate(pairs_config(), out, on_shard=crash_after_two, **QUIET)
     manifest = Manifest.read(out)
     assert not manifest.complete and len(manifest.split("train").shards) == 2
     from cerberus_core.datasets.readers import QuadrupletDataset
@@ -58,7 +57,7 @@ def test_interrupted_run_resumes_to_the_identical_dataset(pairs_dataset, pairs_c
     finished = manifest.split("train").totals()["quadruplets"]
     assert len(QuadrupletDataset(out, allow_partial=True)) == finished > 0
     rebuilt = []
-    generate(pairs_config(), out, on_shard=lambda split, rec: rebuilt.append((split, rec.name)), **QUIET)
+    Dataset.generate(pairs_config(), out, on_shard=lambda split, rec: rebuilt.append((split, rec.name)), **QUIET)
     final = Manifest.read(out)
     everything = [(split, s.name) for split in ("train", "test") for s in final.split(split).shards]
     assert rebuilt == everything[2:]  # the finished shards were not redone
@@ -72,8 +71,8 @@ def test_killed_mid_shard_leaves_no_accepted_half_shard(pairs_dataset, pairs_con
     script = textwrap.dedent(f"""
         import os, signal
         from cerberus_core.datasets import format as fmt
-        from cerberus_core.datasets.generate import generate
-        from cerberus_core.datasets.plan import GenerationConfig, SplitConfig
+        from cerberus_core.datasets.dataset import Dataset
+        from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
         saves = []
         original = fmt.atomic_save_npy
         def save(path, array):
@@ -87,7 +86,7 @@ def test_killed_mid_shard_leaves_no_accepted_half_shard(pairs_dataset, pairs_con
             "test": SplitConfig("grid", subjects=1, poses=2, views=4, canonical=True),
         }}
         config = GenerationConfig("primitives", "test-pairs", splits, image_size=32, shard_images=8)
-        generate(config, {str(out)!r}, progress=False, log=lambda s: None)
+        Dataset.generate(config, {str(out)!r}, progress=False, log=lambda s: None)
     """)
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert proc.returncode == -9, proc.stderr
@@ -95,7 +94,7 @@ def test_killed_mid_shard_leaves_no_accepted_half_shard(pairs_dataset, pairs_con
     assert [s["name"] for s in manifest["splits"]["train"]["shards"]] == ["shard-00000"]
     assert (out / "train" / "shard-00001.images.npy").exists()  # written, but not listed: not accepted
     (out / "train" / ".shard-00001.quads.npy.abc.tmp").write_bytes(b"partial")  # a torn temporary
-    generate(pairs_config(), out, **QUIET)
+    Dataset.generate(pairs_config(), out, **QUIET)
     assert _fingerprint(out) == _fingerprint(pairs_dataset)
 
 
@@ -107,7 +106,7 @@ def test_damaged_finished_shard_is_rebuilt_on_resume(pairs_dataset, tmp_path, pa
     victim = out / "train" / "shard-00001.views.npy"
     victim.write_bytes(victim.read_bytes()[:-1] + b"\x00")
     messages = []
-    generate(pairs_config(), out, progress=False, log=messages.append)
+    Dataset.generate(pairs_config(), out, progress=False, log=messages.append)
     assert any("damaged" in m and "shard-00001" in m for m in messages)
     assert _fingerprint(out) == _fingerprint(pairs_dataset)
 
@@ -119,19 +118,19 @@ def test_foreign_or_different_folders_are_refused(pairs_dataset, pairs_config, t
     shutil.copytree(pairs_dataset, out)
     before = _fingerprint(out)
     with pytest.raises(DatasetError, match="different dataset.*seed"):
-        generate(pairs_config(seed=3), out, **QUIET)
+        Dataset.generate(pairs_config(seed=3), out, **QUIET)
     assert _fingerprint(out) == before  # nothing overwritten
-    generate(pairs_config(seed=3), out, overwrite=True, **QUIET)
+    Dataset.generate(pairs_config(seed=3), out, overwrite=True, **QUIET)
     assert json.loads((out / MANIFEST).read_text())["config"]["seed"] == 3
-    assert verify_dataset(out)[1] == []
+    assert Dataset.open(out).verify() == []
 
     busy = tmp_path / "busy"
     busy.mkdir()
     (busy / "notes.txt").write_text("mine")
     with pytest.raises(DatasetError, match="not empty"):
-        generate(pairs_config(), busy, **QUIET)
+        Dataset.generate(pairs_config(), busy, **QUIET)
     assert sorted(p.name for p in busy.iterdir()) == ["notes.txt"]
-    generate(pairs_config(), busy, overwrite=True, **QUIET)
+    Dataset.generate(pairs_config(), busy, overwrite=True, **QUIET)
     assert (busy / "notes.txt").read_text() == "mine"  # --overwrite only replaces dataset files
 
 
@@ -141,7 +140,7 @@ def test_resuming_a_finished_dataset_does_nothing(pairs_dataset, pairs_config, t
     out = tmp_path / "ds"
     shutil.copytree(pairs_dataset, out)
     built = []
-    generate(pairs_config(), out, on_shard=lambda *a: built.append(a), **QUIET)
+    Dataset.generate(pairs_config(), out, on_shard=lambda *a: built.append(a), **QUIET)
     assert built == []
     assert _fingerprint(out) == _fingerprint(pairs_dataset)
 
@@ -189,8 +188,8 @@ def test_the_memory_of_a_generation_is_checked_where_it_lives(monkeypatch, tmp_p
     monkeypatch.setattr(gen.os, "sysconf", lambda name: ram[name])
     with pytest.raises(ConfigError, match="on this machine .*lower `image_size`, `batch_size` or `shard_images`"):
         gen.validate_generation(config, batch_size=24)
-    with pytest.raises(ConfigError, match="on this machine"):  # generate() validates first: nothing written
-        gen.generate(config, tmp_path / "ds", batch_size=24, **QUIET)
+    with pytest.raises(ConfigError, match="on this machine"):  # Dataset.generate() validates first: nothing written
+        Dataset.generate(config, tmp_path / "ds", batch_size=24, **QUIET)
     assert not (tmp_path / "ds").exists()
 
 

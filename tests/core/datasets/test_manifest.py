@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.manifest import (
     FORMAT_VERSION,
@@ -18,9 +19,9 @@ from cerberus_core.datasets.manifest import (
     ShardRecord,
     SplitRecord,
 )
-from cerberus_core.datasets.plan import GenerationConfig
-from cerberus_core.datasets.readers import ViewDataset, verify_dataset
+from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.settings import GenerationConfig
 
 OLD_MANIFEST = Path(__file__).with_name("old_manifest.json")
 """The manifest of `primitives`/`tiny` as the first release of the format wrote it (cerberus_core
@@ -41,7 +42,7 @@ def test_read_gives_typed_records(pairs_dataset):
     assert isinstance(train.shards[0].files["images"], FileRecord)
     assert train.totals()["images"] == train.planned_images
     assert m.subjects[0].subject.name == m.subjects[0].name and "train" in m.subjects[0].splits
-    assert GenerationConfig.from_dict(m.config).to_dict() == m.config
+    assert isinstance(m.config, GenerationConfig) and m.config.to_dict() == raw["config"]
     assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
     with pytest.raises(DatasetError, match="no split 'val'; this dataset has \\['test', 'train'\\]"):
         m.split("val")
@@ -93,8 +94,8 @@ def test_read_errors_name_the_problem(tmp_path, pairs_dataset):
     ds = tmp_path / "ds"
     shutil.copytree(pairs_dataset, ds)
     (ds / MANIFEST).write_text(json.dumps(cases["format version 2"]))
-    _, problems = verify_dataset(ds)
-    assert problems and "format version" in problems[0]
+    with pytest.raises(DatasetError, match="format version"):  # `cerberus data check` exits 2 on it
+        Dataset.open(ds)
 
 
 def test_a_manifest_written_by_the_first_release_still_reads(tmp_path):
@@ -104,5 +105,5 @@ def test_a_manifest_written_by_the_first_release_still_reads(tmp_path):
     assert m.generator == {"cerberus_core": "0.1.0"}
     assert sorted(m.splits) == ["test", "train"] and all(s.complete for s in m.splits.values())
     assert m.split("train").shards[0].files["images"].shape == (24, 3, 64, 64)
-    assert GenerationConfig.from_dict(m.config).splits["train"].layout == "pairs"
+    assert isinstance(m.config, GenerationConfig) and m.config.splits["train"].layout == "pairs"
     assert m.to_json() == json.loads(OLD_MANIFEST.read_text())  # rewritten on resume without loss

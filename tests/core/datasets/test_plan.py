@@ -6,12 +6,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cerberus_core.bodies.sources import make_source
-from cerberus_core.datasets.plan import GenerationConfig, SplitConfig, make_plan, preset_config
+from cerberus_core.bodies.body import source_class
+from cerberus_core.datasets.plan import make_plan, preset_config
+from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 
 
 def _plan(config):
-    return make_plan(config, make_source(config.dataset))
+    return make_plan(config, source_class(config.dataset)())
 
 
 def test_human_paper_preset_counts():
@@ -93,7 +94,7 @@ def test_grid_quadruplets_and_canonical_views():
 
 
 def test_splits_must_not_share_subjects():
-    class Same(type(make_source("primitives"))):
+    class Same(source_class("primitives")):
         def subjects(self, split, n, seed):
             return super().subjects("train", n, seed)
 
@@ -103,13 +104,18 @@ def test_splits_must_not_share_subjects():
 
 
 def test_every_bundled_dataset_preset_loads():
-    from cerberus_core.datasets.plan import DATASETS, load_generation_config, sizes
+    from cerberus_core.datasets.plan import load_generation_config
+    from cerberus_core.plugins import BODY_GROUP, plugin_names
+
+    def sizes(dataset: str) -> list[str]:
+        return source_class(dataset).sizes()
 
     assert sizes("human") == ["large", "paper", "small", "small128", "small_faithful", "tiny"]
     assert sizes("animal") == ["paper", "small", "small128", "small_faithful", "tiny"]
     assert sizes("primitives") == ["paper", "small", "tiny"]
     assert sizes("folder") == ["grid", "pairs"]
-    for dataset in DATASETS:
+    assert {"human", "animal", "primitives", "folder"} <= set(plugin_names(BODY_GROUP))
+    for dataset in plugin_names(BODY_GROUP):
         for size in sizes(dataset):
             cfg = load_generation_config(dataset, size)
             assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
@@ -179,4 +185,4 @@ def test_motion_pairs_are_refused_where_they_cannot_exist():
     with pytest.raises(ValueError, match="pose_pairs"):
         load_generation_config("human", "tiny", ["splits.train.pose_pairs=video"])
     with pytest.raises(ConfigError, match="unlimited motion pairs"):
-        make_source("human").motion_pairs(make_source("human").subjects("train", 1, 0)[0], "train", None)
+        source_class("human")().motion_pairs(source_class("human")().subjects("train", 1, 0)[0], "train", None)

@@ -96,16 +96,16 @@ def test_view_dataset_contract_gt_mesh_and_canonical(pairs_dataset):
 def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     from dataclasses import replace
 
-    from cerberus_core.bodies.sources import make_source
-    from cerberus_core.datasets.generate import generate
+    from cerberus_core.bodies.body import source_class
+    from cerberus_core.datasets.dataset import Dataset
 
     cfg = pairs_config()
     cfg = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], meshes=False)})
-    generate(cfg, tmp_path / "ds", progress=False, log=lambda s: None)
+    Dataset.generate(cfg, tmp_path / "ds", progress=False, log=lambda s: None)
     ds = ViewDataset(tmp_path / "ds", "train")
     assert "vertices" not in ds.manifest.split("train").shards[0].files
     body = ds.gt_mesh(6)
-    src = make_source("primitives")
+    src = source_class("primitives")()
     (subject,) = [s for s in src.subjects("train", 2, 0) if s.name == body.subject]
     expected = src.bodies(subject, [body.pose_id])[0]
     np.testing.assert_array_equal(body.vertices, expected.vertices)

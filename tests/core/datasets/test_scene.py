@@ -10,6 +10,7 @@ import torch
 
 from cerberus_core.bodies.body import FILL
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced, fit_distance
+from cerberus_core.errors import DatasetError
 
 
 @pytest.mark.parametrize("elevation", [10.0, 15.0, 20.0])
@@ -54,7 +55,7 @@ def test_view_records_give_the_generators_cameras():
     torch.testing.assert_close(stored.rotation, rendered.rotation)
     torch.testing.assert_close(stored.translation, rendered.translation)
     assert (stored.height, stored.width) == (32, 48)
-    with pytest.raises(KeyError, match="fov_y"):
+    with pytest.raises(DatasetError, match="fov_y"):
         scene.view_cameras({"azimuth": [0.0], "elevation": [1.0], "distance": [2.0]}, 32)
 
 

@@ -7,7 +7,6 @@ import pytest
 
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.outputs import (
-    MANIFEST_NAME,
     NAME_MAX,
     RESULT_MARKER,
     check_path_length,
@@ -27,17 +26,22 @@ def test_path_length_limits_name_the_option(tmp_path: Path):
     assert err.value.key == "dst"
 
 
-def test_output_folder_and_file_refuse_files_folders_and_datasets(tmp_path: Path):
+def test_output_folder_and_file_refuse_files_folders_and_what_the_caller_refuses(tmp_path: Path):
     (tmp_path / "f").write_text("x")
     with pytest.raises(ConfigError, match="is a file; pass a folder path"):
         output_folder(tmp_path / "f")
     with pytest.raises(ConfigError, match="which is a file"):
         output_folder(tmp_path / "f" / "sub")
     (tmp_path / "ds").mkdir()
-    (tmp_path / "ds" / MANIFEST_NAME).write_text("{}")
-    with pytest.raises(ConfigError, match="is a dataset folder"):
-        output_folder(tmp_path / "ds")
-    assert output_folder(tmp_path / "ds", dataset_ok=True) == tmp_path / "ds"
+    (tmp_path / "ds" / "mine.txt").write_text("{}")
+    def refuse(path: Path) -> str | None:
+        return "holds mine.txt; write elsewhere" if (path / "mine.txt").is_file() else None
+
+    with pytest.raises(ConfigError, match="^out = .*ds'?: holds mine.txt; write elsewhere") as err:
+        output_folder(tmp_path / "ds", refuse=refuse)
+    assert err.value.key == "out"
+    assert output_folder(tmp_path / "ds") == tmp_path / "ds"  # plumbing itself knows no kind of folder
+    assert output_folder(tmp_path / "new", refuse=refuse) == tmp_path / "new"
     with pytest.raises(ConfigError, match="is a folder; pass a file path"):
         output_file(tmp_path / "ds")
     with pytest.raises(ConfigError, match="which is a file; pass a path inside a folder"):

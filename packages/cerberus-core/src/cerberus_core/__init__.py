@@ -6,7 +6,8 @@ backends live in separate packages found through the ``cerberus.renderers`` entr
 
 The two objects a notebook starts from: :class:`~cerberus_core.run.Run` (a trained run:
 ``Run.load("human")``, ``run.model``, ``run.evaluate(...)``) and
-:class:`~cerberus_core.datasets.manifest.Manifest` (a dataset's manifest: ``Manifest.read(root)``).
+:class:`~cerberus_core.datasets.dataset.Dataset` (a dataset folder: ``Dataset.open(root)``,
+``Dataset.generate(config, out)``).
 """
 import importlib
 from typing import Any
@@ -26,7 +27,7 @@ _LAZY = {
     "Light": "cerberus_core.render.interface", "Renderer": "cerberus_core.render.interface",
     "RenderOutput": "cerberus_core.render.interface", "MeshTemplate": "cerberus_core.render.templates",
     "icosphere": "cerberus_core.render.templates", "Run": "cerberus_core.run",
-    "Manifest": "cerberus_core.datasets.manifest",
+    "Dataset": "cerberus_core.datasets.dataset",
 }
 
 
@@ -42,8 +43,8 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "Camera",
+    "Dataset",
     "Light",
-    "Manifest",
     "MeshTemplate",
     "RenderOutput",
     "Renderer",

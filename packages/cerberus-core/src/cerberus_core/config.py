@@ -16,7 +16,6 @@
 from __future__ import annotations
 
 import contextlib
-import difflib
 import math
 import types
 import typing
@@ -29,15 +28,17 @@ from typing import Any
 import yaml
 
 from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.names import did_you_mean
 
-__all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean", "flatten", "load_raw",
+__all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean_hint", "flatten", "load_raw",
            "load_yaml", "omit_defaults", "parse_overrides", "yaml_problem"]
 
 
-def did_you_mean(word: Any, options: Iterable[Any]) -> str:
-    """`` (did you mean 'x'?)`` for the option closest to ``word``, or ``""`` if none is close."""
-    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
+def did_you_mean_hint(word: Any, options: Iterable[Any]) -> str:
+    """`` (did you mean 'x'?)`` for the option closest to ``word``
+    (:func:`~cerberus_core.plumbing.names.did_you_mean`), or ``""`` if none is close."""
+    close = did_you_mean(str(word), [str(o) for o in options])
+    return f" (did you mean {close!r}?)" if close else ""
 
 
 # ------------------------------------------------------------------ mappings
@@ -125,18 +126,19 @@ def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> d
 
 # ------------------------------------------------------------------ preset folders and files
 class Presets:
-    """A folder of bundled YAML presets inside the ``cerberus_core`` package.
+    """A folder of bundled YAML presets inside a package (``cerberus_core``, or a plugin's own).
 
     Args:
         folder: path inside the package, ``/``-separated (``"configs"``, ``"configs/data"``).
         kind: what a preset is called in messages (``"preset"``).
+        package: the importable package that holds the folder.
     """
 
-    def __init__(self, folder: str, kind: str = "preset") -> None:
-        self.folder, self.kind = folder, kind
+    def __init__(self, folder: str, kind: str = "preset", package: str = "cerberus_core") -> None:
+        self.folder, self.kind, self.package = folder, kind, package
 
     def _dir(self):
-        return resources.files("cerberus_core").joinpath(*self.folder.split("/"))
+        return resources.files(self.package).joinpath(*self.folder.split("/"))
 
     def names(self) -> list[str]:
         """Names of the bundled presets (file stems)."""
@@ -146,7 +148,7 @@ class Presets:
         """The YAML text of preset ``name``; a :class:`ConfigError` naming the bundled ones otherwise."""
         res = self._dir().joinpath(f"{name}.yaml")
         if not res.is_file():
-            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; bundled "
+            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean_hint(name, self.names())}; bundled "
                               f"{self.kind}s: {', '.join(self.names())}")
         return res.read_text()
 
@@ -247,7 +249,7 @@ def _coerce_literal(value: Any, allowed: tuple, key: str) -> Any:
     if any(value == a and type(value) is type(a) for a in allowed):
         return value
     raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
-                      f"{did_you_mean(value, allowed)}")
+                      f"{did_you_mean_hint(value, allowed)}")
 
 
 def _coerce_int(value: Any, key: str) -> int:
@@ -322,8 +324,8 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
 
     Raises:
         ConfigError: an unknown key (with the closest valid one and the list of valid keys), a
-            missing required key, a value of the wrong type or outside a ``Literal``, or a
-            ``ValueError`` of the dataclass's own checks (prefixed with the section's key).
+            missing required key, a value of the wrong type or outside a ``Literal``, or the
+            dataclass's own checks (:class:`~cerberus_core.fields.Checked`: its key under this section).
     """
     section = prefix[:-1] if prefix else "config"
     if not isinstance(d, Mapping):
@@ -333,7 +335,7 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     unknown = sorted(set(d) - set(known))
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
-                          f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
+                          f"{did_you_mean_hint(prefix + str(unknown[0]), [prefix + k for k in known])}; "
                           f"valid keys here: {sorted(prefix + k for k in known)}")
     missing = [f.name for f in fields(cls)
                if f.init and f.name not in d and f.default is MISSING and f.default_factory is MISSING]
@@ -342,7 +344,5 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     kwargs = {k: coerce(v, hints[k], prefix + k) for k, v in d.items()}
     try:
         return cls(**kwargs)
-    except ConfigError:
-        raise
-    except ValueError as exc:
-        raise ConfigError(f"{section}: {exc}" if prefix else str(exc)) from exc
+    except ConfigError as exc:  # a settings class's own check (fields.Checked): its key said under this section
+        raise exc.within(prefix) from None

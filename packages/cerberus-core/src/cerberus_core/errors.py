@@ -65,6 +65,15 @@ class ConfigError(CerberusError, ValueError):
         shown = "" if value is None else f" = {printable(value)}" if isinstance(value, os.PathLike) else f" = {value!r}"
         return cls(f"{key}{shown}: {problem}" + (f" ({fix})" if fix else ""), key=key, value=value, problem=problem)
 
+    def within(self, prefix: str) -> ConfigError:
+        """This error with its key under the section ``prefix`` (``"splits.train."``: ``views`` becomes
+        ``splits.train.views``, in the message and its fix too); itself when it names no key or already
+        names it so."""
+        if not prefix or self.key is None or self.key.startswith(prefix):
+            return self
+        message = prefix + str(self).replace(f"`{self.key}=", f"`{prefix}{self.key}=")
+        return type(self)(message, key=prefix + self.key, value=self.value, problem=self.problem)
+
 
 class MissingPackageError(CerberusError, ImportError):
     """An optional package is not installed: the message names what needs it and the ``pip install`` that

@@ -1,9 +1,11 @@
-"""Entry-point discovery of renderer backends and metrics (building a renderer by name is
+"""Entry-point discovery of renderer backends, body sources and metrics (building a renderer by name is
 :func:`cerberus_core.render.backends.make_renderer`).
 
-Backends register under the ``cerberus.renderers`` group, metrics under ``cerberus.metrics``, in the
-``[project.entry-points]`` table of their package. Discovery uses the ``entrypoints`` package; core
-never imports a backend or a metric package by name.
+Backends register under the ``cerberus.renderers`` group, body sources (the geometry a dataset is
+rendered from: :class:`~cerberus_core.bodies.body.BodySource`) under ``cerberus.bodies``, metrics
+under ``cerberus.metrics``, in the ``[project.entry-points]`` table of their package; the core's own
+body sources register the same way (docs/bodies.md). Discovery uses the ``entrypoints`` package; core
+never imports a backend, a body source or a metric package by name.
 
 Failure modes are explicit:
 
@@ -24,7 +26,11 @@ from cerberus_core.errors import CerberusError
 from cerberus_core.plumbing.names import did_you_mean
 
 RENDERER_GROUP = "cerberus.renderers"
+BODY_GROUP = "cerberus.bodies"
 METRIC_GROUP = "cerberus.metrics"
+
+#: What a plugin of each group is called in messages.
+KINDS: dict[str, str] = {RENDERER_GROUP: "renderer", BODY_GROUP: "body source", METRIC_GROUP: "metric"}
 
 #: Where the toolkit's own plugins live, for the "pip install ..." hint.
 KNOWN_PACKAGES: dict[str, dict[str, str]] = {
@@ -133,7 +139,7 @@ def get_plugin(group: str, name: str, path: list[str] | None = None) -> Any:
     plugins = discover(group, path)
     if name not in plugins:
         known = ", ".join(sorted(plugins)) or "none"
-        kind = "renderer" if group == RENDERER_GROUP else "plugin"
+        kind = KINDS.get(group, "plugin")
         close = did_you_mean(name, sorted(plugins))
         if close:
             raise UnknownPluginError(f"unknown {kind} '{name}' (group {group}); did you mean '{close}'? Installed: {known}.")
@@ -155,6 +161,11 @@ def plugin_table(group: str, path: list[str] | None = None) -> list[dict[str, st
         rows.append({"name": name, "package": info.distribution, "version": info.version,
                      "target": info.target, "status": status})
     return rows
+
+
+def plugin_names(group: str, path: list[str] | None = None) -> list[str]:
+    """The names registered under ``group``, sorted (nothing is imported)."""
+    return sorted(discover(group, path))
 
 
 def get_metric(name: str) -> Callable[..., Any]:

@@ -27,11 +27,10 @@ import yaml
 from safetensors import safe_open
 from safetensors.torch import load_file
 
-from cerberus_core.datasets.manifest import MANIFEST, Manifest
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
@@ -44,7 +43,7 @@ from cerberus_core.fields import ranged
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import printable
-from cerberus_core.plumbing.outputs import is_dataset, result_folder, writing_results
+from cerberus_core.plumbing.outputs import result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.config import TrainConfig
@@ -105,7 +104,7 @@ def resolve_weights(path: str | Path) -> Path:
         for candidate in (path / "model.safetensors", checkpoint_dir(path) / LAST):
             if candidate.is_file():
                 return candidate
-        if (path / "manifest.json").is_file():
+        if Dataset.is_dataset(path):
             raise CheckpointError(f"{shown} is a dataset folder, not a training run; pass the run folder "
                                   f"first and the dataset as `data={shown}`")
         raise CheckpointError(f"{shown} holds neither model.safetensors nor checkpoints/{LAST}, so it is not a "
@@ -246,6 +245,18 @@ def _load_weights(path: str | Path, device: str | torch.device = "cpu") -> tuple
     return model.to(device).eval(), config, scene
 
 
+def open_data(data: str | Path) -> Dataset:
+    """The dataset ``data`` names.
+
+    Raises:
+        ConfigError: ``data`` is not a dataset folder (``key="data"``).
+        DatasetError: its manifest does not read.
+    """
+    if not Dataset.is_dataset(data):
+        raise ConfigError.about("data", Path(data), "not a Cerberus dataset folder (no manifest)")
+    return Dataset.open(data)
+
+
 def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict | None = None):
     """The scene set-up the model was trained with: from ``data`` (which must be a dataset), else the
     one the run recorded, else from the run's training data if it is still there. Never a silent
@@ -259,9 +270,7 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
         A :class:`~cerberus_core.datasets.scene.SceneSetup`.
     """
     if data is not None:
-        if not (Path(data) / MANIFEST).is_file():
-            raise ConfigError.about("data", Path(data), f"not a Cerberus dataset folder (no {MANIFEST})")
-        return Manifest.read(Path(data)).scene  # a damaged scene record is a DatasetError naming the manifest
+        return open_data(data).scene  # a damaged scene record is a DatasetError naming the manifest
     if saved is not None:
         try:
             return SceneSetup.from_dict(saved)
@@ -269,8 +278,8 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
             raise ConfigError(f"the model's recorded scene: invalid scene set-up ({exc}); pass `data=DATASET` (the "
                               "dataset it was trained on)") from None
     root = Path(config.data.root)
-    if (root / MANIFEST).is_file():
-        return Manifest.read(root).scene
+    if Dataset.is_dataset(root):
+        return Dataset.open(root).scene
     raise ConfigError.about("data", None, f"needed: the run does not record its scene set-up and its training data "
                             f"{root} is not here; pass `data=DATASET` (the dataset it was trained on, or one rendered "
                             "the same way)")
@@ -313,6 +322,13 @@ class EvalSettings(EvalConfig):
         check_protocol(self.protocol)
 
 
+def _canonical_hint(dataset: Dataset) -> str:
+    try:
+        return dataset.source_class().canonical_hint
+    except CerberusError:  # its source is not installed here: nothing to add
+        return ""
+
+
 @dataclass
 class Evaluation:
     """What :meth:`Run.evaluate` measured and wrote.
@@ -322,7 +338,8 @@ class Evaluation:
         out: the result folder (``results.json``, ``results.md``, ``table2.png``, ``pictures/``).
         weights: which weights were scored (step, newer checkpoint).
         hard_requested: whether the Hard Human test was asked for.
-        folder_dataset: whether the data is a ``--dataset folder`` dataset (the hint names its fix).
+        canonical_hint: how the data's body source gives its subjects canonical poses, said when the Hard
+            Human test could not run (:attr:`BodySource.canonical_hint`; "": nothing to say).
         viewer: whether ``pictures/index.html`` was written.
     """
 
@@ -330,7 +347,7 @@ class Evaluation:
     out: Path
     weights: WeightsInfo
     hard_requested: bool = True
-    folder_dataset: bool = False
+    canonical_hint: str = ""
     viewer: bool = True
 
     def lines(self) -> list[str]:
@@ -342,9 +359,8 @@ class Evaluation:
             line += f"; Hard Human: {result.hard.mean:.4f}"
         elif self.hard_requested:
             line += "; Hard Human: not run (no canonical-pose images in this split"
-            if self.folder_dataset:
-                line += ("; generate the dataset with each subject's canonical pose named: the folder source's "
-                         "`canonical` option")
+            if self.canonical_hint:
+                line += f"; {self.canonical_hint}"
             line += ")"
         lines = [line]
         if result.part_visibility is not None:
@@ -438,16 +454,16 @@ class Run:
         else its training data's manifest if that is still here; ``None`` when unknown."""
         if self.shipped:
             return str(self.source)
-        if is_dataset(self.data_root):
-            return Manifest.read(self.data_root).dataset or None
+        if Dataset.is_dataset(self.data_root):
+            return Dataset.open(self.data_root).body_kind
         return None
 
     def domain_notes(self, data: str | Path) -> list[str]:
         """How the dataset ``data`` differs from what the model was trained on (the kind of bodies, the
         camera and the look), one sentence each; empty when nothing known differs."""
         notes = []
-        kind, theirs = self.training_kind(), Manifest.read(Path(data)).dataset
-        if kind and theirs and kind != theirs and "folder" not in (kind, theirs):  # a folder holds any bodies
+        kind, theirs = self.training_kind(), Dataset.open(data).body_kind
+        if kind and theirs and kind != theirs:  # None: a source of any kind of body (a folder of meshes)
             notes.append(f"the model was trained on {kind} bodies and {printable(data)} holds {theirs} bodies")
         if self.recorded_scene is not None:
             mine, other = SceneSetup.from_dict(self.recorded_scene).to_dict(), self.scene_for(data).to_dict()
@@ -493,17 +509,17 @@ class Run:
             ConfigError: ``data`` is not a dataset folder (``key="data"``), or ``out`` may not be written.
         """
         s = settings if settings is not None else EvalSettings()
-        if data is not None and not is_dataset(Path(data)):
-            raise ConfigError.about("data", Path(data), f"not a Cerberus dataset folder (no {MANIFEST})")
-        data = None if data is None else Path(data)
+        data = None if data is None else open_data(data).root
         keep = [] if self.shipped else [Path(self.source)]
         out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=s.overwrite,
-                            keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS)
+                            keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS,
+                            refuse=Dataset.not_an_output)
         baseline_models = {name: b.model if isinstance(b, Run) else b for name, b in (baselines or {}).items()}
-        if data is None and not is_dataset(self.data_root):
+        if data is None and not Dataset.is_dataset(self.data_root):
             raise ConfigError.about("data", None, f"needed: the run's training data {self.data_root} is not a dataset "
                                     "folder from here; give the dataset")
-        dataset = ViewDataset(data or self.data_root, s.split)
+        source = Dataset.open(data or self.data_root)
+        dataset = source.views(s.split)
         dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
         for note in self.domain_notes(data or self.data_root):
             warnings.warn(f"{note}: the scores measure the model outside what it learned", UserWarning, stacklevel=2)
@@ -523,7 +539,7 @@ class Run:
                                device=self.device, viewer_images=s.viewer_images, scorer=scorer,
                                title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
         evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
-                                folder_dataset=dataset.manifest.dataset == "folder")
+                                canonical_hint=_canonical_hint(source))
         if verbose:
             print("\n".join(evaluation.lines()))
         return evaluation
@@ -551,7 +567,7 @@ class Run:
         images = [Path(p) for p in images]
         mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
-        out = result_folder(Path(out), overwrite=overwrite, keep=keep)
+        out = result_folder(Path(out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
         return reconstruct_images(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                   renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
                                   viewer_images=viewer_images, device=self.device,

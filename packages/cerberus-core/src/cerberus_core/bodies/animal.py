@@ -38,7 +38,7 @@ from cerberus_core.bodies.animal_pose import (
 from cerberus_core.bodies.animal_sdf import group_distances, primitives_bounds, sample_field
 from cerberus_core.bodies.animal_shape import AnimalSpecies, sample_species
 from cerberus_core.bodies.animal_skeleton import PART_GROUPS, animal_primitives
-from cerberus_core.bodies.body import FILL, PosedBody
+from cerberus_core.bodies.body import FILL, BodyError, PosedBody
 from cerberus_core.errors import MissingPackageError
 
 __all__ = [
@@ -188,9 +188,9 @@ def build_animal(
         ValueError: on a bad resolution/budget, or if the pose leaves the unit cube.
     """
     if resolution is not None and resolution < 16:
-        raise ValueError(f"build_animal: resolution must be >= 16 or None, got {resolution}")
+        raise BodyError(f"build_animal: resolution must be >= 16 or None, got {resolution}")
     if target_faces is not None and target_faces < 100:
-        raise ValueError(f"build_animal: target_faces must be >= 100 or None, got {target_faces}")
+        raise BodyError(f"build_animal: target_faces must be >= 100 or None, got {target_faces}")
     extent = species_extent(species)
     if resolution is None:
         spacing = species_spacing(species, DEFAULT_TARGET_FACES if target_faces is None else target_faces)
@@ -200,7 +200,7 @@ def build_animal(
     field, origin = sample_field(prims, spacing)
     verts, faces = marching_cubes(field, origin, spacing)
     if len(faces) == 0:
-        raise ValueError(f"build_animal: empty surface for {species.name} pose {pose_id}")
+        raise BodyError(f"build_animal: empty surface for {species.name} pose {pose_id}")
     if target_faces is not None:
         verts, faces = decimate(verts, faces, target_faces)
     labels = np.argmin(group_distances(prims, verts, len(PART_GROUPS)), axis=1)
@@ -210,7 +210,7 @@ def build_animal(
     normed = (verts - centre) * scale
     reach = float(np.abs(normed).max())
     if reach > 0.5:
-        raise ValueError(
+        raise BodyError(
             f"build_animal: {species.name} pose {pose_id} ({pose.kind}) reaches {reach:.3f} > 0.5 after "
             f"normalisation; the pose exceeds the species' envelope (see species_extent)"
         )

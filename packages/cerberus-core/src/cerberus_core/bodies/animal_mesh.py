@@ -18,6 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from cerberus_core.bodies.body import BodyError
 from cerberus_core.errors import MissingPackageError
 
 _CORNERS = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
@@ -94,7 +95,7 @@ def _case_triangles(case: int, faces: list[list[int]], edge_faces: list[set[int]
                 tris.extend((lp[0], lp[k], lp[k + 1]) for k in range(1, n - 1))
                 break
         else:  # never happens for the separated-inside rule (checked when the table is built)
-            raise RuntimeError(f"marching cubes table: no safe fan for case {case}")
+            raise BodyError(f"marching cubes table: no safe fan for case {case}")
     return tris
 
 
@@ -128,7 +129,7 @@ def marching_cubes(values: np.ndarray, origin: np.ndarray, spacing: float) -> tu
     """
     vals = np.asarray(values, np.float64)
     if vals.ndim != 3 or min(vals.shape) < 2:
-        raise ValueError(f"marching_cubes needs a 3-D grid with >= 2 samples per axis, got {vals.shape}")
+        raise BodyError(f"marching_cubes needs a 3-D grid with >= 2 samples per axis, got {vals.shape}")
     table, ntri = _mc_table()
     nx, ny, nz = vals.shape
     inside = vals < 0

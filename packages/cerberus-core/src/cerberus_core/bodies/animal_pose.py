@@ -19,6 +19,7 @@ import numpy as np
 from cerberus_core.bodies.animal_sdf import primitives_bounds
 from cerberus_core.bodies.animal_shape import AnimalSpecies
 from cerberus_core.bodies.animal_skeleton import LEG_GROUPS, TORSO, AnimalPose, animal_primitives
+from cerberus_core.bodies.body import BodyError
 
 POSE_KINDS: dict[str, float] = {
     "stand": 0.16,
@@ -213,7 +214,7 @@ def sample_animal_poses(species: AnimalSpecies, rng: np.random.Generator, n: int
         ``n`` poses.
     """
     if n < 0:
-        raise ValueError(f"sample_animal_poses: n must be >= 0, got {n}")
+        raise BodyError(f"sample_animal_poses: n must be >= 0, got {n}")
     return [sample_pose(species, rng) for _ in range(n)]
 
 

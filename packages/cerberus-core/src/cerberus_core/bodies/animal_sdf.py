@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cerberus_core.bodies.body import BodyError
+
 FAR: float = 1.0e3
 """Field value used where no primitive reaches (far outside)."""
 
@@ -120,7 +122,7 @@ def smooth_min(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
 def primitives_bounds(prims: list[Primitive]) -> tuple[np.ndarray, np.ndarray]:
     """``(lo (3,), hi (3,))`` bounding box of the union of the primitives (no blending)."""
     if not prims:
-        raise ValueError("primitives_bounds: no primitives")
+        raise BodyError("primitives_bounds: no primitives")
     boxes = [p.bounds() for p in prims]
     return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
@@ -144,7 +146,7 @@ def sample_field(prims: list[Primitive], spacing: float) -> tuple[np.ndarray, np
         ``origin + spacing * (i, j, k)``.
     """
     if spacing <= 0:
-        raise ValueError(f"sample_field: spacing must be positive, got {spacing}")
+        raise BodyError(f"sample_field: spacing must be positive, got {spacing}")
     max_blend = max(p.blend for p in prims)
     lo, hi = primitives_bounds(prims)
     pad = max_blend + 3 * spacing

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cerberus_core.bodies.body import BodyError
+
 SHAPE_PARAMS: dict[str, str] = {
     "torso_length": "torso length, rump to chest (body units)",
     "torso_height": "vertical semi-axis of the belly (body units)",
@@ -131,16 +133,16 @@ class AnimalSpecies:
     def __post_init__(self) -> None:
         missing = set(SHAPE_PARAMS) - set(self.params)
         if missing:
-            raise ValueError(f"AnimalSpecies {self.name}: missing shape parameters {sorted(missing)}")
+            raise BodyError(f"AnimalSpecies {self.name}: missing shape parameters {sorted(missing)}")
         bad = {k: v for k, v in self.params.items() if not np.isfinite(v)}
         if bad:
-            raise ValueError(f"AnimalSpecies {self.name}: non-finite parameters {bad}")
+            raise BodyError(f"AnimalSpecies {self.name}: non-finite parameters {bad}")
 
 
 def archetype_species(archetype: str, name: str | None = None) -> AnimalSpecies:
     """The species sitting exactly at an archetype's parameter centre."""
     if archetype not in ARCHETYPES:
-        raise ValueError(f"unknown archetype {archetype!r}; known: {sorted(ARCHETYPES)}")
+        raise BodyError(f"unknown archetype {archetype!r}; known: {sorted(ARCHETYPES)}")
     return AnimalSpecies(name=name or archetype, params=dict(ARCHETYPES[archetype]), archetype=archetype)
 
 
@@ -160,7 +162,7 @@ def sample_species(n: int = 41, seed: int = 0) -> list[AnimalSpecies]:
         ``n`` species named ``species_{i:02d}_{archetype}``.
     """
     if n < 1:
-        raise ValueError(f"sample_species: n must be >= 1, got {n}")
+        raise BodyError(f"sample_species: n must be >= 1, got {n}")
     names = list(ARCHETYPES)
     out = []
     for i in range(n):

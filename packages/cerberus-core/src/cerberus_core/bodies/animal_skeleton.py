@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cerberus_core.bodies.animal_sdf import Ellipsoid, Primitive, RoundCone
+from cerberus_core.bodies.body import BodyError
 
 LEG_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "back_left", "back_right")
 """Leg order used by :attr:`AnimalPose.legs`."""
@@ -61,7 +62,7 @@ class AnimalPose:
 
     def __post_init__(self) -> None:
         if len(self.legs) != 4 or any(len(leg) != 3 for leg in self.legs):
-            raise ValueError(f"AnimalPose.legs must be 4 (swing, bend, abduct) triples, got {self.legs}")
+            raise BodyError(f"AnimalPose.legs must be 4 (swing, bend, abduct) triples, got {self.legs}")
 
 
 PART_GROUPS: tuple[str, ...] = (

@@ -1,6 +1,7 @@
 """The posed-body record that every body source (human, animal, mesh folder) produces, and the
-contract of those sources (:class:`BodySource`, :class:`Subject`; the sources themselves and
-:func:`~cerberus_core.bodies.sources.make_source` are in :mod:`cerberus_core.bodies.sources`).
+contract of those sources (:class:`BodySource`, :class:`Subject`). Sources are plugins: each registers
+its class under the ``cerberus.bodies`` entry-point group (the core's own in its ``pyproject.toml``,
+exactly as a third party would: docs/bodies.md), and :func:`source_class` finds one by name.
 
 A body source turns (subject, pose) into a :class:`PosedBody`: a watertight-ish triangle mesh in the
 dataset's world frame plus per-vertex ground-truth part labels. World frame conventions (shared with
@@ -16,14 +17,25 @@ keeps part shapes identical across poses, which pose consistency relies on.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.config import Presets, build
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError
+from cerberus_core.fields import Checked
+from cerberus_core.plugins import BODY_GROUP, get_plugin
 from cerberus_core.shapes import check_shapes
+
+
+class BodyError(CerberusError, ValueError):
+    """A body source was asked for, or produced, what no dataset can hold: a count or pose id out of its
+    range, a degenerate body, one outside the unit cube; the message names the subject, the pose and the fix
+    (a ``ValueError`` too, for callers that caught one)."""
+
 
 FILL: float = 0.9
 """Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""
@@ -56,11 +68,11 @@ class PosedBody:
         f = np.asarray(self.faces)
         check_shapes("PosedBody", vertices=(v, "V 3"), faces=(f, "F 3"))
         if not np.isfinite(v).all():
-            raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: vertices contain NaN or inf")
+            raise BodyError(f"PosedBody {self.subject}/{self.pose_id}: vertices contain NaN or inf")
         if f.size and (f.min() < 0 or f.max() >= len(v)):
-            raise ValueError(f"PosedBody {self.subject}/{self.pose_id}: faces index outside 0..{len(v) - 1}")
+            raise BodyError(f"PosedBody {self.subject}/{self.pose_id}: faces index outside 0..{len(v) - 1}")
         if np.asarray(self.vertex_parts).shape != (len(v),):
-            raise ValueError("PosedBody.vertex_parts must have one label per vertex")
+            raise BodyError("PosedBody.vertex_parts must have one label per vertex")
         self.vertices = v.astype(np.float32, copy=False)
         self.faces = f.astype(np.int64, copy=False)
         self.vertex_parts = np.asarray(self.vertex_parts).astype(np.int16, copy=False)
@@ -79,11 +91,11 @@ def normalise_subject(poses: Sequence[np.ndarray], fill: float = FILL) -> tuple[
         ``[-fill/2, fill/2]^3``.
     """
     if len(poses) == 0:
-        raise ValueError("normalise_subject needs at least one pose")
+        raise BodyError("normalise_subject needs at least one pose")
     extents = [float((p.max(0) - p.min(0)).max()) for p in poses]
     largest = max(extents)
     if not np.isfinite(largest) or largest <= 0:
-        raise ValueError(f"normalise_subject: degenerate subject (largest extent {largest})")
+        raise BodyError(f"normalise_subject: degenerate subject (largest extent {largest})")
     scale = fill / largest
     out = []
     for p in poses:
@@ -105,28 +117,112 @@ class Subject:
     info: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
     def need(self, source: str, *keys: str) -> list[Any]:
-        """``info[key]`` for each key, or a ``KeyError`` naming the missing ones (an older manifest)."""
+        """``info[key]`` for each key, or a :class:`DatasetError` naming the missing ones (an older manifest)."""
         missing = [k for k in keys if k not in self.info]
         if missing:
-            raise KeyError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
+            raise DatasetError(f"{source} subject {self.name!r} lacks {missing} in its record; the manifest predates "
                            "self-contained subject records: rerun the same `cerberus data generate` command (it "
                            "resumes and rewrites the manifest)")
         return [self.info[k] for k in keys]
 
 
+DATA_PRESETS = Presets("configs/data", kind="dataset preset")
+"""The core's dataset presets, ``cerberus_core/configs/data/<source>_<size>.yaml``: ``paper`` follows
+the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in seconds (tests); ``folder``
+has ``pairs`` (the Human protocol) and ``grid`` (the Animal protocol) instead."""
+
+
+@dataclass(frozen=True)
+class NoOptions(Checked):
+    """The options of a body source that takes none."""
+
+
 class BodySource(ABC):
     """Geometry provider of a dataset (:mod:`cerberus_core.bodies.sources` describes the calls).
 
+    A source is a plugin: its class is registered under the ``cerberus.bodies`` entry-point group by
+    the name it is generated by (``GenerationConfig.dataset``), and a dataset is generated from it,
+    and read back, through that name alone (docs/bodies.md shows a minimal one).
+
     Attributes:
-        name: the source's name as ``cerberus data generate --dataset`` spells it.
+        name: the name the source is registered by (``GenerationConfig.dataset``, ``Manifest.dataset``).
         part_names: names of the ground-truth parts indexed by ``PosedBody.vertex_parts``.
         shared_subjects: ``True`` if every split holds the same subjects with disjoint poses (the
             animal protocol); ``False`` if splits hold disjoint subjects (human, folder).
+        Options: its options, one :class:`~cerberus_core.fields.Checked` dataclass (checked when made;
+            :meth:`options`); what :meth:`stored_options` gives is stored in the manifest, and
+            :meth:`from_options` builds the source from it again.
+        presets: where its size presets live: files ``<name>_<size>.yaml`` (:meth:`sizes`).
+        default_size: the size preset used when none is named.
+        body_kind: the kind of bodies it holds (``None``: any kind, e.g. a folder of your meshes), which
+            a model trained on one kind is compared with.
+        canonical_hint: how to give its subjects canonical poses, where it may lack them ("" if it
+            always has them): said when the Hard Human test cannot run.
     """
 
-    name: str = "abstract"
+    name: ClassVar[str] = "abstract"
     part_names: list[str]
-    shared_subjects: bool = False
+    shared_subjects: ClassVar[bool] = False
+    Options: ClassVar[type] = NoOptions
+    presets: ClassVar[Presets] = DATA_PRESETS
+    default_size: ClassVar[str] = "small"
+    canonical_hint: ClassVar[str] = ""
+
+    @classmethod
+    def body_kind(cls) -> str | None:
+        """The kind of bodies this source holds (default: its name; ``None``: any)."""
+        return cls.name
+
+    # ---------------------------------------------------------------------------- options, presets
+    @classmethod
+    def options(cls, given: Mapping[str, Any] | None = None) -> Any:
+        """``given`` (Python values or a manifest's stored options) as a checked :attr:`Options`.
+
+        Raises:
+            ConfigError: an option this source does not take (naming the ones it takes), or a value of
+                the wrong type or out of range (naming the key).
+        """
+        given = dict(given or {})
+        known = [f.name for f in fields(cls.Options) if f.init]
+        for key, value in given.items():
+            if key not in known:
+                takes = f"its options are {', '.join(f'`{k}`' for k in known)}" if known else "it takes none"
+                raise ConfigError.about(key, value, f"not an option of the {cls.name} body source ({takes}); "
+                                        "drop it, or choose the source that takes it")
+        return build(cls.Options, given)
+
+    @classmethod
+    def stored_options(cls, options: Any) -> dict[str, Any]:
+        """The JSON form of checked ``options`` that the manifest stores (``None`` values left out)."""
+        return {k: v for k, v in asdict(options).items() if v is not None}
+
+    @classmethod
+    def from_options(cls, options: Any, *, device: str = "cpu") -> BodySource:
+        """The source built from checked ``options``; ``device`` is where it may pose bodies (no effect on
+        them). The default passes every option as a keyword argument."""
+        return cls(**{f.name: getattr(options, f.name) for f in fields(options)})
+
+    @classmethod
+    def sizes(cls) -> list[str]:
+        """Its size presets (``paper``, ``small``, ``tiny`` ...): the files ``<name>_<size>.yaml`` of :attr:`presets`."""
+        prefix = f"{cls.name}_"
+        return [n[len(prefix):] for n in cls.presets.names() if n.startswith(prefix)]
+
+    def warnings(self) -> list[str]:
+        """Advice about what the source found (one line each; the generation warns with them)."""
+        return []
+
+    @classmethod
+    def empty_split_hint(cls, options: Mapping[str, Any], subjects: int, split: str, root: str | Path) -> str:
+        """Why ``split`` of a dataset of this source has no subject and what to do, one line.
+
+        Args:
+            options: the source's stored options (the manifest's).
+            subjects: how many subjects the dataset holds.
+            split: the empty split.
+            root: the dataset folder (for the fix the hint names).
+        """
+        return no_subjects_hint(split, subjects, root)
 
     @abstractmethod
     def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
@@ -162,3 +258,31 @@ class BodySource(ABC):
     def describe(self) -> dict[str, Any]:
         """Options that determine the geometry (stored in the manifest's config; part of its hash)."""
         return {}
+
+
+def no_subjects_hint(split: str, subjects: int, root: str | Path, cause: str = "", fix: str = "") -> str:
+    """The one-line hint of an empty split (:meth:`BodySource.empty_split_hint`): its ``cause`` (default: the
+    subjects are all in other splits) and ``fix`` (default: use another dataset)."""
+    head = f"the dataset has no {split} subjects"
+    if split == "train":
+        cause = cause or (" (its only subject is a test subject)" if subjects == 1
+                          else f" (all {subjects} subjects are test subjects)")
+        return (f"{head}{cause}; a dataset without train subjects is for evaluation (`Run.evaluate` on {root}, or "
+                "`cerberus eval`); train on a dataset with train subjects")
+    cause = cause or f" (its {subjects} subject{'' if subjects == 1 else 's'} are all in other splits)"
+    return f"{head}{cause}; {fix or 'use a dataset with test subjects'}"
+
+
+def source_class(name: str) -> type[BodySource]:
+    """The body source registered as ``name`` under the ``cerberus.bodies`` entry points.
+
+    Raises:
+        UnknownPluginError: no source of that name is installed (naming the closest and the installed ones).
+        PluginLoadError: it is registered but cannot be imported (a missing optional package: its message).
+        ConfigError: what is registered is not a :class:`BodySource` class.
+    """
+    cls = get_plugin(BODY_GROUP, name)
+    if not (isinstance(cls, type) and issubclass(cls, BodySource)):
+        raise ConfigError.about("dataset", name, f"the {BODY_GROUP} entry point {name!r} is not a BodySource class",
+                                "register the source's class")
+    return cls

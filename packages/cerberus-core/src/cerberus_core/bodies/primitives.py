@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 import trimesh
 
-from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, BodyError, PosedBody, normalise_subject
 
 PART_NAMES: list[str] = ["head", "torso", "upper_arm.L", "lower_arm.L", "upper_arm.R", "lower_arm.R",
                          "thigh.L", "shin.L", "thigh.R", "shin.R"]
@@ -76,7 +76,7 @@ def sample_subjects(n: int, seed: int = 0, split: str = "train") -> list[Primiti
     """``n`` figures of one split; subject ``i`` comes from ``default_rng([split_code, seed, i])``, so
     different splits never share a subject and fewer subjects are a prefix of more."""
     if n < 0 or seed < 0:
-        raise ValueError(f"sample_subjects needs n >= 0 and seed >= 0, got n={n}, seed={seed}")
+        raise BodyError(f"sample_subjects needs n >= 0 and seed >= 0, got n={n}, seed={seed}")
     out = []
     for i in range(n):
         rng = np.random.default_rng([_split_code(split), seed, i])
@@ -135,7 +135,7 @@ class PrimitiveBodySource:
         rows = []
         for pid in pose_ids:
             if pid < 0:
-                raise ValueError(f"pose ids must be >= 0, got {pid}")
+                raise BodyError(f"pose ids must be >= 0, got {pid}")
             rng = np.random.default_rng([subject.pose_seed, int(pid)])
             rows.append(canonical_pose() if pid == 0 else sample_poses(rng, 1)[0])
         return np.stack(rows) if rows else np.zeros((0, len(_DOFS)))
@@ -205,7 +205,7 @@ class PrimitiveBodySource:
         for pid, v, q in zip(pose_ids, self.raw_vertices(subject, params), params, strict=True):
             vn = (v - 0.5 * (v.max(0) + v.min(0))) * scale
             if np.abs(vn).max() > 0.5:
-                raise ValueError(f"{subject.subject_id} pose {pid} leaves the unit cube after scaling")
+                raise BodyError(f"{subject.subject_id} pose {pid} leaves the unit cube after scaling")
             out.append(PosedBody(vn.astype(np.float32), self.faces, self.vertex_parts, self.part_names,
                                  subject.subject_id, int(pid), meta={"pose_params": q}))
         return out

@@ -19,7 +19,9 @@ depends on an earlier one. Sources may cache (a loaded model, a subject's scale)
 Sources: ``human`` (anny, :mod:`cerberus_core.bodies.human`), ``animal`` (procedural quadrupeds,
 :mod:`cerberus_core.bodies.animal`), ``primitives`` (capsule figures,
 :mod:`cerberus_core.bodies.primitives`) and ``folder`` (your own meshes,
-:mod:`cerberus_core.bodies.folder`); :func:`make_source` builds one by name.
+:mod:`cerberus_core.bodies.folder`). Each is registered under the ``cerberus.bodies`` entry points in
+cerberus-core's ``pyproject.toml``, the way a third party registers its own (docs/bodies.md);
+:func:`~cerberus_core.bodies.body.source_class` finds one by name.
 """
 from __future__ import annotations
 
@@ -28,13 +30,10 @@ from typing import Any
 
 from cerberus_core.bodies import animal, human, primitives
 from cerberus_core.bodies.body import BodySource, PosedBody, Subject
-from cerberus_core.bodies.folder import FolderSource
 from cerberus_core.bodies.human_motion import motion_pose_id
 from cerberus_core.errors import ConfigError
 
-#: The source contract (:class:`BodySource`, :class:`Subject`) is defined in :mod:`.body`, which the
-#: sources (``folder`` included) build on; it is importable from here as well.
-__all__ = ["AnimalSource", "BodySource", "HumanSource", "PrimitiveSource", "Subject", "make_source"]
+__all__ = ["AnimalSource", "HumanSource", "PrimitiveSource"]
 
 
 class _SeededSubjects(BodySource):
@@ -44,7 +43,8 @@ class _SeededSubjects(BodySource):
 
     def subjects(self, split: str, n: int | None, seed: int) -> list[Subject]:
         if n is None:
-            raise ValueError(f"the {self.name} source needs a subject count for split {split!r}")
+            raise ConfigError.about(f"splits.{split}.subjects", None, f"the {self.name} source needs a subject count",
+                                    f"`splits.{split}.subjects=N`")
         return [Subject(s.subject_id, self._info(s)) for s in self._sample(n, seed, split)]
 
     def _sample(self, n: int, seed: int, split: str) -> list[Any]:
@@ -55,7 +55,8 @@ class _SeededSubjects(BodySource):
 
     def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
         if n is None:
-            raise ValueError(f"the {self.name} source has unlimited poses; give a pose count")
+            raise ConfigError.about(f"splits.{split}.poses", None, f"the {self.name} source has unlimited poses; give "
+                                    "a pose count", f"`splits.{split}.poses=N`")
         return list(range(1, n + 1))
 
     def canonical_pose(self, subject: Subject) -> int | None:
@@ -75,6 +76,10 @@ class HumanSource(_SeededSubjects):
         self.part_names = list(human.PART_NAMES)
         self._device = device
         self._model = None  # a cache: the loaded anny model
+
+    @classmethod
+    def from_options(cls, options: Any, *, device: str = "cpu") -> HumanSource:
+        return cls(device=device)  # posing on the generation's device (no effect on the bodies)
 
     def _sample(self, n: int, seed: int, split: str) -> list[Any]:
         return self._human.sample_subjects(n, seed, split)
@@ -159,7 +164,8 @@ class AnimalSource(BodySource):
             n = self._animal.N_TRAIN_POSES if split == "train" else self._animal.N_TEST_POSES
         base = 0 if split == "train" else self.TEST_POSE_BASE
         if split == "train" and n > self.TEST_POSE_BASE:
-            raise ValueError(f"at most {self.TEST_POSE_BASE} training poses per species")
+            raise ConfigError.about(f"splits.{split}.poses", n, f"at most {self.TEST_POSE_BASE} training poses per "
+                                    "species")
         return [base + k for k in range(n)]
 
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
@@ -176,17 +182,3 @@ class AnimalSource(BodySource):
 
     def describe(self) -> dict[str, Any]:
         return {"target_faces": self._animal.DEFAULT_TARGET_FACES}
-
-
-def make_source(name: str, **options: Any) -> BodySource:
-    """Build a body source by name: ``human``, ``animal``, ``primitives`` or ``folder`` (which needs
-    ``root=``; see :class:`cerberus_core.bodies.folder.FolderSource`)."""
-    if name == "human":
-        return HumanSource(**options)
-    if name == "primitives":
-        return PrimitiveSource(**options)
-    if name == "animal":
-        return AnimalSource(**options)
-    if name == "folder":
-        return FolderSource(**options)
-    raise ValueError(f"unknown dataset source {name!r}; choose human, animal, primitives or folder")

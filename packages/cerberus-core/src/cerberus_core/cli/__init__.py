@@ -170,6 +170,18 @@ def _os_error_line(exc: OSError) -> str:
     return f"{reason}: {where}" if where else reason
 
 
+def _said(exc: CerberusError, terms: Terms) -> str:
+    """The message of ``exc`` in this command's terms (:meth:`Terms.error`); an incomplete dataset's names the
+    ``cerberus data generate`` command that finishes it."""
+    from cerberus_core.datasets.manifest import IncompleteDatasetError
+
+    if isinstance(exc, IncompleteDatasetError):
+        from cerberus_core.cli.data import incomplete_message
+
+        return incomplete_message(exc)
+    return terms.error(exc)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command. Every way out is one line on standard error and an exit status: a typed error or
     any OSError (2), Ctrl-C at any moment, even while the command's modules are still importing (130),
@@ -194,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
         with _cli_environment(command, terms):
             return int(args.func(args) or 0)
     except CerberusError as exc:  # every typed error, plugin and dataset errors included
-        print(f"cerberus {command}: {one_line(terms.error(exc))}", file=sys.stderr)
+        print(f"cerberus {command}: {one_line(_said(exc, terms))}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_ERROR))
     except Terminated:
         print(f"cerberus {command}: terminated (SIGTERM)", file=sys.stderr)

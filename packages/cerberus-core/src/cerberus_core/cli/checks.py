@@ -1,24 +1,10 @@
-"""Argument checks shared by the sub-commands: argparse types for numbers, and (re-exported from
-:mod:`cerberus_core.plumbing.outputs`) path checks that raise :class:`~cerberus_core.errors.ConfigError` before a
-command writes anything (the device check is
-:func:`cerberus_core.devices.check_device`, which library code uses too)."""
+"""Argument checks shared by the sub-commands: argparse types for numbers, and the one-line usage error (the
+path checks are :mod:`cerberus_core.plumbing.outputs`, the device check :func:`cerberus_core.devices.check_device`,
+which library code uses too)."""
 from __future__ import annotations
 
 import argparse
 import math
-
-from cerberus_core.plumbing.outputs import (  # noqa: F401 - re-exported: the sub-commands import them from here
-    MANIFEST_NAME,
-    NAME_MAX,
-    PATH_MAX,
-    RESULT_MARKER,
-    check_path_length,
-    is_dataset,
-    output_file,
-    output_folder,
-    result_folder,
-    writing_results,
-)
 
 
 def positive_int(text: str) -> int:

@@ -1,20 +1,40 @@
-"""``cerberus data``: generate, check and look at datasets (docs/data_format.md)."""
+"""``cerberus data``: generate, check and look at datasets (docs/data_format.md): each sub-command is
+its arguments and one call of :class:`~cerberus_core.datasets.dataset.Dataset`. This module alone says
+what is left to generate as a command line (:func:`generate_command`)."""
 from __future__ import annotations
 
 import argparse
+import json
+import shlex
 import sys
-import warnings
 from pathlib import Path
 
-from cerberus_core.bodies.folder import DEFAULT_UP_AXIS, UP_AXES
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import output_file, output_folder, positive_int
-from cerberus_core.datasets.plan import SHORTCUT_FLAGS, GenerationConfig, load_generation_config
-from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.cli.checks import positive_int
 
-_DATASETS = ("human", "animal", "folder", "primitives")  # the order --help lists them
-DEFAULT_TEST_FRACTION = 0.3
-MAX_SHOW_COUNT, MAX_SHOW_SCALE = 256, 16  # a contact sheet stays a picture (256 rows of 64 px tiles x 16)
+#: Config keys that ``generate`` also takes as a flag of their own (same as ``--set KEY=...``).
+CONFIG_FLAGS = {"seed": "--seed", "image_size": "--image-size", "renderer": "--renderer", "shard_images": "--shard-images"}
+
+#: Body-source options that have a flag of their own (the folder source's); any option is ``--option KEY=VALUE``.
+SOURCE_FLAGS = {"root": "--source", "test_subjects": "--test-subjects", "test_fraction": "--test-fraction",
+                "up_axis": "--up-axis", "canonical": "--canonical"}
+
+GENERATE_HELP = """Generate a dataset into --out. Rerunning the same command resumes an interrupted run without
+redoing finished shards; a folder holding anything else is refused unless --overwrite.
+
+--dataset names a body source registered under the cerberus.bodies entry points (docs/bodies.md); the core's:
+  human:      large (the paper's 19,500 train pairs / 5 subjects with small's test split:
+              the data of the shipped human model, about half an hour on 2 cores),
+              paper (19,500 train pairs / 5 subjects; 810 test poses x 4 views / 2 subjects),
+              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds)
+  animal:     paper (41 species x 47 poses x 4 views, 38,540 quadruplets; 984 test views),
+              small (12 species), tiny
+  primitives: capsule figures with the human presets' structure (paper, small, tiny)
+  folder:     your meshes (--source DIR): pairs (the Human protocol), grid (the Animal protocol)
+
+--set KEY=VALUE changes any key of the resolved config (values are YAML; see it with
+--print-config): seed, image_size, renderer, shard_images, scene.<field>,
+splits.<split>.<field>, e.g. --set splits.train.pairs=2000 --set scene.elevation=20"""
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -24,186 +44,163 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        "ground-truth meshes and part labels for testing.")
     dsub = p.add_subparsers(dest="data_command", metavar="ACTION")
     dsub.required = True
+    _add_generate(dsub)
+    _add_check_and_show(dsub)
 
-    g = dsub.add_parser("generate", help="generate (or resume) a dataset",
-                        formatter_class=argparse.RawDescriptionHelpFormatter,
-                        description="Generate a dataset into --out. Rerunning the same command resumes an interrupted "
-                        "run without redoing finished shards; a folder holding anything else is refused unless "
-                        "--overwrite.\n\nsizes (bundled presets, cerberus_core/configs/data/<dataset>_<size>.yaml):\n"
-                        "  human:      large (the paper's 19,500 train pairs / 5 subjects with small's test split:\n"
-                        "              the data of the shipped human model, about half an hour on 2 cores),\n"
-                        "              paper (19,500 train pairs / 5 subjects;\n"
-                        "              810 test poses x 4 views / 2 subjects),\n"
-                        "              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds)\n"
-                        "  animal:     paper (41 species x 47 poses x 4 views, 38,540 quadruplets; 984 test views),\n"
-                        "              small (12 species), tiny\n"
-                        "  primitives: capsule figures with the human presets' structure (paper, small, tiny)\n"
-                        "  folder:     pairs (the Human protocol on your meshes), grid (the Animal protocol)\n\n"
-                        "--set KEY=VALUE changes any key of the resolved config (values are YAML; see it with\n"
-                        "--print-config): seed, image_size, renderer, shard_images, scene.<field>,\n"
-                        "splits.<split>.<field>, e.g. --set splits.train.pairs=2000 --set scene.elevation=20")
-    g.add_argument("--dataset", choices=_DATASETS, required=True, help="body source")
+
+def _add_generate(dsub: argparse._SubParsersAction) -> None:
+    g = dsub.add_parser("generate", help="generate (or resume) a dataset", description=GENERATE_HELP,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    g.add_argument("--dataset", required=True, metavar="SOURCE", help="body source: human, animal, primitives, "
+                   "folder or an installed plugin's")
     g.add_argument("--size", default=None, metavar="NAME",
                    help="size preset: large (human), paper, small, tiny (folder: pairs, grid); default small (folder: pairs)")
     g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
     g.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
-    g.add_argument("--source", type=Path, help="folder of meshes: SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl> "
-                   "(--dataset folder only)")
-    g.add_argument("--test-subjects", help="folder: comma-separated test subject names (default: --test-fraction)")
-    g.add_argument("--test-fraction", type=float, default=None,
-                   help="folder: fraction of subjects (last in sorted order) held out for testing "
-                   f"(default {DEFAULT_TEST_FRACTION}; 1: a test-only dataset, to evaluate a trained model on your meshes)")
-    g.add_argument("--up-axis", choices=UP_AXES, default=None,
-                   help="folder: the meshes' up axis, turned into +Y (default +y, the toolkit's world; Blender, "
-                   "anny and many scans are +z); recorded in the manifest")
-    g.add_argument("--canonical", metavar="POSE",
-                   help="folder: the pose file stem that is each subject's canonical pose, rendered and flagged in "
-                   "the test split for the Hard Human test of cerberus eval (default: a pose named 'canonical')")
-    g.add_argument("--renderer", default=None,
-                   help="renderer backend: warp, torch or auto (default: auto, warp if it works, else torch); "
-                   "same as --set renderer=...")
-    g.add_argument("--image-size", type=int, default=None,
-                   help="image size in pixels (default 64; 128 available); same as --set image_size=...")
-    g.add_argument("--seed", type=int, default=None,
-                   help="seed of every random choice (default 0); same as --set seed=...")
-    g.add_argument("--shard-images", type=int, default=None,
-                   help="images per shard (default 1024); same as --set shard_images=...")
+    g.add_argument("--source", dest="root", help="folder source: the folder of meshes, "
+                   "SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl>")
+    g.add_argument("--test-subjects", help="folder source: comma-separated test subject names (default: --test-fraction)")
+    g.add_argument("--test-fraction", type=float, help="folder source: fraction of subjects (last in sorted order) "
+                   "held out for testing (default 0.3; 1: a test-only dataset, to evaluate a trained model on your meshes)")
+    g.add_argument("--up-axis", help="folder source: the meshes' up axis, +y -y +z -z +x -x, turned into +Y (default "
+                   "+y, the toolkit's world; Blender, anny and many scans are +z); recorded in the manifest")
+    g.add_argument("--canonical", metavar="POSE", help="folder source: the pose file stem that is each subject's "
+                   "canonical pose, rendered and flagged in the test split for the Hard Human test of cerberus eval "
+                   "(default: a pose named 'canonical')")
+    g.add_argument("--option", dest="options", action="append", default=[], metavar="KEY=VALUE",
+                   help="any option of the body source (repeatable; values are YAML)")
+    g.add_argument("--renderer", help="renderer backend: warp, torch or auto (default: auto, warp if it works, else "
+                   "torch); same as --set renderer=...")
+    g.add_argument("--image-size", type=int, help="image size in pixels (default 64); same as --set image_size=...")
+    g.add_argument("--seed", type=int, help="seed of every random choice (default 0); same as --set seed=...")
+    g.add_argument("--shard-images", type=int, help="images per shard (default 1024); same as --set shard_images=...")
     g.add_argument("--batch-size", type=positive_int, default=64, help="views per render call (default 64; no effect on output)")
     g.add_argument("--device", default="cpu", help="torch device for posing and rendering (default cpu)")
     g.add_argument("--overwrite", action="store_true", help="replace a different dataset in --out")
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
     g.add_argument("--print-config", action="store_true", help="print the resolved config (YAML) and exit")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
-    # The flag of each setting of load_generation_config, validate_generation / generate and the folder source;
-    # the config's other keys are said with --set.
-    g.set_defaults(func=run_generate, terms=Terms({
-        **SHORTCUT_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",
-        "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device", "test_fraction": "--test-fraction",
-        "test_subjects": "--test-subjects", "up_axis": "--up-axis", "canonical": "--canonical"}, GenerationConfig))
+    from cerberus_core.datasets.settings import GenerationConfig
 
+    g.set_defaults(func=run_generate, terms=Terms({
+        **CONFIG_FLAGS, **SOURCE_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",
+        "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device"}, GenerationConfig))
+
+
+def _add_check_and_show(dsub: argparse._SubParsersAction) -> None:
     c = dsub.add_parser("check", help="verify a dataset's checksums and report its contents",
                         description="Verify the manifest (format version, paths), every shard file (size, sha256, "
                         "array shapes) and completeness. Exit status 1 on any problem.")
     c.add_argument("root", type=Path, help="dataset folder")
     c.add_argument("--quick", action="store_true", help="sizes and headers only, no sha256")
     c.set_defaults(func=run_check)
-
     s = dsub.add_parser("show", help="write a contact sheet PNG of a split",
                         description="Rows of quadruplets (a0 a1 b0 b1) for training splits, or the views of each "
                         "pose for test splits; --parts adds the ground-truth parts in colour.")
     s.add_argument("root", type=Path, help="dataset folder")
     s.add_argument("--split", default="train", help="split to show (default train)")
     s.add_argument("--out", type=Path, help="PNG path (default: ROOT/contact_<split>.png)")
-    s.add_argument("--count", type=positive_int, default=8, help=f"rows, 1..{MAX_SHOW_COUNT} (default 8)")
+    s.add_argument("--count", type=positive_int, default=8, help="rows, 1..256 (default 8)")
     s.add_argument("--parts", action="store_true", help="add ground-truth part renderings")
-    s.add_argument("--scale", type=positive_int, default=2, help=f"tile upscaling, 1..{MAX_SHOW_SCALE} (default 2)")
+    s.add_argument("--scale", type=positive_int, default=2, help="tile upscaling, 1..16 (default 2)")
     s.add_argument("--renderer", default="auto", help="backend for --parts (default auto: warp, else torch)")
-    s.set_defaults(func=run_show, terms=Terms({"out": "--out", "split": "--split", "renderer": "--renderer"}))
-
-
-def _generation_config(args: argparse.Namespace):
-    """The resolved config: the size preset, then the shortcut flags, then --set (later wins)."""
-    size = args.size
-    if args.size_alias is not None:
-        print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "
-              "recipes are `cerberus train --preset`)", file=sys.stderr)
-        size = size or args.size_alias
-    shortcuts = [f"{key}={value}" for key, flag in SHORTCUT_FLAGS.items()
-                 if (value := getattr(args, flag[2:].replace("-", "_"))) is not None]
-    return load_generation_config(args.dataset, size, [*shortcuts, *args.overrides])
+    s.set_defaults(func=run_show, terms=Terms({"out": "--out", "split": "--split", "renderer": "--renderer",
+                                               "count": "--count", "scale": "--scale"}))
 
 
 def _source_options(args: argparse.Namespace) -> dict:
-    """The body source's options (stored in the manifest): the folder's root and test split."""
-    if (args.dataset == "folder") != (args.source is not None):
-        raise ConfigError("--source DIR is required with --dataset folder (and only then)")
-    if args.dataset != "folder":
-        if args.test_subjects is not None or args.test_fraction is not None:
-            raise ConfigError("--test-subjects and --test-fraction choose the test subjects of --dataset folder "
-                              "only; the other datasets' splits are set by --size and --set")
-        if args.up_axis is not None or args.canonical is not None:
-            raise ConfigError("--up-axis and --canonical apply to --dataset folder only; drop them or use --dataset folder")
-        return {}
-    options = {"root": str(args.source.resolve()),
-               "test_fraction": DEFAULT_TEST_FRACTION if args.test_fraction is None else args.test_fraction,
-               "up_axis": args.up_axis or DEFAULT_UP_AXIS}
-    if args.canonical is not None:
-        options["canonical"] = args.canonical
-    if args.test_subjects is not None:
-        options["test_subjects"] = [s.strip() for s in args.test_subjects.split(",") if s.strip()]
-        if not options["test_subjects"]:
-            raise ConfigError(f"--test-subjects {args.test_subjects!r}: expected comma-separated subject names")
-    return options
+    """The body source's options: its flags, then ``--option KEY=VALUE`` (the source's ``Options`` check them)."""
+    from cerberus_core.config import parse_overrides
+
+    options = {key: getattr(args, key) for key in SOURCE_FLAGS if getattr(args, key) is not None}
+    if "test_subjects" in options:
+        options["test_subjects"] = [s.strip() for s in options["test_subjects"].split(",") if s.strip()]
+    return {**options, **parse_overrides(args.options, example="root=DIR")}
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    """Every argument is checked (:func:`validate_generation`) before --dry-run returns and before the
-    folder's lock or manifest is written."""
+    """Every argument is checked before --dry-run returns and before the folder's lock or manifest is written."""
     import yaml
 
-    from cerberus_core.datasets.generate import generate, validate_generation
-    from cerberus_core.plumbing.lock import check_unlocked, folder_lock
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.datasets.plan import load_generation_config
 
-    options = _source_options(args)
-    config = _generation_config(args)
+    if args.size_alias is not None:
+        print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "
+              "recipes are `cerberus train --preset`)", file=sys.stderr)
+    shortcuts = [f"{key}={value}" for key in CONFIG_FLAGS if (value := getattr(args, key)) is not None]
+    config = load_generation_config(args.dataset, args.size or args.size_alias, [*shortcuts, *args.overrides])
     if args.print_config:
         print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
         return 0
-    output_folder(args.out, dataset_ok=True)
-    runtime = {"device": args.device} if args.dataset == "human" else {}  # not stored: no effect on content
-    job = validate_generation(config, source_options=options, source_runtime=runtime, device=args.device,
-                              batch_size=args.batch_size, out=args.out, overwrite=args.overwrite)
-    if args.dataset == "folder" and args.up_axis is None and (hint := job.source.up_axis_warning()):
-        warnings.warn(hint, UserWarning, stacklevel=1)  # an explicit --up-axis silences it
-    if args.out.is_dir():
-        check_unlocked(args.out)  # a live writer: refused before the lock file is even attempted
+    how = dict(source_options=_source_options(args), overwrite=args.overwrite, device=args.device,
+               batch_size=args.batch_size)
     if args.dry_run:
-        print("\n".join(job.plan_lines()))
+        print("\n".join(Dataset.plan(config, args.out, **how).plan_lines()))
         return 0
-    with folder_lock(args.out, "cerberus data generate"):  # one writer per dataset folder
-        manifest = generate(config, args.out, source=job.source, source_options=options, overwrite=args.overwrite,
-                            device=args.device, batch_size=args.batch_size, progress=not args.quiet)
+    dataset = Dataset.generate(config, args.out, progress=not args.quiet, **how)
     print(*(f"{split:<6} {info.planned_images:>8} images {info.planned_quadruplets:>8} quadruplets"
-            for split, info in manifest.splits.items()), f"dataset written to {args.out}", sep="\n")
+            for split, info in dataset.manifest.splits.items()), f"dataset written to {args.out}", sep="\n")
     return 0
 
 
 def run_check(args: argparse.Namespace) -> int:
     """Exit 2 when ROOT is not a readable dataset (bad input), 1 when the dataset has problems."""
-    from cerberus_core.datasets.manifest import FORMAT_VERSION
-    from cerberus_core.datasets.readers import verify_dataset
+    from cerberus_core.datasets.dataset import Dataset
 
-    manifest, problems = verify_dataset(args.root, checksums=not args.quick, progress=sys.stderr.isatty())
-    if manifest is None:
-        raise DatasetError(problems[0])
-    print(f"{args.root}: {manifest.dataset}/{manifest.preset}, format v{FORMAT_VERSION}, "
-          f"{manifest.image_size}px, {len(manifest.subjects)} subjects, {len(manifest.part_names)} parts")
-    for split, info in manifest.splits.items():
-        count = info.totals()
-        print(f"  {split:<6} {len(info.shards)}/{info.planned_shards} shards, {count['images']} images, "
-              f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
+    dataset = Dataset.open(args.root)
+    problems = dataset.verify(checksums=not args.quick, progress=sys.stderr.isatty())
+    print("\n".join(dataset.summary()))
+    left = set(dataset.incomplete().values())
     for p in problems:
-        print(f"problem: {p}", file=sys.stderr)
+        print(f"problem: {p}" + (f"; {finish(dataset)}" if p in left else ""), file=sys.stderr)
     print("ok" if not problems else f"{len(problems)} problem(s)")
     return 1 if problems else 0
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from cerberus_core.datasets.manifest import Manifest
-    from cerberus_core.datasets.show import save_contact_sheet
-    from cerberus_core.plugins import RENDERER_GROUP, get_plugin
-    from cerberus_core.render.backends import AUTO_RENDERER
+    from cerberus_core.datasets.dataset import Dataset
 
-    for option, value, most in (("--count", args.count, MAX_SHOW_COUNT), ("--scale", args.scale, MAX_SHOW_SCALE)):
-        if value > most:
-            raise ConfigError(f"{option} {value}: at most {most}")
-    Manifest.read(args.root).split(args.split)
-    out = output_file(args.out or args.root / f"contact_{args.split}.png")
-    if args.renderer != AUTO_RENDERER:
-        get_plugin(RENDERER_GROUP, args.renderer)  # a known backend, even without --parts
-    save_contact_sheet(args.root, out, split=args.split, count=args.count, parts=args.parts,
-                       renderer=args.renderer, scale=args.scale)
+    out = Dataset.open(args.root).contact_sheet(args.out, split=args.split, count=args.count, parts=args.parts,
+                                                renderer=args.renderer, scale=args.scale)
     print(f"contact sheet written to {out}")
     return 0
+
+
+# ------------------------------------------------------------------------------------ what is left to generate
+def generate_command(dataset) -> str:  # noqa: ANN001 - a Dataset (imported lazily)
+    """The ``cerberus data generate`` command that resumes ``dataset`` (a
+    :class:`~cerberus_core.datasets.dataset.Dataset`): its :meth:`~Dataset.request` said in flags. It rebuilds
+    exactly the stored config, so ``generate`` resumes instead of refusing a different dataset."""
+    import yaml
+
+    request = dataset.request()
+    words = ["cerberus", "data", "generate", "--dataset", request.dataset, "--size", request.size,
+             "--out", str(dataset.root)]
+    for key, value in request.source_options.items():
+        if key in SOURCE_FLAGS:
+            words += [SOURCE_FLAGS[key], ",".join(value) if isinstance(value, list) else str(value)]
+        else:
+            words += ["--option", f"{key}={json.dumps(value)}"]
+    for key, value in request.overrides.items():
+        text = value if isinstance(value, str) and yaml.safe_load(value) == value else json.dumps(value)
+        words += [CONFIG_FLAGS[key], text] if key in CONFIG_FLAGS else ["--set", f"{key}={text}"]
+    return shlex.join(words)
+
+
+def finish(dataset) -> str:  # noqa: ANN001 - a Dataset
+    """``finish generating it (it resumes) with `COMMAND```: the fix of an incomplete dataset, in flags."""
+    return f"finish generating it (it resumes) with `{generate_command(dataset)}`"
+
+
+def incomplete_message(exc) -> str:  # noqa: ANN001 - an IncompleteDatasetError
+    """An incomplete dataset's error said with the command that finishes it (the CLI's error boundary)."""
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.errors import CerberusError
+
+    try:
+        return f"{exc.problem}; {finish(Dataset.open(exc.root))}"
+    except CerberusError:  # the library's own message, when the command cannot be built
+        return str(exc)

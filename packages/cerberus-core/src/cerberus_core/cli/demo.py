@@ -6,8 +6,9 @@ import time
 from pathlib import Path
 
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import output_folder, positive_int
+from cerberus_core.cli.checks import positive_int
 from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.outputs import output_folder
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.demo import demo_scene
@@ -32,7 +33,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.image_size > MAX_IMAGE_SIZE:
         raise ConfigError(f"--image-size {args.image_size}: at most {MAX_IMAGE_SIZE}")
-    out = output_folder(args.out)
+    from cerberus_core.datasets.dataset import Dataset
+
+    out = output_folder(args.out, refuse=Dataset.not_an_output)
     names = args.renderer or available_renderers()
     if not names:
         raise ConfigError("no renderer backend is installed: pip install cerberus-render-torch "

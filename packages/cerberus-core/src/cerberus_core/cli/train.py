@@ -6,10 +6,10 @@ import sys
 from pathlib import Path
 
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import output_folder
 from cerberus_core.config import load_yaml, yaml_problem
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.outputs import output_folder
 
 EPILOG = """\
 examples:
@@ -110,7 +110,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"no --preset or --config given: using the '{chosen}' preset ({why}); pass --preset NAME to choose",
               file=sys.stderr)
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
-    out = output_folder(args.out or Path("runs") / name)
+    from cerberus_core.datasets.dataset import Dataset
+
+    out = output_folder(args.out or Path("runs") / name, refuse=Dataset.not_an_output)
     if args.device is not None:  # one mechanism: --device is the config key device
         args.overrides = [*args.overrides, f"device={args.device}"]
     config = resolve_config(args, out)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from cerberus_core.datasets.manifest import MANIFEST, FileRecord, Manifest, ShardRecord, canonical_json
-from cerberus_core.errors import DatasetError  # DatasetError re-exported: the format's readers raise it
+from cerberus_core.errors import DatasetError, ShapeError  # DatasetError re-exported: the format's readers raise it
 from cerberus_core.plumbing.atomic import atomic_write
 
 VIEW_DTYPE = np.dtype([
@@ -257,12 +257,12 @@ def write_shard(root: Path, split: str, index: int, images: np.ndarray, views: n
     """
     root = Path(root)
     if images.dtype != np.uint8 or images.ndim != 4 or images.shape[1] != 3:
-        raise ValueError(f"write_shard: images must be (N, 3, H, W) uint8, got {images.dtype} {images.shape}")
+        raise ShapeError(f"write_shard: images must be (N, 3, H, W) uint8, got {images.dtype} {images.shape}")
     if views.dtype != VIEW_DTYPE or views.shape != (len(images),):
-        raise ValueError("write_shard: views must be one VIEW_DTYPE record per image")
+        raise ShapeError("write_shard: views must be one VIEW_DTYPE record per image")
     quads = np.asarray(quads, dtype=np.int32).reshape(-1, 4)
     if quads.size and (quads.min() < 0 or quads.max() >= len(images)):
-        raise ValueError("write_shard: quadruplet indices outside the shard's images")
+        raise ShapeError("write_shard: quadruplet indices outside the shard's images")
     name = f"shard-{index:05d}"
     folder = root / split
     arrays: dict[str, np.ndarray] = {"images": images, "views": views, "quads": quads}

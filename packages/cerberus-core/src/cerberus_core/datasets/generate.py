@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -18,9 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core import __version__
-from cerberus_core.bodies.body import PosedBody
-from cerberus_core.bodies.sources import BodySource, make_source
+from cerberus_core.bodies.body import BodyError, BodySource, PosedBody, source_class
 from cerberus_core.datasets.format import (
     DatasetError,
     check_shard_files,
@@ -38,11 +36,13 @@ from cerberus_core.datasets.manifest import (
     SubjectRecord,
     jsonable,
 )
-from cerberus_core.datasets.plan import DatasetPlan, GenerationConfig, ShardPlan, make_plan
+from cerberus_core.datasets.plan import DatasetPlan, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.devices import check_device
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.lock import is_lock_file
+from cerberus_core.release import VERSION
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.render.interface import Renderer
@@ -65,12 +65,15 @@ class GenerationJob:
         config: the config with its renderer resolved (``auto`` → the backend) and the source's
             description filled in: what the manifest stores.
         source: the body source.
+        source_options: the source's options as the manifest stores them
+            (:meth:`BodySource.stored_options`).
         plan: the shard plan of every split.
         peak_bytes: the memory the largest shard needs while it is built (images and render buffers).
     """
 
     config: GenerationConfig
     source: BodySource
+    source_options: dict[str, Any]
     plan: DatasetPlan
     peak_bytes: int
 
@@ -101,9 +104,8 @@ def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
 
 
 def validate_generation(config: GenerationConfig, *, source: BodySource | None = None,
-                        source_options: dict[str, Any] | None = None, source_runtime: dict[str, Any] | None = None,
-                        device: str = "cpu", batch_size: int = 64, out: str | Path | None = None,
-                        overwrite: bool = False) -> GenerationJob:
+                        source_options: Mapping[str, Any] | None = None, device: str = "cpu", batch_size: int = 64,
+                        out: str | Path | None = None, overwrite: bool = False) -> GenerationJob:
     """Check a whole generation before anything is written (``--dry-run`` stops after this).
 
     Checks the device, the batch size, the body source and its options, the renderer (resolved
@@ -114,8 +116,9 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
     :class:`GenerationConfig`'s; the folder's lock is the caller's (:mod:`cerberus_core.plumbing.lock`).
 
     Args:
-        source: the body source (default: built from ``config.dataset``, ``source_options`` and
-            ``source_runtime``: options with no effect on the content, e.g. the human source's ``device``).
+        source: the body source, built by the caller (default: the source registered as ``config.dataset``,
+            built from ``source_options`` checked by its ``Options``, posing on ``device``).
+        source_options: the source's options (stored in the manifest: with ``source`` given, as they are).
         out, overwrite: the dataset folder to check, and whether it may be replaced.
 
     Raises:
@@ -126,15 +129,17 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
         raise ConfigError.about("batch_size", batch_size, "must be >= 1")
     try:
         if source is None:
-            source = make_source(config.dataset, **dict(source_options or {}), **dict(source_runtime or {}))
+            cls = source_class(config.dataset)
+            options = cls.options(source_options)
+            source, stored = cls.from_options(options, device=device), cls.stored_options(options)
+        else:
+            stored = dict(source_options or {})
         renderer = resolve_renderer(config.renderer)
         make_renderer(renderer)  # installed, imports, builds: before the manifest names it
         # The manifest names the backend that draws the images (``auto`` resolved).
         config = replace(config, source=jsonable(source.describe()), renderer=renderer)
         plan = make_plan(config, source)
-    except CerberusError:
-        raise
-    except (ValueError, ImportError) as exc:  # the sources' and the plan's checks; a missing extra
+    except ImportError as exc:  # a source's optional package missing (the sources' and the plan's checks are typed)
         raise ConfigError(str(exc)) from exc
     views = max(len(s.views) for shards in plan.shards.values() for s in shards)
     pixels = config.image_size ** 2
@@ -151,7 +156,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               "or `shard_images`")
     if out is not None:
         check_folder(Path(out), jsonable(config.to_dict()), overwrite)
-    return GenerationJob(config, source, plan, images + buffers)
+    return GenerationJob(config, source, jsonable(stored), plan, images + buffers)
 
 
 # ------------------------------------------------------------------------------------ rendering
@@ -212,7 +217,7 @@ def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list
     """Pose every (subject index, pose id) of a shard, one batched call per subject, and check them.
 
     Raises:
-        ValueError: a body outside ``[-0.5, 0.5]^3`` or with part labels outside ``0..n_parts-1``.
+        BodyError: a body outside ``[-0.5, 0.5]^3`` or with part labels outside ``0..n_parts-1``.
     """
     by_subject: dict[int, list[int]] = {}
     for s, p in meshes:
@@ -225,14 +230,16 @@ def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list
         name = who.name
         bodies = source.bodies(who, poses)
         if len(bodies) != len(poses):
-            raise RuntimeError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}")
+            raise BodyError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}; "
+                            "BodySource.bodies must return one body per pose id")
         for p, b in zip(poses, bodies, strict=True):
             reach = float(np.abs(b.vertices).max()) if len(b.vertices) else 0.0
             if reach > 0.5 + 1e-6:
-                raise ValueError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "
+                raise BodyError(f"{source.name} body {name} pose {p} reaches {reach:.3f}, outside the unit cube "
                                  "[-0.5, 0.5]^3 every body must lie in (see cerberus_core.bodies.body)")
             if len(b.vertex_parts) and (b.vertex_parts.min() < 0 or b.vertex_parts.max() >= n_parts):
-                raise ValueError(f"{source.name} body {name} pose {p}: part labels outside 0..{n_parts - 1}")
+                raise BodyError(f"{source.name} body {name} pose {p}: part labels outside 0..{n_parts - 1}; label "
+                                f"each vertex with a part of the source's {n_parts} `part_names`")
             built[(s, p)] = b
     return [built[m] for m in meshes]
 
@@ -279,10 +286,11 @@ def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, Manifes
                 raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass `overwrite=True` to "
                                    "replace it, or choose another `out`") from exc
             return "overwrite", None
-        if old.config == config:
+        stored = jsonable(old.config.to_dict())
+        if stored == config:
             return "resume", old
         if not overwrite:
-            diff = "; ".join(_differences(dict(old.config), config)[:6])
+            diff = "; ".join(_differences(stored, config)[:6])
             raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
                                "`overwrite=True` to replace it, or choose another `out`")
         return "overwrite", old
@@ -318,25 +326,23 @@ def _manifest(out: Path, config: GenerationConfig, cfg: dict, source: BodySource
         t = plan.totals(name)
         splits[name] = SplitRecord(split_cfg.layout, split_cfg.meshes, t["shards"], t["images"], t["quadruplets"],
                                    t["meshes"])
-    return Manifest(dataset=config.dataset, preset=config.preset, config=cfg, config_sha256=config_hash(cfg),
+    return Manifest(dataset=config.dataset, preset=config.preset, config=config, config_sha256=config_hash(cfg),
                     scene=config.scene, image_size=config.image_size, part_names=tuple(source.part_names),
                     subjects=tuple(plan.subjects), source=SourceRecord(source.name, jsonable(source_options)),
-                    splits=splits, generator={"cerberus_core": __version__}, root=out)
+                    splits=splits, generator={"cerberus_core": VERSION}, root=out)
 
 
 # ------------------------------------------------------------------------------------ driver
-def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | None = None,
-             source_options: dict[str, Any] | None = None, overwrite: bool = False, device: str = "cpu",
-             batch_size: int = 64, progress: bool = True, log: Callable[[str], None] = print,
-             on_shard: ShardCallback | None = None) -> Manifest:
-    """Generate (or resume) a dataset in ``out``.
+def write_dataset(job: GenerationJob, out: str | Path, *, overwrite: bool = False, device: str = "cpu",
+                  batch_size: int = 64, progress: bool = True, log: Callable[[str], None] = print,
+                  on_shard: ShardCallback | None = None) -> Manifest:
+    """Generate (or resume) the dataset of a validated ``job`` in ``out``: the engine of
+    :meth:`cerberus_core.datasets.dataset.Dataset.generate`, which checks the job and holds the folder's
+    lock around this call.
 
     Args:
-        config: what to generate (:func:`cerberus_core.datasets.plan.preset_config`).
+        job: what :func:`validate_generation` gave.
         out: the dataset folder (created if needed).
-        source: the body source (default: built from ``config.dataset`` and ``source_options``).
-        source_options: JSON-ready options of the source (e.g. the folder's ``root``), stored in
-            the manifest so that a reader can rebuild the source.
         overwrite: replace a different dataset (or other files' dataset folders) in ``out``.
         device: torch device for posing and rendering (not part of the dataset's identity).
         batch_size: views per render call (results do not depend on it).
@@ -347,15 +353,10 @@ def generate(config: GenerationConfig, out: str | Path, *, source: BodySource | 
         The final manifest.
 
     Raises:
-        ConfigError: the generation is invalid (:func:`validate_generation`; nothing written).
         DatasetError: ``out`` holds something else (see :func:`_prepare`).
     """
     out = Path(out)
-    source_options = dict(source_options or {})
-    # Nothing is written before these two: the whole generation is checked, then the folder (_prepare).
-    job = validate_generation(config, source=source, source_options=source_options, device=device,
-                              batch_size=batch_size)
-    config, source, plan = job.config, job.source, job.plan
+    config, source, plan, source_options = job.config, job.source, job.plan, job.source_options
     cfg = jsonable(config.to_dict())
     resume = _prepare(out, config, cfg, overwrite, log)
     clean_temporaries(out)

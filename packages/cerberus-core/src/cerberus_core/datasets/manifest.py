@@ -27,9 +27,10 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import Subject
+from cerberus_core.bodies.body import BodySource, Subject, no_subjects_hint, source_class
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.datasets.settings import GenerationConfig
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError
 from cerberus_core.plumbing.atomic import atomic_write
 
 FORMAT_NAME = "cerberus-dataset"
@@ -54,6 +55,17 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     return obj
+
+
+class IncompleteDatasetError(DatasetError):
+    """A split whose generation has not finished. ``root`` is the dataset folder and ``problem`` the message
+    without its fix, so that a front end can name its own way to finish it (the ``cerberus`` command: the
+    ``cerberus data generate`` command that resumes it)."""
+
+    def __init__(self, root: Path, problem: str) -> None:
+        self.root, self.problem = Path(root), problem
+        super().__init__(f"{problem}; finish generating it (it resumes) with `Dataset.open(root).resume()` "
+                         "(cerberus_core.datasets.dataset)")
 
 
 class _Damaged(Exception):
@@ -254,6 +266,27 @@ class SourceRecord:
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "options": dict(self.options)}
 
+    def build(self, device: str = "cpu") -> BodySource:
+        """The body source again, from its registered name and these options (its ``Options`` check them).
+
+        Raises:
+            DatasetError: the source is not installed here or refuses the options (its reason kept).
+        """
+        try:
+            cls = source_class(self.name)
+            return cls.from_options(cls.options(self.options), device=device)
+        except CerberusError as exc:
+            raise DatasetError(f"the dataset's body source {self.name!r} cannot be rebuilt here ({exc})") from exc
+
+    def empty_split_hint(self, subjects: int, split: str, root: Path) -> str:
+        """Why ``split`` has no subject, in the source's own terms (:meth:`BodySource.empty_split_hint`; a
+        generic hint when the source is not installed here)."""
+        try:
+            cls = source_class(self.name)
+        except CerberusError:
+            return no_subjects_hint(split, subjects, root)
+        return cls.empty_split_hint(self.options, subjects, split, root)
+
 
 @dataclass(frozen=True)
 class Manifest:
@@ -262,8 +295,8 @@ class Manifest:
     Attributes:
         dataset: the body source's name: ``human``, ``animal``, ``primitives``, ``folder``.
         preset: the size preset it was generated with.
-        config: the resolved generation config (:meth:`GenerationConfig.to_dict` form, JSON), as
-            stored: a resume compares it whole.
+        config: the resolved generation config, typed (stored in its :meth:`GenerationConfig.to_dict`
+            form): a resume compares it whole.
         config_sha256: its hash (:func:`cerberus_core.datasets.format.config_hash`).
         scene: the scene set-up the images were rendered with (checked).
         image_size: images are ``image_size`` pixels square.
@@ -278,7 +311,7 @@ class Manifest:
 
     dataset: str
     preset: str | None
-    config: Mapping[str, Any]
+    config: GenerationConfig
     config_sha256: str
     scene: SceneSetup
     image_size: int
@@ -334,10 +367,10 @@ class Manifest:
                                "install the cerberus-core release that wrote it")
         try:
             dataset = _need(record, "dataset", str, "manifest")
-            config = _mapping(_need(record, "config", Mapping, "manifest"), "config")
+            config = _config(_mapping(_need(record, "config", Mapping, "manifest"), "config"), path)
             splits = _mapping(_need(record, "splits", Mapping, "manifest"), "splits")
             return cls(
-                dataset=dataset, preset=record.get("preset"), config=dict(config),
+                dataset=dataset, preset=record.get("preset"), config=config,
                 config_sha256=str(record.get("config_sha256", "")), scene=_scene(record.get("scene"), path),
                 image_size=_need(record, "image_size", int, "manifest"),
                 part_names=tuple(str(n) for n in _need(record, "part_names", list, "manifest")),
@@ -353,7 +386,7 @@ class Manifest:
     def to_json(self) -> dict[str, Any]:
         """The JSON object :meth:`write` stores (:meth:`from_json` reads it back equal)."""
         return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "dataset": self.dataset,
-                "preset": self.preset, "config": dict(self.config), "config_sha256": self.config_sha256,
+                "preset": self.preset, "config": jsonable(self.config.to_dict()), "config_sha256": self.config_sha256,
                 "scene": self.scene.to_dict(), "image_size": self.image_size, "part_names": list(self.part_names),
                 "subjects": [s.to_json() for s in self.subjects], "source": self.source.to_json(),
                 "splits": {name: rec.to_json() for name, rec in self.splits.items()}, "complete": self.complete,
@@ -402,6 +435,38 @@ class Manifest:
             raise DatasetError(f"{self.path}: no split {name!r}; this dataset has {sorted(self.splits)}")
         return self.splits[name]
 
+    def incomplete(self, name: str) -> str | None:
+        """What is missing from split ``name`` (``"split 'train' is incomplete (1 of 3 shards)"``), ``None``
+        when every planned shard is written."""
+        info = self.split(name)
+        if info.complete:
+            return None
+        return f"split {name!r} is incomplete ({len(info.shards)} of {info.planned_shards} shards)"
+
+    def readable_split(self, name: str, *, allow_partial: bool = False) -> SplitRecord:
+        """The record of split ``name``, which a reader may open: it has subjects and (unless
+        ``allow_partial``) every shard.
+
+        Raises:
+            DatasetError: no such split, or an empty one (why, in its source's terms).
+            IncompleteDatasetError: a split whose generation has not finished.
+        """
+        info = self.split(name)
+        if info.planned_shards == 0:
+            raise DatasetError(f"{self.root}: split {name!r} is empty: "
+                               f"{self.source.empty_split_hint(len(self.subjects), name, self.root)}")
+        if not allow_partial and (problem := self.incomplete(name)):
+            raise IncompleteDatasetError(self.root, f"{self.root}: {problem}")
+        return info
+
+
+def _config(record: Mapping[str, Any], path: Path) -> GenerationConfig:
+    try:
+        return GenerationConfig.from_dict(dict(record))
+    except ConfigError as exc:
+        raise DatasetError(f"{path}: invalid generation config ({exc}); the manifest is damaged or of a newer "
+                           "version: regenerate the dataset with this version") from None
+
 
 def _scene(record: Any, path: Path) -> SceneSetup:
     try:
@@ -411,5 +476,5 @@ def _scene(record: Any, path: Path) -> SceneSetup:
                            "dataset") from None
 
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "Manifest", "ShardRecord", "SourceRecord",
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "MANIFEST", "FileRecord", "IncompleteDatasetError", "Manifest", "ShardRecord", "SourceRecord",
            "SplitRecord", "SubjectRecord", "canonical_json", "jsonable"]

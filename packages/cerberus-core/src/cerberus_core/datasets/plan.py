@@ -23,228 +23,45 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shlex
-from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
-from typing import Any, Literal
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
-import yaml
 
-from cerberus_core.bodies.sources import BodySource, Subject
-from cerberus_core.config import Presets, build, did_you_mean, flatten, load_raw, omit_defaults
+from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class
+from cerberus_core.config import build, did_you_mean_hint, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
-from cerberus_core.errors import ConfigError
-from cerberus_core.fields import Checked, ranged
-
-LAYOUTS = ("pairs", "grid")
-POSE_PAIRS = ("independent", "motion")
-"""How the two poses of a ``pairs`` training example relate (:attr:`SplitConfig.pose_pairs`)."""
-
-MAX_SPLIT_IMAGES = 1_000_000
-"""Most images a split may plan: 13x the paper's largest (78,000 human training images). The plan is
-held in memory: 1,000,000 images (250,000 primitives pairs) plan in 1.6 s with 540 MB peak memory."""
-
-MAX_SUBJECTS = 10_000
-"""Most subjects a split may ask for (the paper uses at most 41)."""
-
-MAX_VIEWS = 360
-"""Most views per pose on a grid: one per degree of azimuth."""
-
-MAX_QUADRUPLET_POSES = 1_000
-"""Most poses per subject when a grid draws quadruplets (its pose pairs are enumerated; the paper: 47)."""
-
-MAX_IMAGE_SIZE = 1024
-"""Largest ``image_size`` of a dataset: 16x the paper's 64 px (a shard of 1024 such images is 3 GiB;
-the memory a generation needs is checked too, by
-:func:`cerberus_core.datasets.generate.validate_generation`)."""
-
-
-@dataclass(frozen=True)
-class SplitConfig:
-    """How one split is built.
-
-    Attributes:
-        layout: ``"pairs"`` or ``"grid"`` (module docstring).
-        subjects: number of subjects (``None``: all the source has for the split).
-        pairs: ``pairs`` layout: pose pairs over all subjects (spread evenly); ``None``: as many
-            pairs per subject as it has poses (fixed-pose sources such as folders).
-        poses: ``grid`` layout: poses per subject (``None``: all the source offers).
-        views: ``grid`` layout: views per pose.
-        azimuths: ``grid`` layout: ``"shared"`` by all poses of a subject or ``"per_pose"``.
-        quadruplets_per_pose: ``grid`` layout: quadruplets per subject = this x poses (0: none).
-        canonical: add every subject's canonical pose (``grid`` layout).
-        meshes: store ground-truth meshes and part labels (test splits always should; a training
-            split may skip them to save space: the manifest then keeps (subject, pose) references
-            that the source regenerates).
-        pose_pairs: ``pairs`` layout: how the two poses of a pair relate. ``"independent"``: two
-            independent poses from the source's pose pool; ``"motion"``: two nearby frames of one
-            everyday motion (:meth:`BodySource.motion_pairs`; human only, the human presets'
-            choice). Omitted from :meth:`GenerationConfig.to_dict` (so from the manifest and the
-            config hash) when ``"independent"``, so configs from before the key hash as they did.
-    """
-
-    layout: Literal["pairs", "grid"]
-    subjects: int | None = None
-    pairs: int | None = 0
-    poses: int | None = None
-    views: int = 4
-    azimuths: Literal["shared", "per_pose"] = "per_pose"
-    quadruplets_per_pose: int = 0
-    canonical: bool = False
-    meshes: bool = True
-    pose_pairs: Literal["independent", "motion"] = "independent"
-
-    def __post_init__(self) -> None:
-        if self.layout not in LAYOUTS:
-            raise ValueError(f"SplitConfig.layout must be one of {LAYOUTS}, got {self.layout!r}")
-        if self.pose_pairs not in POSE_PAIRS:
-            raise ValueError(f"SplitConfig.pose_pairs must be one of {POSE_PAIRS}, got {self.pose_pairs!r}")
-        if self.layout != "pairs" and self.pose_pairs != "independent":
-            raise ValueError(f"SplitConfig.pose_pairs={self.pose_pairs!r} needs layout pairs (a grid has no pose "
-                             "pairs); drop pose_pairs or set layout: pairs")
-        if self.azimuths not in ("shared", "per_pose"):
-            raise ValueError(f"SplitConfig.azimuths must be 'shared' or 'per_pose', got {self.azimuths!r}")
-        if self.layout == "grid" and self.views < 1:
-            raise ValueError("SplitConfig.views must be >= 1")
-        if self.layout == "grid" and self.quadruplets_per_pose and self.views < 2:
-            raise ValueError("quadruplets need at least 2 views per pose")
-        for name in ("subjects", "pairs", "poses", "quadruplets_per_pose"):
-            v = getattr(self, name)
-            if v is not None and v < 0:
-                raise ValueError(f"SplitConfig.{name} must be >= 0, got {v}")
-        if self.subjects is not None and self.subjects > MAX_SUBJECTS:
-            raise ValueError(f"SplitConfig.subjects {self.subjects}: at most {MAX_SUBJECTS}")
-        if self.layout == "grid" and self.views > MAX_VIEWS:
-            raise ValueError(f"SplitConfig.views {self.views}: at most {MAX_VIEWS} (one per degree)")
-        if self.layout == "grid" and self.quadruplets_per_pose and (self.poses or 0) > MAX_QUADRUPLET_POSES:
-            raise ValueError(f"SplitConfig.poses {self.poses}: at most {MAX_QUADRUPLET_POSES} per subject when "
-                             "quadruplets are drawn")
-        images = self.planned_images_bound()
-        if images is not None and images > MAX_SPLIT_IMAGES:
-            raise ValueError(f"this split would hold {images:,} images, more than {MAX_SPLIT_IMAGES:,}; lower its "
-                             "pairs, subjects, poses or views")
-
-    def planned_images_bound(self) -> int | None:
-        """The most images the split can hold, from its counts alone (``None``: the source decides)."""
-        if self.layout == "pairs":
-            return None if self.pairs is None else 4 * self.pairs
-        if self.poses is None:
-            return None
-        per_subject = (self.poses + (1 if self.canonical else 0)) * self.views
-        return per_subject * (1 if self.subjects is None else max(self.subjects, 1))
-
-
-@dataclass(frozen=True)
-class GenerationConfig(Checked):
-    """Everything that determines a dataset's content (its hash identifies the dataset).
-
-    Attributes:
-        dataset: source name (``human``, ``animal``, ``primitives``, ``folder``).
-        preset: name of the size preset it came from (``--size``; informational, recorded as
-            ``preset`` in the manifest).
-        splits: split name → :class:`SplitConfig`, in generation order.
-        seed: the seed every random choice derives from.
-        image_size: square image size in pixels.
-        renderer: renderer backend name (``make_renderer``; ``auto``: warp if it works, else torch).
-        scene: the scene set-up.
-        shard_images: target images per shard (a grid training subject is never split).
-        supersample: anti-aliasing of the stored images: each is rendered at ``supersample`` times
-            the size and box-filtered down (``supersample**2`` samples per pixel), so thin limbs stay
-            connected and edges carry partial coverage; 1 (the paper-faithful default): one sample
-            per pixel, hard edges. Omitted from :meth:`to_dict` when 1 (older manifests keep
-            their hash).
-        source: the body source's :meth:`BodySource.describe` (versions, content fingerprints).
-    """
-
-    dataset: str
-    preset: str
-    splits: dict[str, SplitConfig]
-    seed: int = ranged(0, ge=0)
-    image_size: int = ranged(64, ge=8, le=MAX_IMAGE_SIZE)
-    renderer: str = "auto"
-    scene: SceneSetup = field(default_factory=SceneSetup)
-    shard_images: int = ranged(1024, ge=4)
-    source: dict[str, Any] = field(default_factory=dict)
-    supersample: int = ranged(1, ge=1, le=8)
-
-    def validate(self) -> None:
-        if not self.splits:
-            raise ConfigError("a dataset needs at least one split; add a splits: section (e.g. train: and test:)")
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (stored as the manifest's ``config``; keys added after format v1 only when
-        set: :func:`~cerberus_core.config.omit_defaults`)."""
-        d = {
-            "dataset": self.dataset, "preset": self.preset, "seed": self.seed, "image_size": self.image_size,
-            "renderer": self.renderer, "scene": self.scene.to_dict(), "shard_images": self.shard_images,
-            "splits": {k: omit_defaults(asdict(v), {"pose_pairs": "independent"}) for k, v in self.splits.items()},
-            "source": self.source, "supersample": self.supersample,
-        }
-        return omit_defaults(d, {"supersample": 1})
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> GenerationConfig:
-        """The config of :meth:`to_dict`'s form (a manifest's ``config``), checked.
-
-        Raises:
-            ConfigError: a key this version does not know, or a value out of range.
-        """
-        return replace(build(cls, {k: v for k, v in d.items() if k != "scene"}), scene=SceneSetup.from_dict(d.get("scene")))
-
+from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
+from cerberus_core.errors import CerberusError, ConfigError
 
 # ------------------------------------------------------------------------------------ presets
-DATASETS: tuple[str, ...] = ("human", "animal", "primitives", "folder")
-"""The body sources a dataset can be generated from (``--dataset``)."""
-
-DATA_PRESETS = Presets("configs/data", kind="dataset preset")
-"""The bundled dataset presets, ``cerberus_core/configs/data/<dataset>_<size>.yaml``: ``paper``
-follows the paper's counts, ``small`` generates on a CPU in minutes, ``tiny`` in seconds (tests);
-``folder`` has ``pairs`` (the Human protocol) and ``grid`` (the Animal protocol) instead."""
-
 SET_EXAMPLE = "splits.train.pairs=2000"
 """The override example that error messages show."""
 
-SHORTCUT_FLAGS: dict[str, str] = {"seed": "--seed", "image_size": "--image-size", "renderer": "--renderer",
-                                  "shard_images": "--shard-images"}
-"""Config keys that ``cerberus data generate`` also takes as a flag of their own (same as ``--set KEY=...``)."""
-
-
-def sizes(dataset: str) -> list[str]:
-    """The bundled size presets of ``dataset`` (``paper``, ``small``, ``tiny``; folder: ``pairs``, ``grid``)."""
-    if dataset not in DATASETS:
-        raise ConfigError(f"unknown dataset {dataset!r}{did_you_mean(dataset, DATASETS)}; choose one of "
-                          f"{', '.join(DATASETS)}")
-    prefix = f"{dataset}_"
-    return [n[len(prefix):] for n in DATA_PRESETS.names() if n.startswith(prefix)]
-
-
-def default_size(dataset: str) -> str:
-    """The size ``cerberus data generate`` uses without ``--size``: ``small`` (folder: ``pairs``)."""
-    return "pairs" if dataset == "folder" else "small"
-
 
 def load_generation_config(dataset: str, size: str | None = None, overrides: Iterable[str] = ()) -> GenerationConfig:
-    """The :class:`GenerationConfig` of a bundled preset plus ``--set`` overrides (YAML values).
+    """The :class:`GenerationConfig` of a size preset of a body source, plus ``overrides`` (YAML values).
 
     Args:
-        dataset: the body source (:data:`DATASETS`).
-        size: the size preset (:func:`sizes`; default :func:`default_size`).
+        dataset: the body source's registered name (``cerberus.bodies`` entry points).
+        size: its size preset (:meth:`BodySource.sizes`; default its :attr:`BodySource.default_size`).
         overrides: ``KEY=VALUE`` strings over the config's keys: ``seed``, ``image_size``,
             ``renderer``, ``shard_images``, ``scene.<field>`` and ``splits.<split>.<field>``.
 
     Raises:
-        ConfigError: an unknown dataset or size, or a bad key or value (named, with what is allowed).
+        ConfigError: an unknown size, or a bad key or value (named, with what is allowed).
+        UnknownPluginError: no body source of that name is installed (with the closest name).
     """
-    size = default_size(dataset) if size is None else size
-    known = sizes(dataset)
+    cls = source_class(dataset)
+    size = cls.default_size if size is None else size
+    known = cls.sizes()
     if size not in known:
         raise ConfigError.about("size", size, f"unknown size preset for dataset {dataset!r}"
-                                f"{did_you_mean(size, known)}; choose one of {', '.join(known)}")
-    raw = load_raw(DATA_PRESETS, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
+                                f"{did_you_mean_hint(size, known)}; choose one of {', '.join(known)}")
+    raw = load_raw(cls.presets, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
     for key, why in (("dataset", "`dataset`"), ("preset", "`size`"), ("source", "the body source")):
         if key in raw:
             raise ConfigError(f"{key}: set by {why}, not by a preset file or `overrides`")
@@ -257,34 +74,41 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
     return replace(load_generation_config(dataset, size), **overrides)
 
 
-def generate_command(root: str | Path, manifest: Manifest) -> str:
-    """The ``cerberus data generate`` command that resumes the dataset of ``manifest`` in ``root``.
+@dataclass(frozen=True)
+class GenerationRequest:
+    """A dataset as it is asked for: a body source, a size preset, the config keys set over the preset and
+    the source's options. :meth:`Dataset.request <cerberus_core.datasets.dataset.Dataset.request>` gives the
+    one that resumes a dataset; ``cerberus data`` says it as a command.
 
-    It names the dataset, the size preset, the body source's options and, as a flag or ``--set``,
-    every config key whose value differs from the bundled preset's, so that the command rebuilds
-    exactly the stored config (``generate`` then resumes instead of refusing a different dataset).
+    Attributes:
+        dataset: the body source's name.
+        size: the size preset.
+        overrides: flat config key (``seed``, ``splits.train.pairs``) → value, where it differs from the preset.
+        source_options: the source's stored options.
     """
-    config = manifest.config
-    dataset, size = manifest.dataset, str(manifest.preset)
-    words = ["cerberus", "data", "generate", "--dataset", dataset, "--size", size, "--out", str(root)]
-    options = manifest.source.options
-    if "root" in options:
-        words += ["--source", str(options["root"])]
-    if options.get("test_subjects"):
-        words += ["--test-subjects", ",".join(options["test_subjects"])]
-    elif "test_fraction" in options:
-        words += ["--test-fraction", str(options["test_fraction"])]
-    try:
-        preset = flatten(json.loads(json.dumps(load_generation_config(dataset, size).to_dict())))
-    except ConfigError:  # a preset this version no longer bundles: every stored key is given
-        preset = {}
-    stored = flatten({k: v for k, v in config.items() if k not in ("dataset", "preset", "source")})
-    for key, value in stored.items():
-        if key in preset and preset[key] == value:
-            continue
-        text = value if isinstance(value, str) and yaml.safe_load(value) == value else json.dumps(value)
-        words += [SHORTCUT_FLAGS[key], text] if key in SHORTCUT_FLAGS else ["--set", f"{key}={text}"]
-    return shlex.join(words)
+
+    dataset: str
+    size: str
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    source_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def config(self) -> GenerationConfig:
+        """The config asked for (:func:`load_generation_config`)."""
+        return load_generation_config(self.dataset, self.size, [f"{k}={json.dumps(v)}" for k, v in self.overrides.items()])
+
+    @classmethod
+    def of(cls, manifest: Manifest) -> GenerationRequest:
+        """The request that rebuilds exactly the config ``manifest`` stores (so a generation resumes it): every
+        stored key whose value differs from the size preset's (every key, if this version lacks the preset)."""
+        dataset, size = manifest.dataset, str(manifest.preset)
+        try:
+            preset = flatten(json.loads(json.dumps(load_generation_config(dataset, size).to_dict())))
+        except CerberusError:  # a preset (or a source) this version no longer has: every stored key is given
+            preset = {}
+        stored = flatten({k: v for k, v in jsonable(manifest.config.to_dict()).items()
+                          if k not in ("dataset", "preset", "source")})
+        overrides = {k: v for k, v in stored.items() if not (k in preset and preset[k] == v)}
+        return cls(dataset, size, overrides, dict(manifest.source.options))
 
 
 # ------------------------------------------------------------------------------------ plan
@@ -354,7 +178,8 @@ def _independent_pairs(who: Subject, n_pairs: int | None, source: BodySource, sp
     if n_pairs == 0:
         return []
     if len(pool) < 2:
-        raise ValueError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2")
+        raise BodyError(f"subject {who.name!r} has {len(pool)} pose(s) for split {split!r}; a pose pair needs 2: give "
+                        "it a second pose, or move it to a grid split")
     if len(pool) >= 2 * n_pairs:
         return [(pool[2 * k], pool[2 * k + 1]) for k in range(n_pairs)]
     a = rng.integers(0, len(pool), n_pairs)
@@ -470,8 +295,9 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     empty split, naming it).
 
     Raises:
-        ValueError: if splits share a subject while the source promises disjoint subjects, no split
+        ConfigError: if splits share a subject while the source promises disjoint subjects, no split
             has a subject, or a split with subjects would hold no image.
+        BodyError: a subject of a ``pairs`` split with fewer than 2 poses.
     """
     table: list[SubjectRecord] = []
     index: dict[str, int] = {}
@@ -485,8 +311,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
             if s.name in index:
                 entry = table[index[s.name]]
                 if not source.shared_subjects:
-                    raise ValueError(f"subject {s.name!r} is in splits {list(entry.splits)} and {split!r}; "
-                                     "splits must hold disjoint subjects")
+                    raise ConfigError(f"subject {s.name!r} is in splits {list(entry.splits)} and {split!r}; "
+                                      "splits must hold disjoint subjects: give each split its own")
                 table[index[s.name]] = entry.in_split(split)
             else:
                 index[s.name] = len(table)
@@ -505,8 +331,9 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 units += _grid_units(index[s.name], s, cfg, source, split, rng, config.shard_images)
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
-            raise ValueError(f"split {split!r} would be empty; check the preset's counts")
+            raise ConfigError(f"split {split!r} would be empty (no image); raise its counts: `splits.{split}.pairs`, "
+                              f"`splits.{split}.poses` or `splits.{split}.views`")
     if not table:
-        raise ValueError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset or the folder's "
-                         "split options")
+        raise ConfigError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset's `subjects` or "
+                          "the body source's split options")
     return DatasetPlan(table, shards)

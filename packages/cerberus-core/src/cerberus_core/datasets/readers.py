@@ -3,8 +3,9 @@
 * :class:`QuadrupletDataset` — training quadruplets: one body in 2 poses (a, b) from 2 viewpoints
   (0, 1), images in the order ``(a0, a1, b0, b1)``.
 * :class:`ViewDataset` — single images (evaluation), with the ground-truth mesh of each image.
-* :func:`verify_dataset` — the whole-folder check of ``cerberus data verify`` (the readers run the
-  same checks on the split they open).
+The readers run the checks of the whole-folder check (:meth:`Dataset.verify
+<cerberus_core.datasets.dataset.Dataset.verify>`) on the split they open; :class:`Dataset
+<cerberus_core.datasets.dataset.Dataset>` opens them by split.
 
 Both are cheap to construct (they read ``manifest.json`` and stat the shard files) and picklable:
 shards are opened lazily in each process with ``np.load(mmap_mode="r")``.
@@ -17,93 +18,20 @@ from typing import Any
 import numpy as np
 import torch
 from torch.utils.data import Dataset
-from tqdm import tqdm
 
 from cerberus_core.bodies.body import PosedBody
-from cerberus_core.bodies.sources import make_source
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
     check_shard_files,
-    empty_views,
     resolve_inside,
     unpack_mesh,
 )
 from cerberus_core.datasets.manifest import Manifest, ShardRecord
-from cerberus_core.datasets.plan import generate_command
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
-
-
-def empty_split_hint(manifest: Manifest, split: str, root: str | Path = "ROOT") -> str:
-    """Why ``split`` of a dataset has no subject and what to do, with the dataset's own counts.
-
-    Args:
-        manifest: the dataset's manifest (its subjects; ``source.options``: a folder source's
-            ``test_fraction`` or ``test_subjects``).
-        split: the empty split (``"train"`` or ``"test"``).
-        root: the dataset folder, for the command the hint names.
-    Returns:
-        One line, e.g. for a folder of one subject with the default ``test_fraction=0.3``: "the
-        dataset has no test subjects: `test_fraction=0.3` of its 1 subject gives round(0.3 x 1) = 0
-        test subjects; ...". The count follows :class:`~cerberus_core.bodies.folder.FolderSource`'s
-        rule (the last ``round(f * n)`` subjects, at least one when ``f > 0`` and ``n >= 2``).
-    """
-    n = len(manifest.subjects)
-    plural = "" if n == 1 else "s"
-    options = manifest.source.options
-    head = f"the dataset has no {split} subjects"
-    if split == "train":
-        cause = " (its only subject is a test subject" if n == 1 else f" (all {n} subjects are test subjects"
-        cause += ", `test_fraction=1`)" if options.get("test_fraction") == 1 else ")"
-        return (f"{head}{cause}; a dataset without train subjects is for evaluation (`Run.evaluate` on {root}, or "
-                "`cerberus eval`); "
-                "train on a dataset with train subjects")
-    if options.get("test_subjects"):
-        cause = f": `test_subjects` named {len(options['test_subjects'])} subject(s), none of them in it"
-    elif "test_fraction" in options:
-        f = float(options["test_fraction"])
-        k = int(round(f * n))
-        if f > 0 and n >= 2:
-            k = max(1, k)
-        cause = (f": `test_fraction={f:g}` of its {n} subject{plural} gives "
-                 f"{'0 (a fraction of 0)' if f == 0 else f'round({f:g} x {n}) = {k}'} test subjects")
-    else:
-        cause = f" (its {n} subject{plural} are all in other splits)"
-    fix = ("regenerate it with `test_fraction=1` (every subject a test subject, for evaluation) or "
-           "`test_subjects=NAME[,NAME]`, or add subjects" if "test_fraction" in options or options.get("test_subjects")
-           else "use a dataset with test subjects")
-    return f"{head}{cause}; {fix}"
-
-
-def incomplete_split(root: Path, manifest: Manifest, split: str) -> str:
-    """The problem with an incomplete split, naming the command that finishes it (it resumes)."""
-    info = manifest.split(split)
-    return (f"split {split!r} is incomplete ({len(info.shards)} of {info.planned_shards} shards); "
-            f"finish generating it (it resumes) with `{generate_command(root, manifest)}`")
-
-
-def verify_dataset(root: Path, *, checksums: bool = True,
-                   progress: bool = False) -> tuple[Manifest | None, list[str]]:
-    """Check a whole dataset: manifest, completeness, every shard file (and its sha256), and views
-    that render empty (:func:`~cerberus_core.datasets.format.empty_views`, on shards whose files are sound).
-
-    Returns:
-        ``(manifest or None, problems)``; an empty problem list means the dataset is sound.
-    """
-    root = Path(root)
-    try:
-        manifest = Manifest.read(root)
-    except DatasetError as exc:
-        return None, [str(exc)]
-    problems: list[str] = []
-    shards = [(name, s) for name, info in manifest.splits.items() for s in info.shards]
-    for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
-        problems.extend(check_shard_files(root, shard, checksums=checksums) or empty_views(manifest, split, shard))
-    problems += [incomplete_split(root, manifest, name) for name, info in manifest.splits.items() if not info.complete]
-    return manifest, problems
 
 
 class _SplitReader:
@@ -113,11 +41,7 @@ class _SplitReader:
         self.root = Path(root)
         self.split = split
         self.manifest = Manifest.read(self.root)
-        self.info = self.manifest.split(split)
-        if self.info.planned_shards == 0:
-            raise DatasetError(f"{self.root}: split {split!r} is empty: {empty_split_hint(self.manifest, split, self.root)}")
-        if not allow_partial and not self.info.complete:
-            raise DatasetError(f"{self.root}: {incomplete_split(self.root, self.manifest, split)}")
+        self.info = self.manifest.readable_split(split, allow_partial=allow_partial)
         self.shards: tuple[ShardRecord, ...] = self.info.shards
         for shard in self.shards:
             problems = check_shard_files(self.root, shard, checksums=verify)
@@ -359,16 +283,14 @@ class ViewDataset(_Base):
     def _regenerate(self, subject: int, pose: int) -> PosedBody:
         """Rebuild a body from the manifest alone: its source (name and options) and the subject's record."""
         if self._source is None:
-            src = self.manifest.source
             try:
-                self._source = make_source(src.name, **src.options)
-            except Exception as exc:  # noqa: BLE001
-                raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and its source "
-                                   f"{src.name!r} cannot be rebuilt here ({exc})") from exc
+                self._source = self.manifest.source.build()
+            except DatasetError as exc:
+                raise DatasetError(f"{self.root}: split {self.split!r} stores no meshes and {exc}") from exc
         try:
             return self._source.bodies(self.manifest.subjects[subject].subject, [pose])[0]
-        except KeyError as exc:
-            raise DatasetError(f"{self.manifest.path}: {exc.args[0]}") from exc
+        except DatasetError as exc:  # a subject record of an older manifest
+            raise DatasetError(f"{self.manifest.path}: {exc}") from exc
 
 
-__all__ = ["QuadrupletDataset", "ViewDataset", "empty_split_hint"]
+__all__ = ["QuadrupletDataset", "ViewDataset"]

@@ -28,8 +28,8 @@ import torch
 
 from cerberus_core.bodies.body import FILL
 from cerberus_core.config import omit_defaults
-from cerberus_core.errors import ConfigError
-from cerberus_core.fields import check_fields, ranged
+from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.fields import Checked, ranged
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light
 
@@ -87,7 +87,8 @@ def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, m
 
     lo, hi = extent * 0.5, extent * 100.0
     if not fits(hi):
-        raise ValueError(f"fit_distance: field of view {fov_y_deg} deg is too narrow")
+        raise ConfigError.about("scene.fov_y", fov_y_deg, "too narrow to frame a body at any distance",
+                                "widen `scene.fov_y`")
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if fits(mid) else (mid, hi)
@@ -95,7 +96,7 @@ def fit_distance(fov_y_deg: float, elevation_deg: float, extent: float = FILL, m
 
 
 @dataclass(frozen=True)
-class SceneSetup:
+class SceneSetup(Checked):
     """Fixed camera and lighting of a dataset; only the azimuth varies per view.
 
     Attributes:
@@ -131,8 +132,11 @@ class SceneSetup:
     fitted_extent: float = ranged(FILL, gt=0)
     fitted_radius: float | None = ranged(None, gt=0, integer=False)
 
-    def __post_init__(self) -> None:
-        check_fields(self, "scene")
+    SECTION = "scene"
+
+    def validate(self) -> None:
+        """Fits a missing ``distance`` (:func:`fit_distance`), then checks the clipping planes around it and
+        the colours."""
         if self.distance is None:
             object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent,
                                                                radius=self.fitted_radius))
@@ -227,7 +231,7 @@ class SceneSetup:
             try:
                 value = views[key]
             except (KeyError, ValueError, IndexError):
-                raise KeyError(f"view records lack {key!r}; every view needs {', '.join(self.VIEW_KEYS)}") from None
+                raise DatasetError(f"view records lack {key!r}; every view needs {', '.join(self.VIEW_KEYS)}") from None
             if isinstance(value, (np.ndarray, np.generic)):
                 value = np.array(value, dtype=np.float32)  # a copy: memory-mapped records are read-only
             t = torch.as_tensor(value).to(device=device, dtype=torch.float32)

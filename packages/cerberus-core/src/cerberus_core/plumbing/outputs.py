@@ -1,14 +1,14 @@
 """Where commands and the library write results: path checks that raise
 :class:`~cerberus_core.errors.ConfigError` before anything is written, and result folders written
-whole (:func:`result_folder`, :func:`writing_results`). :mod:`cerberus_core.cli.checks` re-exports
-them for the sub-commands; :class:`cerberus_core.run.Run` uses them directly."""
+whole (:func:`result_folder`, :func:`writing_results`). The sub-commands and
+:class:`cerberus_core.run.Run` use them directly; a caller adds its own refusal of a folder (``refuse``)."""
 from __future__ import annotations
 
 import contextlib
 import json
 import os
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from cerberus_core.errors import ConfigError, OutputError
@@ -16,7 +16,6 @@ from cerberus_core.plumbing.atomic import atomic_folder, atomic_write_text
 from cerberus_core.plumbing.lock import check_unlocked, is_lock_file
 from cerberus_core.plumbing.names import printable
 
-MANIFEST_NAME = "manifest.json"
 #: Written last into every result folder (reconstruct, eval): marks a folder a later run may replace.
 RESULT_MARKER = ".cerberus-result.json"
 
@@ -47,10 +46,15 @@ def check_path_length(path: Path, key: str = "out") -> Path:
     return path
 
 
-def output_folder(path: Path, key: str = "out", *, dataset_ok: bool = False) -> Path:
-    """``path`` may be created as a folder: not an existing file, nor under one, nor (unless
-    ``dataset_ok``: ``data generate`` resumes there) a dataset folder, whose files are not results;
-    nor a path too long to write (:func:`check_path_length`)."""
+Refusal = Callable[[Path], "str | None"]
+"""A caller's own check of an output folder: the problem with writing into it (``"is a dataset folder;
+write results to another folder"``), or ``None``."""
+
+
+def output_folder(path: Path, key: str = "out", *, refuse: Refusal | None = None) -> Path:
+    """``path`` may be created as a folder: not an existing file, nor under one, nor a path too long to
+    write (:func:`check_path_length`), nor a folder the caller's ``refuse`` finds a problem with (a
+    :class:`ConfigError` about ``key`` with that problem)."""
     check_path_length(path, key)
     for p in (path, *path.parents):
         if p.exists():
@@ -58,8 +62,8 @@ def output_folder(path: Path, key: str = "out", *, dataset_ok: bool = False) -> 
                 what = "is a file" if p == path else f"is under {p}, which is a file"
                 raise ConfigError.about(key, path, f"{what}; pass a folder path")
             break
-    if not dataset_ok and is_dataset(path):
-        raise ConfigError.about(key, path, "is a dataset folder; write results to another folder")
+    if refuse is not None and path.is_dir() and (problem := refuse(path)):
+        raise ConfigError.about(key, path, problem)
     return path
 
 
@@ -77,12 +81,8 @@ def output_file(path: Path, key: str = "out") -> Path:
     return path
 
 
-def is_dataset(path: Path) -> bool:
-    return (Path(path) / MANIFEST_NAME).is_file()
-
-
-def result_folder(path: Path, key: str = "out", *, overwrite: bool = False,
-                  keep: Sequence[Path] = (), earlier: frozenset[str] = frozenset()) -> Path:
+def result_folder(path: Path, key: str = "out", *, overwrite: bool = False, keep: Sequence[Path] = (),
+                  earlier: frozenset[str] = frozenset(), refuse: Refusal | None = None) -> Path:
     """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
 
     Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
@@ -92,7 +92,7 @@ def result_folder(path: Path, key: str = "out", *, overwrite: bool = False,
     ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
     writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
     """
-    output_folder(path, key)
+    output_folder(path, key, refuse=refuse)
     where = path.resolve()
     for kept in [*keep, Path.cwd()]:
         k = Path(kept).resolve()

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 from torch.utils.data import Sampler
 
-from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.render.camera import Camera
 from cerberus_core.shapes import check_shapes
@@ -51,7 +51,7 @@ def check_dataset(dataset: Any) -> None:
 
 def build_dataset(root: str, split: str) -> Any:
     """The quadruplet dataset of ``root`` (:class:`cerberus_core.datasets.readers.QuadrupletDataset`)."""
-    return QuadrupletDataset(root, split=split)
+    return Dataset.open(root).quadruplets(split)
 
 
 # ------------------------------------------------------------------ deterministic order

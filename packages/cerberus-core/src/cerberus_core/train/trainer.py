@@ -45,7 +45,7 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
-from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.atomic import atomic_write_text
@@ -322,7 +322,7 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
 def verify_split(root: str | Path, split: str) -> None:
     """Check every shard file of ``split`` against the sha256 the manifest records (once, at the start
     of a run: the reader only checks sizes on every open). :class:`DatasetError` names the bad file."""
-    QuadrupletDataset(root, split=split, verify=True)
+    Dataset.open(root).quadruplets(split, verify=True)
 
 
 class _Trainer:
