@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.errors import MissingPackageError, ShapeError
 from cerberus_core.eval.standard import Voxels
 from cerberus_core.render.camera import Camera
 from cerberus_core.shapes import check_shapes
@@ -196,7 +196,8 @@ class SegmentAccumulator:
         and ``gt_render_coverage`` (the last two empty when coverage was not measured).
         """
         if not self.images:
-            raise ValueError("SegmentAccumulator.summary: no images were added")
+            raise ShapeError("SegmentAccumulator.summary: no images were added; add each image's counts "
+                             "(SegmentAccumulator.add) before summarising")
 
         def total(name: str) -> np.ndarray:
             return np.sum([getattr(im, name) for im in self.images], axis=0)
