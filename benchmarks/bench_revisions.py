@@ -1,102 +1,89 @@
 """Training-step speed of two git revisions, side by side: is a change faster on this machine?
 
-Each revision is checked out into a temporary git worktree; its four packages are imported from
-there (``PYTHONPATH``) by a child process that builds the preset's model (seed 0) on one batch of the
-same dataset, runs warm-up steps, then times full optimisation steps (objective, backward, Adam;
-:func:`bench_train.stepper`). The children alternate, revision A then B, for ``--rounds`` rounds, so
-a change of load hits both alike; the median step of every revision and the ratio are printed, with
-the first step's loss of each (the same model and batch: equal up to rounding when the change keeps
-the maths).
+Each revision is a source tree: a git revision is checked out into a temporary git worktree, a
+folder is taken as it is (a worktree you made, or ``.`` for the working copy with its uncommitted
+changes). Each tree's four packages are imported from there (``PYTHONPATH`` ahead of the installed
+editable packages; every worker reports the ``cerberus_core`` it imported, printed below) by a worker
+process of ``bench_train.py`` that builds the trainer as ``cerberus train`` does (the preset's own
+``speed:`` section) on one batch of the same dataset and runs the trainer's own step. The two workers
+alternate step by step (A then B, then B then A, ...), so a change of load hits both alike; the
+median step (wall clock and the worker's CPU time) of each, the ratios and the first step's loss of
+each (the same model and batch: equal up to rounding when the change keeps the maths) are printed.
 
-    python benchmarks/bench_revisions.py 55b989e HEAD --preset cpu --data data/human --threads 1
+    python benchmarks/bench_revisions.py 4776951 . --preset cpu --threads 1 --steps 30
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
+import bench_train as bt  # noqa: E402 (after its folder is on the path)
+
 PACKAGES = ("cerberus-core", "cerberus-render-torch", "cerberus-render-warp", "cerberus-metrics")
 
-CHILD = """
-import json, sys, time
-import torch
-sys.path.insert(0, {bench!r})
-import bench_train as bt
-from pathlib import Path
-torch.set_num_threads({threads})
-cfg, scene, batch, _, renderer = bt.setup({preset!r}, {renderer!r}, Path({data!r}), None)
-model, step = bt.stepper(cfg, scene, batch, renderer, cfg.speed)
-first = step(0)
-for i in range(1, {warmup}):
-    step(i)
-times = []
-for i in range({steps}):
-    t0 = time.perf_counter()
-    step({warmup} + i)
-    times.append(time.perf_counter() - t0)
-print(json.dumps({{"times": times, "first_loss": first}}))
-"""
 
-
-def worktree(rev: str, where: Path) -> Path:
+def source_tree(rev: str, where: Path) -> tuple[Path, bool]:
+    """``rev`` as a folder: itself if it is one, else a new detached worktree under ``where``
+    (returns the folder and whether it was made here)."""
+    if Path(rev).is_dir():
+        return Path(rev).resolve(), False
     path = where / rev.replace("/", "_")
     subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "--force", str(path), rev], check=True,
                    capture_output=True, text=True)
-    return path
-
-
-def time_revision(tree: Path, args: argparse.Namespace) -> dict:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(str(tree / "packages" / p / "src") for p in PACKAGES),
-           "OMP_NUM_THREADS": str(args.threads)}
-    code = CHILD.format(bench=str(REPO / "benchmarks"), threads=args.threads, preset=args.preset,
-                        renderer=args.renderer, data=str(args.data.resolve()), warmup=args.warmup, steps=args.steps)
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=1800)
-    if res.returncode != 0:
-        sys.exit(f"bench_revisions: the child for {tree.name} failed:\n{res.stderr[-2000:]}")
-    return json.loads(res.stdout.strip().splitlines()[-1])
+    return path, True
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("revisions", nargs=2, metavar="REV", help="two git revisions (A = before, B = after)")
+    p.add_argument("revisions", nargs=2, metavar="REV",
+                   help="two git revisions or source folders (A = before, B = after)")
     p.add_argument("--preset", default="cpu", help="training preset (default: cpu)")
     p.add_argument("--renderer", default="warp", help="renderer backend (default: warp)")
-    p.add_argument("--data", type=Path, required=True, help="a quadruplet dataset (e.g. data/human)")
-    p.add_argument("--threads", type=int, default=1, help="torch threads per child (default 1)")
-    p.add_argument("--rounds", type=int, default=3, help="alternations A, B (default 3)")
-    p.add_argument("--steps", type=int, default=10, help="timed steps per child (default 10)")
+    p.add_argument("--data", type=Path, default=None, help="a quadruplet dataset (default: generate primitives)")
+    p.add_argument("--threads", type=int, default=1, help="torch threads per worker (default 1)")
+    p.add_argument("--steps", type=int, default=30, help="timed steps per revision, alternating (default 30)")
     p.add_argument("--warmup", type=int, default=3, help="untimed steps first (default 3)")
+    p.add_argument("--batch-size", type=int, default=None, help="override the preset's batch size")
     args = p.parse_args()
+    args.device = "cpu"
+    made: list[Path] = []
     with tempfile.TemporaryDirectory() as tmp:
-        trees = [worktree(rev, Path(tmp)) for rev in args.revisions]
         try:
-            times: dict[str, list[float]] = {rev: [] for rev in args.revisions}
-            first: dict[str, float] = {}
-            for r in range(args.rounds):
-                for rev, tree in zip(args.revisions, trees, strict=True):
-                    out = time_revision(tree, args)
-                    times[rev] += out["times"]
-                    first[rev] = out["first_loss"]
-                    print(f"  round {r + 1}: {rev} median {statistics.median(out['times']):.3f} s/step", flush=True)
+            specs = []
+            root = bt.dataset_for(args, args.preset, Path(tmp))
+            for rev in args.revisions:
+                tree, new = source_tree(rev, Path(tmp))
+                if new:
+                    made.append(tree)
+                env = {**os.environ, "PYTHONPATH": os.pathsep.join(str(tree / "packages" / pkg / "src")
+                                                                   for pkg in PACKAGES)}
+                specs.append((rev, bt.base_spec(args, args.preset, args.renderer, root), env))
+            workers = bt.start(specs)
+            try:
+                bt.interleave(workers, args.steps, args.warmup)
+            finally:
+                for w in workers:
+                    w.close()
         finally:
-            for tree in trees:
+            for tree in made:
                 subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(tree)], capture_output=True)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"\n{args.preset} preset, {args.renderer} renderer, {args.threads} thread(s), load average {load:.1f} on "
-          f"{os.cpu_count()} CPUs; median of {args.rounds} x {args.steps} steps per revision, alternating")
-    a, b = args.revisions
-    for rev in args.revisions:
-        med = statistics.median(times[rev])
-        print(f"{rev:>12}  {med:.3f} s/step  {1 / med:6.2f} steps/s  first-step loss {first[rev]:.7f}")
-    print(f"{b} / {a}: {statistics.median(times[a]) / statistics.median(times[b]):.2f}x faster")
+    print()
+    print("\n".join(bt.machine_lines()))
+    print(bt.load_line(args, f"{args.preset} preset, {args.renderer} renderer, the revisions alternating step by step"))
+    for w in workers:
+        print(f"{w.label:>24}  {w.wall_s:.4f} s/step  CPU {w.cpu_s:.4f} s  {1 / w.wall_s:6.2f} steps/s  "
+              f"first-step loss {w.info['first_loss']:.7f}  ({w.info['optimizer']}; {w.info['note']})")
+        print(f"{'':>24}  imported {w.info['core']}")
+    a, b = workers
+    print(f"{b.label} / {a.label}: {a.wall_s / b.wall_s:.3f}x faster (wall clock), {a.cpu_s / b.cpu_s:.3f}x (CPU time); "
+          f"first-step losses differ by {abs(a.info['first_loss'] - b.info['first_loss']):.2e}")
 
 
 if __name__ == "__main__":

@@ -1,55 +1,62 @@
-"""Training speed: steps per second of the ``cpu`` preset and of the ``paper`` preset's network, and
-the share of each step spent rendering.
+"""Training speed: steps per second of each preset as ``cerberus train`` runs it, and the share of
+each step spent rendering.
 
-For each preset and each renderer backend (``--renderers``, default torch and warp) the script builds the model and optimiser, takes one batch of the preset's batch size
-from a small ``primitives`` dataset rendered at the preset's training resolution (generated into a
-temporary folder, or ``--data ROOT``), runs a few warm-up steps, then times full optimisation steps
-(objective, backward, Adam). The rendering share is the time of the step's render call alone
-(forward and backward of ``render_parts`` on the same scenes, all 8 B of them, anti-aliased when the
-preset's ``render.antialias`` is on) over the step time.
+Every timed configuration (a preset with a renderer backend, or a speed-switch variant) runs in its
+own worker process, which builds the trainer exactly as ``cerberus train`` does
+(``cerberus_core.train.trainer._Trainer``: the preset's own ``speed:`` section, ``speed.autocast:
+auto`` resolved for this machine, the model, the optimiser, the learning-rate schedule) on one
+batch of the preset's batch size from a small ``primitives`` dataset rendered at the preset's
+training resolution (generated into a temporary folder, or ``--data ROOT``), and times the
+trainer's own step (``_Trainer._step``: objective, finiteness checks, backward, gradient norm,
+clipping, Adam; then the scheduler). The parent interleaves the workers step by step, round by round
+(the order reversed every other round), so a change of load hits every configuration alike and no
+configuration runs in a process another has warmed, slowed or filled (a bfloat16 variant that the
+CPU only emulates once left the variants timed after it several times slower). It prints the
+median wall-clock time and the median CPU time of the worker process per step (with one thread,
+the CPU time is what the step costs, less disturbed by other jobs), and the rendering share (the
+step's render call alone, forward and backward, over the step's wall time).
 
-    python benchmarks/bench_train.py                 # 2 threads, both presets, both backends
-    python benchmarks/bench_train.py --threads 1 --steps 5 --renderers warp
+    python benchmarks/bench_train.py                 # 1 thread, both presets, both backends
+    python benchmarks/bench_train.py --threads 2 --steps 10 --renderers warp
     python benchmarks/bench_train.py --device cuda --renderers torch --steps 50 --warmup 10   # on a GPU
-    python benchmarks/bench_train.py --switches --presets cpu --renderers warp --threads 1 --steps 20
-
-``--precision`` times the preset with ``speed.autocast`` at ``null`` (float32), ``bf16`` and ``auto``
-side by side (its other switches as the preset has them), interleaved like ``--switches``, and prints
-the CPU's bfloat16 flags and what ``auto`` picked on this machine:
-
-    python benchmarks/bench_train.py --precision --presets cpu --renderers warp --threads 1 --steps 20
-
-``--losses NAME=W [...]`` times loss terms the same way (the preset as it is, then each ``losses.NAME``
-at weight ``W`` alone, interleaved): what a term beyond the preset adds to a step, e.g. issue 30's limb
-terms on human data:
-
-    python benchmarks/bench_train.py --losses coverage=0.3 keypoint_coverage=0.1 overlap=0.1 rotation=0.1 \
-        --presets cpu --renderers warp --threads 1 --steps 20 --data DATA --cpu-time
-
-On a machine other jobs load, ``--cpu-time`` times the process's CPU seconds instead of wall-clock (with
-one thread, the step's own work, without the waits for the other jobs).
+    python benchmarks/bench_train.py --switches --presets cpu --renderers warp --steps 20
 
 ``--switches [NAME ...]`` times the training speed switches instead (``speed.autocast: bf16``,
 ``speed.channels_last``, ``speed.compile``, ``speed.smoothness_once``; all of them without NAMEs):
-one model per variant (off, each switch alone, all together), steps interleaved round by round,
-medians and the speed-up over ``off``, with each variant's first-step loss (same weights, same
-batch: they differ by rounding only).
+one worker per variant (off, each switch alone, all together), with each variant's first-step loss
+(same weights, same batch: they differ by rounding only). ``--precision`` times the preset with
+``speed.autocast`` at ``null`` (float32), ``bf16`` and ``auto`` (its other switches as the preset has
+them). ``--losses NAME=W [...]`` times loss terms the same way (the preset as it is, then each
+``losses.NAME`` at weight ``W`` alone on top): what a term beyond the preset adds to a step, e.g. issue
+30's limb terms:
 
-Timings on a shared machine are noisy: the load average is printed with the results.
+    python benchmarks/bench_train.py --losses coverage=1.0 keypoint_coverage=1.0 overlap=0.1 rotation=0.1 \
+        --presets cpu --renderers warp --threads 1 --steps 8 --warmup 2 --data DATA
+ On a CPU without native bfloat16 both leave the ``bf16`` variants out and say so (PyTorch
+emulates bfloat16 convolutions there, over ten times slower); ``--emulated-bf16`` times them anyway.
+
+Every run starts with the machine's instruction set (torch's CPU capability, the CPU's vector and
+bfloat16 flags) and what ``speed.autocast: auto`` resolves to here, and why. Timings on a shared
+machine are noisy: the load average is printed with the results.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-import torch
+HERE = Path(__file__).resolve().parent
 
 
+# ------------------------------------------------------------------ inside a worker process
 def make_data(root: Path, image_size: int) -> Path:
+    """A small ``primitives`` quadruplet dataset at ``image_size`` pixels in ``root``."""
     from dataclasses import replace
 
     from cerberus_core.datasets.dataset import Dataset
@@ -62,78 +69,63 @@ def make_data(root: Path, image_size: int) -> Path:
     return root
 
 
-def setup(preset: str, renderer_name: str, data_root: Path, batch_size: int | None, device: str = "cpu"):
-    """The preset's config (depth offset resolved), the scene, one batch on ``device`` and the renderer."""
-    from cerberus_core import make_renderer, resolve_renderer
+def trainer_step(spec: dict):
+    """The trainer of ``cerberus train`` for ``spec`` (preset, renderer, data, batch size, device,
+    optional ``speed`` overrides), built as :func:`cerberus_core.train.trainer.train` builds it, one
+    batch on its device, and a function running the trainer's step ``i`` on that batch (then the
+    scheduler's step) that returns the step's loss.
+
+    Uses only what the trainer has had since before the speed work of issue 33 (``_Trainer(config,
+    run_dir, info, device, dataset)``, ``_build``, ``_step``), so ``bench_revisions.py`` can time
+    older revisions with it."""
+    import dataclasses
+
+    import torch
+
     from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
+    from cerberus_core.train.distributed import init_distributed
+    from cerberus_core.train.trainer import _Trainer
 
-    cfg = load_config(preset=preset)
-    data = QuadrupletDataset(data_root)
-    scene = data.scene
-    cfg.model.depth_offset = scene.distance
-    bsz = batch_size or cfg.train.batch_size
-    size = cfg.data.image_size or data.image_size
-    renderer_name = resolve_renderer(renderer_name)
-    raw = torch.utils.data.default_collate([data[i % len(data)] for i in range(bsz)])
-    batch = quadruplet_batch(raw, torch.device(device), scene, size)
-    return cfg, scene, batch, renderer_name, make_renderer(renderer_name)
-
-
-def stepper(cfg, scene, batch, renderer, speed=None):
-    """A fresh model (seed 0, with the speed switches ``speed`` applied, on the batch's device), its
-    Adam, and a function running one full optimisation step ``i`` that returns the step's loss."""
-    from cerberus_core.model import Cerberus
-    from cerberus_core.train.objective import quadruplet_objective
-    from cerberus_core.train.speed import SpeedConfig, apply_speed
-
-    speed = speed or SpeedConfig()
-    torch.manual_seed(0)
-    model = apply_speed(Cerberus(cfg.model).to(batch.images.device), speed)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
+    cfg = load_config(preset=spec["preset"])
+    cfg.renderer = spec["renderer"]
+    cfg.device = spec["device"]
+    if spec.get("batch_size"):
+        cfg.train.batch_size = spec["batch_size"]
+    if spec.get("speed") is not None:
+        cfg.speed = dataclasses.replace(cfg.speed, **spec["speed"])
+    if spec.get("losses"):
+        cfg.losses = dataclasses.replace(cfg.losses, **spec["losses"])
+    device = torch.device(spec["device"])
+    data = QuadrupletDataset(spec["data"])
+    trainer = _Trainer(cfg, Path(spec["run_dir"]), init_distributed(device), device, data)
+    trainer._build(None)
+    raw = torch.utils.data.default_collate([data[i % len(data)] for i in range(cfg.train.batch_size)])
+    batch = quadruplet_batch(raw, device, trainer.scene, trainer.image_size)
 
     def step(i: int) -> float:
-        out = quadruplet_objective(model, renderer, batch, scene, cfg.losses, torch.Generator().manual_seed(i),
-                                   smoothness_once=speed.smoothness_once, antialias=cfg.render.antialias)
-        opt.zero_grad(set_to_none=True)
-        out.total.backward()
-        opt.step()
+        _, out, _ = trainer._step(batch, i)
+        trainer.scheduler.step()
         return float(out.total.detach())
-    return model, step
+    return trainer, batch, step
 
 
-def sync(device: torch.device) -> None:
-    """Wait for the device's queued work, so a timer reads finished work (a no-op on the CPU)."""
-    if device.type == "cuda":
-        torch.cuda.synchronize(device)
+def render_seconds(trainer, batch, steps: int, sync) -> float:
+    """Seconds of the step's render call alone (forward and backward of ``render_parts`` on the same
+    scenes as the objective's, anti-aliased when the preset's ``render.antialias`` is on)."""
+    import torch
 
-
-def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int, batch_size: int | None,
-          device: str = "cpu") -> dict:
     from cerberus_core.losses import viewpoint_scenes
     from cerberus_core.render.api import render_parts
     from cerberus_core.render.camera import Camera
-    from cerberus_core.train.objective import partner_cameras, unwrap
+    from cerberus_core.train.objective import partner_cameras
 
-    cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size, device)
+    cfg, model, scene = trainer.config, trainer.model, trainer.scene
     bsz, size = batch.num_quadruplets, batch.images.shape[-1]
-    model, step = stepper(cfg, scene, batch, renderer)
-    dev = batch.images.device
-
-    for i in range(warmup):
-        step(i)
-    sync(dev)
-    t0 = time.perf_counter()
-    for i in range(steps):
-        step(warmup + i)
-    sync(dev)
-    step_s = (time.perf_counter() - t0) / steps
-
-    # The same render call as the objective's, on the current predictions, forward + backward.
     with torch.no_grad():
         pred = model(batch.images.flatten(0, 1))
-        rot, trans, _, _ = unwrap(model).world_pose(pred, batch.camera)
+        rot, trans, _, _ = model.world_pose(pred, batch.camera)
         n, v = pred.local_vertices.shape[1:3]
         own, cross = viewpoint_scenes(pred.local_vertices.view(bsz, 4, n, v, 3), rot.view(bsz, 4, n, 3, 3),
                                       trans.view(bsz, 4, n, 3))
@@ -143,145 +135,320 @@ def bench(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: 
     else:
         verts, cams = own.flatten(0, 1), batch.camera
     verts.requires_grad_(True)
-    grad = torch.rand(verts.shape[0], 3, size, size, device=dev)
+    grad = torch.rand(verts.shape[0], 3, size, size, device=verts.device)
 
     def render_once():
-        img = render_parts(renderer, verts, model.faces, cams, scene.light(cams), albedo=scene.albedo,
+        img = render_parts(trainer.renderer, verts, model.faces, cams, scene.light(cams), albedo=scene.albedo,
                            background=scene.background, antialias=cfg.render.antialias).image
         img.backward(grad)
 
     render_once()
-    sync(dev)
+    sync()
     t0 = time.perf_counter()
     for _ in range(steps):
         render_once()
-    sync(dev)
-    render_s = (time.perf_counter() - t0) / steps
-    return {"preset": preset, "renderer": renderer_name, "device": str(dev), "batch": bsz, "size": size, "width": cfg.model.width, "images": 4 * bsz,
-            "renders": verts.shape[0], "step_s": step_s, "steps_per_s": 1 / step_s, "render_s": render_s,
-            "render_share": render_s / step_s}
+    sync()
+    return (time.perf_counter() - t0) / steps
+
+
+def worker(spec: dict) -> None:
+    """Serve one configuration: build it, run the warm-up, then answer ``step`` / ``render`` / ``quit``
+    requests (one JSON line each on stdin) with one JSON line on the original stdout (everything
+    else the process prints goes to stderr)."""
+    proto = os.fdopen(os.dup(1), "w", buffering=1)
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+    import torch
+
+    import cerberus_core
+
+    torch.set_num_threads(spec["threads"])
+    dev = torch.device(spec["device"])
+
+    def sync() -> None:
+        if dev.type == "cuda":
+            torch.cuda.synchronize(dev)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        spec["run_dir"] = str(Path(tmp) / "run")
+        t0 = time.perf_counter()
+        trainer, batch, step = trainer_step(spec)
+        first = step(0)
+        for i in range(1, spec["warmup"]):
+            step(i)
+        sync()
+        cfg = trainer.config
+        images = 4 * batch.num_quadruplets
+        backend = sys.modules.get(type(trainer.renderer).__module__.split(".")[0])
+        ready = {"first_loss": first, "warmup_s": time.perf_counter() - t0, "core": cerberus_core.__file__,
+                 "backend": getattr(backend, "__file__", "?"), "renderer": cfg.renderer,
+                 "speed": dataclass_dict(cfg.speed), "note": trainer.speed_note, "batch": batch.num_quadruplets,
+                 "size": batch.images.shape[-1], "width": cfg.model.width, "images": images,
+                 "renders": images * (2 if cfg.losses.viewpoint_consistency else 1),
+                 "optimizer": optimizer_kind(trainer.optimizer)}
+        proto.write(json.dumps(ready) + "\n")
+        for line in sys.stdin:
+            req = json.loads(line)
+            if req["do"] == "step":
+                sync()
+                w0, c0 = time.perf_counter(), time.process_time()
+                step(req["i"])
+                sync()
+                proto.write(json.dumps({"wall": time.perf_counter() - w0, "cpu": time.process_time() - c0}) + "\n")
+            elif req["do"] == "render":
+                proto.write(json.dumps({"render_s": render_seconds(trainer, batch, req["steps"], sync)}) + "\n")
+            else:
+                break
+
+
+def dataclass_dict(obj) -> dict:
+    import dataclasses
+
+    return dataclasses.asdict(obj)
+
+
+def optimizer_kind(opt) -> str:
+    """How the optimiser runs its update: ``Adam(fused=True)``, or ``Adam(fused=None, foreach=None)``
+    (torch's default: the per-parameter loop on the CPU, ``foreach`` on CUDA)."""
+    group = opt.param_groups[0]
+    return f"{type(opt).__name__}(fused={group.get('fused')}, foreach={group.get('foreach')})"
+
+
+# ------------------------------------------------------------------ the parent: workers, interleaved
+class Worker:
+    """One configuration in its own process (:func:`worker`), driven over pipes."""
+
+    def __init__(self, label: str, spec: dict, env: dict | None = None) -> None:
+        self.label, self.spec, self.wall, self.cpu = label, spec, [], []
+        code = f"import json, sys; sys.path.insert(0, {str(HERE)!r}); import bench_train; " \
+               f"bench_train.worker(json.loads({json.dumps(spec)!r}))"
+        threads = str(spec["threads"])
+        self.proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     text=True, env={**(env or os.environ), "OMP_NUM_THREADS": threads,
+                                                     "MKL_NUM_THREADS": threads})
+        self.info = self._read()
+
+    def _read(self) -> dict:
+        line = self.proc.stdout.readline()
+        if not line:
+            self.proc.wait()
+            sys.exit(f"bench_train: the worker for {self.label} failed (exit {self.proc.returncode}; its error is above)")
+        return json.loads(line)
+
+    def ask(self, **req) -> dict:
+        self.proc.stdin.write(json.dumps(req) + "\n")
+        self.proc.stdin.flush()
+        return self._read()
+
+    def step(self, i: int) -> None:
+        out = self.ask(do="step", i=i)
+        self.wall.append(out["wall"])
+        self.cpu.append(out["cpu"])
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            try:
+                self.proc.stdin.write(json.dumps({"do": "quit"}) + "\n")
+                self.proc.stdin.close()
+            except BrokenPipeError:
+                pass
+            self.proc.wait(timeout=60)
+
+    @property
+    def wall_s(self) -> float:
+        return statistics.median(self.wall)
+
+    @property
+    def cpu_s(self) -> float:
+        return statistics.median(self.cpu)
+
+
+def interleave(workers: list[Worker], rounds: int, first_step: int) -> None:
+    """``rounds`` rounds of one step of every worker in turn, the order reversed every other round."""
+    for r in range(rounds):
+        for w in (workers if r % 2 == 0 else workers[::-1]):
+            w.step(first_step + r)
+
+
+def start(workers: list[tuple[str, dict, dict | None]]) -> list[Worker]:
+    """Start the workers one after another (each compiles and warms up alone)."""
+    out = []
+    for label, spec, env in workers:
+        print(f"  starting {label} ...", flush=True)
+        out.append(Worker(label, spec, env))
+    return out
+
+
+def machine_lines(device: str = "cpu") -> list[str]:
+    """The machine's instruction set and what ``speed.autocast: auto`` resolves to on it, and why."""
+    import torch
+
+    from cerberus_core.devices import NATIVE_BF16_FLAGS, cpu_flags
+    from cerberus_core.train.speed import resolve_autocast
+
+    model = next((line.split(":", 1)[1].strip() for line in _cpuinfo().splitlines()
+                  if line.lower().startswith("model name")), "unknown CPU")
+    have = sorted(f for f in cpu_flags() if f.startswith(("avx", "amx", "fma")) or f in NATIVE_BF16_FLAGS)
+    picked, why = resolve_autocast("auto", device)
+    return [f"machine: {model}, {os.cpu_count()} CPUs; torch {torch.__version__}, CPU capability "
+            f"{torch.backends.cpu.get_cpu_capability()}",
+            f"CPU flags: {' '.join(have) or 'none of avx/amx/fma/bf16'}",
+            f"speed.autocast auto -> {picked or 'null (float32)'} ({why})"]
+
+
+def _cpuinfo() -> str:
+    try:
+        return open("/proc/cpuinfo", encoding="ascii", errors="replace").read()
+    except OSError:
+        return ""
+
+
+def load_line(args: argparse.Namespace, what: str) -> str:
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    return (f"{args.threads} thread(s), load average {load:.1f} on {os.cpu_count()} CPUs; median of {args.steps} "
+            f"interleaved rounds after {args.warmup} warm-up steps; {what}")
+
+
+def base_spec(args: argparse.Namespace, preset: str, renderer: str, root: Path) -> dict:
+    return {"preset": preset, "renderer": renderer, "data": str(root), "batch_size": args.batch_size,
+            "device": args.device, "threads": args.threads, "warmup": args.warmup, "speed": None}
+
+
+def dataset_for(args: argparse.Namespace, preset: str, tmp: Path) -> Path:
+    """``--data``, or a ``primitives`` set at the preset's resolution generated under ``tmp`` (once per size)."""
+    if args.data is not None:
+        return args.data.resolve()
+    from cerberus_core.train.config import load_config
+
+    size = load_config(preset=preset).data.image_size or 64
+    root = tmp / f"prim{size}"
+    if not root.exists():
+        make_data(root, size)
+    return root
 
 
 SWITCHES = {"autocast": {"autocast": "bf16"}, "channels_last": {"channels_last": True}, "compile": {"compile": True},
             "smoothness_once": {"smoothness_once": True}}
 """``--switches`` names and the ``speed:`` settings (:mod:`cerberus_core.train.speed`) each one turns on."""
 
+OFF = {"autocast": None, "channels_last": False, "compile": False, "smoothness_once": False}
+
 
 def switch_variants(names: list[str]) -> list[tuple[str, dict]]:
     """``off``, each named switch alone, and (with two or more) all of them together."""
-    variants = [("off", {})] + [(n, SWITCHES[n]) for n in names]
+    variants = [("off", OFF)] + [(n, OFF | SWITCHES[n]) for n in names]
     if len(names) > 1:
-        variants.append(("+".join(names), {k: v for n in names for k, v in SWITCHES[n].items()}))
+        variants.append(("+".join(names), OFF | {k: v for n in names for k, v in SWITCHES[n].items()}))
     return variants
 
 
 def precision_variants(preset: str) -> list[tuple[str, dict]]:
     """``fp32``, ``bf16`` and ``auto``: the preset's speed switches with ``speed.autocast`` set to each."""
-    from dataclasses import asdict
-
-    from cerberus_core.train.config import load_config
-
-    base = asdict(load_config(preset=preset).speed)
-    return [(label, base | {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
+    return [(label, {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
 
 
-def loss_variants(settings: list[str]):
-    """For ``--losses``: ``preset`` (its speed switches and loss weights as they are), then each
-    ``NAME=W`` setting alone on top, as ``variants_of(preset)`` of :func:`bench_switches`."""
-    from dataclasses import asdict
-
-    from cerberus_core.train.config import load_config
-
-    def variants(preset: str) -> list[tuple[str, dict, dict]]:
-        base = asdict(load_config(preset=preset).speed)
-        pairs = [s.split("=", 1) for s in settings]
-        return [(preset, base, {})] + [(f"+ {k}={w}", base, {k: float(w)}) for k, w in pairs]
-    return variants
+def loss_variants(settings: list[str]) -> list[tuple[str, dict | None, dict]]:
+    """For ``--losses``: the preset as it is, then each ``NAME=W`` setting alone on top
+    (``(label, speed settings, loss weights)``)."""
+    pairs = [s.split("=", 1) for s in settings]
+    return [("preset", None, {})] + [(f"+ {k}={w}", None, {k: float(w)}) for k, w in pairs]
 
 
-def bench_switches(preset: str, renderer_name: str, data_root: Path, steps: int, warmup: int,
-                   batch_size: int | None, names: list[str] | None, variants_of=None,
-                   timer=time.perf_counter) -> list[dict]:
-    """Full steps of one model per switch variant, interleaved: each round times one step of every
-    variant in turn (so load changes hit all alike); the median over rounds is reported. The variants
-    are :func:`switch_variants` of ``names``, or ``variants_of(preset)``: ``(label, speed settings)``
-    or ``(label, speed settings, loss weights)``."""
-    from dataclasses import replace
+def bf16_left_out(emulated: bool, device: str) -> bool:
+    """Whether ``speed.autocast: bf16`` variants are left out here: on a CPU that would emulate
+    bfloat16, unless ``emulated`` (said when they are)."""
+    from cerberus_core.devices import native_bf16
 
-    from cerberus_core.train.speed import SpeedConfig
-
-    cfg, scene, batch, renderer_name, renderer = setup(preset, renderer_name, data_root, batch_size)
-    variants = []
-    for label, speed, *weights in (variants_of(preset) if variants_of else switch_variants(names)):
-        config = replace(cfg, losses=replace(cfg.losses, **weights[0])) if weights else cfg
-        _, step = stepper(config, scene, batch, renderer, SpeedConfig(**speed))
-        t0 = time.perf_counter()
-        first = step(0)  # the first step's loss (same weights and batch for every variant)
-        for i in range(1, warmup):
-            step(i)
-        variants.append({"label": label, "step": step, "first_loss": first, "warmup_s": time.perf_counter() - t0,
-                         "times": []})
-    for i in range(steps):
-        for v in variants:
-            t0 = timer()
-            v["step"](warmup + i)
-            v["times"].append(timer() - t0)
-    rows = []
-    for v in variants:
-        step_s = statistics.median(v["times"])
-        rows.append({"preset": preset, "renderer": renderer_name, "switches": v["label"], "step_s": step_s,
-                     "steps_per_s": 1 / step_s, "first_loss": v["first_loss"], "warmup_s": v["warmup_s"]})
-    for r in rows:
-        r["speedup"] = rows[0]["step_s"] / r["step_s"]
-    return rows
-
-
-def print_cpu_precision() -> None:
-    """The CPU's vector and bfloat16 flags, and what ``speed.autocast: auto`` picks on it."""
-    from cerberus_core.devices import NATIVE_BF16_FLAGS, cpu_flags
-    from cerberus_core.train.speed import resolve_autocast
-
-    picked, why = resolve_autocast("auto", "cpu")
-    have = sorted(f for f in cpu_flags() if f.startswith(("avx", "amx")) or f in NATIVE_BF16_FLAGS)
-    print(f"CPU flags: {' '.join(have) or 'none of avx/amx/bf16'}")
-    print(f"speed.autocast auto -> {picked or 'null (float32)'} ({why})")
-
-
-def print_switches(rows: list[dict]) -> None:
-    w = max(10, *(len(r["switches"]) + 2 for r in rows))
-    base = "x " + rows[0]["switches"]
-    head = f"{'preset':<8}{'renderer':>9}  {'switches':<{w}}{'s/step':>8}{'steps/s':>9}{base:>{max(7, len(base) + 1)}}" \
-           f"{'loss 1st step':>15}{'warm-up s':>11}"
-    print(head)
-    print("-" * len(head))
-    for r in rows:
-        print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['step_s']:>8.3f}{r['steps_per_s']:>9.2f}"
-              f"{r['speedup']:>{max(7, len(base) + 1)}.2f}{r['first_loss']:>15.7f}{r['warmup_s']:>11.1f}")
+    native, why = native_bf16(device)
+    if native or emulated:
+        return False
+    print(f"left out: speed.autocast bf16: {why}; PyTorch's bfloat16 convolutions leave oneDNN there and run "
+          "over ten times slower. --emulated-bf16 times it anyway, in a process of its own like every variant")
+    return True
 
 
 def run_switches(args: argparse.Namespace) -> None:
-    """``--switches`` / ``--precision``: the variants side by side, interleaved."""
-    from cerberus_core.train.config import load_config
-
+    """``--switches`` / ``--precision`` / ``--losses``: the variants side by side, one worker each,
+    interleaved."""
     names = None if args.precision or args.losses else (args.switches or list(SWITCHES))
     if names and "compile" in names:
         args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
     rows = []
+    drop = not args.losses and bf16_left_out(args.emulated_bf16, args.device)
     with tempfile.TemporaryDirectory() as tmp:
         for preset in args.presets:
-            root = args.data or make_data(Path(tmp) / preset, load_config(preset=preset).data.image_size or 64)
+            root = dataset_for(args, preset, Path(tmp))
             for name in args.renderers:
-                rows += bench_switches(preset, name, root, args.steps, args.warmup, args.batch_size, names,
-                                       loss_variants(args.losses) if args.losses else
-                                       precision_variants if args.precision else None,
-                                       time.process_time if args.cpu_time else time.perf_counter)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"\ntorch {torch.__version__}, {args.threads} threads, load average {load:.1f} (on {os.cpu_count()} "
-          f"CPUs), median of {args.steps} interleaved rounds after {args.warmup} warm-up steps"
-          + (", CPU seconds of this process (time.process_time)" if args.cpu_time else ""))
-    if args.precision:
-        print_cpu_precision()
-    print_switches(rows)
+                if args.losses:
+                    variants = loss_variants(args.losses)
+                elif args.precision:
+                    variants = [v for v in precision_variants(preset) if v[1]["autocast"] != "bf16" or not drop]
+                else:
+                    variants = switch_variants([n for n in names if n != "autocast" or not drop])
+                specs = [(label, base_spec(args, preset, name, root) | {"speed": speed, "losses": rest[0] if rest else {}},
+                          None) for label, speed, *rest in variants]
+                workers = start(specs)
+                try:
+                    interleave(workers, args.steps, args.warmup)
+                finally:
+                    for w in workers:
+                        w.close()
+                base = workers[0]
+                rows += [{"preset": preset, "renderer": w.info["renderer"], "switches": w.label, "wall": w.wall_s,
+                          "cpu": w.cpu_s, "speedup": base.wall_s / w.wall_s, "speedup_cpu": base.cpu_s / w.cpu_s,
+                          "first_loss": w.info["first_loss"], "warmup_s": w.info["warmup_s"]} for w in workers]
+    print()
+    print("\n".join(machine_lines(args.device)))
+    print(load_line(args, "each variant in its own process"))
+    w = max(10, *(len(r["switches"]) + 2 for r in rows))
+    base = rows[0]["switches"] if rows else "off"
+    head = f"{'preset':<8}{'renderer':>9}  {'variant':<{w}}{'s/step':>8}{'CPU s':>8}{'x ' + base:>10}" \
+           f"{'x ' + base + ' CPU':>{len(base) + 7}}" \
+           f"{'loss 1st step':>15}{'warm-up s':>11}"
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        print(f"{r['preset']:<8}{r['renderer']:>9}  {r['switches']:<{w}}{r['wall']:>8.3f}{r['cpu']:>8.3f}"
+              f"{r['speedup']:>10.2f}{r['speedup_cpu']:>{len(base) + 7}.2f}{r['first_loss']:>15.7f}"
+              f"{r['warmup_s']:>11.1f}")
+
+
+def run_presets(args: argparse.Namespace) -> None:
+    """The default table: each preset with each backend, as ``cerberus train`` runs it, interleaved."""
+    with tempfile.TemporaryDirectory() as tmp:
+        specs = [(f"{preset} / {name}", base_spec(args, preset, name, dataset_for(args, preset, Path(tmp))), None)
+                 for preset in args.presets for name in args.renderers]
+        workers = start(specs)
+        try:
+            interleave(workers, args.steps, args.warmup)
+            for w in workers:
+                w.render_s = w.ask(do="render", steps=max(1, args.steps // 2))["render_s"]
+        finally:
+            for w in workers:
+                w.close()
+    print()
+    print("\n".join(machine_lines(args.device)))
+    where = "CPU" if args.device == "cpu" else args.device
+    print(load_line(args, f"{where}; each configuration in its own process, as `cerberus train` runs it"))
+    for w in workers:
+        print(f"  {w.label}: {w.info['note']}; speed {w.info['speed']}; {w.info['optimizer']}")
+    head = f"{'preset':<16}{'renderer':>9}{'batch':>6}{'px':>5}{'width':>6}{'images':>7}{'renders':>8}{'s/step':>9}" \
+           f"{'CPU s':>8}{'steps/s':>9}{'render s':>10}{'render %':>9}{'loss 1st step':>15}"
+    print(head)
+    print("-" * len(head))
+    for w in workers:
+        i = w.info
+        print(f"{w.spec['preset']:<16}{i['renderer']:>9}{i['batch']:>6}{i['size']:>5}{i['width']:>6}{i['images']:>7}"
+              f"{i['renders']:>8}{w.wall_s:>9.3f}{w.cpu_s:>8.3f}{1 / w.wall_s:>9.3f}{w.render_s:>10.3f}"
+              f"{100 * w.render_s / w.wall_s:>8.1f}%{i['first_loss']:>15.7f}")
+    by = {(w.spec["preset"], w.info["renderer"]): w for w in workers}
+    first = args.presets[0]
+    for (preset, renderer), w in by.items():
+        if preset != first and (first, renderer) in by:
+            print(f"{preset} step / {first} step ({renderer}): {w.wall_s / by[first, renderer].wall_s:.2f}x")
+    for preset in args.presets:
+        if (preset, "torch") in by and (preset, "warp") in by:
+            print(f"{preset}: torch step / warp step = {by[preset, 'torch'].wall_s / by[preset, 'warp'].wall_s:.2f}")
 
 
 def main() -> None:
@@ -290,69 +457,28 @@ def main() -> None:
     p.add_argument("--presets", nargs="+", default=["cpu", "paper"], help="training presets to time")
     p.add_argument("--renderers", nargs="+", default=["torch", "warp"],
                    help="renderer backends to time each preset with (default: torch warp; 'auto' as training picks)")
-    p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
-    p.add_argument("--steps", type=int, default=5, help="timed steps per preset")
-    p.add_argument("--warmup", type=int, default=2, help="untimed steps first")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads per worker (default 1, as the cpu preset)")
+    p.add_argument("--steps", type=int, default=10, help="timed rounds (one step of every worker each)")
+    p.add_argument("--warmup", type=int, default=3, help="untimed steps first, per worker")
     p.add_argument("--batch-size", type=int, default=None, help="override the presets' batch sizes")
     p.add_argument("--data", type=Path, default=None, help="a quadruplet dataset (default: generate primitives)")
     p.add_argument("--device", default="cpu",
-                   help="device of the timed steps: cpu (default) or cuda[:N] (the renderer follows the tensors; "
-                        "not with --switches/--precision)")
+                   help="device of the timed steps: cpu (default) or cuda[:N] (the renderer follows the tensors)")
     p.add_argument("--precision", action="store_true",
-                   help="instead: time speed.autocast null (fp32), bf16 and auto side by side, interleaved, "
-                        "with the preset's other speed switches")
+                   help="instead: time speed.autocast null (fp32), bf16 and auto side by side, with the preset's "
+                        "other speed switches")
     p.add_argument("--switches", nargs="*", default=None, choices=sorted(SWITCHES), metavar="NAME",
-                   help="instead: time the speed switches (speed.* of the config) side by side, interleaved: "
-                        "off, each NAME alone and all NAMEs together (default with no NAME: "
-                        f"{' '.join(SWITCHES)}); the median of --steps rounds")
-    p.add_argument("--cpu-time", action="store_true",
-                   help="with --switches/--precision/--losses: time the process's CPU seconds (time.process_time), "
-                        "not wall-clock, so waits for other jobs on a loaded machine do not count")
+                   help="instead: time the speed switches (speed.* of the config) side by side: off, each NAME alone "
+                        f"and all NAMEs together (default with no NAME: {' '.join(SWITCHES)})")
     p.add_argument("--losses", nargs="+", default=None, metavar="NAME=W",
                    help="instead: time the preset, then each losses.NAME at weight W alone on top, interleaved")
+    p.add_argument("--emulated-bf16", action="store_true",
+                   help="with --switches/--precision: time bf16 autocast even where the CPU only emulates bfloat16")
     args = p.parse_args()
-    torch.set_num_threads(args.threads)
-    from cerberus_core.train.config import load_config
-
     if args.switches is not None or args.precision or args.losses:
-        if args.device != "cpu":
-            p.error("--switches, --precision and --losses time the CPU; leave out --device")
         run_switches(args)
-        return
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for preset in args.presets:
-            root = args.data
-            if root is None:
-                size = load_config(preset=preset).data.image_size or 64
-                root = Path(tmp) / f"prim{size}"
-                if not root.exists():
-                    make_data(root, size)
-            for name in args.renderers:
-                rows.append(bench(preset, name, root, args.steps, args.warmup, args.batch_size, args.device))
-                r = rows[-1]
-                print(f"  {preset} / {r['renderer']}: {r['step_s']:.3f} s/step", flush=True)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    where = torch.cuda.get_device_name(args.device) if args.device.startswith("cuda") else "CPU"
-    print(f"\ntorch {torch.__version__}, {where}, {args.threads} threads, load average {load:.1f} "
-          f"(on {os.cpu_count()} CPUs), {args.steps} timed steps after {args.warmup} warm-up")
-    head = f"{'preset':<14}{'renderer':>9}{'batch':>6}{'px':>5}{'width':>6}{'images':>7}{'renders':>8}{'s/step':>9}" \
-           f"{'steps/s':>9}{'render s':>10}{'render %':>9}"
-    print(head)
-    print("-" * len(head))
-    for r in rows:
-        print(f"{r['preset']:<14}{r['renderer']:>9}{r['batch']:>6}{r['size']:>5}{r['width']:>6}{r['images']:>7}{r['renders']:>8}"
-              f"{r['step_s']:>9.3f}{r['steps_per_s']:>9.3f}{r['render_s']:>10.3f}{100 * r['render_share']:>8.1f}%")
-    base = {r["renderer"]: r for r in rows if r["preset"] == rows[0]["preset"]}
-    for r in rows:
-        if r["preset"] != rows[0]["preset"] and r["renderer"] in base:
-            print(f"{r['preset']} step / {rows[0]['preset']} step ({r['renderer']}): "
-                  f"{r['step_s'] / base[r['renderer']]['step_s']:.2f}x")
-    by = {(r["preset"], r["renderer"]): r for r in rows}
-    for preset in dict.fromkeys(r["preset"] for r in rows):
-        if (preset, "torch") in by and (preset, "warp") in by:
-            print(f"{preset}: torch step / warp step = "
-                  f"{by[preset, 'torch']['step_s'] / by[preset, 'warp']['step_s']:.2f}")
+    else:
+        run_presets(args)
 
 
 if __name__ == "__main__":

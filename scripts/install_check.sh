@@ -18,18 +18,25 @@ WORK="${1:-$(mktemp -d)}"
 [ -n "${1:-}" ] || trap 'rm -rf "$WORK"' EXIT
 PY="${PYTHON:-python3}"
 W="$WORK/wheelhouse"
-bash "$ROOT/scripts/wheelhouse.sh" "$W" >/dev/null
-VERSION="$(grep -v '^#' "$W/constraints.txt" | head -1 | cut -d= -f3)"
 PIP_QUIET=(--quiet --disable-pip-version-check)
-fail() { echo "[install-check] FAIL: $*" >&2; exit 1; }
+STEP="building the wheelhouse"
+fail() { echo "[install-check] FAIL ($STEP): $*" >&2; exit 1; }
+# Any other command that fails stops the check with the step and the command, never silently.
+trap 'echo "[install-check] FAIL ($STEP): \`$BASH_COMMAND\` exited $? (line $LINENO)" >&2' ERR
 
+pip_in() {  # pip_in VENV ARGS...: pip install, its own error shown (the last lines of its output) if it fails
+  local venv="$1"; shift
+  local log="$WORK/pip-$(basename "$venv").log"
+  "$venv/bin/pip" install "${PIP_QUIET[@]}" "$@" >"$log" 2>&1 \
+    || fail "pip install $* in $venv failed: $(grep -v '^ *$' "$log" | tail -5 | tr '\n' ' ')"
+}
 fresh() {  # fresh NAME [torch]: a new venv at $WORK/NAME, with torch's CPU build when asked
   "$PY" -m venv "$WORK/$1"
-  if [ "${2:-}" = torch ]; then "$WORK/$1/bin/pip" install "${PIP_QUIET[@]}" torch==2.13.0 2>/dev/null; fi
+  if [ "${2:-}" = torch ]; then pip_in "$WORK/$1" torch==2.13.0; fi
 }
 install() {  # install NAME SPEC...: from the wheelhouse, with the index reachable for third-party packages
   local venv="$WORK/$1"; shift
-  "$venv/bin/pip" install "${PIP_QUIET[@]}" --find-links "$W" -c "$W/constraints.txt" "$@" 2>/dev/null
+  pip_in "$venv" --find-links "$W" -c "$W/constraints.txt" "$@"
   "$venv/bin/python" - "$VERSION" <<'PY' || fail "a cerberus-* distribution not of this release in $venv"
 import sys
 from importlib import metadata
@@ -40,7 +47,10 @@ for dist in metadata.distributions():
         sys.exit(f"{name} {dist.version}")
 PY
 }
-step() { echo "[install-check] $*"; }
+step() { STEP="$*"; echo "[install-check] $*"; }
+
+bash "$ROOT/scripts/wheelhouse.sh" "$W" >/dev/null
+VERSION="$(grep -v '^#' "$W/constraints.txt" | head -1 | cut -d= -f3)"
 
 step "a backend installed without the wheelhouse does not resolve to the public index's cerberus-core"
 fresh nowheel torch

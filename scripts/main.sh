@@ -30,7 +30,8 @@ cerberus eval human --data "$OUT/data" --out "$OUT/pretrained" --no-part-quality
 step "training (preset $TRAIN_PRESET) -> $OUT/run"
 RESUME=()
 [ -f "$OUT/run/checkpoints/last.pt" ] && RESUME=(--resume)
-cerberus train --preset "$TRAIN_PRESET" --set "data.root=$OUT/data" --out "$OUT/run" "${RESUME[@]}"
+# train.progress: the tiny preset keeps its bar off for the tests; here every training shows its progress
+cerberus train --preset "$TRAIN_PRESET" --set "data.root=$OUT/data" --set train.progress=true --out "$OUT/run" "${RESUME[@]}"
 step "evaluation -> $OUT/eval"
 cerberus eval "$OUT/run" --out "$OUT/eval"
 step "done"

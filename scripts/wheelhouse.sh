@@ -15,9 +15,16 @@ PY="${PYTHON:-$( [ -x "$ROOT/.venv/bin/python" ] && echo "$ROOT/.venv/bin/python
 VERSION="$("$PY" -c 'import ast,sys; t=ast.parse(open(sys.argv[1]).read()); print(next(n.value.value for n in t.body if isinstance(n, ast.Assign) and n.targets[0].id == "VERSION"))' "$ROOT/packages/cerberus-core/src/cerberus_core/release.py")"
 mkdir -p "$OUT"
 rm -f "$OUT"/cerberus_*.whl
+# Each wheel is built from a fresh copy of its package without setuptools' build/ and *.egg-info folders:
+# built in place, a module deleted from src/ would still ship from a stale build/lib of an earlier build.
+STAGE="$(mktemp -d)"
+trap 'rm -rf "$STAGE"' EXIT
 for pkg in cerberus-core cerberus-render-torch cerberus-render-warp cerberus-metrics; do
-  echo "[wheelhouse] building $pkg $VERSION"
-  "$PY" -m pip wheel --quiet --disable-pip-version-check --no-deps --wheel-dir "$OUT" "$ROOT/packages/$pkg"
+  echo "[wheelhouse] building $pkg $VERSION (from a clean copy)"
+  cp -R "$ROOT/packages/$pkg" "$STAGE/$pkg"
+  rm -rf "$STAGE/$pkg/build" "$STAGE/$pkg/dist"
+  find "$STAGE/$pkg" \( -name "*.egg-info" -o -name "__pycache__" \) -prune -exec rm -rf {} +
+  "$PY" -m pip wheel --quiet --disable-pip-version-check --no-deps --wheel-dir "$OUT" "$STAGE/$pkg"
 done
 {
   echo "# The Cerberus toolkit $VERSION: install its packages from this folder only (pip -c this file)."

@@ -12,7 +12,6 @@ from cerberus_core import Run
 from cerberus_core.errors import ConfigError
 from cerberus_core.plugins import (
     METRIC_GROUP,
-    UnknownPluginError,
 )
 from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
 from cerberus_core.train import train
@@ -86,6 +85,7 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
     assert capsys.readouterr().out.splitlines()[-1] == printed.splitlines()[-1].replace("/lib/", "/cli/")
     lib, cli = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("lib", "cli"))
     assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
+    assert lib["computed_with"] == {"renderer": "torch", "device": "cpu", "dtype": "torch.float32"}  # issue 34
     for name in ("results.md", "table2.png", ".cerberus-result.json"):
         assert (tmp_path / "lib" / name).is_file(), name
     with pytest.raises(ConfigError, match=r"resolution = 999: must be an integer in \[1, 256\] \(EvalSettings\(resolution=...\)\)"):
@@ -99,13 +99,23 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
 def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, monkeypatch) -> None:
     """core + a backend alone: `cerberus eval` / Run.evaluate say to install cerberus-metrics (issue 26),
     not '--protocol ...: unknown plugin' for a flag nobody gave."""
+    from importlib.util import find_spec
+
     import cerberus_core.run as run_module
+    from cerberus_core.errors import MissingPackageError
     from cerberus_core.plugins import get_plugin as real_get_plugin
 
     monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
-    with pytest.raises(UnknownPluginError) as err:
+    with pytest.raises(MissingPackageError) as err:
         run_module.EvalSettings()
-    assert "pip install cerberus-metrics" in str(err.value) and "--protocol" not in str(err.value)
+    assert "pip install 'cerberus-core[eval]'" in str(err.value) and "--protocol" not in str(err.value)
+    assert "needs cerberus-metrics," in str(err.value)
+    # issue 34: every missing piece at once, before anything starts, and the extra that brings them
+    monkeypatch.setattr(run_module, "find_spec", lambda name: None if name == "scipy" else find_spec(name))
+    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics and scipy, .*cerberus-core\[eval\]"):
+        run_module.EvalSettings()
+    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics, "):
+        run_module.EvalSettings(part_quality=False)
 
 
 
@@ -121,3 +131,32 @@ def test_domain_notes_name_another_kind_of_body_and_another_camera(human_run, pa
     notes = human_run.domain_notes(pairs_dataset)
     assert any("trained on human bodies" in n and "primitives bodies" in n for n in notes)
     assert any("differs from the model's training scenes" in n for n in notes)
+
+
+@pytest.mark.parametrize(("images", "options", "words"), [
+    ([], {}, "images: no image given; pass at least one image file"),
+    (["x.png"], {"azimuth": float("nan")}, "azimuth = nan: must be a finite number"),
+    (["x.png"], {"azimuth": float("inf")}, "azimuth = inf: must be a finite number"),
+    (["x.png"], {"azimuth": "north"}, "azimuth = 'north': must be a finite number"),
+    (["x.png"], {"viewer_images": -1}, "viewer_images = -1: must be an integer >= 0"),
+], ids=["no-images", "azimuth-nan", "azimuth-inf", "azimuth-text", "viewer-negative"])
+def test_reconstruct_images_checks_what_the_cli_checks(tiny_run, tmp_path, images, options, words):
+    """Issue 34: the API refuses, with the CLI's own check (the command passes its flags straight to it), before
+    anything is read or written."""
+    run = Run.load(tiny_run)
+    with pytest.raises(ConfigError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        run.reconstruct_images([tmp_path / p for p in images], tmp_path / "out", **options)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_model_reconstruct_refuses_nan_images(tiny_run):
+    """Issue 34: NaN passes a ``max() <= 1`` range check; the input contract refuses it by name."""
+    from cerberus_core.errors import ShapeError
+    from cerberus_core.render.camera import Camera
+
+    run = Run.load(tiny_run)
+    images = torch.full((2, 3, 32, 32), 0.5)
+    images[1, 0, 3, 4] = float("nan")
+    camera = Camera.look_at(torch.zeros(2), torch.zeros(2), 2.0, image_size=32)
+    with pytest.raises(ShapeError, match="reconstruct: 1 of 6144 image values are NaN or infinite"):
+        run.model.reconstruct(images, camera)

@@ -71,6 +71,11 @@ def place(tmp_path_factory) -> dict[str, Path]:
     Image.new("RGB", (40, 40), (200, 10, 10)).save(root / "img.png")
     fake_png(root / "huge.png", 20000, 20000)
     fake_png(root / "big.png", 9000, 5000)
+    (root / "loop.png").symlink_to("loop.png")  # a symlink loop (issue 34)
+    (root / "loopdir").symlink_to("loopdir")
+    (root / "deep.yaml").write_text("train:\n" + "".join("  " * i + f"k{i}:\n" for i in range(1, 40)))
+    (root / "listkey.yaml").write_text("? [1, 2]\n: 3\n")
+    (root / "dup.yaml").write_text("extends: tiny\ntrain:\n  steps: 3\n  steps: 5\n")
     return {"root": root, "data": data, "run": run}
 
 
@@ -113,6 +118,39 @@ CASES = [
     ("train-data-missing", "train --preset tiny --set data.root={root}/nodata --out {root}/new", "does not exist"),
     ("train-steps-0", "train --preset tiny --set data.root={data} --set train.steps=0 --out {root}/new",
      "train.steps = 0: must be an integer >= 1"),
+    # issue 34: numbers bounded before anything is allocated, rules between settings, one strict YAML reader
+    ("train-image-size-huge", "train --preset tiny --set data.root={data} --set data.image_size=100000 --out {root}/new",
+     "data.image_size = 100000: must be an integer in [32, 4096] (--set data.image_size=VALUE)"),
+    ("train-num-parts-huge", "train --preset tiny --set data.root={data} --set model.num_parts=100000 --out {root}/new",
+     "model.num_parts = 100000: must be an integer in [1, 64]"),
+    ("train-num-workers-huge", "train --preset tiny --set data.root={data} --set data.num_workers=100000 "
+     "--out {root}/new", "data.num_workers = 100000: must be an integer in [0, 256]"),
+    ("train-memory", "train --preset tiny --set data.root={data} --set data.image_size=4096 --set model.width=1024 "
+     "--out {root}/new", "data.image_size = 4096: needs at least"),
+    ("train-warmup", "train --preset tiny --set data.root={data} --set losses.cross_view=own "
+     "--set losses.cross_view_warmup=10 --out {root}/new", "losses.cross_view_warmup = 10: must be less than train.steps (4)"),
+    ("train-resume-shorter", "train --out {run} --resume --set train.steps=1", "already reached step 2"),
+    ("train-set-duplicate", 'train --preset tiny --set train={{"steps":1,"steps":2}} --out {root}/new',
+     "the key 'steps' is given twice"),
+    ("train-set-list-key", "train --preset tiny --set data={{[1]:2}} --out {root}/new", "a list is used as a key"),
+    ("train-set-deep", "train --preset tiny --set train.steps=" + "[" * 40 + "1" + "]" * 40 + " --out {root}/new",
+     "nested deeper than 16 levels"),
+    ("train-set-deep-unclosed", "train --preset tiny --set train.steps=" + "[" * 5000 + " --out {root}/new",
+     "nested deeper than 16 levels"),
+    ("train-config-deep", "train --config {root}/deep.yaml --out {root}/new", "deep.yaml:16: not valid YAML (nested"),
+    ("train-config-list-key", "train --config {root}/listkey.yaml --out {root}/new", "a list is used as a key"),
+    ("train-config-duplicate", "train --config {root}/dup.yaml --out {root}/new", "given twice (lines 3 and 4)"),
+    ("train-data-loop", "train --preset tiny --set data.root={root}/loopdir --out {root}/new", "a symlink loop"),
+    ("reconstruct-image-loop", "reconstruct {run} {root}/loop.png --out {root}/rec", "a symlink loop"),
+    ("reconstruct-azimuth-inf", "reconstruct {run} {root}/img.png --azimuth inf --out {root}/rec",
+     "--azimuth inf: must be a finite number"),
+    ("eval-data-loop", "eval {run} --data {root}/loopdir --out {root}/ev", "loopdir"),
+    ("data-check-loop", "data check {root}/loopdir", "loopdir"),
+    ("data-show-out-manifest", "data show {data} --out {data}/manifest.json", "is the input"),
+    ("data-generate-source-loop", "data generate --dataset folder --source {root}/loopdir --out {root}/new",
+     "--source {root}/loopdir: cannot be resolved: a symlink loop"),
+    ("data-generate-out-holds-source", "data generate --dataset folder --source {root}/notes --out {root}",
+     "holds the input"),
     pytest.param("eval-cuda", "eval {run} --device cuda", "CUDA is not available", marks=NO_CUDA),
     ("eval-truncated", "eval {root}/trunc.pt", "not a readable Cerberus checkpoint"),
     ("eval-random", "eval {root}/random.pt", "not a readable Cerberus checkpoint"),
@@ -151,7 +189,7 @@ CASES = [
     ("reconstruct-nan-weights", "reconstruct {root}/nan.safetensors {root}/img.png --out {root}/rec", "NaN"),
     ("reconstruct-scene-value", "reconstruct {root}/scene_value.safetensors {root}/img.png --out {root}/rec",
      "invalid scene set-up"),
-    ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds " + "{root}/img.png"),
+    ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds the input " + "{root}/img.png"),
     ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "a result folder is replaced whole"),
     ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes", "pass --overwrite"),
     ("reconstruct-model-path", "reconstruct --model ./human {root}/img.png --out {root}/rec",
@@ -244,7 +282,7 @@ CASES = [
 
 
 def snapshot(root: Path) -> dict[str, tuple[int, int]]:
-    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(root.rglob("*"))}
+    return {str(p.relative_to(root)): (p.lstat().st_size, p.lstat().st_mtime_ns) for p in sorted(root.rglob("*"))}
 
 
 @pytest.mark.parametrize(("case", "argv", "expected"), CASES,

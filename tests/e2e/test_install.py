@@ -60,3 +60,25 @@ def test_core_and_warp_alone_render(tmp_path: Path) -> None:
     auto = next(line for line in lines if line.startswith("auto"))
     assert auto.startswith("auto warp covered") and auto.endswith("grad True") and int(auto.split()[3]) > 50
     assert any("torch missing:" in line and "pip install cerberus-render-torch" in line for line in lines)
+
+
+def test_the_wheelhouse_builds_from_a_clean_copy(tmp_path: Path) -> None:
+    """Issue 34: a module left in a package's stale ``build/lib`` (deleted from ``src/`` since) never ships."""
+    import zipfile
+
+    stale = REPO / "packages" / "cerberus-metrics" / "build" / "lib" / "cerberus_metrics"
+    made = not stale.exists()
+    stale.mkdir(parents=True, exist_ok=True)
+    (stale / "stale_module.py").write_text("STALE = 1\n")
+    try:
+        subprocess.run(["bash", str(REPO / "scripts" / "wheelhouse.sh"), str(tmp_path)], check=True,
+                       capture_output=True, text=True, env={**os.environ, "PYTHON": sys.executable})
+    finally:
+        (stale / "stale_module.py").unlink()
+        if made:
+            import shutil
+
+            shutil.rmtree(REPO / "packages" / "cerberus-metrics" / "build")
+    wheel = next(tmp_path.glob("cerberus_metrics-*.whl"))
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "cerberus_metrics/cli.py" in names and not any("stale_module" in n for n in names)

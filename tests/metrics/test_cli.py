@@ -47,6 +47,7 @@ def bad_inputs(tmp_path, helpers):
     (tmp_path / "pairs.txt").write_text("pred,gt\npred.ply,gt.ply\n")
     (tmp_path / "ok.csv").write_text("pred,gt\npred.ply,gt.ply\n")
     (tmp_path / "afile").write_text("x")
+    (tmp_path / "huge.off").write_text("OFF\n3 100000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
     return tmp_path
 
 
@@ -84,6 +85,14 @@ BAD_CLI = [
     ("pred-dir without gt-dir", ["batch", "--pred-dir", "adir", *OUTS], "--gt-dir"),
     ("pred-dir missing", ["batch", "--pred-dir", "nope", "--gt-dir", "adir", *OUTS], "does not exist"),
     ("pairs and gt-dir", ["batch", "--pairs", "ok.csv", "--gt-dir", "adir", *OUTS], "--gt-dir"),
+    # issue 34: bounded before anything is allocated, and no output may be an input
+    ("chamfer samples huge", ["chamfer", "pred.ply", "gt.ply", "--samples", "100000000000"], "--samples"),
+    ("fscore samples huge", ["fscore", "pred.ply", "gt.ply", "--samples", "10000001"], "in [1, 10000000]"),
+    ("face count huge", ["check", "huge.off"], "100000000000 faces: a mesh may have 0..20000000"),
+    ("iou face count huge", ["iou", "huge.off", "gt.ply"], "100000000000 faces"),
+    ("csv is an input mesh", [*BATCH, "--out", "out.json", "--csv", "gt.ply"], "--csv 'gt.ply' is one of the inputs"),
+    ("out is an input mesh", [*BATCH, "--out", "pred.ply"], "--out 'pred.ply' is one of the inputs"),
+    ("out is the pairs file", [*BATCH, "--out", "ok.csv"], "--out 'ok.csv' is one of the inputs"),
 ]
 
 
@@ -91,12 +100,24 @@ BAD_CLI = [
 def test_bad_cli_input_is_one_line_exit_2_and_writes_nothing(bad_inputs, monkeypatch, capsys, case, argv, words):
     monkeypatch.chdir(bad_inputs)
     before = _files(bad_inputs)
+    contents = {p: p.read_bytes() for p in bad_inputs.iterdir() if p.is_file()}
     assert main(argv) == 2, case
     err = capsys.readouterr().err
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), err
     assert "Traceback" not in err and words in err, err
     assert _files(bad_inputs) == before  # no output (and no temporary) file created
+    assert {p: p.read_bytes() for p in contents} == contents  # no input replaced
+
+
+def test_an_output_named_through_a_symlink_is_still_the_input(bad_inputs, monkeypatch, capsys):
+    """Compared by real path: a link to a ground-truth mesh is that mesh."""
+    monkeypatch.chdir(bad_inputs)
+    (bad_inputs / "link.csv").symlink_to("gt.ply")
+    gt = (bad_inputs / "gt.ply").read_bytes()
+    assert main([*BATCH, "--out", "out.json", "--csv", "link.csv"]) == 2
+    assert "is one of the inputs (" in capsys.readouterr().err
+    assert (bad_inputs / "gt.ply").read_bytes() == gt
 
 
 def test_bad_cli_input_through_the_console_script(bad_inputs):

@@ -57,3 +57,15 @@ def test_evaluate_pair_parts_and_precision_recall(helpers):
     assert r["recall"] > 0.99 and r["precision"] < 0.99
     assert set(r) == {"voxel_iou", "clamped_parts", "chamfer_l2", "fscore", "precision", "recall"}
     assert r["clamped_parts"] == 0  # the gt_bbox grid spans both meshes: nothing to clamp
+
+
+@pytest.mark.parametrize("n", [0, -1, 10_000_001, 10**12, 2.5, True])
+def test_sample_counts_are_bounded_before_the_meshes_are_read(n):
+    """Issue 34: ``n_samples`` outside [1, MAX_SAMPLES] is a MeshInputError, not an allocation (the paths
+    do not even exist: the count is checked first)."""
+    from cerberus_metrics import MeshInputError
+    from cerberus_metrics.distances import MAX_SAMPLES
+
+    assert MAX_SAMPLES == 10_000_000
+    with pytest.raises(MeshInputError, match=r"n_samples must be an integer in \[1, 10000000\]"):
+        chamfer_l2("missing_pred.obj", "missing_gt.obj", n_samples=n)

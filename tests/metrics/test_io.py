@@ -166,3 +166,30 @@ def test_star_shaped_certificate_agrees_with_pymeshlab(helpers):
     assert star_shaped(np.asarray(flipped.vertices), np.asarray(flipped.faces))
     (skipped,) = inspect_mesh(helpers.blob(1), check_self_intersections=False)
     assert skipped.self_intersecting_faces is None and skipped.self_intersection_check == "skipped"
+
+
+def test_a_face_count_beyond_the_bound_is_refused_before_any_copy():
+    """Issue 34: a (V, 3) / (F, 3) pair with more than MAX_FACES faces is one MeshInputError (a broadcast view:
+    nothing of that size is ever allocated)."""
+    import numpy as np
+    import pytest
+
+    from cerberus_metrics import MeshInputError, load_parts
+    from cerberus_metrics.filecheck import MAX_FACES
+
+    vertices = np.eye(3)
+    faces = np.broadcast_to(np.array([[0, 1, 2]]), (MAX_FACES + 1, 3))
+    with pytest.raises(MeshInputError, match=f"{MAX_FACES + 1} faces: a mesh may have 0..{MAX_FACES}"):
+        load_parts((vertices, faces), "pred")
+
+
+def test_a_header_claiming_a_huge_face_count_is_refused(tmp_path):
+    import pytest
+
+    from cerberus_metrics import MeshInputError, load_parts
+
+    (tmp_path / "huge.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                       "property float z\nelement face 1000000000000000000\n"
+                                       "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    with pytest.raises(MeshInputError, match="1000000000000000000 faces: a mesh may have"):
+        load_parts(str(tmp_path / "huge.ply"), "gt")

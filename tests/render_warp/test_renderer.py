@@ -88,3 +88,18 @@ def test_missing_warp_names_the_package() -> None:
     assert res.returncode == 0, res.stderr
     assert "PluginLoadError" in res.stdout and "pip install 'warp-lang" in res.stdout
 
+
+
+def test_the_first_compile_is_announced_before_it_starts(tmp_path, monkeypatch, capsys):
+    """Issue 34: with an empty kernel cache the backend says it compiles (it takes half a minute in silence
+    otherwise); with its kernels cached it says nothing."""
+    import warp as wp
+
+    from cerberus_render_warp.quiet import announce_first_compile
+
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
+    announce_first_compile()
+    assert f"compiling the Warp renderer's kernels into {tmp_path}" in capsys.readouterr().err
+    (tmp_path / "wp_cerberus_render_warp.rasterize_0123abc").mkdir()
+    announce_first_compile()
+    assert capsys.readouterr().err == ""

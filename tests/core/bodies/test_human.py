@@ -299,3 +299,25 @@ def test_loading_the_body_model_prints_nothing():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     assert res.stdout == "" and res.stderr == "", (res.stdout, res.stderr)
+
+
+def test_the_anny_cache_build_is_announced_before_it_starts(tmp_path, capsys):
+    """Issue 34: anny builds its model cache silently for a minute and more; the source says so first."""
+    from anny.paths import get_anny_cache_path, set_anny_cache_path
+
+    from cerberus_core.bodies.human import _announce_anny_cache
+
+    before = get_anny_cache_path()
+    set_anny_cache_path(tmp_path)
+    try:
+        _announce_anny_cache()
+        assert f"building anny's model cache in {tmp_path}" in capsys.readouterr().err
+        from anny.models.model_data import CURRENT_DATA_VERSION
+
+        folder = tmp_path / f"v{CURRENT_DATA_VERSION}"
+        folder.mkdir()
+        (folder / "build_model_data_0123.safetensors").write_bytes(b"")
+        _announce_anny_cache()
+        assert capsys.readouterr().err == ""
+    finally:
+        set_anny_cache_path(before)

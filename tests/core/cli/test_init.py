@@ -131,3 +131,14 @@ def test_a_warning_is_said_in_the_command_flags():
     with _cli_environment("data", Terms({"up_axis": "--up-axis"})):
         line = warnings.formatwarning("they are z-up:\npass `up_axis=+z`", UserWarning, "folder.py", 1)
     assert line == "cerberus data: warning: they are z-up:; pass --up-axis +z\n"
+
+
+def test_version(capsys):
+    import pytest
+
+    from cerberus_core import __version__
+    from cerberus_core.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out == f"cerberus {__version__}\n"

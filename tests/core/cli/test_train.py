@@ -39,3 +39,9 @@ def test_print_config_resolves_presets(capsys):
     assert main(["train", "--preset", "cpu", "--preset", "nmrr", "--print-config"]) == 0
     cfg = yaml.safe_load(capsys.readouterr().out)
     assert cfg["model"]["num_parts"] == 1 and cfg["model"]["width"] == 32 and cfg["train"]["steps"] == 10000
+
+
+def test_renderer_is_a_flag_like_device(capsys):
+    """Issue 34: `cerberus train --renderer NAME` is `--set renderer=NAME`, as on the other commands."""
+    assert main(["train", "--preset", "tiny", "--renderer", "torch", "--print-config"]) == 0
+    assert "renderer: torch" in capsys.readouterr().out

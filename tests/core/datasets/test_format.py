@@ -168,3 +168,68 @@ def test_data_check_flags_views_that_render_empty(pairs_dataset, tmp_path, capsy
     assert main(["data", "check", str(root)]) == 1
     out = capsys.readouterr()
     assert "render empty" in out.err and "1 problem(s)" in out.out
+
+
+def _rewritten(pairs_dataset, tmp_path, role: str, change) -> tuple:
+    """A copy of the dataset whose first training shard's ``role`` array is replaced by ``change(array)`` (its size and
+    sha256 recorded anew, so only the numbers contradict the manifest)."""
+    from cerberus_core.datasets.format import sha256_file
+
+    root = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, root)
+    manifest = json.loads((root / MANIFEST).read_text())
+    record = manifest["splits"]["train"]["shards"][0]["files"][role]
+    path = resolve_inside(root, record["path"])
+    if path.suffix == ".npz":
+        with np.load(path) as z:
+            arrays = change({k: z[k] for k in z.files})
+        np.savez(path, **arrays)  # allow_pickle is numpy's default when saving: an object array is stored
+    else:
+        array = change(np.load(path))
+        np.save(path, array)
+        record["shape"], record["dtype"] = list(array.shape), array.dtype.str
+    record["bytes"], record["sha256"] = path.stat().st_size, sha256_file(path)
+    (root / MANIFEST).write_text(json.dumps(manifest))
+    return root, path
+
+
+def _subject(views):
+    views = views.copy()
+    views["subject"][1] = 99
+    return views
+
+
+def _mesh_index(views):
+    views = views.copy()
+    views["mesh"][0] = 1000
+    return views
+
+
+@pytest.mark.parametrize(("role", "change", "expected"), [
+    ("views", _subject, "views name subjects 0..99, the manifest has"),
+    ("views", _mesh_index, "views name meshes"),
+    ("quads", lambda q: q + 1000, "quadruplets index images"),
+    ("images", lambda a: a[:-1], "the manifest says uint8["),
+    ("meshes", lambda z: z | {"pose": np.array([object()] * len(z["pose"]), dtype=object)},
+     "meshes.npz holds an array numpy cannot read without pickle"),
+    ("meshes", lambda z: {k: v for k, v in z.items() if k != "faces"}, "meshes.npz lacks the array 'faces'"),
+    ("meshes", lambda z: z | {"vertex_offsets": z["vertex_offsets"] + 7}, "vertex_offsets run over"),
+], ids=["subject", "mesh-index", "quads", "images-count", "npz-object", "npz-missing", "npz-offsets"])
+def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_dataset, tmp_path, capsys, role, change,
+                                                                     expected):
+    """Issue 34: a shard whose files are whole (sizes and checksums agree) but whose arrays contradict the
+    manifest's numbers is a problem of `cerberus data check` (exit 1) and a DatasetError of every reader; no
+    pickle is ever run (the object array is refused unread)."""
+    from cerberus_core.cli import main
+    from cerberus_core.datasets.readers import QuadrupletDataset
+
+    root, path = _rewritten(pairs_dataset, tmp_path, role, change)
+    before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
+    problems = Dataset.open(root).verify(checksums=False)
+    assert len(problems) == 1 and expected in problems[0] and "train/shard-00000" in problems[0], problems
+    assert main(["data", "check", "--quick", str(root)]) == 1
+    out = capsys.readouterr()
+    assert expected in out.err and out.out.endswith("1 problem(s)\n")
+    with pytest.raises(DatasetError, match="regenerate"):
+        QuadrupletDataset(root)
+    assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before

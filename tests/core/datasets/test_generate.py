@@ -172,6 +172,7 @@ def test_the_memory_of_a_generation_is_checked_where_it_lives(monkeypatch, tmp_p
     import torch
 
     import cerberus_core.datasets.generate as gen
+    import cerberus_core.plumbing.machine as machine
     from cerberus_core.datasets.plan import preset_config
     from cerberus_core.errors import ConfigError
 
@@ -185,7 +186,7 @@ def test_the_memory_of_a_generation_is_checked_where_it_lives(monkeypatch, tmp_p
         gen.validate_generation(config, device="cuda", batch_size=24)
     gen.validate_generation(config, device="cuda", batch_size=4)  # 0.6 GiB of buffers fit
     ram = {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 2**30 // 4096}  # a machine with 1 GiB
-    monkeypatch.setattr(gen.os, "sysconf", lambda name: ram[name])
+    monkeypatch.setattr(machine.os, "sysconf", lambda name: ram[name])  # the one place memory is read
     with pytest.raises(ConfigError, match="on this machine .*lower `image_size`, `batch_size` or `shard_images`"):
         gen.validate_generation(config, batch_size=24)
     with pytest.raises(ConfigError, match="on this machine"):  # Dataset.generate() validates first: nothing written

@@ -107,3 +107,60 @@ def test_a_manifest_written_by_the_first_release_still_reads(tmp_path):
     assert m.split("train").shards[0].files["images"].shape == (24, 3, 64, 64)
     assert isinstance(m.config, GenerationConfig) and m.config.splits["train"].layout == "pairs"
     assert m.to_json() == json.loads(OLD_MANIFEST.read_text())  # rewritten on resume without loss
+
+
+def _shard(m):
+    return m["splits"]["train"]["shards"][0]
+
+
+MALFORMED = [  # (id, change to the stored manifest, words of the one-line DatasetError)
+    ("images-huge", lambda m: _shard(m).update(images=10**18), "images is 1000000000000000000, not a count"),
+    ("images-negative", lambda m: _shard(m).update(images=-5), "images is -5, not a count"),
+    ("images-text", lambda m: _shard(m).update(images="8"), "images is '8', not int"),
+    ("quadruplets-float", lambda m: _shard(m).update(quadruplets=2.5), "quadruplets is 2.5, not int"),
+    ("image-size-huge", lambda m: m.update(image_size=10**9), "image_size is 1000000000, not a size in [1, 4096]"),
+    ("image-size-zero", lambda m: m.update(image_size=0), "image_size is 0"),
+    ("subject-index", lambda m: _shard(m).update(subjects=[99]), "names subject 99, but the manifest has"),
+    ("subjects-text", lambda m: _shard(m).update(subjects="01"), "subjects is '01', not a list of counts"),
+    ("shape-text", lambda m: _shard(m)["files"]["images"].update(shape="abc"), "shape is 'abc', not a list"),
+    ("shape-nested", lambda m: _shard(m)["files"]["images"].update(shape=[[8]]), "shape[0] is [8], not a count"),
+    ("dtype-number", lambda m: _shard(m)["files"]["images"].update(dtype=7), "dtype is 7, not str"),
+    ("bytes-negative", lambda m: _shard(m)["files"]["images"].update(bytes=-1), "bytes is -1, not a count"),
+    ("part-names-text", lambda m: m.update(part_names=[["head"]]), "part_names is [['head']], not a list of strings"),
+    ("subject-splits", lambda m: m["subjects"][0].update(splits=[["train"]]), "splits is [['train']]"),
+    ("canonical-text", lambda m: m["subjects"][0].update(canonical_pose="first"), "canonical_pose is 'first'"),
+    ("layout", lambda m: m["splits"]["train"].update(layout="spiral"), "layout is 'spiral', not 'pairs' or 'grid'"),
+    ("planned-negative", lambda m: m["splits"]["train"].update(planned_shards=-1), "planned_shards is -1"),
+    ("meshes-text", lambda m: m["splits"]["train"].update(meshes="yes"), "meshes is 'yes', not bool"),
+    ("preset-number", lambda m: m.update(preset=3), "preset is 3, not str"),
+    ("generator-list", lambda m: m.update(generator=[1]), "generator is list, not an object"),
+    ("files-list", lambda m: _shard(m).update(files=[1]), "files is list, not an object"),
+]
+
+
+@pytest.mark.parametrize(("case", "change", "words"), MALFORMED, ids=[c[0] for c in MALFORMED])
+def test_every_malformed_field_is_one_dataset_error_naming_it(pairs_dataset, tmp_path, capsys, case, change, words):
+    """Issue 34: the reader turns a field of the wrong type, sign, size or depth into one DatasetError line
+    naming the field (never a raw ValueError, TypeError or RecursionError), from the API and `cerberus data check`
+    (exit 2), and nothing is changed."""
+    from cerberus_core.cli import main
+
+    root = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, root)
+    record = json.loads((root / MANIFEST).read_text())
+    change(record)
+    (root / MANIFEST).write_text(json.dumps(record))
+    before = (root / MANIFEST).read_bytes()
+    with pytest.raises(DatasetError) as caught:
+        Manifest.read(root)
+    assert words in str(caught.value) and "regenerate" in str(caught.value) and "\n" not in str(caught.value)
+    assert main(["data", "check", str(root)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "Traceback" not in err
+    assert (root / MANIFEST).read_bytes() == before
+
+
+def test_a_manifest_nested_too_deeply_is_one_line(tmp_path):
+    (tmp_path / MANIFEST).write_text("[" * 200_000 + "]" * 200_000)
+    with pytest.raises(DatasetError, match="nested too deeply"):
+        Manifest.read(tmp_path)

@@ -14,6 +14,7 @@ from cerberus_core.model.heads import (
 )
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.templates import icosphere
+from tests.support.reference_ops import reference_keypoint_maps
 
 
 def test_shape_head_shapes_and_initial_sphere():
@@ -151,6 +152,42 @@ def test_unproject_expectation_checks_camera_size():
     maps = expectation(torch.full((1, 1, 8, 8), 1 / 64), torch.ones(1, 1, 8, 8))
     with pytest.raises(ValueError, match="does not match"):
         unproject_expectation(maps, _camera(1, (16, 16)), to_world=True)
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_translation_head_upsamples_by_matrices_exactly_as_bilinear_interpolation(dtype):
+    """The up-sampling as two products with fixed matrices, and the expected depth on the cells, equal
+    the reference formula (values and gradients, up to rounding: float64 to 1e-12, float32 keypoints
+    to 1e-4 px)."""
+    torch.manual_seed(0)
+    head = TranslationHead(8, 5, depth_offset=2.5).to(dtype)
+    torch.nn.init.normal_(head.depth.weight, std=0.2)  # a depth map that varies
+    features = torch.randn(3, 8, 16, 16, dtype=dtype, requires_grad=True)
+    maps = head(features, (64, 64))
+    prob, depth_map, uv, depth = reference_keypoint_maps(head, features, (64, 64))
+    tol = {"atol": 1e-12, "rtol": 0} if dtype == torch.float64 else {"atol": 1e-5, "rtol": 1e-5}
+    torch.testing.assert_close(maps.prob, prob, **tol)
+    torch.testing.assert_close(maps.depth_map, depth_map, **tol)
+    torch.testing.assert_close(maps.depth, depth, **tol)
+    torch.testing.assert_close(maps.uv, uv, atol=1e-12 if dtype == torch.float64 else 1e-4, rtol=0)
+    g = torch.Generator().manual_seed(1)
+    weights = [torch.randn(t.shape, generator=g, dtype=dtype) for t in (prob, uv, depth)]
+    inputs = [features, head.logits.weight, head.coords.weight, head.depth.weight, head.depth.bias]
+
+    def grads(*outs):
+        return torch.autograd.grad(sum((o * wt).sum() for o, wt in zip(outs, weights, strict=True)), inputs)
+
+    for new, ref in zip(grads(maps.prob, maps.uv, maps.depth), grads(prob, uv, depth), strict=True):
+        torch.testing.assert_close(new, ref, atol=1e-10 if dtype == torch.float64 else 1e-4, rtol=1e-5)
+
+
+def test_upsample_bilinear_is_interpolate_for_any_sizes():
+    from cerberus_core.model.heads import upsample_bilinear
+
+    x = torch.randn(2, 3, 7, 5, dtype=torch.float64)
+    for size in ((28, 20), (13, 9), (7, 5)):
+        expected = torch.nn.functional.interpolate(x, size=size, mode="bilinear", align_corners=False)
+        torch.testing.assert_close(upsample_bilinear(x, size), expected, atol=1e-12, rtol=0)
 
 
 def test_a_narrow_anchor_width_starts_each_part_on_its_anchor_and_spreads_them():

@@ -85,3 +85,19 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def test_numpys_short_write_is_a_full_disk_naming_the_file(tmp_path) -> None:
+    """Issue 34: on a full disk ``np.save`` raises ``OSError("393216 requested and 298880 written")`` with no
+    errno; the write is an OutputError naming the path and the full disk, and leaves nothing behind."""
+    import pytest
+
+    from cerberus_core.errors import OutputError
+    from cerberus_core.plumbing.atomic import atomic_write
+
+    def short_write(fh):
+        raise OSError("393216 requested and 298880 written")
+
+    with pytest.raises(OutputError, match=r"cannot write .*shard.npy: No space left on device; the disk is full"):
+        atomic_write(tmp_path / "shard.npy", short_write)
+    assert list(tmp_path.iterdir()) == []

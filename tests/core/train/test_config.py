@@ -2,6 +2,7 @@
 
 import pytest
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.train.config import TrainConfig, config_diff, load_config, parse_overrides, preset_names
 from tests.support.paths import REPO
 
@@ -73,9 +74,9 @@ def test_variants_compose_with_a_schedule(tmp_path):
     assert (both.losses.cross_view, cpu.losses.cross_view) == ("partner", "own")
     assert (both.model.width, both.model.num_parts, both.train.steps) == (cpu.model.width, 1, cpu.train.steps)
     f = tmp_path / "exp.yaml"
-    f.write_text("extends: [cpu, free_cerberus]\ntrain:\n  steps: 7\n")
+    f.write_text("extends: [cpu, free_cerberus]\ntrain:\n  steps: 700\n")
     c = load_config(f)
-    assert config_diff(cpu, c) == ["losses.pose_consistency", "train.steps"] and c.train.steps == 7
+    assert config_diff(cpu, c) == ["losses.pose_consistency", "train.steps"] and c.train.steps == 700
     assert load_config(preset=["nmrr", "cpu"]).model.num_parts == 1  # cpu says nothing of parts
     with pytest.raises(ValueError, match="unknown preset 'gpu'"):
         load_config(preset=["cpu", "gpu"])
@@ -128,6 +129,41 @@ def test_beyond_the_paper_switches_are_off_in_the_paper_presets_and_checked():
     assert (nmrr.model.num_parts, nmrr.render.antialias, nmrr.losses.silhouette) == (1, True, 1.0)
     with pytest.raises(ValueError, match="losses.silhouette needs render.antialias: true"):
         load_config(preset="paper_faithful", overrides=["losses.silhouette=1"])
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("a: 1\na: 2\n", "f.yaml:2: not valid YAML (the key 'a' is given twice (lines 1 and 2); keep one)"),
+    ("{a: 1, a: 2}", "the key 'a' is given twice (line 1)"),
+    ("? [1, 2]\n: 3\n", "a list is used as a key"),
+    ("? {a: 1}\n: 3\n", "a mapping is used as a key"),
+    ("[" * 100_000, "nested deeper than 16 levels"),
+    ("a:\n" + "".join("  " * i + f"b{i}:\n" for i in range(1, 40)), "f.yaml:16: not valid YAML (nested deeper"),
+])
+def test_one_strict_reader_for_every_config_text(text, words):
+    """Issue 34: files, presets, saved configs and ``--set`` values are read by one reader; a duplicate key, a
+    list or mapping as a key and absurd nesting are each one ConfigError line (no TypeError, RecursionError)."""
+    from cerberus_core.config import load_yaml
+
+    with pytest.raises(ConfigError) as caught:
+        load_yaml(text, "f.yaml")
+    assert words in str(caught.value) and "\n" not in str(caught.value)
+    value = text.replace("\n", " ") if text.startswith("{") or text.startswith("[") else None
+    if value is not None:  # the same text as a --set value
+        with pytest.raises(ConfigError, match="overrides = .*: the value is not valid YAML"):
+            load_config(preset="tiny", overrides=[f"train.steps={value}"])
+
+
+def test_a_config_section_with_a_number_as_key_is_an_unknown_key():
+    with pytest.raises(ConfigError, match=r"unknown config key\(s\) \['data.1', 'data.x'\]"):
+        load_config(preset="tiny", overrides=["data={1: 2, x: 3}"])
+
+
+def test_the_own_cross_view_must_start_before_the_end():
+    """Issue 34: a warm-up as long as the run means the own cross view never runs."""
+    with pytest.raises(ConfigError, match=r"losses.cross_view_warmup = 300: must be less than train.steps \(300\)"):
+        load_config(preset="cpu", overrides=["train.steps=300"])
+    assert load_config(preset="cpu", overrides=["train.steps=301"]).losses.cross_view_warmup == 300
+    assert load_config(preset="paper", overrides=["losses.cross_view_warmup=10", "train.steps=5"])  # partner: unused
     for preset in ("paper", "paper_faithful", "cpu"):  # issue 30's limb terms: screened, in no preset yet
         c = load_config(preset=preset)
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)

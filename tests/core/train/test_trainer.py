@@ -194,3 +194,83 @@ def test_resources_a_setting_cannot_have_are_capped_or_refused(tiny_config, tiny
         torch.set_num_threads(before)
     with pytest.raises(ConfigError, match=r"train.batch_size = 1000000000: more than the 4 quadruplets"):
         train(tiny_config("train.batch_size=1000000000"), tmp_path / "big", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+
+
+def test_adam_is_fused_and_loads_the_state_of_the_foreach_adam_before_it():
+    """Issue 33: torch's fused Adam where torch has it (the CPU in torch >= 2.4), the same update up to
+    rounding. A checkpoint written by the earlier foreach Adam loads, and its saved settings come with
+    it, so a run started before the change resumes bit for bit as it would have."""
+    import copy
+
+    from cerberus_core.train.config import OptimConfig
+    from cerberus_core.train.trainer import fused_adam_devices, make_optimizer
+
+    def net():
+        torch.manual_seed(0)
+        return torch.nn.Sequential(torch.nn.Linear(6, 5), torch.nn.Tanh(), torch.nn.Linear(5, 2))
+
+    def steps(model, opt, n, seed):
+        g = torch.Generator().manual_seed(seed)
+        for _ in range(n):
+            opt.zero_grad()
+            model(torch.randn(4, 6, generator=g)).square().sum().backward()
+            opt.step()
+
+    cfg = OptimConfig(lr=1e-2, weight_decay=1e-3)
+    fused = net()
+    fused_opt = make_optimizer(fused, cfg)
+    assert fused_opt.param_groups[0]["fused"] == ("cpu" in fused_adam_devices())
+    old = net()
+    old_opt = torch.optim.Adam(old.parameters(), lr=cfg.lr, betas=tuple(cfg.betas), eps=cfg.eps,
+                               weight_decay=cfg.weight_decay)  # the optimiser before issue 33
+    steps(fused, fused_opt, 3, 1)
+    steps(old, old_opt, 3, 1)
+    for a, b in zip(fused.parameters(), old.parameters(), strict=True):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=1e-5)
+    resumed = net()
+    resumed.load_state_dict(old.state_dict())
+    resumed_opt = make_optimizer(resumed, cfg)
+    resumed_opt.load_state_dict(copy.deepcopy(old_opt.state_dict()))  # as from a checkpoint file
+    steps(resumed, resumed_opt, 2, 2)
+    steps(old, old_opt, 2, 2)
+    assert all(torch.equal(a, b) for a, b in zip(resumed.parameters(), old.parameters(), strict=True))
+
+
+def test_settings_the_machine_cannot_honour_are_refused_before_anything_is_allocated(tiny_config, tiny_root, tmp_path):
+    """Issue 34: a training whose memory estimate exceeds the machine's is one ConfigError naming the setting,
+    the estimate and the limit, from ``train()`` itself, before the run folder exists; worker processes beyond
+    the cores are lowered to them with a word, like threads."""
+    import os
+
+    from cerberus_core.errors import ConfigError
+    from cerberus_core.plumbing.machine import memory_bytes, size_text
+
+    many = FirstItems(QuadrupletDataset(tiny_root), 100_000)  # no item is read: the refusal comes first
+    cfg = tiny_config("data.image_size=4096", "model.width=1024", "train.batch_size=1000", "train.steps=1")
+    with pytest.raises(ConfigError, match=rf"data.image_size = 4096: needs at least .* of memory \(4000 images of "
+                       rf"4096x4096 pixels per step at train.batch_size = 1000\), more than the "
+                       rf"{size_text(memory_bytes())} this machine has; choose a smaller `data.image_size`"):
+        train(cfg, tmp_path / "run", dataset=many)
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(ConfigError, match="model.num_parts = 64: needs at least .* 20480 faces per step"):
+        train(tiny_config("model.num_parts=64", "model.sphere_level=5", "train.batch_size=1000"), tmp_path / "run",
+              dataset=many)
+    assert not (tmp_path / "run").exists()
+    cores = len(os.sched_getaffinity(0))
+    with pytest.warns(UserWarning, match=rf"data.num_workers=200 is more than this machine's {cores} cores"):
+        result = train(tiny_config("data.num_workers=200", "train.steps=1", "train.image_every=0"), tmp_path / "w",
+                       dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+    assert Run.load(result.run_dir).config.data.num_workers == cores
+
+
+def test_a_resume_may_not_shorten_the_run(tiny_config, tmp_path):
+    """Issue 34: resuming with ``train.steps`` below the step reached would rewrite the run's config to fewer steps
+    than it ran; refused, the run left as it was."""
+    from cerberus_core.errors import ConfigError
+
+    train(tiny_config("train.steps=2", "train.image_every=0"), tmp_path / "run")
+    before = {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")}
+    with pytest.raises(ConfigError, match=r"train.steps = 1: the run in .* already reached step 2; a resumed run "
+                       r"cannot end before it \(`train.steps=2` or more"):
+        train(tiny_config("train.steps=1", "train.image_every=0"), tmp_path / "run", resume=True)
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")} == before

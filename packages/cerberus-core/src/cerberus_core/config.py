@@ -31,7 +31,7 @@ from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import did_you_mean
 
 __all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean_hint", "flatten", "load_raw",
-           "load_yaml", "omit_defaults", "parse_overrides", "yaml_problem"]
+           "load_yaml", "omit_defaults", "parse_overrides"]
 
 
 def did_you_mean_hint(word: Any, options: Iterable[Any]) -> str:
@@ -71,33 +71,60 @@ def omit_defaults(d: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str
     return {k: v for k, v in d.items() if not (k in defaults and v == defaults[k])}
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
+#: The deepest nesting of mappings and lists a config text may have (the deepest config key has 3 levels).
+MAX_DEPTH = 16
+
+
+class _StrictLoader(yaml.SafeLoader):
     """A safe YAML loader that refuses a mapping with the same key twice (PyYAML keeps the last one
-    silently, so a config with ``steps`` written twice would train with whichever came last)."""
+    silently, so a config with ``steps`` written twice would train with whichever came last), a key
+    that is not a name (a list or a mapping used as a key) and nesting deeper than :data:`MAX_DEPTH`
+    (which would end in a ``RecursionError``)."""
+
+    def __init__(self, stream) -> None:  # noqa: ANN001 - PyYAML's signature
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):  # noqa: ANN001 - PyYAML's signature
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f"nested deeper than {MAX_DEPTH} levels; a config "
+                                                  "needs a few", self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
 
     def construct_mapping(self, node, deep=False):  # noqa: ANN001 - PyYAML's signature
         seen: dict[object, int] = {}
         for key_node, _ in node.value:
+            if not isinstance(key_node, yaml.ScalarNode):
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"a {'list' if isinstance(key_node, yaml.SequenceNode) else 'mapping'} is used as a "
+                    "key; a key is a name", key_node.start_mark)
             key = self.construct_object(key_node, deep=deep)
             if key in seen:
+                lines = sorted({seen[key] + 1, key_node.start_mark.line + 1})
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"the key {key!r} is given twice (lines {seen[key] + 1} and "
-                    f"{key_node.start_mark.line + 1}); keep one", key_node.start_mark)
+                    None, None, f"the key {key!r} is given twice ({'lines' if len(lines) > 1 else 'line'} "
+                    f"{' and '.join(map(str, lines))}); keep one", key_node.start_mark)
             seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)
 
 
-def load_yaml(text: str) -> Any:
-    """``yaml.safe_load`` that refuses a key given twice in one mapping (:class:`yaml.YAMLError`)."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-
-
-def yaml_problem(exc: BaseException, source: object) -> str:
-    """``SOURCE:LINE: not valid YAML (problem)``: a YAML syntax error on one line."""
-    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
-    where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
-    return f"{where}: not valid YAML ({problem})"
+def load_yaml(text: str, source: object = "config", fix: str = "fix the file") -> Any:
+    """The one reader of config text (files, presets, saved configs and ``--set`` values): a safe load that
+    refuses a key given twice in one mapping, a list or mapping as a key and nesting deeper than
+    :data:`MAX_DEPTH`, each as one :class:`ConfigError` line ``SOURCE:LINE: not valid YAML (problem); FIX``."""
+    try:
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc).splitlines()[0]
+        where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
+    except RecursionError:  # a guard of last resort: the composer stops at MAX_DEPTH first
+        where, problem = f"{source}", f"nested deeper than {MAX_DEPTH} levels"
+    raise ConfigError(f"{where}: not valid YAML ({problem}); {fix}", problem=problem)
 
 
 def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> dict[str, Any]:
@@ -108,10 +135,9 @@ def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> d
         if not eq or not key.strip() or any(not p for p in key.strip().split(".")):
             raise ConfigError.about("overrides", item, f"expected section.key=value, e.g. `{example}`")
         try:
-            value = yaml.safe_load(text) if text.strip() else None
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ConfigError.about("overrides", item, f"the value is not valid YAML ({problem}); close brackets "
+            value = load_yaml(text, "value") if text.strip() else None
+        except ConfigError as exc:
+            raise ConfigError.about("overrides", item, f"the value is not valid YAML ({exc.problem}); close brackets "
                                     f"and quotes, e.g. `{example}`") from None
         node = out
         parts = key.strip().split(".")
@@ -201,10 +227,7 @@ def _layers(text: str, source: str, base_dir: Path | None, presets: Presets,
     """
     if depth > 8:
         raise ConfigError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
-    try:
-        raw = load_yaml(text) or {}
-    except yaml.YAMLError as exc:
-        raise ConfigError(yaml_problem(exc, source) + "; fix the file") from None
+    raw = load_yaml(text, source) or {}
     if not isinstance(raw, dict):
         raise ConfigError(f"{source} must hold a YAML mapping of config sections")
     parents = raw.pop("extends", None)
@@ -332,7 +355,7 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
         raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {d!r}")
     hints = typing.get_type_hints(cls)
     known = [f.name for f in fields(cls) if f.init]
-    unknown = sorted(set(d) - set(known))
+    unknown = sorted(set(d) - set(known), key=str)  # a YAML key may be a number
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
                           f"{did_you_mean_hint(prefix + str(unknown[0]), [prefix + k for k in known])}; "

@@ -88,8 +88,9 @@ class MissingPackageError(CerberusError, ImportError):
 
 
 class ShapeError(CerberusError, ValueError):
-    """A tensor of the wrong shape or dtype (:func:`cerberus_core.shapes.check_shapes`): the message names
-    the function, every tensor's expected and actual shape, and the sizes the others bound."""
+    """A tensor of the wrong shape or dtype (:func:`cerberus_core.shapes.check_shapes`), or with values outside
+    its contract (NaN images): the message names the function, every tensor's expected and actual shape, and
+    the sizes the others bound."""
 
 
 class DeviceError(CerberusError, ValueError):

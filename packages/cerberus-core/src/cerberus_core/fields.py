@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 
 from cerberus_core.errors import ConfigError
 
-__all__ = ["Checked", "Range", "check_fields", "ranged"]
+__all__ = ["Checked", "Range", "check_fields", "check_value", "ranged"]
 
 RANGE = "cerberus.range"
 """The ``dataclasses.field`` metadata key that holds a field's :class:`Range`."""
@@ -73,6 +73,14 @@ class Range:
         if high:
             return f"{kind} {'<=' if self.le is not None else '<'} {high[:-1]}"
         return f"a finite {kind.split()[-1]}"
+
+
+def check_value(key: str, value: Any, allowed: Range, fix: str = "") -> Any:
+    """``value`` of the parameter ``key``, or :class:`ConfigError` naming it when it is outside ``allowed``
+    (a function's parameter checked like a settings field: the API and the command check with this one)."""
+    if not allowed.admits(value) or value is None:
+        raise ConfigError.about(key, value, f"must be {allowed.describe()}", fix)
+    return value
 
 
 def ranged(default: Any, *, ge: float | None = None, gt: float | None = None, le: float | None = None,

@@ -29,12 +29,20 @@ the objective's inputs, symbol, reference) and the weights' config section, ``Lo
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import torch
 
 from cerberus_core.parts import pose_parts
+from cerberus_core.render.nearest import nearest_indices
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
+
+NearestSearch = Callable[..., tuple[Tensor, "Tensor | None"]]
+"""The pulls' nearest-neighbour search, ``(points, targets, counts, both) -> (to_target, to_point)``:
+:func:`cerberus_core.render.nearest.nearest_indices` or a renderer backend's kernel for it
+(:meth:`Renderer.nearest_indices <cerberus_core.render.interface.Renderer.nearest_indices>`)."""
 
 QUADRUPLET: tuple[str, ...] = ("a0", "a1", "b0", "b1")
 """Order of the four images of a training example."""
@@ -276,32 +284,6 @@ def mask_pixel_centres(mask: Tensor) -> tuple[Tensor, Tensor]:
     return centres, valid
 
 
-def nearest_indices(points: Tensor, targets: Tensor, counts: list[int]) -> tuple[Tensor, Tensor]:
-    """Nearest-neighbour indices between two point sets per image, searched without gradient.
-
-    One ``(M, K_n)`` distance table per image (a loop: padding the tables to one size costs more
-    memory traffic than the loop's overhead on a CPU), scanned both ways.
-
-    Args:
-        points: ``(N, M, 2)``.
-        targets: ``(N, K, 2)`` of which the first ``counts[n]`` are real in image ``n``.
-        counts: ``N`` ints.
-    Returns:
-        ``to_target`` ``(N, M)``: each point's nearest real target (0 where the image has none), and
-        ``to_point`` ``(N, K)``: each real target's nearest point (0 on the padding).
-    """
-    n, m = points.shape[:2]
-    to_target = torch.zeros(n, m, dtype=torch.long, device=points.device)
-    to_point = torch.zeros(n, targets.shape[1], dtype=torch.long, device=points.device)
-    with torch.no_grad():
-        for i, k in enumerate(counts):
-            if k:
-                table = torch.cdist(points[i].detach(), targets[i, :k].detach())  # (M, k)
-                to_target[i] = table.min(1).indices
-                to_point[i, :k] = table.min(0).indices
-    return to_target, to_point
-
-
 def _pair_distance(points: Tensor, targets: Tensor, index: Tensor) -> Tensor:
     """``|points[n, i] - targets[n, index[n, i]]|`` ``(N, I)``: differentiable in both, exactly the
     distance to the chosen target (the gradient of a minimum reaches only its argument)."""
@@ -309,7 +291,8 @@ def _pair_distance(points: Tensor, targets: Tensor, index: Tensor) -> Tensor:
     return (points - chosen).norm(dim=-1)
 
 
-def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512) -> Tensor:
+def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512,
+                       search: NearestSearch = nearest_indices) -> Tensor:
     """Long-range pull of the parts onto the input's silhouette, in the image plane.
 
     A symmetric 2D chamfer distance between the projected part vertices and the foreground pixel
@@ -319,7 +302,7 @@ def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512
     visible or not, at any distance. Distances are in units of the image height, not squared, so the
     pull has the same strength near and far.
 
-    The nearest neighbours are searched without gradient (:func:`nearest_indices`), and the
+    The nearest neighbours are searched without gradient (``search``: :data:`NearestSearch`), and the
     distances are then recomputed, with gradient, for the chosen pairs only, batched over images (the gradient of a minimum reaches only its argument, so the value and the
     gradient are those of ``min(cdist)``, up to rounding).
 
@@ -327,12 +310,13 @@ def silhouette_chamfer(points: Tensor, foreground: Tensor, max_points: int = 512
         points: ``(N, M, 2)`` projected vertices in pixels (:meth:`Camera.project`), all parts.
         foreground: ``(N, 1, H, W)`` or ``(N, H, W)`` foreground mask (1 on the body).
         max_points: vertices used per image (evenly strided), bounding the cost.
+        search: the nearest-neighbour search (training passes its renderer backend's kernel).
     Returns:
         ``(N,)``; 0 for an image with no foreground pixel.
     """
     fg, pts, centres, valid = _points_and_pixels("silhouette_chamfer", points, foreground, max_points)
     count = valid.sum(1)
-    to_pixel, to_vertex = nearest_indices(pts, centres, count.tolist())
+    to_pixel, to_vertex = search(pts, centres, count, True)
     pixel_side = (_pair_distance(centres, pts, to_vertex) * valid).sum(1) / count.clamp(min=1)
     vertex_side = _pair_distance(pts, centres, to_pixel).mean(1)
     return torch.where(count > 0, (pixel_side + vertex_side) / fg.shape[1], pts.new_zeros(()))
@@ -376,7 +360,8 @@ def thinness_weights(foreground: Tensor) -> Tensor:
     return torch.where(depth > 0, depth.clamp(min=1) ** -2, depth)[:, 0]
 
 
-def silhouette_coverage(points: Tensor, foreground: Tensor, max_points: int = 512) -> Tensor:
+def silhouette_coverage(points: Tensor, foreground: Tensor, max_points: int = 512,
+                        search: NearestSearch = nearest_indices) -> Tensor:
     """Coverage weighted toward thin structures: every foreground pixel pulls its nearest point.
 
     ``L = sum_p w_p min_j |p - x_j| / sum_p w_p / H`` over the foreground pixel centres ``p`` of the
@@ -388,18 +373,20 @@ def silhouette_coverage(points: Tensor, foreground: Tensor, max_points: int = 51
     the parts' keypoints (one point per part), it is a weighted k-means of the keypoints over the
     silhouette: parts stacked on the trunk split its pixels and spread out, and an uncovered limb pulls
     the keypoint of the nearest part onto it (moving the part rather than stretching it). The nearest
-    points are searched without gradient (:func:`nearest_indices`), the distances recomputed with it.
+    points are searched without gradient (``search``: :data:`NearestSearch`), the distances recomputed
+    with it.
 
     Args:
         points: ``(N, M, 2)`` in pixels: projected vertices (:meth:`Camera.project`) or keypoints.
         foreground: ``(N, 1, H, W)`` or ``(N, H, W)`` foreground mask (1 on the body).
         max_points: points used per image (evenly strided), bounding the cost.
+        search: the nearest-neighbour search, as in :func:`silhouette_chamfer`.
     Returns:
         ``(N,)`` in image heights; 0 for an image with no foreground pixel.
     """
     fg, pts, centres, valid = _points_and_pixels("silhouette_coverage", points, foreground, max_points)
     count = valid.sum(1)
-    _, to_point = nearest_indices(pts, centres, count.tolist())
+    _, to_point = search(pts, centres, count, True)
     rows, cols = (centres[..., 1] - 0.5).long(), (centres[..., 0] - 0.5).long()  # padding reads pixel (0, 0)
     weight = thinness_weights(fg).to(pts.dtype)[torch.arange(fg.shape[0], device=fg.device)[:, None], rows, cols]
     weight = weight * valid
@@ -407,7 +394,8 @@ def silhouette_coverage(points: Tensor, foreground: Tensor, max_points: int = 51
     return torch.where(count > 0, pulled / fg.shape[1], pts.new_zeros(()))
 
 
-def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tensor:
+def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor,
+                     search: NearestSearch = nearest_indices) -> Tensor:
     """Long-range pull of the parts an image does not show toward the foreground no part covers.
 
     A part wholly hidden in its input view (behind other parts, or off the image) gets no gradient
@@ -421,6 +409,7 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
         points: ``(N, P, V, 2)`` projected vertices in pixels (:meth:`Camera.project`), per part.
         visible: ``(N, P)`` bool, whether the part covers at least one pixel of its input view.
         uncovered: ``(N, 1, H, W)`` or ``(N, H, W)``, 1 on foreground pixels that no part covers.
+        search: the nearest-neighbour search, as in :func:`silhouette_chamfer`.
     Returns:
         ``(N,)`` the mean over the image's hidden parts of their mean vertex distance; 0 for an image
         where every part shows or no foreground pixel is uncovered.
@@ -436,7 +425,7 @@ def hidden_part_pull(points: Tensor, visible: Tensor, uncovered: Tensor) -> Tens
     centres, valid = mask_pixel_centres(free[image])  # (H, K, 2) each pulled part's targets
     centres = centres.to(points.dtype)
     pts = points[image, part]  # (H, V, 2)
-    nearest, _ = nearest_indices(pts, centres, valid.sum(1).tolist())  # (H, V)
+    nearest, _ = search(pts, centres, valid.sum(1), False)  # (H, V)
     per_part = _pair_distance(pts, centres, nearest).mean(1)  # (H,)
     hidden = torch.bincount(image, minlength=n).to(points.dtype)
     return out.index_add(0, image, per_part) / hidden.clamp(min=1) / height

@@ -20,17 +20,18 @@ import stat
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from importlib.util import find_spec
 from pathlib import Path
 
 import torch
-import yaml
 from safetensors import safe_open
 from safetensors.torch import load_file
 
+from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
@@ -38,12 +39,13 @@ from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, wri
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.eval.visibility import visibility_line
-from cerberus_core.fields import ranged
+from cerberus_core.fields import Range, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plugins import get_metric
+from cerberus_core.plugins import UnknownPluginError, get_metric
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
+from cerberus_core.render.interface import Renderer
 from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.config import TrainConfig
 from cerberus_core.zoo import available, model_path
@@ -235,10 +237,10 @@ def _load_weights(path: str | Path, device: str | torch.device = "cpu") -> tuple
                               f"{bad[0]}); the training diverged: use an earlier checkpoint "
                               "(RUN/checkpoints/step_*.pt) or retrain with a lower optim.lr")
     try:
-        config = TrainConfig.from_dict(yaml.safe_load(config_yaml))
+        config = TrainConfig.from_dict(load_yaml(config_yaml, shown))
         model = Cerberus(config.model)
         model.load_state_dict(state)
-    except (ValueError, TypeError, KeyError, RuntimeError, yaml.YAMLError) as exc:
+    except (ValueError, TypeError, KeyError, RuntimeError) as exc:
         raise CheckpointError(f"{shown}: the saved config and weights do not form a Cerberus model "
                               f"({error_reason(exc)}); it was written by another version or is damaged") from None
     return model.to(device).eval(), config, scene
@@ -285,6 +287,23 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
 
 
 # ------------------------------------------------------------------ evaluation settings
+def check_eval_packages(part_quality: bool = True) -> None:
+    """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
+    metric entry point; scipy, for the part quality), else one :class:`MissingPackageError` naming them all and
+    the extra that brings them, ``cerberus-core[eval]``."""
+    missing = []
+    try:
+        get_metric(SCORER_ENTRY_POINT)
+    except UnknownPluginError:
+        missing.append("cerberus-metrics")
+    if part_quality and find_spec("scipy") is None:
+        missing.append("scipy")
+    if missing:
+        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which are not installed: pip install "
+                                  "'cerberus-core[eval]' brings them (from the toolkit's wheelhouse: README, "
+                                  "'Installing with pip')")
+
+
 def check_protocol(name: str) -> str:
     """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
     anything runs; a missing cerberus-metrics is named as such)."""
@@ -318,6 +337,7 @@ class EvalSettings(EvalConfig):
     overwrite: bool = False
 
     def validate(self) -> None:
+        check_eval_packages(self.part_quality)
         check_protocol(self.protocol)
 
 
@@ -530,7 +550,7 @@ class Run:
             indices = range(min(s.limit, len(dataset))) if s.limit else None
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
                                       device=self.device)
-            self._write_report(result, tmp, at_step)
+            self._write_report(result, tmp, at_step, backend)
             evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
                                device=self.device, viewer_images=s.viewer_images,
                                title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
@@ -558,9 +578,11 @@ class Run:
             renderer: the backend for the pictures (default: the run's).
             viewer_images: cards in ``out/index.html`` (0: no viewer).
         """
-        if viewer_images < 0:
-            raise ConfigError.about("viewer_images", viewer_images, "must be >= 0 (0: no viewer)")
+        check_value("viewer_images", viewer_images, Range(ge=0, integer=True), "0: no viewer")
+        check_value("azimuth", azimuth, Range())
         images = [Path(p) for p in images]
+        if not images:
+            raise ConfigError.about("images", None, "no image given; pass at least one image file")
         mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(Path(out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
@@ -569,12 +591,15 @@ class Run:
                                   viewer_images=viewer_images, device=self.device,
                                   title=f"cerberus reconstruct: {printable(self.source)}")
 
-    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str) -> None:
-        """``results.json`` (the scores and which weights) and ``results.md`` (with the stale warning)."""
+    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
+        """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and
+        ``results.md`` (with the stale warning)."""
         weights = self.weights_info
         record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
                                                   "newer_checkpoint": None if weights.newer is None else
-                                                  {"path": str(weights.newer), "step": weights.newer_step}}}
+                                                  {"path": str(weights.newer), "step": weights.newer_step}},
+                                        "computed_with": {"renderer": backend.name, "device": str(self.device),
+                                                          "dtype": str(next(self.model.parameters()).dtype)}}
         write_json(record, folder / "results.json")
         report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}")
         if weights.stale_warning():

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .cache import CachedGrid, GridCache
-from .distances import PointDistances, point_distances
+from .distances import PointDistances, check_samples, point_distances
 from .io import MeshInputError, MeshQualityWarning, MeshReport, content_digest, load_parts
 from .protocols import Frame, get_protocol, make_frame
 from .voxelize import VoxelGrid, grid_iou, voxelize_meshes
@@ -147,6 +147,7 @@ def voxel_iou(
 
 
 def _distances(pred: Any, gt: Any, n_samples: int, seed: int, normalize: bool) -> PointDistances:
+    check_samples(n_samples)  # before the meshes are read
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MeshQualityWarning)  # surface sampling needs no closed surface
         p = load_parts(pred, "pred", check_self_intersections=False)

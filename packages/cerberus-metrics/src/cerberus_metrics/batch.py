@@ -323,6 +323,17 @@ def check_output_path(path: str | os.PathLike, flag: str) -> str:
     return str(p)
 
 
+def check_not_input(outputs: dict[str, str | None], pairs: Sequence[PairSpec], extra: Sequence[str] = ()) -> None:
+    """Refuse (:class:`MeshInputError` naming the flag) an output file (``{flag: path or None}``) that is one
+    of the inputs (a mesh of ``pairs`` or a file of ``extra``, e.g. the pairs file), compared by real path:
+    writing it would replace the input."""
+    inputs = {os.path.realpath(m): m for m in [*extra, *(m for pair in pairs for m in (*pair.pred, pair.gt) if m)]}
+    for flag, out in outputs.items():
+        if out and os.path.realpath(out) in inputs:
+            raise MeshInputError(f"{flag} '{out}' is one of the inputs ({inputs[os.path.realpath(out)]}); writing it "
+                                 "would replace that file: choose another name")
+
+
 def _csv_text(rows: Sequence[dict[str, Any]]) -> str:
     keys: list[str] = []
     for r in rows:

@@ -18,7 +18,8 @@ from typing import Any, NoReturn
 
 from . import __version__
 from .api import METRICS, evaluate_pair, inspect_mesh
-from .batch import check_output_path, pairs_from_file, pairs_from_folders, run_batch, write_results
+from .batch import check_not_input, check_output_path, pairs_from_file, pairs_from_folders, run_batch, write_results
+from .distances import MAX_SAMPLES
 from .io import MeshInputError, MeshQualityWarning
 from .protocols import PROTOCOLS
 
@@ -114,9 +115,10 @@ def _add_voxel_options(p: argparse.ArgumentParser) -> None:
 def _add_sampling_options(p: argparse.ArgumentParser, threshold: bool) -> None:
     p.add_argument(
         "--samples",
-        type=_int_in(1, None, "points per surface"),
+        type=_int_in(1, MAX_SAMPLES, "points per surface"),
         default=100_000,
-        help="points sampled per surface (default: 100000)",
+        help=f"points sampled per surface, 1..{MAX_SAMPLES} (default: 100000; Chamfer-L2 and the F-score depend on "
+        "it: compare numbers measured with the same --samples)",
     )
     p.add_argument("--seed", type=_int_in(0, None, "sampling seed"), default=0,
                    help="sampling seed; the GT uses seed+1 (default: 0)")
@@ -324,6 +326,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         pairs = pairs_from_folders(args.pred_dir, args.gt_dir)
     if not pairs:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
+    check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [])
     result = run_batch(
         pairs,
         metrics,

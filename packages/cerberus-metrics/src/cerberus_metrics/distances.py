@@ -22,13 +22,23 @@ import pymeshlab
 
 from .io import Mesh, MeshInputError
 
-__all__ = ["sample_surface", "nearest_distances", "PointDistances", "point_distances"]
+__all__ = ["MAX_SAMPLES", "check_samples", "sample_surface", "nearest_distances", "PointDistances", "point_distances"]
+
+MAX_SAMPLES = 10_000_000
+"""The most points sampled per surface: each point costs about 200 bytes through sampling and the
+nearest-point search (both shapes), so this bound keeps a pair within about 2 GB."""
+
+
+def check_samples(n: object) -> int:
+    """``n`` as a sample count, or :class:`MeshInputError` when it is not an integer in [1, MAX_SAMPLES]."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_SAMPLES:
+        raise MeshInputError(f"n_samples must be an integer in [1, {MAX_SAMPLES}], got {n!r}")
+    return int(n)
 
 
 def sample_surface(parts: list[Mesh], n: int, rng: np.random.Generator) -> np.ndarray:
     """(n, 3) float64 points uniform by area on the union of the parts' surfaces (mesh units)."""
-    if int(n) < 1:
-        raise MeshInputError(f"n_samples must be a positive integer, got {n!r}")
+    check_samples(n)
     tri = np.concatenate([p.triangles for p in parts])  # (F, 3, 3)
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     total = area.sum()

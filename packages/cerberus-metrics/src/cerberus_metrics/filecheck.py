@@ -23,7 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FileDefect", "scan_mesh_file"]
+__all__ = ["MAX_FACES", "FileDefect", "check_counts", "scan_mesh_file"]
+
+MAX_FACES = 20_000_000
+"""The most faces (and vertices) a mesh may have: about 1 KB each through reading, cleaning and voxelizing, so
+this bound keeps one mesh within about 20 GB; a larger one (or a header claiming one) is refused before
+it is read."""
 
 
 class FileDefect(Exception):
@@ -36,6 +41,14 @@ class FileDefect(Exception):
 
 _FIX_INDEX = "fix the face indices (or the export that produced the file)"
 _FIX_NAN = "remove or repair those vertices (or the export that produced the file)"
+
+
+def check_counts(n_v: int, n_f: int) -> None:
+    """:class:`FileDefect` when a mesh's vertex or face count is negative or above :data:`MAX_FACES`."""
+    for what, n in (("vertices", n_v), ("faces", n_f)):
+        if n < 0 or n > MAX_FACES:
+            raise FileDefect(f"{n} {what}: a mesh may have 0..{MAX_FACES}",
+                             "simplify the mesh (e.g. quadric decimation) or check the header that states the count")
 
 
 def _nan_defect(count: int, total: int, where: str, text: str) -> FileDefect:
@@ -135,6 +148,7 @@ def _scan_off(path: Path) -> None:
         if len(counts) < 2:
             _, counts = next(it)
         n_v, n_f = int(counts[0]), int(counts[1])
+        check_counts(n_v, n_f)
         bad_v, first_bad = 0, ("", "")
         for k in range(n_v):
             lineno, toks = next(it)
@@ -191,6 +205,7 @@ def _scan_ply(path: Path) -> None:
         if len(elements) < 2 or elements[0][0] != b"vertex" or elements[1][0] != b"face":
             return
         (_, n_v, vprops), (_, n_f, fprops) = elements[0], elements[1]
+        check_counts(n_v, n_f)
         if any(len(p) != 2 or p[0] not in _PLY_TYPES for p in vprops):
             return
         names = [p[1] for p in vprops]

@@ -29,7 +29,7 @@ from typing import Any, Union
 import numpy as np
 import pymeshlab
 
-from .filecheck import FileDefect, scan_mesh_file
+from .filecheck import FileDefect, check_counts, scan_mesh_file
 
 __all__ = [
     "MeshInputError",
@@ -196,6 +196,10 @@ def validate_arrays(vertices: np.ndarray, faces: np.ndarray, name: str) -> tuple
         raise MeshInputError(
             f"{name}: faces must have shape (F, 3) (triangles), got {f.shape}; triangulate the mesh first"
         )
+    try:
+        check_counts(v.shape[0], f.shape[0])
+    except FileDefect as exc:
+        raise MeshInputError(f"{name}: {exc}; {exc.fix}") from None
     if not np.issubdtype(f.dtype, np.integer):
         if np.issubdtype(f.dtype, np.floating) and np.all(np.isfinite(f)) and np.all(f == np.round(f)):
             f = f.astype(np.int64)

@@ -13,11 +13,12 @@ except ImportError:
 require_lockstep("cerberus-render-warp")
 
 from cerberus_render_warp.antialias import WarpAntialias, antialias
+from cerberus_render_warp.nearest import nearest_indices
 from cerberus_render_warp.normals import WarpVertexNormals, vertex_normals
 from cerberus_render_warp.rasterize import rasterize
 from cerberus_render_warp.renderer import WarpRenderer
 from cerberus_render_warp.shade import WarpShade, shade
 
-__all__ = ["WarpAntialias", "WarpRenderer", "WarpShade", "WarpVertexNormals", "antialias", "rasterize", "shade",
-           "vertex_normals"]
+__all__ = ["WarpAntialias", "WarpRenderer", "WarpShade", "WarpVertexNormals", "antialias", "nearest_indices",
+           "rasterize", "shade", "vertex_normals"]
 __version__ = _version("cerberus-render-warp")

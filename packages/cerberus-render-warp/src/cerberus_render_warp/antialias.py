@@ -3,9 +3,10 @@
 Computes what :func:`cerberus_core.render.antialias.antialias` computes (that module's docstring is
 the contract): per pair of adjacent pixels with different face ids, the front face, the walk along
 the segment between the pixel centres across non-silhouette edges up to the first silhouette edge,
-and the blend by the crossing position. The backward kernel recomputes each pair and
-applies the hand-written adjoint of ``t = e_i / (e_i - e_o)`` with ``e = p . (v_a x v_b)``,
-accumulating into the colour and clip-space gradients with atomics.
+and the blend by the crossing position. The forward kernel records each blended pair (which pixel
+is in front, the silhouette edge's two vertices); the backward kernel reads those records, without
+searching the pairs again, and applies the hand-written adjoint of ``t = e_i / (e_i - e_o)`` with
+``e = p . (v_a x v_b)``, accumulating into the colour and clip-space gradients with atomics.
 
 One Warp thread handles the pairs to the right of and below the pixels of one image row on the CPU
 (one pixel on CUDA); a pixel pair with equal face ids costs two face-id reads.
@@ -248,10 +249,15 @@ def _aa_kernel(
     adjoint: int,
     need_color: int,
     need_clip: int,
+    pair_kept: wp.array4d(dtype=wp.int32),
+    pair_edge: wp.array4d(dtype=wp.int32),
 ):
-    """Thread ``t``: the right and lower pairs of columns ``k * cols_per_thread ..`` of one row.
-    ``adjoint`` 0: blend ``color`` into ``out`` (which arrives holding ``color``); 1: the adjoint over
-    the same pairs (``grad_color`` arrives holding ``grad_out``, the identity part)."""
+    """Thread ``t``: the right (``d = 0``) and lower (``d = 1``) pairs of columns ``k * cols_per_thread ..``
+    of one row. ``adjoint`` 0: blend ``color`` into ``out`` (which arrives holding ``color``) and record
+    each blended pair, ``pair_kept[b, r, c, d]`` 1 (this pixel is the front one) or 2 (the other is) and
+    ``pair_edge[b, r, c, 2 d : 2 d + 2]`` its silhouette edge's vertices (both arrive zeroed); 1: the
+    adjoint over the recorded pairs, without searching them again (``grad_color`` arrives holding
+    ``grad_out``, the identity part)."""
     height = face_id.shape[1]
     width = face_id.shape[2]
     b, r, c_first, c_last = row_span(wp.tid(), height, width, cols_per_thread)
@@ -260,16 +266,26 @@ def _aa_kernel(
         for d in range(2):
             r1 = r + d
             c1 = c + 1 - d
-            if r1 < height and c1 < width:
-                if face_id[b, r1, c1] != f:
-                    keep, r_in, c_in, r_out, c_out, ia, ib, t = _pair(
-                        clip, faces, nbrs, face_id, px_of_col, py_of_row, b, r, c, r1, c1, fused)
-                    if keep != 0:
-                        if adjoint == 0:
+            if adjoint == 0:
+                if r1 < height and c1 < width:
+                    if face_id[b, r1, c1] != f:
+                        keep, r_in, c_in, r_out, c_out, ia, ib, t = _pair(
+                            clip, faces, nbrs, face_id, px_of_col, py_of_row, b, r, c, r1, c1, fused)
+                        if keep != 0:
                             _blend(color, out, b, r_in, c_in, r_out, c_out, t)
-                        else:
-                            _blend_adjoint(clip, px_of_col, py_of_row, color, grad_out, grad_color, grad_clip,
-                                           need_color, need_clip, fused, b, r_in, c_in, r_out, c_out, ia, ib)
+                            pair_kept[b, r, c, d] = wp.where(r_in == r and c_in == c, 1, 2)
+                            pair_edge[b, r, c, 2 * d] = ia
+                            pair_edge[b, r, c, 2 * d + 1] = ib
+            else:
+                kept = pair_kept[b, r, c, d]
+                if kept == 1:
+                    _blend_adjoint(clip, px_of_col, py_of_row, color, grad_out, grad_color, grad_clip, need_color,
+                                   need_clip, fused, b, r, c, r1, c1, pair_edge[b, r, c, 2 * d],
+                                   pair_edge[b, r, c, 2 * d + 1])
+                elif kept == 2:
+                    _blend_adjoint(clip, px_of_col, py_of_row, color, grad_out, grad_color, grad_clip, need_color,
+                                   need_clip, fused, b, r1, c1, r, c, pair_edge[b, r, c, 2 * d],
+                                   pair_edge[b, r, c, 2 * d + 1])
 
 
 _SCALAR = {"px_of_col": wp.array, "py_of_row": wp.array}
@@ -299,19 +315,22 @@ class WarpAntialias(torch.autograd.Function):
         bsz, height, width, _ = color.shape
         px, py = pixel_centres(height, width, clip.dtype, clip.device)
         out = color.clone()
+        kept = torch.zeros(bsz, height, width, 2, dtype=torch.int32, device=clip.device)
+        edge = torch.zeros(bsz, height, width, 4, dtype=torch.int32, device=clip.device)
         cols = items_per_thread(width, device)
         fused = torch_cross_is_fused(clip.device, clip.dtype)
         launch_scenes(_KERNEL[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
             *_inputs(b0, b1, clip, faces, nbrs, face_id, px, py, fused, cols), as_warp(color[b0:b1]),
-            as_warp(out[b0:b1]), None, None, None, 0, 0, 0], device, launch_stream(clip.device))
-        ctx.save_for_backward(color, clip, faces, nbrs, face_id)
+            as_warp(out[b0:b1]), None, None, None, 0, 0, 0, as_warp(kept[b0:b1]), as_warp(edge[b0:b1])],
+            device, launch_stream(clip.device))
+        ctx.save_for_backward(color, clip, faces, nbrs, face_id, kept, edge)
         ctx.set_materialize_grads(False)
         return out
 
     @staticmethod
     @once_differentiable
     def backward(ctx, grad_out):
-        color, clip, faces, nbrs, face_id = ctx.saved_tensors
+        color, clip, faces, nbrs, face_id, kept, edge = ctx.saved_tensors
         need_color, need_clip = ctx.needs_input_grad[0], ctx.needs_input_grad[1]
         if grad_out is None or not (need_color or need_clip):
             return None, None, None, None, None
@@ -326,8 +345,8 @@ class WarpAntialias(torch.autograd.Function):
         launch_scenes(_KERNEL[clip.dtype], bsz, height * -(-width // cols), lambda b0, b1: [
             *_inputs(b0, b1, clip, faces, nbrs, face_id, px, py, fused, cols), as_warp(color[b0:b1]), None,
             as_warp(grad_out[b0:b1]), None if grad_color is None else as_warp(grad_color[b0:b1]),
-            None if grad_clip is None else vec_view(grad_clip[b0:b1]), 1, int(need_color), int(need_clip)],
-            device, launch_stream(clip.device))
+            None if grad_clip is None else vec_view(grad_clip[b0:b1]), 1, int(need_color), int(need_clip),
+            as_warp(kept[b0:b1]), as_warp(edge[b0:b1])], device, launch_stream(clip.device))
         return grad_color, grad_clip, None, None, None
 
 

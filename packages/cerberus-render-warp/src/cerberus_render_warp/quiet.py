@@ -46,4 +46,18 @@ def init_warp_quietly() -> None:
             wp.init()
         else:
             call_dropping_stderr(wp.init, CUDA_DRIVER_NOTE)
+        announce_first_compile()
         _done = True
+
+
+def announce_first_compile() -> None:
+    """Say on standard error, before it starts, that this backend's kernels compile now: the first use on a
+    machine compiles them into Warp's kernel cache (30 s on a 2-core CPU, as issue 34 reports), silently
+    otherwise. Nothing is said once the cache holds them."""
+    import sys
+    from pathlib import Path
+
+    cache = getattr(wp.config, "kernel_cache_dir", None)
+    if cache and not any(Path(cache).glob("wp_cerberus_render_warp.*")):
+        print(f"cerberus-render-warp: compiling the Warp renderer's kernels into {cache} (once per machine and "
+              "Warp version; about half a minute on a CPU)...", file=sys.stderr, flush=True)

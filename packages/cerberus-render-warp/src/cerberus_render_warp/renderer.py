@@ -5,6 +5,7 @@ import torch
 
 from cerberus_core.render.interface import Light, Renderer
 from cerberus_render_warp.antialias import antialias
+from cerberus_render_warp.nearest import nearest_indices
 from cerberus_render_warp.normals import vertex_normals
 from cerberus_render_warp.rasterize import rasterize
 from cerberus_render_warp.shade import shade
@@ -53,3 +54,10 @@ class WarpRenderer(Renderer):
         if not self.fused_shading:
             return super().antialias(color, clip, faces, face_id)
         return antialias(color, clip, faces, face_id)
+
+    def nearest_indices(self, points: Tensor, targets: Tensor, counts: Tensor,
+                        both: bool = True) -> tuple[Tensor, Tensor | None]:
+        """The training pulls' nearest-neighbour search, both directions in one Warp kernel
+        (:mod:`cerberus_render_warp.nearest`); the contract of
+        :func:`cerberus_core.render.nearest.nearest_indices`."""
+        return nearest_indices(points, targets, counts, both)

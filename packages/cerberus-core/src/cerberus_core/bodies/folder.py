@@ -58,6 +58,7 @@ from cerberus_core.bodies.body import (
 )
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.fields import Checked, ranged
+from cerberus_core.plumbing.outputs import resolved
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 CANONICAL_STEM = "canonical"
@@ -124,7 +125,7 @@ class FolderOptions(Checked):
     def validate(self) -> None:
         if self.root is None:
             raise ConfigError.about("root", None, "the folder source needs its folder of meshes: `root=DIR`")
-        object.__setattr__(self, "root", str(Path(self.root).resolve()))
+        object.__setattr__(self, "root", str(resolved(self.root, "root")))  # a symlink loop: one line
         if self.test_subjects is not None and not self.test_subjects:
             raise ConfigError.about("test_subjects", [], "names no subject; name the test subjects, or leave it out "
                                     "(`test_fraction` decides)")

@@ -51,6 +51,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -355,6 +356,23 @@ def _start_warp_quietly() -> None:
         call_dropping_stderr(wp.init, WARP_CUDA_NOTE)
 
 
+def _announce_anny_cache() -> None:
+    """Say on standard error, before it starts, that anny builds its model cache now (once per machine; anny
+    itself is silent for that minute and more); nothing once the cache is there."""
+    import sys
+
+    try:
+        from anny.models.model_data import CURRENT_DATA_VERSION
+        from anny.paths import get_anny_cache_path
+    except ImportError:  # another anny layout: nothing to look at
+        return
+    root = get_anny_cache_path()
+    folder = Path(root) / f"v{CURRENT_DATA_VERSION}" if root is not None else None
+    if folder is not None and not any(folder.glob("build_model_data_*.safetensors")):
+        print(f"building anny's model cache in {folder} (once per machine: about 0.8 GB, roughly 90 s on 2 CPU "
+              "cores; later loads take under a second)...", file=sys.stderr, flush=True)
+
+
 class HumanBodySource:
     """Poses anny humans into :class:`PosedBody` records (loads anny once).
 
@@ -385,6 +403,7 @@ class HumanBodySource:
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise MissingPackageError("HumanBodySource needs the 'anny' package: pip install 'cerberus-core[human]'") from exc
         _start_warp_quietly()  # anny skins with Warp: start it without the banner and the CUDA-driver note
+        _announce_anny_cache()
         self._torch = torch
         self.device = torch.device(device)
         self.model = anny.Anny(rig="anny", topology="anny", pose_parameterization="local-ref").to(self.device)

@@ -126,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
         "from images alone: generate data, train, evaluate, reconstruct.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    from cerberus_core.release import VERSION
+
+    parser.add_argument("--version", action="version", version=f"cerberus {VERSION}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMAND_MODULES:
@@ -187,7 +190,10 @@ def main(argv: list[str] | None = None) -> int:
     any OSError (2), Ctrl-C at any moment, even while the command's modules are still importing (130),
     SIGTERM (143)."""
     interrupted = []
-    previous = signal.getsignal(signal.SIGINT)
+    previous, previous_term = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+
+    def on_term(signum, frame):  # noqa: ARG001 - SIGTERM while the command's modules import: one line too
+        raise Terminated()
 
     def on_int(signum, frame):  # noqa: ARG001 - remember it: an import it cut short may fail later otherwise
         interrupted.append(True)
@@ -198,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     terms = Terms()
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         signal.signal(signal.SIGINT, on_int)
+        signal.signal(signal.SIGTERM, on_term)
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -225,6 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         with contextlib.suppress(ValueError, TypeError):
             signal.signal(signal.SIGINT, previous)
+            signal.signal(signal.SIGTERM, previous_term)
 
 
 if __name__ == "__main__":

@@ -54,7 +54,9 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
     g.add_argument("--dataset", required=True, metavar="SOURCE", help="body source: human, animal, primitives, "
                    "folder or an installed plugin's")
     g.add_argument("--size", default=None, metavar="NAME",
-                   help="size preset: large (human), paper, small, tiny (folder: pairs, grid); default small (folder: pairs)")
+                   help="size preset: human: large, paper, small, small128, small_faithful, tiny; animal: paper, "
+                   "small, small128, small_faithful, tiny; primitives: paper, small, tiny; folder: pairs, grid; default "
+                   "small (folder: pairs)")
     g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")

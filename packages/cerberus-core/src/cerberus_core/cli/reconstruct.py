@@ -5,7 +5,6 @@ import argparse
 from pathlib import Path
 
 from cerberus_core.cli import Terms
-from cerberus_core.cli.checks import finite_float
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import printable
@@ -52,7 +51,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="replace --out even when it holds files that are not earlier results (never an input)")
     p.add_argument("--data", type=Path, help="dataset whose scene set-up (camera elevation, distance, fov, light) "
                    "the images follow (default: the set-up the run recorded, else the run's training data)")
-    p.add_argument("--azimuth", type=finite_float, default=0.0,
+    p.add_argument("--azimuth", type=float, default=0.0,
                    help="camera azimuth assumed for the inputs, degrees (default 0; it only fixes the world frame)")
     p.add_argument("--renderer", help="renderer backend for the pictures (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")

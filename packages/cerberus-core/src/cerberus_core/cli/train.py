@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from cerberus_core.cli import Terms
-from cerberus_core.config import load_yaml, yaml_problem
+from cerberus_core.config import load_yaml
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.outputs import output_folder
@@ -57,25 +57,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="cpu, cuda, cuda:N or auto (CUDA when available); same as --set device=... (default: the "
                    "config's: cpu in the cpu presets, auto in paper). On CUDA the torch and Warp renderers run there "
                    "too; speed.autocast auto picks bf16 where the device computes it natively")
+    p.add_argument("--renderer", default=None, metavar="NAME",
+                   help="renderer backend by name (see cerberus renderers) or auto; same as --set renderer=NAME "
+                   "(default: the config's, auto: Warp if it works, else torch)")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
     # The flag of each setting of train() and check_run_folder(); the config's keys are said with --set.
     p.set_defaults(func=run, terms=Terms({"run_dir": "--out", "out": "--out", "resume": "--resume",
-                                          "overrides": "--set", "device": "--device"}, TrainConfig))
+                                          "overrides": "--set", "device": "--device",
+                                          "renderer": "--renderer"}, TrainConfig))
 
 
 def _check_config_file(path: Path) -> None:
     """A --config file must exist, parse and hold at least one setting (an empty file is refused, not the
     100,000-step paper preset)."""
-    import yaml
-
     if not path.is_file():
         what = ("is a folder" if path.is_dir() else "is not a regular file (a FIFO or device?)" if path.exists()
                 else "no such file")
         raise ConfigError(f"--config {path}: {what}; pass a YAML config, or --preset NAME")
     try:
-        raw = load_yaml(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(yaml_problem(exc, path) + "; fix the file") from None
+        raw = load_yaml(path.read_text(), path)
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"--config {path}: cannot be read ({exc})") from None
     if not raw:
@@ -113,8 +113,9 @@ def run(args: argparse.Namespace) -> int:
     from cerberus_core.datasets.dataset import Dataset
 
     out = output_folder(args.out or Path("runs") / name, refuse=Dataset.not_an_output)
-    if args.device is not None:  # one mechanism: --device is the config key device
-        args.overrides = [*args.overrides, f"device={args.device}"]
+    for key in ("device", "renderer"):  # one mechanism: --device and --renderer are the config keys of their names
+        if getattr(args, key) is not None:
+            args.overrides = [*args.overrides, f"{key}={getattr(args, key)}"]
     config = resolve_config(args, out)
     if args.print_config:
         print(config.to_yaml(), end="")

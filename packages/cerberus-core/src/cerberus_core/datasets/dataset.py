@@ -22,7 +22,7 @@ from typing import Any
 from tqdm import tqdm
 
 from cerberus_core.bodies.body import BodySource, source_class
-from cerberus_core.datasets.format import check_shard_files, empty_views
+from cerberus_core.datasets.format import check_shard_arrays, check_shard_files, empty_views
 from cerberus_core.datasets.generate import GenerationJob, ShardCallback, validate_generation, write_dataset
 from cerberus_core.datasets.manifest import FORMAT_VERSION, MANIFEST, Manifest
 from cerberus_core.datasets.plan import GenerationRequest
@@ -33,7 +33,7 @@ from cerberus_core.datasets.show import save_contact_sheet
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
-from cerberus_core.plumbing.outputs import output_file, output_folder
+from cerberus_core.plumbing.outputs import check_apart, output_file, output_folder, resolved
 from cerberus_core.render.backends import AUTO_RENDERER
 
 MAX_SHEET_ROWS, MAX_SHEET_SCALE = 256, 16
@@ -117,7 +117,8 @@ class Dataset:
         manifest, problems = self.manifest, []
         shards = [(name, s) for name, info in manifest.splits.items() for s in info.shards]
         for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
-            problems.extend(check_shard_files(self.root, shard, checksums=checksums) or empty_views(manifest, split, shard))
+            problems.extend(check_shard_files(self.root, shard, checksums=checksums)
+                            or check_shard_arrays(manifest, split, shard) or empty_views(manifest, split, shard))
         return problems + list(self.incomplete().values())
 
     def summary(self) -> list[str]:
@@ -189,6 +190,8 @@ class Dataset:
         """
         if out is not None:
             output_folder(Path(out))
+            if source_options and source_options.get("root"):  # the meshes read are not in the folder written
+                check_apart(Path(out), [resolved(source_options["root"], "root")], what="a dataset is written there")
         job = validate_generation(config, source=source, source_options=source_options, device=device,
                                   batch_size=batch_size, out=out, overwrite=overwrite)
         for advice in job.source.warnings():

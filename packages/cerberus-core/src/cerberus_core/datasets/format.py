@@ -25,6 +25,7 @@ import numpy as np
 from cerberus_core.datasets.manifest import MANIFEST, FileRecord, Manifest, ShardRecord, canonical_json
 from cerberus_core.errors import DatasetError, ShapeError  # DatasetError re-exported: the format's readers raise it
 from cerberus_core.plumbing.atomic import atomic_write
+from cerberus_core.plumbing.outputs import resolved
 
 VIEW_DTYPE = np.dtype([
     ("subject", "<i4"),     # index into Manifest.subjects
@@ -88,9 +89,9 @@ def resolve_inside(root: Path, rel: str) -> Path:
         raise DatasetError(f"{root / MANIFEST}: file path {rel!r} escapes the dataset folder; a manifest may only "
                            "name files inside its own folder (regenerate the dataset or fix the manifest)")
     full = root / p
-    real_root = root.resolve()
-    if not full.resolve().is_relative_to(real_root):
-        raise DatasetError(f"{root / MANIFEST}: file path {rel!r} resolves to {full.resolve()}, outside the dataset "
+    real_root, real = resolved(root, "data"), resolved(full, "data")
+    if not real.is_relative_to(real_root):
+        raise DatasetError(f"{root / MANIFEST}: file path {rel!r} resolves to {real}, outside the dataset "
                            f"folder {real_root} (a symlink?); copy the file into the dataset folder")
     return full
 
@@ -134,6 +135,80 @@ def check_shard_files(root: Path, shard: ShardRecord, *, checksums: bool) -> lis
                 problems.append(f"{path}: array {arr.dtype.str}{list(arr.shape)} but the manifest records "
                                 f"{rec.dtype}{list(rec.shape)}")
     return problems
+
+
+MESH_ARRAYS = ("subject", "pose", "vertex_offsets", "topology", "face_offsets", "faces", "part_offsets", "vertex_parts")
+"""The arrays of a shard's ``meshes.npz`` (:func:`pack_meshes`; ``pose_params`` is optional)."""
+
+
+def check_shard_arrays(manifest: Manifest, split: str, shard: ShardRecord) -> list[str]:
+    """The first problem (a one-line list, or ``[]``) between a shard's record and its arrays, once its files
+    are sound (:func:`check_shard_files`): counts, shapes and dtypes against the manifest's numbers, indices
+    within their ranges (quadruplets within the shard's images, views' subjects within the manifest's, mesh
+    indices within the shard's meshes), and a ``meshes.npz`` of the arrays :func:`pack_meshes` writes, none of
+    them an object array."""
+    root, files = manifest.root, shard.files
+    where = f"{root / MANIFEST}: {split}/{shard.name}"
+    needed = ["images", "views", "quads", *(["vertices", "meshes"] if shard.meshes else [])]
+    if missing := [r for r in needed if r not in files]:
+        return [f"{where} has no {missing[0]} file; the dataset is corrupt — regenerate it"]
+
+    def load(role: str) -> np.ndarray:
+        return np.load(resolve_inside(root, files[role].path), mmap_mode="r", allow_pickle=False)
+
+    def bad(what: str) -> list[str]:
+        return [f"{where}: {what}; the dataset is corrupt — regenerate it"]
+
+    n, size = shard.images, manifest.image_size
+    images, views, quads = load("images"), load("views"), load("quads")
+    if images.dtype != np.uint8 or images.shape != (n, 3, size, size):
+        return bad(f"images are {images.dtype}{list(images.shape)}, the manifest says uint8[{n}, 3, {size}, {size}]")
+    if views.dtype != VIEW_DTYPE or views.shape != (n,):
+        return bad(f"views are {views.dtype}[{len(views)}], the manifest says {n} view records")
+    if quads.dtype != np.int32 or quads.shape != (shard.quadruplets, 4):
+        return bad(f"quadruplets are {quads.dtype}{list(quads.shape)}, the manifest says int32[{shard.quadruplets}, 4]")
+    if quads.size and (int(quads.min()) < 0 or int(quads.max()) >= n):
+        return bad(f"quadruplets index images {int(quads.min())}..{int(quads.max())}, the shard has {n}")
+    if n and (int(views["subject"].min()) < 0 or int(views["subject"].max()) >= len(manifest.subjects)):
+        return bad(f"views name subjects {int(views['subject'].min())}..{int(views['subject'].max())}, the manifest "
+                   f"has {len(manifest.subjects)}")
+    if n and (int(views["mesh"].min()) < -1 or int(views["mesh"].max()) >= shard.meshes):
+        return bad(f"views name meshes {int(views['mesh'].min())}..{int(views['mesh'].max())}, the shard has "
+                   f"{shard.meshes}")
+    return _check_meshes(load, where, shard.meshes, bad) if shard.meshes else []
+
+
+def _check_meshes(load, where: str, m: int, bad) -> list[str]:  # noqa: ANN001 - check_shard_arrays's helpers
+    """:func:`check_shard_arrays` for the ``vertices`` and ``meshes.npz`` of a shard with ``m`` meshes."""
+    vertices = load("vertices")
+    if vertices.dtype != np.float32 or vertices.ndim != 2 or vertices.shape[1] != 3:
+        return bad(f"vertices are {vertices.dtype}{list(vertices.shape)}, not float32[V, 3]")
+    try:
+        with load("meshes") as z:
+            arrays = {k: z[k] for k in z.files}
+    except ValueError as exc:  # an object array: loading it would run pickle
+        return bad(f"meshes.npz holds an array numpy cannot read without pickle ({exc})")
+    if missing := [k for k in MESH_ARRAYS if k not in arrays]:
+        return bad(f"meshes.npz lacks the array {missing[0]!r}")
+    if odd := [k for k, a in arrays.items() if a.dtype.kind not in "iuf"]:
+        return bad(f"meshes.npz array {odd[0]!r} is {arrays[odd[0]].dtype}, not numbers")
+    topologies = len(arrays["face_offsets"]) - 1
+    checks = [
+        (all(len(arrays[k]) == m for k in ("subject", "pose", "topology")), f"subject, pose and topology hold {m} meshes"),
+        (len(arrays["vertex_offsets"]) == m + 1 and int(arrays["vertex_offsets"][-1]) == len(vertices)
+         and bool((np.diff(arrays["vertex_offsets"]) >= 0).all()), f"vertex_offsets run over the {len(vertices)} vertices"),
+        (topologies >= 0 and len(arrays["part_offsets"]) == topologies + 1, "face and part offsets give one topology each"),
+        (not m or (int(arrays["topology"].min()) >= 0 and int(arrays["topology"].max()) < topologies),
+         f"topology indices are within its {topologies} topologies"),
+        (topologies < 0 or int(arrays["face_offsets"][-1]) == len(arrays["faces"]), "face_offsets run over the faces"),
+        (topologies < 0 or int(arrays["part_offsets"][-1]) == len(arrays["vertex_parts"]),
+         "part_offsets run over the part labels"),
+        (arrays["faces"].ndim == 2 and arrays["faces"].shape[1] == 3 and (not arrays["faces"].size
+                                                                          or int(arrays["faces"].min()) >= 0),
+         "faces are (F, 3) vertex indices"),
+    ]
+    failed = next((what for ok, what in checks if not ok), None)
+    return [] if failed is None else bad(f"meshes.npz does not agree with the manifest (expected: {failed})")
 
 
 EMPTY_VIEW_FRACTION = 1e-3

@@ -8,7 +8,6 @@ the finished shards; a config that differs from the folder's refuses unless ``ov
 from __future__ import annotations
 
 import hashlib
-import os
 import shutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -42,6 +41,7 @@ from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.lock import is_lock_file
+from cerberus_core.plumbing.machine import memory_bytes
 from cerberus_core.release import VERSION
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
@@ -93,14 +93,10 @@ class GenerationJob:
 def _memory_places(device: str) -> list[tuple[str, int | None, bool]]:
     """``(what, bytes or None if unknown, holds the render buffers)`` for each memory a generation uses:
     this machine's RAM (the shard's images, and the render buffers on a CPU) and the GPU's."""
-    try:
-        ram: int | None = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):  # no sysconf (Windows): nothing to compare with
-        ram = None
+    ram = memory_bytes("cpu")
     if not device.startswith("cuda"):
         return [("this machine", ram, True)]
-    gpu = torch.cuda.get_device_properties(torch.device(device)).total_memory
-    return [("this machine", ram, False), (f"GPU {device}", gpu, True)]
+    return [("this machine", ram, False), (f"GPU {device}", memory_bytes(device), True)]
 
 
 def validate_generation(config: GenerationConfig, *, source: BodySource | None = None,

@@ -81,6 +81,42 @@ def _need(record: Any, key: str, kind: type | tuple[type, ...], where: str) -> A
     return value
 
 
+MAX_COUNT = 1 << 40
+"""The largest count a manifest may state (images, bytes, array sizes): more than any disk holds."""
+
+
+def _count(record: Mapping[str, Any], key: str, where: str, default: int | None = None) -> int:
+    """``record[key]`` as a count: an integer in [0, :data:`MAX_COUNT`] (``default`` when absent, if given)."""
+    if default is not None and key not in record:
+        return default
+    value = _need(record, key, int, where)
+    if not 0 <= value <= MAX_COUNT:
+        raise _Damaged(f"{where}.{key} is {value!r}, not a count in [0, {MAX_COUNT}]")
+    return value
+
+
+def _counts(values: Any, where: str) -> tuple[int, ...]:
+    """A list of counts (an array shape, subject indices) as a tuple."""
+    if not isinstance(values, list):
+        raise _Damaged(f"{where} is {values!r}, not a list of counts")
+    for i, v in enumerate(values):
+        if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_COUNT:
+            raise _Damaged(f"{where}[{i}] is {v!r}, not a count in [0, {MAX_COUNT}]")
+    return tuple(values)
+
+
+def _strings(values: Any, where: str) -> tuple[str, ...]:
+    """A list of strings (part names, split names) as a tuple."""
+    if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
+        raise _Damaged(f"{where} is {values!r}, not a list of strings")
+    return tuple(values)
+
+
+def _optional(record: Mapping[str, Any], key: str, kind: type, where: str) -> Any:
+    """``record[key]``, which may be absent or null."""
+    return None if record.get(key) is None else _need(record, key, kind, where)
+
+
 def _mapping(record: Any, where: str) -> Mapping[str, Any]:
     if not isinstance(record, Mapping):
         raise _Damaged(f"{where} is {type(record).__name__}, not an object")
@@ -108,9 +144,9 @@ class FileRecord:
     @classmethod
     def from_json(cls, record: Any, where: str = "file") -> FileRecord:
         shape = _mapping(record, where).get("shape")
-        return cls(_need(record, "path", str, where), _need(record, "bytes", int, where),
-                   _need(record, "sha256", str, where), None if shape is None else tuple(int(n) for n in shape),
-                   record.get("dtype"))
+        return cls(_need(record, "path", str, where), _count(record, "bytes", where),
+                   _need(record, "sha256", str, where), None if shape is None else _counts(shape, f"{where}.shape"),
+                   _optional(record, "dtype", str, where))
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"path": self.path, "bytes": self.bytes, "sha256": self.sha256}
@@ -141,13 +177,13 @@ class ShardRecord:
 
     @classmethod
     def from_json(cls, record: Any, where: str = "shard") -> ShardRecord:
-        index = _need(record, "index", int, where)
+        index = _count(_mapping(record, where), "index", where)
         where = f"{where} {index}"
         files = _mapping(record.get("files", {}), f"{where}.files")
-        return cls(index, _need(record, "name", str, where), _need(record, "images", int, where),
-                   int(record.get("quadruplets", 0)), int(record.get("meshes", 0)),
+        return cls(index, _need(record, "name", str, where), _count(record, "images", where),
+                   _count(record, "quadruplets", where, 0), _count(record, "meshes", where, 0),
                    {role: FileRecord.from_json(rec, f"{where}.files.{role}") for role, rec in files.items()},
-                   tuple(int(s) for s in record.get("subjects", ())))
+                   _counts(record.get("subjects", []), f"{where}.subjects"))
 
     def to_json(self) -> dict[str, Any]:
         return {"index": self.index, "name": self.name, "images": self.images, "quadruplets": self.quadruplets,
@@ -194,9 +230,12 @@ class SplitRecord:
         shards = record.get("shards", []) if isinstance(record, Mapping) else None
         if not isinstance(shards, list):
             raise _Damaged(f"{where}.shards is not a list")
-        return cls(_need(record, "layout", str, where), bool(record.get("meshes", False)),
-                   _need(record, "planned_shards", int, where), int(record.get("planned_images", 0)),
-                   int(record.get("planned_quadruplets", 0)), int(record.get("planned_meshes", 0)),
+        if _need(record, "layout", str, where) not in ("pairs", "grid"):
+            raise _Damaged(f"{where}.layout is {record['layout']!r}, not 'pairs' or 'grid'")
+        return cls(_need(record, "layout", str, where), bool(_need(record, "meshes", bool, where) if "meshes" in record
+                                                            else False),
+                   _count(record, "planned_shards", where), _count(record, "planned_images", where, 0),
+                   _count(record, "planned_quadruplets", where, 0), _count(record, "planned_meshes", where, 0),
                    tuple(ShardRecord.from_json(s, f"{where}.shards") for s in shards))
 
     def to_json(self) -> dict[str, Any]:
@@ -239,9 +278,9 @@ class SubjectRecord:
     @classmethod
     def from_json(cls, record: Any, where: str = "subject") -> SubjectRecord:
         info = _mapping(record, where).get("info", {})
-        canonical = record.get("canonical_pose")
+        canonical = None if record.get("canonical_pose") is None else _count(record, "canonical_pose", where)
         return cls(_need(record, "name", str, where), dict(_mapping(info, f"{where}.info")),
-                   tuple(str(s) for s in record.get("splits", ())), None if canonical is None else int(canonical))
+                   _strings(record.get("splits", []), f"{where}.splits"), canonical)
 
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "info": dict(self.info), "splits": list(self.splits),
@@ -345,7 +384,10 @@ class Manifest:
         try:
             record = json.loads(path.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from exc
+            raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from None
+        except RecursionError:
+            raise DatasetError(f"{path} is nested too deeply to be a manifest; the dataset is corrupt — regenerate "
+                               "it") from None
         return cls.from_json(record, root)
 
     @classmethod
@@ -370,18 +412,33 @@ class Manifest:
             config = _config(_mapping(_need(record, "config", Mapping, "manifest"), "config"), path)
             splits = _mapping(_need(record, "splits", Mapping, "manifest"), "splits")
             return cls(
-                dataset=dataset, preset=record.get("preset"), config=config,
+                dataset=dataset, preset=_optional(record, "preset", str, "manifest"), config=config,
                 config_sha256=str(record.get("config_sha256", "")), scene=_scene(record.get("scene"), path),
-                image_size=_need(record, "image_size", int, "manifest"),
-                part_names=tuple(str(n) for n in _need(record, "part_names", list, "manifest")),
+                image_size=_image_size(record),
+                part_names=_strings(_need(record, "part_names", list, "manifest"), "manifest.part_names"),
                 subjects=tuple(SubjectRecord.from_json(s, f"subjects[{i}]")
                                for i, s in enumerate(_need(record, "subjects", list, "manifest"))),
                 source=SourceRecord.from_json(record.get("source"), dataset),
                 splits={name: SplitRecord.from_json(rec, f"splits.{name}") for name, rec in splits.items()},
-                complete=bool(record.get("complete", False)), generator=dict(record.get("generator") or {}),
-                root=Path(root))
+                complete=bool(record.get("complete", False)),
+                generator=dict(_mapping(record.get("generator") or {}, "manifest.generator")), root=Path(root))._checked()
         except _Damaged as exc:
             raise DatasetError(f"{path}: {exc}; the dataset is corrupt — regenerate it") from None
+        except DatasetError:
+            raise
+        except (TypeError, ValueError, AttributeError, RecursionError) as exc:  # a field of a form not checked above
+            raise DatasetError(f"{path}: a field has the wrong form ({type(exc).__name__}: {exc}); the dataset is "
+                               "corrupt — regenerate it") from None
+
+    def _checked(self) -> Manifest:
+        """This manifest, after the checks between its records (a shard's subject index within the subjects)."""
+        for name, split in self.splits.items():
+            for shard in split.shards:
+                bad = [i for i in shard.subjects if i >= len(self.subjects)]
+                if bad:
+                    raise _Damaged(f"splits.{name}.shards {shard.index}.subjects names subject {bad[0]}, but the "
+                                   f"manifest has {len(self.subjects)} subjects")
+        return self
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object :meth:`write` stores (:meth:`from_json` reads it back equal)."""
@@ -466,6 +523,17 @@ def _config(record: Mapping[str, Any], path: Path) -> GenerationConfig:
     except ConfigError as exc:
         raise DatasetError(f"{path}: invalid generation config ({exc}); the manifest is damaged or of a newer "
                            "version: regenerate the dataset with this version") from None
+
+
+MAX_IMAGE_SIZE = 4096
+"""The largest image size a manifest may state (pixels per side)."""
+
+
+def _image_size(record: Mapping[str, Any]) -> int:
+    size = _need(record, "image_size", int, "manifest")
+    if not 1 <= size <= MAX_IMAGE_SIZE:
+        raise _Damaged(f"manifest.image_size is {size!r}, not a size in [1, {MAX_IMAGE_SIZE}] pixels")
+    return size
 
 
 def _scene(record: Any, path: Path) -> SceneSetup:

@@ -23,6 +23,7 @@ from cerberus_core.bodies.body import PosedBody
 from cerberus_core.datasets.format import (
     VIEW_DTYPE,
     DatasetError,
+    check_shard_arrays,
     check_shard_files,
     resolve_inside,
     unpack_mesh,
@@ -44,7 +45,8 @@ class _SplitReader:
         self.info = self.manifest.readable_split(split, allow_partial=allow_partial)
         self.shards: tuple[ShardRecord, ...] = self.info.shards
         for shard in self.shards:
-            problems = check_shard_files(self.root, shard, checksums=verify)
+            problems = (check_shard_files(self.root, shard, checksums=verify)
+                        or check_shard_arrays(self.manifest, split, shard))
             if problems:
                 more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
                 raise DatasetError(problems[0] + more)

@@ -8,9 +8,11 @@ import numpy as np
 import torch
 from PIL import Image
 
+from cerberus_core.datasets.manifest import Manifest
 from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, _SplitReader
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import DatasetError
+from cerberus_core.plumbing.outputs import output_file
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.viz import atomic_save_png, image_grid, part_colors
@@ -95,6 +97,9 @@ def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, par
 
 
 def save_contact_sheet(root: str | Path, out: str | Path, **options) -> Path:
-    """:func:`contact_sheet` written atomically as a PNG."""
+    """:func:`contact_sheet` written atomically as a PNG (``out`` may not be a file of the dataset)."""
+    manifest = Manifest.read(root)
+    output_file(Path(out), "out", [manifest.path, *(manifest.root / f.path for split in manifest.splits.values()
+                                                     for shard in split.shards for f in shard.files.values())])
     atomic_save_png(contact_sheet(root, **options), out)
     return Path(out)

@@ -24,7 +24,7 @@ from cerberus_core.eval.input_domain import domain_note, prepare_input
 from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.names import printable, safe_stem
-from cerberus_core.plumbing.outputs import RESULT_MARKER, writing_results
+from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
 from cerberus_core.render.backends import make_renderer
 
 #: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
@@ -55,7 +55,7 @@ def output_names(paths: Sequence[Path]) -> list[str]:
     counts: dict[str, int] = {}
     for s in stems:
         counts[s.casefold()] = counts.get(s.casefold(), 0) + 1
-    names = [s if counts[s.casefold()] == 1 else safe_stem(f"{Path(p).resolve().parent.name or 'root'}_{s}")
+    names = [s if counts[s.casefold()] == 1 else safe_stem(f"{resolved(p, 'images').parent.name or 'root'}_{s}")
              for p, s in zip(paths, stems, strict=True)]
     claimed = {n.casefold() for n in FOLDER_NAMES}
     out: list[str] = [""] * len(names)

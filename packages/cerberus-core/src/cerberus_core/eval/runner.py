@@ -38,6 +38,7 @@ from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.standard import MAX_RESOLUTION, GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import PartSet
+from cerberus_core.plumbing.machine import MAX_WORKERS, capped_to_cores
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
@@ -203,7 +204,7 @@ class EvalConfig(Checked):
     depth: bool = True
     canonical_view: int | None = ranged(None, ge=0, integer=True)
     batch_size: int = ranged(16, ge=1)
-    num_workers: int = ranged(0, ge=0)
+    num_workers: int = ranged(0, ge=0, le=MAX_WORKERS)
     weighting: Literal["area", "count"] = "area"
     density: int = ranged(4, ge=1)
     progress: bool = True
@@ -265,7 +266,8 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
     gt_memo = GroundTruthMemo(dataset.gt_mesh)
     records: list[dict[str, Any]] = []
     bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not config.progress)
-    for batch_idx, batch, camera in iterate_batches(dataset, indices, config.batch_size, config.num_workers):
+    for batch_idx, batch, camera in iterate_batches(dataset, indices, config.batch_size,
+                                                               capped_to_cores("num_workers", config.num_workers)):
         recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
         result = batch_result(dataset, batch, batch_idx, recon, camera.to(device), gt_memo)
         for accumulator in accumulators:

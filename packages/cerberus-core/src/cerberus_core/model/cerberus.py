@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.fields import Checked, Range, ranged
 from cerberus_core.model.encoder import ResNet10, UpDecoder
 from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
@@ -63,7 +63,7 @@ class ModelConfig(Checked):
 
     SECTION = "model"
 
-    num_parts: int = ranged(9, ge=1)
+    num_parts: int = ranged(9, ge=1, le=64)
     sphere_level: int = ranged(2, ge=0, le=5)
     width: int = ranged(64, ge=1)
     shape_latent_dim: int = ranged(256, ge=1)
@@ -111,15 +111,20 @@ class Predictions:
 
 
 def check_images(images: Tensor, what: str) -> None:
-    """The network's input contract: ``(B, 3, H, W)`` float32 in ``[0, 1]`` (:class:`ShapeError`/``ValueError``
-    naming the conversion otherwise; a uint8 or 0-255 image would silently give a wrong reconstruction)."""
+    """The network's input contract: ``(B, 3, H, W)`` float32 in ``[0, 1]``, every value a number
+    (:class:`ShapeError` naming the conversion otherwise; a uint8 or 0-255 image would silently give a wrong
+    reconstruction, a NaN one a NaN model)."""
     check_shapes(what, images=(images, "B 3 H W"))
     if images.dtype == torch.uint8:
-        raise ValueError(f"{what}: the images are uint8 (0-255); pass images.float() / 255 (float32 in [0, 1])")
+        raise ShapeError(f"{what}: the images are uint8 (0-255); pass images.float() / 255 (float32 in [0, 1])")
     if images.dtype != torch.float32:
-        raise ValueError(f"{what}: the images are {images.dtype}; pass images.float() (float32 in [0, 1])")
+        raise ShapeError(f"{what}: the images are {images.dtype}; pass images.float() (float32 in [0, 1])")
+    if images.numel() and not bool(torch.isfinite(images).all()):
+        bad = int((~torch.isfinite(images)).sum())
+        raise ShapeError(f"{what}: {bad} of {images.numel()} image values are NaN or infinite; images are float32 in "
+                         "[0, 1] (check how they were loaded or normalised)")
     if images.numel() and float(images.detach().amax()) > 1.0 + 1e-3:
-        raise ValueError(f"{what}: image values reach {float(images.detach().amax()):.4g}, above 1; images are "
+        raise ShapeError(f"{what}: image values reach {float(images.detach().amax()):.4g}, above 1; images are "
                          "float32 in [0, 1] (divide 0-255 images by 255)")
 
 
@@ -221,5 +226,6 @@ class Cerberus(nn.Module):
         change: call ``model.eval()`` first for inference)."""
         check_images(images, "reconstruct")
         if camera.batch_size != images.shape[0]:
-            raise ValueError(f"reconstruct: {images.shape[0]} images but {camera.batch_size} cameras")
+            raise ShapeError(f"reconstruct: {images.shape[0]} images but {camera.batch_size} cameras; pass one camera "
+                             "per image")
         return self.pose(self(images), camera)

@@ -20,6 +20,7 @@ Initialisation (chosen so that training starts from visible, well-behaved parts)
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -119,16 +120,24 @@ class KeypointMaps:
 
     Attributes:
         prob: ``(B, N, H, W)`` probability maps ``p^k`` (each sums to 1).
-        depth_map: ``(B, N, H, W)`` depth maps ``d^k`` (world units).
+        depth_cells: ``(B, N, h, w)`` the depth maps on the grid they were predicted on (world
+            units; ``(h, w) = (H, W)`` when no up-sampling took place); :attr:`depth_map` is them
+            up-sampled bilinearly to the pixel grid.
         uv: ``(B, N, 2)`` expected pixel coordinates ``(u, v) = (sum x p, sum y p)`` with pixel
             centres at ``j + 0.5`` (the :mod:`cerberus_core.render.camera` convention).
         depth: ``(B, N)`` expected depth ``sum d p`` (world units).
     """
 
     prob: Tensor
-    depth_map: Tensor
+    depth_cells: Tensor
     uv: Tensor
     depth: Tensor
+
+    @property
+    def depth_map(self) -> Tensor:
+        """``(B, N, H, W)`` depth maps ``d^k`` on the pixel grid (world units), up-sampled when read
+        (training reads only :attr:`depth`, which :func:`expectation` takes on the cells)."""
+        return upsample_bilinear(self.depth_cells, tuple(self.prob.shape[-2:]))
 
 
 def anchor_grid(num_parts: int, spread: float) -> Tensor:
@@ -192,13 +201,30 @@ class TranslationHead(nn.Module):
         gy, gx = torch.meshgrid(ys, xs, indexing="ij")
         coords = torch.stack([gx, gy, gx.square(), gy.square()], -1)  # (h, w, 4)
         logits = self.logits(features) + self.coords(coords).permute(2, 0, 1).unsqueeze(0)
-        depth = self.depth(features)
-        if logits.shape[-2:] != tuple(size):
-            logits = nn.functional.interpolate(logits, size=size, mode="bilinear", align_corners=False)
-            depth = nn.functional.interpolate(depth, size=size, mode="bilinear", align_corners=False)
-        depth_map = depth + self.depth_offset
-        prob = spatial_softmax(logits)
-        return expectation(prob, depth_map)
+        prob = spatial_softmax(upsample_bilinear(logits, tuple(size)))
+        return expectation(prob, self.depth(features) + self.depth_offset)
+
+
+@functools.lru_cache(maxsize=16)
+def bilinear_matrix(n_in: int, n_out: int, dtype: torch.dtype, device: torch.device) -> Tensor:
+    """``(n_out, n_in)`` the weights of 1-D linear up-sampling from ``n_in`` to ``n_out`` samples, as
+    ``torch.nn.functional.interpolate(mode="linear", align_corners=False)`` computes them (row ``o``
+    holds the two weights of output sample ``o``; taken from that function, so they are its own)."""
+    eye = torch.eye(n_in, dtype=dtype, device=device).unsqueeze(0)  # (1, n_in channels, n_in samples)
+    return nn.functional.interpolate(eye, size=n_out, mode="linear", align_corners=False)[0].T.contiguous()
+
+
+def upsample_bilinear(maps: Tensor, size: tuple[int, int]) -> Tensor:
+    """``(..., h, w)`` → ``(..., H, W)``: bilinear up-sampling (``align_corners=False``) as two
+    products with fixed interpolation matrices, ``L_y maps L_x^T``; the values of
+    ``nn.functional.interpolate(mode="bilinear")`` up to float rounding, with a backward pass of two
+    more products instead of its scatter. Returns ``maps`` itself when ``(h, w) == size``."""
+    h, w = maps.shape[-2:]
+    if (h, w) == tuple(size):
+        return maps
+    ly = bilinear_matrix(h, size[0], maps.dtype, maps.device)  # (H, h)
+    lx = bilinear_matrix(w, size[1], maps.dtype, maps.device)  # (W, w)
+    return ly @ (maps @ lx.T)
 
 
 def spatial_softmax(logits: Tensor) -> Tensor:
@@ -209,16 +235,26 @@ def spatial_softmax(logits: Tensor) -> Tensor:
     return nn.functional.softmax(logits.reshape(b, n, h * w), dim=-1).view(b, n, h, w)
 
 
-def expectation(prob: Tensor, depth_map: Tensor) -> KeypointMaps:
+def expectation(prob: Tensor, depth_cells: Tensor) -> KeypointMaps:
     """Expected pixel coordinates and depth under probability maps (the sum in equation 1).
+
+    The depth maps may lie on a coarser grid than ``prob`` (as the translation head predicts them):
+    they stand for their bilinear up-sampling ``L_y d L_x^T`` (:func:`upsample_bilinear`), and since
+    ``sum_HW p (L_y d L_x^T) = sum_hw d (L_y^T p L_x)`` the expected depth is taken on the cells,
+    without up-sampling the depth maps (equal to the pixel-grid sum up to rounding).
 
     Args:
         prob: ``(B, N, H, W)`` maps summing to 1.
-        depth_map: ``(B, N, H, W)``.
+        depth_cells: ``(B, N, h, w)`` depth maps, ``(h, w)`` = ``(H, W)`` or coarser.
     """
+    h, w = depth_cells.shape[-2:]
+    height, width = prob.shape[-2:]
+    weight = prob
+    if (h, w) != (height, width):  # each cell's share of the probability
+        weight = bilinear_matrix(h, height, prob.dtype, prob.device).T @ (
+            prob @ bilinear_matrix(w, width, prob.dtype, prob.device))
     uv = spatial_expectation2d(prob, normalized_coordinates=False) + PIXEL_CENTRE  # cell j is centred at j + 0.5
-    depth = (prob * depth_map).sum(dim=(-2, -1))
-    return KeypointMaps(prob, depth_map, uv, depth)
+    return KeypointMaps(prob, depth_cells, uv, (weight * depth_cells).sum(dim=(-2, -1)))
 
 
 def unproject_expectation(maps: KeypointMaps, camera: Camera, *, to_world: bool) -> Tensor:

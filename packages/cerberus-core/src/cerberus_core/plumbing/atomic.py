@@ -22,6 +22,7 @@ import ctypes
 import errno
 import io
 import os
+import re
 import shutil
 import signal
 import tempfile
@@ -50,6 +51,8 @@ _OUTPUT_ERRNOS = {
 def output_error(exc: OSError, path: str | Path) -> OSError:
     """``exc`` as an :class:`OutputError` naming ``path`` and the fix, when it is a refused write (see
     ``_OUTPUT_ERRNOS``); any other error is returned unchanged."""
+    if exc.errno is None and re.search(r"\d+ requested and \d+ written", str(exc)):
+        exc = OSError(errno.ENOSPC, str(exc))  # numpy's short write (ndarray.tofile) carries no errno: a full disk
     if isinstance(exc, OutputError) or exc.errno not in _OUTPUT_ERRNOS:
         return exc
     reason = os.strerror(exc.errno) if exc.errno else str(exc)

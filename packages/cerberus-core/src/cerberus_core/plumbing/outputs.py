@@ -51,6 +51,31 @@ Refusal = Callable[[Path], "str | None"]
 write results to another folder"``), or ``None``."""
 
 
+def resolved(path: str | os.PathLike, key: str = "path") -> Path:
+    """``path`` made absolute with every symlink followed (:meth:`Path.resolve`); the one place a path is
+    resolved, so that a symlink loop is one :class:`ConfigError` naming ``key`` everywhere, not a
+    ``RuntimeError``."""
+    try:
+        return Path(path).expanduser().resolve()
+    except (RuntimeError, OSError) as exc:  # Python < 3.13 raises RuntimeError for a loop, later ones OSError
+        raise ConfigError.about(key, printable(path), f"cannot be resolved: a symlink loop "
+                                f"({getattr(exc, 'strerror', None) or exc}); fix or remove the link") from None
+
+
+def check_apart(path: Path, inputs: Sequence[str | os.PathLike], key: str = "out", *,
+                what: str = "writing it would replace it") -> Path:
+    """:class:`ConfigError` when the output ``path`` is, or holds, one of ``inputs`` (compared by real path,
+    symlinks followed): the one rule that no output may be or contain an input."""
+    where = resolved(path, key)
+    for kept in inputs:
+        k = resolved(kept, "input")
+        if k == where or where in k.parents:
+            relation = "is" if k == where else "holds"
+            raise ConfigError.about(key, Path(path), f"{relation} the input {printable(kept)}, and {what}; choose "
+                                    f"another `{key}`")
+    return path
+
+
 def output_folder(path: Path, key: str = "out", *, refuse: Refusal | None = None) -> Path:
     """``path`` may be created as a folder: not an existing file, nor under one, nor a path too long to
     write (:func:`check_path_length`), nor a folder the caller's ``refuse`` finds a problem with (a
@@ -67,10 +92,11 @@ def output_folder(path: Path, key: str = "out", *, refuse: Refusal | None = None
     return path
 
 
-def output_file(path: Path, key: str = "out") -> Path:
+def output_file(path: Path, key: str = "out", inputs: Sequence[str | os.PathLike] = ()) -> Path:
     """``path`` may be written as a file: not an existing folder, nor under a file, nor too long
-    (:func:`check_path_length`)."""
+    (:func:`check_path_length`), nor one of ``inputs`` (:func:`check_apart`)."""
     check_path_length(path, key)
+    check_apart(path, inputs, key)
     if path.is_dir():
         raise ConfigError.about(key, path, "is a folder; pass a file path")
     for p in path.parents:
@@ -93,13 +119,11 @@ def result_folder(path: Path, key: str = "out", *, overwrite: bool = False, keep
     writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
     """
     output_folder(path, key, refuse=refuse)
-    where = path.resolve()
-    for kept in [*keep, Path.cwd()]:
-        k = Path(kept).resolve()
-        if k == where or where in k.parents:
-            what = "the current directory" if kept == Path.cwd() else printable(kept)
-            raise ConfigError.about(key, path, f"holds {what}, and a result folder is replaced whole; write the "
-                                    f"results to a folder of their own, e.g. `{key}={printable(path / 'results')}`")
+    whole = f"a result folder is replaced whole: write the results to a folder of their own, e.g. " \
+            f"`{key}={printable(path / 'results')}`"
+    check_apart(path, keep, key, what=whole)
+    if Path.cwd().is_relative_to(resolved(path, key)):
+        raise ConfigError.about(key, path, f"holds the current directory, and {whole}")
     if path.is_dir():
         check_unlocked(path)
         held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))

@@ -159,15 +159,6 @@ def _walk_to_silhouette(clip: Tensor, faces: Tensor, nbrs: Tensor, b: Tensor, fa
     return out_face, out_k
 
 
-def check_antialias_inputs(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor, who: str) -> None:
-    """Shape checks shared by the reference and the backends' kernels."""
-    if color.ndim != 4:
-        raise ValueError(f"{who}: color must be (B, H, W, C) channels-last, got {tuple(color.shape)}; "
-                         "permute a (B, C, H, W) image with .permute(0, 2, 3, 1)")
-    check_shapes(who, same_device=True, color=(color, "B H W C"), face_id=(face_id, "B H W"), clip=(clip, "B V 4"),
-                 faces=(faces, "F 3"))
-
-
 def differing_pairs(face_id: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
     """Adjacent pixel pairs with different face ids.
 
@@ -200,8 +191,10 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
             background.
     Returns:
         ``(B, H, W, C)`` the blended colours, differentiable w.r.t. ``color`` and ``clip``.
+
+    The inputs are not checked here: :func:`cerberus_core.render.ops.antialias`, the one way to a
+    backend's op, checks them once.
     """
-    check_antialias_inputs(color, clip, faces, face_id, "antialias")
     bsz, height, width, nch = color.shape
     faces = faces.to(torch.int64)
     fid = face_id.reshape(-1)

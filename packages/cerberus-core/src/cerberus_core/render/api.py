@@ -92,10 +92,11 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     rgb, depth = ops.shade(renderer, clip, faces, face_id, normals, alb, light)
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
     bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
-    image = rgb + (1 - alpha) * bg
+    # rgb is 0 on the background: over black (training's case) compositing would add zeros
+    image = rgb + (1 - alpha) * bg if bg.requires_grad or bool(bg.any()) else rgb
     if antialias:
         blended = ops.antialias(renderer, torch.cat([image, alpha], dim=-1), clip, faces, face_id)
-        image, alpha = blended[..., :3], blended[..., 3:]
+        image, alpha = blended.split([3, 1], dim=-1)
     if face_part is None:
         part_id = torch.where(face_id >= 0, torch.zeros_like(face_id), face_id)
     else:

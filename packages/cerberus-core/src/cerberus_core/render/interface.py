@@ -6,7 +6,8 @@ differentiable (vertex normals, perspective-correct barycentrics recomputed from
 interpolation of normals and albedo, Lambertian shading, depth) is done by
 :func:`cerberus_core.render.templates.vertex_normals` and :func:`cerberus_core.render.shading.shade` in plain
 torch, shared by all backends. A backend may override :meth:`Renderer.vertex_normals`,
-:meth:`Renderer.shade` and :meth:`Renderer.antialias` with fused kernels (forward and backward) when that is faster; the conformance suite in :mod:`cerberus_core.testing`
+:meth:`Renderer.shade`, :meth:`Renderer.antialias` and :meth:`Renderer.nearest_indices` (the image-plane
+nearest-neighbour search of the training pulls) with fused kernels (forward and backward) when that is faster; the conformance suite in :mod:`cerberus_core.testing`
 holds both paths to the same numbers.
 
 Rasterization rule (all backends, so that face ids agree):
@@ -34,6 +35,7 @@ import torch
 from cerberus_core.render.antialias import antialias
 from cerberus_core.render.camera import pixel_centres
 from cerberus_core.render.light import Light
+from cerberus_core.render.nearest import nearest_indices
 from cerberus_core.render.shading import shade
 from cerberus_core.render.templates import vertex_normals
 
@@ -135,6 +137,20 @@ class Renderer(ABC):
             ``(B, H, W, C)`` blended colours, differentiable w.r.t. ``color`` and ``clip``.
         """
         return antialias(color, clip, faces, face_id)
+
+    def nearest_indices(self, points: Tensor, targets: Tensor, counts: Tensor,
+                        both: bool = True) -> tuple[Tensor, Tensor | None]:
+        """Nearest neighbours between 2-D point sets per image, without gradient (default: the
+        shared batched torch search :func:`cerberus_core.render.nearest.nearest_indices`, whose
+        docstring is the contract; the chamfer and hidden-part pulls of training call it).
+
+        Args:
+            points: ``(N, M, 2)``; targets: ``(N, K, 2)``, the first ``counts[n]`` real in image ``n``;
+            counts: ``(N,)`` int64; both: also each target's nearest point.
+        Returns:
+            ``to_target`` ``(N, M)`` and ``to_point`` ``(N, K)`` (or ``None``), int64.
+        """
+        return nearest_indices(points, targets, counts, both)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r})"

@@ -21,17 +21,21 @@ from typing import Any, Literal
 
 import yaml
 
-from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, load_yaml, parse_overrides, yaml_problem
+from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, load_yaml, parse_overrides
 from cerberus_core.devices import is_device_name
 from cerberus_core.errors import ConfigError
 from cerberus_core.fields import Checked, Range, ranged
 from cerberus_core.model.cerberus import ModelConfig
+from cerberus_core.plumbing.machine import MAX_WORKERS
 from cerberus_core.train.objective import LossConfig
 from cerberus_core.train.speed import SpeedConfig
 
 __all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "RenderConfig", "TrainConfig", "config_diff",
            "deep_merge", "load_config", "parse_overrides", "preset_names"]
 
+
+MAX_IMAGE_SIZE = 4096
+"""The largest training resolution (the training's memory is checked too: :meth:`TrainConfig.check_memory`)."""
 
 @dataclass
 class DataConfig(Checked):
@@ -40,15 +44,16 @@ class DataConfig(Checked):
         split: the split to train on.
         image_size: train at this resolution (images are resized, antialiased); ``null``: the
             dataset's own size.
-        num_workers: DataLoader worker processes (0: load in the training process).
+        num_workers: DataLoader worker processes (0: load in the training process); more than the
+            machine's cores are lowered to them, with a warning, when the training starts.
     """
 
     SECTION = "data"
 
     root: str = "data/human"
     split: str = "train"
-    image_size: int | None = ranged(None, ge=32, integer=True)
-    num_workers: int = ranged(0, ge=0)
+    image_size: int | None = ranged(None, ge=32, le=MAX_IMAGE_SIZE, integer=True)
+    num_workers: int = ranged(0, ge=0, le=MAX_WORKERS)
 
 
 @dataclass
@@ -179,6 +184,35 @@ class TrainConfig(Checked):
                               "no gradient); add `render.antialias=true`, or `losses.silhouette=0`")
         if not is_device_name(self.device):
             raise ConfigError.about("device", self.device, "must be 'auto', 'cpu', 'cuda' or 'cuda:N', e.g. `device=cpu`")
+        if self.losses.cross_view == "own" and self.losses.cross_view_warmup >= self.train.steps:
+            raise ConfigError.about("losses.cross_view_warmup", self.losses.cross_view_warmup,
+                                    f"must be less than train.steps ({self.train.steps}), or the own cross view never "
+                                    "runs", f"`losses.cross_view_warmup={self.train.steps // 10}`")
+
+    def check_memory(self, image_size: int, device: object = "cpu") -> None:
+        """Refuse (:class:`ConfigError` naming the setting, the estimate and the limit) a training whose memory
+        exceeds what ``device`` has, before anything is allocated.
+
+        The estimate is a lower bound, counted from what every step must hold (float32, values and gradients):
+        per input pixel of the quadruplets (``train.batch_size`` × 4 images of ``image_size``², px) its 3
+        channels and the first convolution's ``model.width / 4`` channels; per part face of each rendering (2 per
+        image) the 25 numbers of its triangle set-up.
+
+        Args:
+            image_size: the training resolution (px; ``data.image_size`` or the dataset's).
+        """
+        from cerberus_core.plumbing.machine import check_memory
+
+        images = self.train.batch_size * 4
+        part_faces = 20 * 4 ** self.model.sphere_level  # an icosphere's faces at its subdivision level
+        pixels = images * image_size ** 2 * (3 + self.model.width / 4) * 4 * 2
+        faces = images * 2 * self.model.num_parts * part_faces * 25 * 4 * 2
+        if pixels >= faces:
+            check_memory("data.image_size", image_size, pixels + faces, f"{images} images of {image_size}x{image_size} "
+                         f"pixels per step at train.batch_size = {self.train.batch_size}", device)
+        else:
+            check_memory("model.num_parts", self.model.num_parts, pixels + faces, f"{2 * images} renderings of "
+                         f"{self.model.num_parts} parts of {part_faces} faces per step", device)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -212,10 +246,7 @@ def resume_config(run_dir: str | Path, overrides: list[str] | None = None) -> Tr
     saved = Path(run_dir) / "config.yaml"
     if not saved.is_file():
         return None
-    try:
-        raw = load_yaml(saved.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(yaml_problem(exc, saved) + "; the run's saved config is damaged") from None
+    raw = load_yaml(saved.read_text(), saved, "the run's saved config is damaged")
     config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(overrides or [])))
     root = Path(config.data.root)
     if not root.is_absolute() and not root.exists():

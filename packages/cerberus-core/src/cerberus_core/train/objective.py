@@ -29,6 +29,7 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.losses import (
     VIEW_PARTNER,
+    NearestSearch,
     background_loss,
     background_mask,
     hidden_part_pull,
@@ -148,8 +149,8 @@ def render_quadruplets(renderer: Renderer, parts: PartSet, batch: QuadrupletBatc
     else:
         cameras, verts = batch.camera, own.flatten(0, 1)
     out = render_parts(renderer, verts, parts.faces, cameras, scene.light(cameras), **style)
-    halves = [RenderOutput(**{f.name: quad(getattr(out, f.name)[k * 4 * bsz:(k + 1) * 4 * bsz]) for f in fields(out)})
-              for k in range(2 if viewpoint_consistency else 1)]
+    views = {f.name: getattr(out, f.name).split(4 * bsz) for f in fields(out)}  # own, then cross
+    halves = [RenderOutput(**{name: quad(t[k]) for name, t in views.items()}) for k in range(len(views["image"]))]
     if not viewpoint_consistency:
         return QuadrupletRender(halves[0], None, own)
     return QuadrupletRender(halves[0], halves[1], own, cross)
@@ -168,6 +169,8 @@ class ObjectiveInputs:
             ``losses.render_background: black``).
         render: the renderings (:class:`QuadrupletRender`).
         dihedral: the template's dihedral quadruples; ``smoothness_once``: see :func:`smoothness_term`.
+        search: the pulls' nearest-neighbour search (the renderer backend's kernel,
+            :meth:`Renderer.nearest_indices`).
     """
 
     batch: QuadrupletBatch
@@ -178,6 +181,7 @@ class ObjectiveInputs:
     render: QuadrupletRender
     dihedral: Tensor
     smoothness_once: bool
+    search: NearestSearch
     cross_pulls: bool = False
     _uv: Tensor | None = field(default=None, repr=False)
     _uv_cross: Tensor | None = field(default=None, repr=False)
@@ -229,12 +233,14 @@ def _quad(t: Tensor, x: ObjectiveInputs) -> Tensor:  # (4B, ...) -> (B, 4, ...)
     return t.view(x.batch.num_quadruplets, 4, *t.shape[1:])
 
 
-def _vertex_pull(pull: Callable[[Tensor, Tensor], Tensor]) -> Callable[[ObjectiveInputs], Tensor]:
-    """A pull of the projected part vertices onto the input's foreground (``pull(points, foreground)``
-    ``-> (4 B,)``), in the input view and, with ``cross_pulls``, the cross view, averaged like eq. 4."""
+def _vertex_pull(pull: Callable[..., Tensor]) -> Callable[[ObjectiveInputs], Tensor]:
+    """A pull of the projected part vertices onto the input's foreground (``pull(points, foreground,
+    search=...)`` ``-> (4 B,)``, with the renderer's nearest-neighbour search), in the input view and,
+    with ``cross_pulls``, the cross view, averaged like eq. 4."""
     def value(x: ObjectiveInputs) -> Tensor:
-        own = _quad(pull(x.uv, x.foreground.flatten(0, 1)), x)
-        cross = _quad(pull(x.uv_cross, _partner(x.foreground).flatten(0, 1)), x) if x.pulls_cross else None
+        own = _quad(pull(x.uv, x.foreground.flatten(0, 1), search=x.search), x)
+        cross = (_quad(pull(x.uv_cross, _partner(x.foreground).flatten(0, 1), search=x.search), x)
+                 if x.pulls_cross else None)
         return viewpoint_reconstruction(own, cross)
     return value
 
@@ -244,14 +250,15 @@ _coverage = _vertex_pull(silhouette_coverage)
 
 
 def _keypoint_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): each image's keypoints over its own foreground
-    return silhouette_coverage(x.pred.maps.uv, x.foreground.flatten(0, 1))
+    return silhouette_coverage(x.pred.maps.uv, x.foreground.flatten(0, 1), search=x.search)
 
 
 def _hidden_in(render: RenderOutput, uv: Tensor, foreground: Tensor, x: ObjectiveInputs) -> Tensor:
     part_id = render.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
     n, v = x.parts.num_parts, x.parts.num_vertices
     uncovered = foreground.flatten(0, 1)[:, 0] * (part_id < 0)
-    return _quad(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered), x)
+    return _quad(hidden_part_pull(uv.view(-1, n, v, 2), part_pixel_counts(part_id, n) > 0, uncovered,
+                                  search=x.search), x)
 
 
 def _hidden(x: ObjectiveInputs) -> Tensor:
@@ -450,7 +457,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                 viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias,
                                 cross_view=losses.cross_view_at(step))
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
-                             smoothness_once and losses.pose_consistency, losses.cross_pulls)
+                             smoothness_once and losses.pose_consistency, renderer.nearest_indices, losses.cross_pulls)
     weights = losses.weights
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}

@@ -40,16 +40,18 @@ from typing import Any
 
 import numpy as np
 import torch
-import yaml
 from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.plumbing.lock import LockedError, acquire, check_unlocked, is_lock_file
+from cerberus_core.plumbing.machine import capped_to_cores
+from cerberus_core.plumbing.outputs import resolved
 from cerberus_core.plumbing.signals import interrupt_for
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
@@ -137,6 +139,24 @@ def lr_factor(optim: OptimConfig, total_steps: int) -> Callable[[int], float]:
         progress = min(1.0, (step - optim.warmup_steps) / span)
         return optim.min_lr_ratio + (1 - optim.min_lr_ratio) * 0.5 * (1 + math.cos(math.pi * progress))
     return factor
+
+
+def make_optimizer(model: torch.nn.Module, optim: OptimConfig) -> torch.optim.Adam:
+    """Adam over ``model``'s parameters (on their device), with torch's fused kernel where it has one
+    for that device (CPU and CUDA in torch >= 2.4): one kernel for the whole update instead of a few
+    dozen ``foreach`` ops, the same algorithm up to float rounding. Its state dict is the same, so
+    checkpoints load either way."""
+    params = list(model.parameters())
+    fused = params[0].device.type in fused_adam_devices()
+    return torch.optim.Adam(params, lr=optim.lr, betas=tuple(optim.betas), eps=optim.eps,
+                            weight_decay=optim.weight_decay, fused=fused or None)
+
+
+def fused_adam_devices() -> tuple[str, ...]:
+    """The device types torch's fused Adam runs on in this torch (``("cuda",)`` in torch < 2.4)."""
+    from torch.utils import _foreach_utils
+
+    return tuple(getattr(_foreach_utils, "_get_fused_kernels_supported_devices", lambda: ["cuda"])())
 
 
 def step_generator(seed: int, step: int, rank: int) -> torch.Generator:
@@ -228,7 +248,6 @@ def unfinished_start(run_dir: Path) -> list[Path]:
 def _clear_unfinished_start(run_dir: Path, entries: list[Path]) -> None:
     """Remove what a start that never checkpointed left (``config.yaml`` last: until it goes, the folder
     still reads as such a start to a rank that looks meanwhile)."""
-    import warnings
 
     names = ", ".join(sorted(p.name for p in entries))
     warnings.warn(f"{run_dir} holds a training that stopped before its first checkpoint ({names}); nothing there "
@@ -267,6 +286,17 @@ def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False)
         raise NoCheckpointError(f"`resume=True`: no checkpoint at {last}; start the training anew (`resume=False`)")
 
 
+def check_not_shorter(run_dir: Path, config: TrainConfig) -> None:
+    """A resumed run may not end before the step its last checkpoint reached (its saved config would say fewer
+    steps than it ran): :class:`ConfigError` naming ``train.steps``, before the run folder is locked or written.
+    Without a checkpoint there is nothing to compare (:func:`check_run_folder` says so)."""
+    last = checkpoint_dir(run_dir) / LAST
+    if last.is_file() and config.train.steps < (reached := int(load_checkpoint(last)["step"])):
+        raise ConfigError.about("train.steps", config.train.steps, f"the run in {run_dir} already reached step "
+                                f"{reached}; a resumed run cannot end before it", f"`train.steps={reached}` or more, "
+                                "or leave it out to keep the run's own")
+
+
 def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: bool = True) -> dict[str, Any] | None:
     """Check the run folder against ``resume``; return the checkpoint to resume from (or ``None``).
     A fresh run clears what a start that never checkpointed left (``clear``: the main process only)."""
@@ -277,7 +307,7 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: 
         return None
     last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
-    saved = TrainConfig.from_dict(yaml.safe_load(payload["config"]))
+    saved = TrainConfig.from_dict(load_yaml(payload["config"], last, "the checkpoint is damaged"))
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
         raise ConfigError.about("resume", True, f"the config differs from the run's saved config in {changed}; only "
@@ -303,15 +333,14 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
     config = dataclasses.replace(config)
     config.model = dataclasses.replace(config.model)
     if dataset is None:  # stored absolute: eval, reconstruct and --resume work from any directory
-        config.data = dataclasses.replace(config.data, root=str(Path(config.data.root).expanduser().resolve()))
+        config.data = dataclasses.replace(config.data, root=str(resolved(config.data.root, "data.root")))
     device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
     if config.threads is not None:
-        cores = os.cpu_count() or 1
-        if config.threads > cores:
-            warnings.warn(f"threads={config.threads} is more than this machine's {cores} cores: using {cores} "
-                          f"(`threads={cores}`)", stacklevel=2)
-            config.threads = cores
+        config.threads = capped_to_cores("threads", config.threads)
         torch.set_num_threads(config.threads)
+    config.data = dataclasses.replace(config.data, num_workers=capped_to_cores("data.num_workers", config.data.num_workers))
+    if resume:
+        check_not_shorter(Path(run_dir), config)
     info = init_distributed(device)
     try:
         return _Trainer(config, Path(run_dir), info, device, dataset).run(resume)
@@ -341,6 +370,7 @@ class _Trainer:
         if config.model.depth_offset == "auto":
             config.model.depth_offset = self.scene.distance
         self.image_size = config.data.image_size or int(self.dataset.image_size)
+        config.check_memory(self.image_size, device)
         config.renderer = resolve_renderer(config.renderer)  # the saved config names the backend used
         self.renderer = make_renderer(config.renderer)
         autocast, why = resolve_autocast(config.speed.autocast, device)  # saved resolved, like the renderer
@@ -352,10 +382,8 @@ class _Trainer:
         cfg = self.config
         seed_everything(cfg.seed)
         self.model = apply_speed(Cerberus(cfg.model).to(self.device), cfg.speed)
-        o = cfg.optim
-        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=o.lr, betas=tuple(o.betas), eps=o.eps,
-                                          weight_decay=o.weight_decay)
-        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lr_factor(o, cfg.train.steps))
+        self.optimizer = make_optimizer(self.model, cfg.optim)
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lr_factor(cfg.optim, cfg.train.steps))
         start, self.skipped = 0, 0
         if payload is not None:
             self.model.load_state_dict(payload["model"])
