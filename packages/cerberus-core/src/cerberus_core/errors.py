@@ -18,14 +18,17 @@ of them the same way, and one module, so that no layer imports another just for 
 * :class:`MeshError` — a mesh (a template, a reconstruction's parts, an exported mesh) that is broken: no
   faces, faces indexing outside the vertices, templates that differ, NaN or inf vertices;
 * :class:`BackendError` — a renderer backend cannot run here (its runtime does not start, no device of it
-  matches the tensors').
+  matches the tensors');
+* :class:`InputTypeError` — an argument of the wrong kind (not the model, renderer or reconstruction the function
+  takes) or an option the callee does not know.
 
 Errors that belong to one module derive from :class:`CerberusError` there (the plugin errors in
 :mod:`cerberus_core.plugins`, the lock, checkpoint, zoo and image-input errors).
 
 Each is also the builtin error it replaced, so ``except ValueError`` keeps catching them: ``DatasetError``,
 ``ConfigError``, ``ShapeError``, ``DeviceError``, ``RenderInputError`` and ``MeshError`` are ``ValueError``\\ s,
-``BackendError`` a ``RuntimeError``, ``OutputError`` an ``OSError`` (with the original ``errno``).
+``BackendError`` a ``RuntimeError``, ``InputTypeError`` a ``TypeError``, ``OutputError`` an ``OSError`` (with
+the original ``errno``).
 
 Messages say the problem and the fix in Python terms, never a command-line flag: a setting is named as its
 config key, parameter or field, in backticks where the fix sets it (`` `train.steps=VALUE` ``,
@@ -117,5 +120,10 @@ class BackendError(CerberusError, RuntimeError):
     tensors'): the message names the backend, the cause and the fix."""
 
 
-__all__ = ["BackendError", "CerberusError", "ConfigError", "DatasetError", "DeviceError", "MeshError",
-           "MissingPackageError", "OutputError", "RenderInputError", "ShapeError"]
+class InputTypeError(CerberusError, TypeError):
+    """An argument of the wrong kind (an object that is not the model, renderer or reconstruction the function
+    takes) or an option the callee does not know: the message names what came and what is taken."""
+
+
+__all__ = ["BackendError", "CerberusError", "ConfigError", "DatasetError", "DeviceError", "InputTypeError",
+           "MeshError", "MissingPackageError", "OutputError", "RenderInputError", "ShapeError"]

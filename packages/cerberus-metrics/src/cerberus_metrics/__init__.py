@@ -11,6 +11,7 @@ from importlib.metadata import version as _version
 
 from .api import METRICS, chamfer_l2, evaluate_pair, fscore, inspect_mesh, voxel_iou, voxel_iou_clamped, voxelize
 from .cache import GridCache
+from .errors import MeasurementError, MetricsError
 from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
 from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
 from .voxelize import VoxelGrid, grid_iou
@@ -22,10 +23,12 @@ __all__ = [
     "PROTOCOLS",
     "Frame",
     "GridCache",
+    "MeasurementError",
     "Mesh",
     "MeshInputError",
     "MeshQualityWarning",
     "MeshReport",
+    "MetricsError",
     "Protocol",
     "VoxelGrid",
     "chamfer_l2",
