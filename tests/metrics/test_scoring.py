@@ -40,3 +40,32 @@ def test_scorer_keeps_the_prediction_when_a_part_lies_wholly_past_a_face_edge_or
     assert (iou, clamped) == (1.0, 1)
     iou, clamped = scorer([gt_pair], gt_pair)
     assert (iou, clamped) == (1.0, 0)
+
+
+@pytest.mark.parametrize("protocol", ["kato", "gt_bbox"])
+def test_scorer_grids_are_the_voxels_of_its_score_part_by_part(helpers, protocol):
+    """``grids``: each part alone on one box with the ground truth; their union scores exactly the IoU
+    ``__call__`` gives (a part clamped into the kato grid included), and each part's voxels are what
+    voxelizing it alone in the ground truth's frame gives."""
+    from cerberus_metrics import voxelize
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    gt = helpers.blob(3, 0.35)
+    gt_pair = (np.asarray(gt.vertices), np.asarray(gt.faces))
+    parts = [helpers.blob(4, 0.2, (-0.15, 0.0, 0.0)), helpers.blob(5, 0.2, (0.2, 0.1, 0.0)),
+             helpers.box((0.3, -0.2, -0.2), (0.7, 0.2, 0.2))]  # the box leaves the kato grid
+    pairs = [(np.asarray(m.vertices), np.asarray(m.faces)) for m in parts]
+    scorer = VoxelIoUScorer(protocol, 32)
+    grids = scorer.grids(pairs, gt_pair)
+    iou, clamped = scorer(pairs, gt_pair)
+    assert grids.parts.shape == (3, *grids.gt.shape) and (grids.iou, grids.clamped) == (iou, clamped)
+    union = grids.parts.any(0)
+    assert iou == np.count_nonzero(union & grids.gt) / np.count_nonzero(union | grids.gt)
+    assert clamped == (1 if protocol == "kato" else 0)
+    g = voxelize(gt_pair, protocol, 32)
+    assert np.count_nonzero(grids.gt) == g.count
+    for part, pair in zip(grids.parts, pairs, strict=True):
+        alone = voxelize(pair, protocol, frame=g.frame, outside="clamp", check_self_intersections=False)
+        assert np.count_nonzero(part) == alone.count
+    centres = grids.centers(np.argwhere(grids.gt))
+    assert np.allclose(centres, g.centers()) if protocol == "kato" else len(centres) == g.count

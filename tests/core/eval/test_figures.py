@@ -98,3 +98,32 @@ def test_figure_one_titles_stay_inside_their_columns(size):
             assert (band[:, x0 - PAD // 2] == 255).all(), f"a caption crosses the left edge of column {c}"
             assert (band[:, x0 + size - 1 + PAD // 2] == 255).all(), f"a caption crosses the right edge of column {c}"
             assert (band[:, x0:x0 + size] < 128).any(), f"caption {c} of row {row} drew nothing"
+
+
+def test_voxel_views_show_the_kind_most_voxels_on_a_line_are_front_and_side():
+    """Front: seen from +z (x right, y up); side: seen from +x (z to the left, y up). A line of sight
+    shows its majority kind, a tie going to missed, then off-body."""
+    from cerberus_core.eval.standard import Score, Voxels
+
+    gt = np.zeros((4, 4, 4), bool)
+    pred = np.zeros((1, 4, 4, 4), bool)
+    gt[1, 1, 1] = pred[0, 1, 1, 1] = True  # a hit
+    gt[3, 3, 1] = pred[0, 3, 3, 1] = True  # a hit, in front of ...
+    gt[3, 3, 0] = True  # ... a missed voxel on the same front line of sight: a tie, missed
+    gt[0, 2, 0:2] = pred[0, 0, 2, 0:2] = True  # two hits and ...
+    gt[0, 2, 3] = True  # ... one missed voxel on one front line: hit
+    pred[0, 0, 0, 3] = True  # off the body
+    views = figures.voxel_views(Voxels(pred, gt, Score(0.5), lambda i: i), 8)
+    assert views.shape == (2, 3, 8, 8)
+    colours = {tuple(torch.tensor(c).tolist()): k for k, c in figures.VOXEL_COLOURS.items()}
+
+    def at(view, row, col):  # the colour of voxel cell (row, col): 2 x 2 pixels each
+        return colours.get(tuple(views[view, :, 2 * row, 2 * col].tolist()), "background")
+
+    front = {(0, 3): "missed", (2, 1): "hit", (1, 0): "hit", (3, 0): "off-body", (0, 0): "background"}
+    side = {(0, 3): "missed", (0, 2): "hit", (2, 2): "hit", (1, 0): "missed", (3, 0): "off-body",
+            (1, 1): "background"}
+    assert {k: at(0, *k) for k in front} == front
+    assert {k: at(1, *k) for k in side} == side
+    assert torch.equal(views[:, :, 0::2, 0::2], views[:, :, 1::2, 1::2])  # nearest upscaling
+    assert figures.voxel_legend(300).size == (300, 16 + PAD)

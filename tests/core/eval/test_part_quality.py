@@ -9,7 +9,9 @@ from cerberus_core.eval.part_quality import (
     PartQualityAccumulator,
     assign_to_parts,
     image_overlap,
+    merge_sides,
     overlap_matrix,
+    side_free,
     surface_samples,
     vertex_areas,
 )
@@ -135,3 +137,40 @@ def test_data_without_part_labels_says_so_instead_of_scoring_one(primitive_bodie
     assert "Not scored: no part labels" in report and "Consistency" not in report
     labelled = _summary(primitive_bodies, _parts)  # with labels nothing changes
     assert labelled["part_labels"] is True and labelled["note"] is None and labelled["consistency"] == 1.0
+
+
+def test_side_free_names_of_every_body_source():
+    from cerberus_core.bodies.animal import ANIMAL_PART_NAMES
+    from cerberus_core.bodies.human import PART_NAMES
+
+    assert [side_free(n) for n in ("shin.L", "shin.R", "upper_arm.L", "head", "arm_r", "left_hand", "left")] == [
+        "shin", "shin", "upper_arm", "head", "arm", "hand", "left"]
+    merged, index = merge_sides(PART_NAMES)
+    assert merged == ["head", "neck", "torso", "pelvis", "upper_arm", "lower_arm", "thigh", "shin"]
+    assert [merged[i] for i in index] == [side_free(n) for n in PART_NAMES]
+    assert merge_sides(ANIMAL_PART_NAMES)[0] == ["head", "neck", "torso", "tail", "front_leg", "back_leg"]
+    assert merge_sides(["body"]) == (["body"], np.array([0]))
+
+
+def test_merged_sides_score_a_model_that_follows_the_image_not_the_body(primitive_bodies):
+    """A model whose left and right parts swap with the view (as a grey body seen from the front or the
+    back allows) scores 0.5 per side and 1 with the sides merged."""
+    names = primitive_bodies[0].part_names
+    swap = np.array([names.index(n.replace(".L", ".X").replace(".R", ".L").replace(".X", ".R")) for n in names])
+
+    def half_swapped(body):
+        pv, f = _parts(body)
+        return (pv[swap], f) if body.pose_id % 2 else (pv, f)
+
+    bodies = [b for b in primitive_bodies if b.pose_id in (0, 1)]  # 2 subjects x (as is, swapped)
+    s = _summary(bodies, half_swapped)
+    sided = [p for p in s["parts"] if p["label"] != side_free(p["label"])]
+    assert sided and all(p["agreement"] == 0.5 for p in sided)
+    merged = s["sides_merged"]
+    assert merged["gt_parts"] == ["head", "torso", "upper_arm", "lower_arm", "thigh", "shin"]
+    assert merged["consistency"] == 1.0 and merged["mean_segmentation_iou"] == pytest.approx(1.0)
+    assert [p["label"] for p in merged["parts"]] == [side_free(n) for n in names]
+    assert merged["sides_merged"] is None
+    acc = PartQualityAccumulator(2, ["a", "b"])
+    acc.add(np.eye(2))
+    assert acc.merged_sides() is None and acc.summary()["sides_merged"] is None

@@ -39,3 +39,23 @@ def test_json_is_strict_and_tables_render(tmp_path):
     lines = table.splitlines()
     assert lines[0] == "| Model | Human | Animal | Hard Human |"
     assert lines[2] == "| NMR | 0.2596 | 0.3000 | - |"
+
+
+def test_body_segments_section_and_data_without_segment_labels():
+    labelled = {"images": 2, "segments": ["head", "shin.L"], "segment_labels": True, "note": None,
+                "voxel_precision": 0.6, "voxel_recall": 0.7, "spare_threshold": 0.003,
+                "deletion_loss": [0.1, 0.001, -0.002], "spare_parts": [1, 2], "spare_count": 2,
+                "body_share": {"head": 0.4, "shin.L": 0.6}, "recall": {"head": 0.9, "shin.L": 0.43},
+                "missed_share": {"head": 0.1, "shin.L": 0.9}, "off_body_share": {"head": 0.7, "shin.L": 0.3},
+                "input_view_coverage": {"head": 0.8, "shin.L": 0.35},
+                "gt_render_coverage": {"head": 0.85, "shin.L": 0.75}}
+    md = markdown_report(_result({"a": 0.5}) | {"segments": labelled})
+    assert "## Body segments" in md and "precision 0.6000, recall 0.7000" in md
+    assert "| shin.L | 0.600 | 0.430 | 0.900 | 0.300 | 0.350 | 0.750 |" in md
+    assert "| 1 | - | 0.0010 | spare |" in md and "spare learned parts (deleting one costs <= 0.003 IoU): 2 of 3" in md
+    assert "lowest shin.L 0.43, head 0.90" in md
+    bare = labelled | {"segments": ["body"], "segment_labels": False, "note": "no segment labels: ...",
+                       **dict.fromkeys(["body_share", "recall", "missed_share", "off_body_share",
+                                        "input_view_coverage", "gt_render_coverage"], {})}
+    md = markdown_report(_result({"a": 0.5}) | {"segments": bare})
+    assert "No segment labels: ..." in md and "| GT segment |" not in md and "| 2 | - | -0.0020 | spare |" in md

@@ -52,6 +52,22 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     assert vis["mean_visible_pixels"] == pytest.approx(counts.mean(0).tolist())
     assert vis["parts_hidden_in_most_images"] == sum(h > 0.5 for h in vis["hidden_fraction"])
 
+    # Body segments: the oracle covers every segment, adds nothing off the body, needs every capsule, and
+    # covers in the input view what the ground truth's own render covers.
+    seg = res.segments
+    names = list(pq["gt_parts"])
+    assert seg["images"] == n and seg["segments"] == names and seg["segment_labels"] is True
+    assert seg["voxel_precision"] == 1.0 and seg["voxel_recall"] == 1.0
+    assert set(seg["recall"].values()) == {1.0} and set(seg["off_body_share"].values()) == {None}
+    assert seg["spare_count"] == 0 and min(seg["deletion_loss"]) > 0.003
+    for k in names:
+        assert seg["input_view_coverage"][k] == pytest.approx(seg["gt_render_coverage"][k], abs=0.02)
+        assert seg["gt_render_coverage"][k] > 0.5
+    rec = res.records[0]
+    assert rec["voxel_precision"] == rec["voxel_recall"] == 1.0 and rec["segment_recall"] == [1.0] * len(names)
+    assert len(rec["deletion_loss"]) == 10
+    assert pq["sides_merged"]["consistency"] == 1.0 and "shin" in pq["sides_merged"]["gt_parts"]
+
     path = write_json(res, tmp_path / "results.json")
     data = json.loads(path.read_text())
     assert data["standard"]["count"] == n and len(data["records"]) == n
@@ -59,6 +75,9 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     md = markdown_report(data, "Oracle")
     assert "| all | 1.0000 |" in md and "Hard Human" in md and "| head | 1.000 |" in md
     assert "| Images | Hidden in input view | Silhouette share |" in md and "parts hidden in most images:" in md
+    assert "### With left and right merged" in md and "| shin | 1.000 |" in md
+    assert "## Body segments" in md and "| lower_arm.L | " in md and "| IoU lost when deleted | Spare |" in md
+    assert data["segments"]["recall"] == seg["recall"]
 
 
 def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
@@ -66,13 +85,14 @@ def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
     res = evaluate_dataset(tiny_dataset, model, indices=[3, 4], hard=False, part_quality=False,
                            scorer=VoxelScorer(factory=iou_scorer), renderer=renderer, progress=False)
     assert res.standard.count == 2 and res.hard is None and res.part_quality is None and res.canonical == {}
-    assert res.part_visibility["images"] == 2
+    assert res.part_visibility["images"] == 2 and res.segments["images"] == 2
     md = markdown_report(res)
     assert "## Part visibility" in md and "| Learned part | Hidden in input view | Silhouette share | Visible pixels |" in md
     res = evaluate_dataset(tiny_dataset, model, indices=[3], hard=False, part_quality=False, visibility=False,
-                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+                           segments=False, scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.part_visibility is None and "visible_pixels" not in res.records[0]
-    assert "visibility" not in markdown_report(res)
+    assert res.segments is None and "deletion_loss" not in res.records[0]
+    assert "visibility" not in markdown_report(res) and "Body segments" not in markdown_report(res)
     res = evaluate_dataset(tiny_dataset, model, indices=[3], part_quality=False, visibility=False,
                            scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.hard.count == 1  # the canonical image is found outside the subset

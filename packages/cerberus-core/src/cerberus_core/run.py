@@ -37,7 +37,8 @@ from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
 from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
-from cerberus_core.eval.standard import SCORER_ENTRY_POINT
+from cerberus_core.eval.segments import segments_line
+from cerberus_core.eval.standard import SCORER_ENTRY_POINT, VoxelScorer
 from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.fields import Range, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
@@ -386,6 +387,8 @@ class Evaluation:
             lines.append(visibility_line(result.part_visibility))
         if result.depth is not None:
             lines.append("depth: " + depth_line(result.depth))
+        if result.segments is not None:
+            lines.append(segments_line(result.segments))
         if weights.stale_warning():  # said again under the scores, where it is read
             lines.append(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
                          f"{printable(weights.newer)} (step {weights.newer_step})")
@@ -548,11 +551,12 @@ class Run:
             warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
         with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
             indices = range(min(s.limit, len(dataset))) if s.limit else None
+            scorer = VoxelScorer(s.protocol, s.resolution)  # one ground-truth grid cache for scores and figure
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
-                                      device=self.device)
+                                      device=self.device, scorer=scorer)
             self._write_report(result, tmp, at_step, backend)
             evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
-                               device=self.device, viewer_images=s.viewer_images,
+                               device=self.device, viewer_images=s.viewer_images, scorer=scorer,
                                title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
         evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
                                 canonical_hint=_canonical_hint(source))

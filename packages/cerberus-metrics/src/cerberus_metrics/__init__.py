@@ -9,12 +9,21 @@ Quick start::
 
 from importlib.metadata import version as _version
 
-from .api import METRICS, chamfer_l2, evaluate_pair, fscore, inspect_mesh, voxel_iou, voxel_iou_clamped, voxelize
+from .api import (
+    METRICS,
+    chamfer_l2,
+    evaluate_pair,
+    fscore,
+    inspect_mesh,
+    voxel_iou,
+    voxel_iou_clamped,
+    voxelize,
+)
 from .cache import GridCache
 from .errors import MeasurementError, MetricsError
 from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
 from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
-from .voxelize import VoxelGrid, grid_iou
+from .voxelize import PartGrids, VoxelGrid, grid_iou
 
 __version__ = _version("cerberus-metrics")
 
@@ -29,6 +38,7 @@ __all__ = [
     "MeshQualityWarning",
     "MeshReport",
     "MetricsError",
+    "PartGrids",
     "Protocol",
     "VoxelGrid",
     "chamfer_l2",

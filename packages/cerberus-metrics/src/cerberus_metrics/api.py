@@ -21,7 +21,7 @@ from .cache import CachedGrid, GridCache
 from .distances import PointDistances, check_samples, point_distances
 from .io import MeshInputError, MeshQualityWarning, MeshReport, content_digest, load_parts
 from .protocols import Frame, get_protocol, make_frame
-from .voxelize import VoxelGrid, grid_iou, voxelize_meshes
+from .voxelize import PartGrids, VoxelGrid, grid_iou, voxelize_parts
 
 __all__ = [
     "voxelize",
@@ -88,16 +88,38 @@ def voxelize(
             return hit.grid
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshQualityWarning)
-        parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh)
-        if frame is None:
-            frame = make_frame(proto, resolution, np.concatenate([p.vertices for p in parts]))
-        grid = voxelize_meshes(parts, proto, frame, fill=fill, outside=outside)
+        grid = _part_grids(mesh, proto.name, resolution, frame, fill, check_self_intersections, open_mesh, name,
+                           outside).union()
     messages = tuple(str(w.message) for w in caught if issubclass(w.category, MeshQualityWarning))
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if cache is not None and key is not None:
         cache.put(key, CachedGrid(grid, messages))
     return grid
+
+
+def _part_grids(mesh: Any, protocol: str, resolution: int, frame: Frame | None, fill: bool,
+                check_self_intersections: bool | str, open_mesh: str, name: str, outside: str) -> PartGrids:
+    """Load ``mesh``'s parts and voxelize each alone (the one voxelization path of this module)."""
+    proto = get_protocol(protocol)
+    parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh)
+    if frame is None:
+        frame = make_frame(proto, resolution, np.concatenate([p.vertices for p in parts]))
+    return voxelize_parts(parts, proto, frame, fill=fill, outside=outside)
+
+
+def prediction_grids(pred: Any, gt: Any, protocol: str, resolution: int, cache: GridCache | None, outside: str,
+                     check_self_intersections: bool | str = True, open_mesh: str = "warn") -> tuple[PartGrids, VoxelGrid]:
+    """The grids :func:`voxel_iou_clamped` scores, with the prediction kept part by part: the ground
+    truth voxelized (and cached) as by :func:`voxelize`, each part of ``pred`` (one per mesh of the
+    list) alone in its frame. ``grid_iou(parts.union(), gt)`` is the voxel IoU and ``parts.clamped``
+    the number of parts clamped into the grid. Options as :func:`voxel_iou_clamped`'s.
+    Returns ``(prediction's PartGrids, ground-truth VoxelGrid)``.
+    """
+    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", check_self_intersections=check_self_intersections,
+                 open_mesh=open_mesh)
+    return _part_grids(pred, protocol, resolution, g.frame, True, check_self_intersections, open_mesh, "pred",
+                       outside), g
 
 
 def voxel_iou_clamped(
@@ -117,10 +139,9 @@ def voxel_iou_clamped(
     outside the ``kato`` grid is always an error, since it is a data problem, not a score.
     Returns ``(iou in [0, 1], number of prediction parts clamped)``.
     """
-    opts = dict(check_self_intersections=check_self_intersections, open_mesh=open_mesh)
-    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", **opts)
-    p = voxelize(pred, protocol, resolution, frame=g.frame, name="pred", outside=outside, **opts)
-    return grid_iou(p, g), p.clamped
+    p, g = prediction_grids(pred, gt, protocol, resolution, cache, outside,
+                            check_self_intersections=check_self_intersections, open_mesh=open_mesh)
+    return grid_iou(p.union(), g), p.clamped
 
 
 def voxel_iou(

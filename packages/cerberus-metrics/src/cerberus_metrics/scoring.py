@@ -18,16 +18,40 @@ from __future__ import annotations
 
 import os
 import warnings
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .api import voxel_iou_clamped
+from .api import prediction_grids
 from .cache import GridCache
 from .io import MeshQualityWarning
-from .protocols import check_resolution, get_protocol
+from .protocols import Frame, check_resolution, get_protocol
+from .voxelize import _paste, grid_iou
 
-__all__ = ["VoxelIoUScorer"]
+__all__ = ["ScoredGrids", "VoxelIoUScorer"]
+
+
+@dataclass(frozen=True, eq=False)
+class ScoredGrids:
+    """The grids one score comes from, on one lattice box (:meth:`VoxelIoUScorer.grids`).
+
+    parts: (P, nx, ny, nz) bool, each prediction part's voxels; gt: (nx, ny, nz) bool, the ground
+    truth's. origin: lattice index of voxel ``[0, 0, 0]``; frame: the mesh-to-lattice map;
+    clamped: parts clamped into a fixed grid; iou: ``|union(parts) & gt| / |union(parts) | gt|``, the
+    score :meth:`VoxelIoUScorer.__call__` returns.
+    """
+
+    parts: np.ndarray
+    gt: np.ndarray
+    origin: tuple[int, int, int]
+    frame: Frame
+    clamped: int
+    iou: float
+
+    def centers(self, index: np.ndarray) -> np.ndarray:
+        """(N, 3) mesh coordinates of the centres of the voxels at (N, 3) indices of this box."""
+        return self.frame.to_mesh(np.asarray(index, np.float64) + np.asarray(self.origin) + 0.5)
 
 
 class VoxelIoUScorer:
@@ -58,8 +82,26 @@ class VoxelIoUScorer:
             docstring). Raises :class:`~cerberus_metrics.io.MeshInputError` where a mesh cannot be
             scored.
         """
+        parts, truth = self._voxelize(pred_parts, gt)
+        return float(grid_iou(parts.union(), truth)), int(parts.clamped)
+
+    def grids(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> ScoredGrids:
+        """The voxels behind ``self(pred_parts, gt)``, each prediction part's apart, on one box that holds
+        the prediction and the ground truth (for per-part and per-region figures scored exactly like
+        the IoU). Raises as :meth:`__call__` does."""
+        parts, truth = self._voxelize(pred_parts, gt)
+        lo = np.minimum(parts.origin, truth.origin)
+        hi = np.maximum(np.add(parts.origin, parts.occupancy.shape[1:]), np.add(truth.origin, truth.occupancy.shape))
+        occ = np.zeros((len(parts.occupancy), *(hi - lo)), bool)
+        for p, sub in zip(occ, parts.occupancy, strict=True):
+            _paste(p, lo, sub, parts.origin, np.logical_or)
+        gt_occ = np.zeros(tuple(hi - lo), bool)
+        _paste(gt_occ, lo, truth.occupancy, truth.origin, np.logical_or)
+        return ScoredGrids(occ, gt_occ, tuple(int(x) for x in lo), truth.frame, int(parts.clamped),
+                           float(grid_iou(parts.union(), truth)))
+
+    def _voxelize(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeshQualityWarning)
-            iou, clamped = voxel_iou_clamped(pred_parts, gt, self.protocol, self.resolution, cache=self.cache,
-                                             check_self_intersections=False, outside="clamp")
-        return float(iou), int(clamped)
+            return prediction_grids(pred_parts, gt, self.protocol, self.resolution, self.cache, "clamp",
+                                    check_self_intersections=False)

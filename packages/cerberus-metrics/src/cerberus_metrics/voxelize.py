@@ -35,6 +35,8 @@ from .protocols import MAX_GRID_VOXELS, Frame, Protocol, lattice_box
 
 __all__ = [
     "VoxelGrid",
+    "PartGrids",
+    "voxelize_parts",
     "kato_surface",
     "kato_surface_parts",
     "fill_exterior",
@@ -96,6 +98,27 @@ class VoxelGrid:
         """(N, 3) mesh coordinates of the solid voxels' centres."""
         idx = np.argwhere(self.occupancy) + np.asarray(self.origin) + 0.5
         return self.frame.to_mesh(idx)
+
+
+@dataclass(frozen=True, eq=False)
+class PartGrids:
+    """Solid occupancy of each part of a multi-part shape, on one lattice box.
+
+    occupancy: (P, nx, ny, nz) bool, part ``p``'s voxels in ``occupancy[p]``. origin, frame,
+    protocol, clamped: as :class:`VoxelGrid`. :meth:`union` is the grid :func:`voxelize_meshes`
+    gives for the same parts (it is computed this way), so per-part figures (a part's own voxels,
+    the IoU without one part) are scored exactly like the union.
+    """
+
+    occupancy: np.ndarray
+    origin: tuple[int, int, int]
+    frame: Frame
+    protocol: str
+    clamped: int = 0
+
+    def union(self) -> VoxelGrid:
+        """The union of the parts as one :class:`VoxelGrid`."""
+        return VoxelGrid(self.occupancy.any(axis=0), self.origin, self.frame, self.protocol, self.clamped)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -454,7 +477,14 @@ def _clamp_boxes(bounds: np.ndarray, frame: Frame, names: Sequence[str]) -> tupl
 
 def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,
                     outside: str = "error") -> VoxelGrid:
-    """Voxelize the union of cleaned parts: each part is voxelized alone, then OR-ed.
+    """Voxelize the union of cleaned parts: each part is voxelized alone, then OR-ed
+    (:meth:`PartGrids.union` of :func:`voxelize_parts`, which takes the same arguments)."""
+    return voxelize_parts(parts, protocol, frame, fill, outside).union()
+
+
+def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,
+                   outside: str = "error") -> PartGrids:
+    """Voxelize each of several cleaned parts alone, on one lattice box.
 
     parts: cleaned meshes in mesh coordinates. frame: from :func:`make_frame`.
     fill: False returns the ``surface`` rule's surface voxels without the flood fill.
@@ -507,10 +537,10 @@ def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fil
                 _check_leak(mesh, frame, int(np.count_nonzero(sub)))
     else:
         subs = [center_occupancy(t, a, b - a) for t, a, b in zip(k_tris, k_lo, k_hi, strict=True)]
-    occ = np.zeros(tuple(hi - lo), bool)
-    for sub, a in zip(subs, k_lo, strict=True):
-        _paste(occ, lo, sub, a, np.logical_or)  # pastes only the overlap: this crops clamped parts to the grid
-    return VoxelGrid(occ, tuple(int(x) for x in lo), frame, protocol.name, clamped)
+    occ = np.zeros((len(parts), *(hi - lo)), bool)
+    for i, sub, a in zip(idx, subs, k_lo, strict=True):
+        _paste(occ[i], lo, sub, a, np.logical_or)  # pastes only the overlap: this crops clamped parts to the grid
+    return PartGrids(occ, tuple(int(x) for x in lo), frame, protocol.name, clamped)
 
 
 # --------------------------------------------------------------------------- IoU

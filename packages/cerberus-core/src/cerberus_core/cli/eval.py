@@ -23,8 +23,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
         "entry point, 'kato' protocol), per image and per subject; the Hard Human test (parts from each subject's "
         "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
-        "training never saw; how often each learned part is wholly hidden in its input view. Writes results.json, "
-        "results.md, a Table-2-like figure (table2.png) and, for the same images, the pictures of the paper's "
+        "training never saw; how often each learned part is wholly hidden in its input view; per ground-truth body "
+        "segment (head, lower arms, shins...), its voxel recall, its share of the off-body voxels and its coverage in "
+        "the input view, and per learned part the IoU lost when it is deleted (spare parts). Writes results.json, "
+        "results.md, a Table-2-like figure (table2.png, with the voxels missed and off the body seen from the "
+        "front and the side) and, for the same images, the pictures of the paper's "
         "Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose), with their meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an "
         "interactive 3D viewer that works offline. Reports the training step of the weights it scores, and warns "
         "when the run has a newer checkpoint than its model.safetensors (a resumed training not finished). "
@@ -43,6 +46,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
     p.add_argument("--no-hard", action="store_true", help="skip the Hard Human test")
     p.add_argument("--no-part-quality", action="store_true", help="skip part quality (the slowest part)")
+    p.add_argument("--no-segments", action="store_true",
+                   help="skip the body segments (recall, off-body voxels and input-view coverage per ground-truth "
+                   "segment; the IoU lost when each learned part is deleted)")
     p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
@@ -79,7 +85,8 @@ def run(args: argparse.Namespace) -> int:
 
     # Every argument is checked, and every model and the dataset opened, before anything is written.
     settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
-                            hard=not args.no_hard, part_quality=not args.no_part_quality, limit=args.limit,
+                            hard=not args.no_hard, part_quality=not args.no_part_quality,
+                            segments=not args.no_segments, limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,
                             renderer=args.renderer, overwrite=args.overwrite)
     run_ = Run.load(args.run, args.device)

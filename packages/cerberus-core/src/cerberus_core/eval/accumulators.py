@@ -8,7 +8,13 @@ image to which each metric adds its own fields). An accumulator follows :class:`
 * :class:`StandardIoU`: voxel IoU of each reconstruction against its ground truth;
 * :class:`PartVisibility`: how often each part is wholly hidden in its input view (one render per batch);
 * :class:`HardHumanIoU`: the subject's canonical part shapes posed by each other image;
-* :class:`PartQuality`: the parts against the ground-truth semantic parts.
+* :class:`PartQuality`: the parts against the ground-truth semantic parts;
+* :class:`BodySegments`: recall and off-body voxels per ground-truth body segment, the IoU each learned
+  part is worth, and each segment's coverage in the input view.
+
+What several metrics need of one batch is computed once, by the :class:`BatchResult`: the voxels of
+each image (:meth:`BatchResult.voxels`) and the input-view render of the parts
+(:meth:`BatchResult.part_id`).
 """
 from __future__ import annotations
 
@@ -16,13 +22,21 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+import torch
 
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
-from cerberus_core.eval.standard import IoUSummary, Score, VoxelScorer, summarize
-from cerberus_core.eval.visibility import VisibilityAccumulator, visible_pixels
+from cerberus_core.eval.segments import (
+    SegmentAccumulator,
+    covered_vertices,
+    group_by_body,
+    image_segments,
+)
+from cerberus_core.eval.standard import IoUSummary, Score, Voxels, VoxelScorer, summarize
+from cerberus_core.eval.visibility import VisibilityAccumulator, input_view_part_id
 from cerberus_core.parts import PartSet
+from cerberus_core.render.api import part_pixel_counts, render
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 
@@ -46,9 +60,25 @@ class BatchResult:
     bodies: list[PosedBody]
     records: list[dict[str, Any]]
     singles: list[PartSet] = field(init=False)
+    _voxels: dict[int, Voxels] = field(init=False, default_factory=dict)
+    _part_id: dict[int, torch.Tensor] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.singles = [self.recon.index(b) for b in range(len(self.items))]
+
+    def voxels(self, b: int, scorer: VoxelScorer) -> Voxels:
+        """Image ``b``'s voxels, scored by ``scorer`` (:meth:`VoxelScorer.voxels`), once per batch."""
+        if b not in self._voxels:
+            body = self.bodies[b]
+            self._voxels[b] = scorer.voxels(self.singles[b].part_meshes(0), (body.vertices, body.faces))
+        return self._voxels[b]
+
+    def part_id(self, renderer: Renderer) -> torch.Tensor:
+        """``(B, H, W)`` the part in front at each pixel of the input views (-1: none), rendered once per
+        batch and renderer (:func:`~cerberus_core.eval.visibility.input_view_part_id`), on the CPU."""
+        if id(renderer) not in self._part_id:
+            self._part_id[id(renderer)] = input_view_part_id(renderer, self.recon, self.camera).cpu()
+        return self._part_id[id(renderer)]
 
     def scored(self):
         """``(b, item, single reconstruction, ground-truth (vertices, faces), record)`` per image."""
@@ -75,8 +105,8 @@ class StandardIoU:
         self.groups: list[str] = []
 
     def update(self, batch: BatchResult) -> None:
-        for _, item, one, gt, rec in batch.scored():
-            score = self.scorer(one.part_meshes(0), gt)
+        for b, item, _, _, rec in batch.scored():
+            score = batch.voxels(b, self.scorer).score
             self.scores.append(score)
             self.groups.append(item.subject)
             rec.update(iou=score.iou, clipped=score.clipped, error=score.error)
@@ -121,7 +151,7 @@ class PartVisibility:
         self.counts: VisibilityAccumulator | None = None
 
     def update(self, batch: BatchResult) -> None:
-        shown = visible_pixels(self.renderer, batch.recon, batch.camera)
+        shown = part_pixel_counts(batch.part_id(self.renderer), batch.recon.num_parts)
         if self.counts is None:
             self.counts = VisibilityAccumulator(batch.recon.num_parts, (batch.camera.height, batch.camera.width))
         self.counts.add(shown)
@@ -156,3 +186,56 @@ class PartQuality:
 
     def summary(self) -> dict[str, Any] | None:
         return None if self.overlaps is None else self.overlaps.summary()
+
+
+class BodySegments:
+    """Per ground-truth body segment, recall and off-body voxels; per learned part, the IoU lost when it
+    is deleted; per segment, its coverage in the input view (:mod:`cerberus_core.eval.segments`, from
+    the voxels :class:`StandardIoU` scores and the render :class:`PartVisibility` counts). Adds
+    ``voxel_precision``, ``voxel_recall``, ``segment_recall`` and ``deletion_loss`` to each record.
+
+    Args:
+        scorer: the standard IoU's scorer (its voxels are reused).
+        renderer: the backend of the input-view renders (``None``: no coverage).
+    """
+
+    def __init__(self, scorer: VoxelScorer, renderer: Renderer | None) -> None:
+        self.scorer = scorer
+        self.renderer = renderer
+        self.counts: SegmentAccumulator | None = None
+
+    def update(self, batch: BatchResult) -> None:
+        coverage = self._coverage(batch) if self.renderer is not None else [None] * len(batch.items)
+        for b, item, one, _, rec in batch.scored():
+            body = batch.bodies[b]
+            if self.counts is None:
+                self.counts = SegmentAccumulator(list(body.part_names), one.num_parts)
+            elif list(body.part_names) != self.counts.segments:
+                raise ValueError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
+                                 f"item's {self.counts.segments}; body segments need one vocabulary")
+            image = image_segments(batch.voxels(b, self.scorer), body.vertices, body.vertex_parts,
+                                   len(body.part_names), coverage[b])
+            self.counts.add(image)
+            rec.update(image.record())
+
+    def _coverage(self, batch: BatchResult) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per image, which ground-truth vertices project onto a pixel covered by the predicted parts
+        and by the ground truth's own render (one render per body, for all its views in the batch)."""
+        predicted = batch.part_id(self.renderer) >= 0
+        camera = batch.camera.to("cpu")
+        out: list[Any] = [None] * len(batch.items)
+        for group in group_by_body(batch.bodies):
+            body = batch.bodies[group[0]]
+            cams = camera.index(group)
+            verts = torch.as_tensor(body.vertices, dtype=torch.float32).expand(len(group), -1, -1)
+            with torch.no_grad():
+                own = render(self.renderer, verts.to(batch.camera.device).contiguous(),
+                             torch.as_tensor(body.faces), batch.camera.index(group)).part_id.cpu() >= 0
+            covered = covered_vertices(predicted[group], verts, cams).numpy()
+            gt_covered = covered_vertices(own, verts, cams).numpy()
+            for k, b in enumerate(group):
+                out[b] = (covered[k], gt_covered[k])
+        return out
+
+    def summary(self) -> dict[str, Any] | None:
+        return None if self.counts is None else self.counts.summary()

@@ -7,17 +7,21 @@ the input camera's elevation, distance and field of view and change the azimuth.
 
 Figure 1 panels: (a) input, (b) 3D output, (c) parts in colours, (d) new lighting, (e) new viewpoint,
 (f) new pose (the parts of this image with the rotations and translations predicted from another).
-Table 2 columns: input, any number of baselines, ours, parts, turn (ours from another azimuth).
+Table 2 columns: input, any number of baselines, ours, parts, turn (ours from another azimuth); the
+figure ``cerberus eval`` writes adds the voxels the IoU scores, seen from the front and the side
+(:func:`voxel_views`: hits grey, missed voxels red, off-body voxels blue).
 """
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
 from cerberus_core.eval.runner import collate
+from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.api import render_parts
@@ -287,6 +291,59 @@ def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: 
     return labelled_grid(rows, titles, scale=scale)
 
 
+# ------------------------------------------------------------------ voxels: hits, missed, off the body
+#: Colours of :func:`voxel_views`, in the order that breaks ties: voxels both have, only the prediction
+#: has (off the body), only the ground truth has (missed); a later one wins a tie.
+VOXEL_COLOURS: dict[str, RGB] = {"hit": (0.7, 0.7, 0.7), "off-body": (0.15, 0.4, 0.95), "missed": (0.9, 0.1, 0.1)}
+
+
+def voxel_views(voxels: Voxels, size: int, background: RGB = DEFAULT_BACKGROUND) -> Tensor:
+    """The voxels of one score in two orthographic views: front (seen from +z, the way the body faces at
+    azimuth 0: x to the right, y up) and side (seen from +x: z to the left, y up).
+
+    A pixel shows a line of voxels in the colour of the kind most of them are (:data:`VOXEL_COLOURS`:
+    grey hit, blue off the body (prediction only), red missed (ground truth only); a tie goes to
+    missed, then off-body), or the background where the line is empty: a forearm the prediction
+    misses is a red limb beside a grey trunk.
+
+    Args:
+        voxels: :meth:`~cerberus_core.eval.standard.VoxelScorer.voxels` of one image.
+        size: output side in pixels (the lattice box is padded to a square, then scaled by nearest).
+    Returns:
+        ``(2, 3, size, size)`` images in [0, 1]: front, side.
+    """
+    pred, gt = voxels.union, voxels.gt
+    kinds = [pred & gt, pred & ~gt, gt & ~pred]  # the order of VOXEL_COLOURS
+    palette = torch.tensor([background, *VOXEL_COLOURS.values()], dtype=torch.float32)  # (4, 3)
+    views = []
+    for axis, orient in ((2, lambda a: a.T[::-1]), (0, lambda a: a[::-1, ::-1])):  # (X, Y) → rows y, cols x;
+        counts = np.stack([orient(k.sum(axis=axis)) for k in kinds])  # (Y, Z) → rows y, cols -z
+        winner = (counts.shape[0] - 1 - counts[::-1].argmax(0)) + 1  # last of the largest: ties to missed
+        winner[counts.sum(0) == 0] = 0
+        side = max(winner.shape)
+        index = np.zeros((side, side), np.int64)
+        top, left = (side - winner.shape[0]) // 2, (side - winner.shape[1]) // 2
+        index[top:top + winner.shape[0], left:left + winner.shape[1]] = winner
+        image = palette[torch.from_numpy(index)].permute(2, 0, 1)
+        views.append(torch.nn.functional.interpolate(image[None], size=(size, size), mode="nearest")[0])
+    return torch.stack(views)
+
+
+def voxel_legend(width: int) -> Image.Image:
+    """A one-line key to :data:`VOXEL_COLOURS`, ``width`` pixels wide."""
+    font = _font(11)
+    out = Image.new("RGB", (width, 16 + PAD), "white")
+    draw = ImageDraw.Draw(out)
+    x = PAD
+    labels = {"hit": "voxels both have", "missed": "missed (ground truth only)",
+              "off-body": "off the body (prediction only)"}
+    for kind in ("hit", "missed", "off-body"):
+        draw.rectangle((x, PAD, x + 10, PAD + 10), fill=tuple(round(255 * c) for c in VOXEL_COLOURS[kind]))
+        draw.text((x + 14, PAD - 1), labels[kind], fill=(0, 0, 0), font=font)
+        x += 14 + int(draw.textlength(labels[kind], font=font)) + 3 * PAD
+    return out
+
+
 # ------------------------------------------------------------------ one image, every picture
 def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camera: Camera,
                         out_dir: str | Path, stem: str, *, n_views: int = 8,
@@ -316,14 +373,16 @@ def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camer
 
 def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_images: int = 5,
                        baselines: Mapping[str, object] | None = None, device: str = "cpu", viewer_images: int = 12,
-                       title: str = "cerberus eval") -> Path:
+                       title: str = "cerberus eval", scorer: VoxelScorer | None = None) -> Path:
     """The pictures ``cerberus eval`` writes for ``n_images`` test images spread over ``dataset``: the
-    Table-2 figure ``out/table2.png``, Figure 1's panels per image in ``out/pictures/``, and the
+    Table-2 figure ``out/table2.png`` (with two more columns: our voxels seen from the front and the
+    side, :func:`voxel_views`, under a key), Figure 1's panels per image in ``out/pictures/``, and the
     interactive viewer ``out/pictures/index.html`` with the reconstruction, ground-truth and new-pose
     meshes of the first ``viewer_images`` (0: none).
 
     Args:
         model, baselines: objects with ``reconstruct(images, camera) -> PartSet`` (baselines by name).
+        scorer: the voxels' scorer (default ``VoxelScorer()``: the paper's protocol).
     Returns:
         The path of the Table-2 figure.
     """
@@ -338,13 +397,23 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
         ours = model.reconstruct(dev_images, dev_camera).to("cpu")
         others = {name: other.reconstruct(dev_images, dev_camera).to("cpu") for name, other in (baselines or {}).items()}
     background = tuple(dataset.scene.background)
-    fig = comparison_figure(renderer, images, camera, ours, others, background=background)
+    titles, rows = comparison_rows(renderer, images, camera, ours, others, background=background)
+    bodies = [dataset.gt_mesh(i) for i in idx]
+    scorer = scorer or VoxelScorer()
+    for k, (row, body) in enumerate(zip(rows, bodies, strict=True)):
+        row.extend(voxel_views(scorer.voxels(ours.index([k]).part_meshes(0), (body.vertices, body.faces)),
+                               images.shape[-1]))
+    grid = labelled_grid(rows, [*titles, "Voxels: front", "Voxels: side"], scale=2)
+    legend = voxel_legend(grid.width)
+    fig = Image.new("RGB", (grid.width, grid.height + legend.height), "white")
+    fig.paste(grid, (0, 0))
+    fig.paste(legend, (0, grid.height))
     stems = [f"test_{i:05d}" for i in idx]
     for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
         donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
         save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
                             stem, pose_donor=donor, background=background)
     write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,
-                                bodies=[dataset.gt_mesh(i) for i in idx], limit=viewer_images,
+                                bodies=bodies, limit=viewer_images,
                                 limit_hint="viewer_images", background=background, title=title)
     return save_png(fig, out / "table2.png")

@@ -16,6 +16,7 @@ from typing import Any
 
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.runner import EvaluationResult
+from cerberus_core.eval.segments import segments_line
 from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.plumbing.names import printable
@@ -91,7 +92,9 @@ def comparison_table(results: Mapping[str, Mapping[str, float | None]], columns:
 def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "Evaluation") -> str:
     """A readable summary: voxel IoU overall and per subject (standard and Hard Human), then part
     quality (consistency per learned part, with its visibility in the input view, and segmentation
-    IoU per ground-truth part); part visibility gets a table of its own when part quality was not run."""
+    IoU per ground-truth part, per side and with left and right merged); part visibility gets a table
+    of its own when part quality was not run; then depth across views and body segments (recall,
+    off-body voxels and input-view coverage per segment, the IoU lost when each learned part is deleted)."""
     r = to_jsonable(result)
     std, hard = r["standard"], r.get("hard")
     out = [f"# {md_text(title)}", "",
@@ -130,6 +133,9 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
         out += [markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity", "Images",
                                 *vis_header], prow, 3), ""]
         out += [markdown_table(["GT part", "Segmentation IoU"], list(pq["segmentation_iou"].items()), 3), ""]
+        merged = pq.get("sides_merged")
+        if merged:
+            out += _merged_sides(merged)
     elif vis:
         vrow = [[p, *vis_cells(p), px] for p, px in enumerate(vis["mean_visible_pixels"])]
         out += ["## Part visibility", "", _visibility_sentence(vis), "",
@@ -140,7 +146,46 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
         drow = [[p, labels.get(p) or "-", d] for p, d in enumerate(depth["translation_disagreement"])]
         out += ["## Depth across views", "", depth_line(depth)[0].upper() + depth_line(depth)[1:] + ".", "",
                 markdown_table(["Learned part", "Majority GT part", "Translation disagreement"], drow, 3), ""]
+    if r.get("segments"):
+        out += _segments(r["segments"], pq)
     return "\n".join(out)
+
+
+def _merged_sides(merged: Mapping[str, Any]) -> list[str]:
+    """The part-quality tables again, with left and right merged."""
+    rows = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity")]
+            for p in merged["parts"]]
+    return ["### With left and right merged", "",
+            "A grey, untextured body seen from the front or the back looks the same, so no image says which "
+            "limb is the body's left: per-side agreement is capped near 0.5 by the data, not the model. "
+            f"Merged: consistency {_fmt(merged['consistency'])}, mean entropy {_fmt(merged['mean_entropy_bits'], 3)} "
+            f"bits, mean segmentation IoU {_fmt(merged['mean_segmentation_iou'])}.", "",
+            markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity"], rows, 3), "",
+            markdown_table(["GT part", "Segmentation IoU"], list(merged["segmentation_iou"].items()), 3), ""]
+
+
+def _segments(seg: Mapping[str, Any], pq: Mapping[str, Any] | None) -> list[str]:
+    """The body-segment section: per segment, then per learned part."""
+    out = ["## Body segments", "",
+           f"Voxels as the standard IoU scores them, {seg['images']} images: precision {_fmt(seg['voxel_precision'])}, "
+           f"recall {_fmt(seg['voxel_recall'])}. {segments_line(seg)[0].upper() + segments_line(seg)[1:]}.", ""]
+    if seg["segment_labels"]:
+        out += ["Each voxel belongs to the segment of the nearest ground-truth vertex. *Recall*: the share of the "
+                "segment's voxels the prediction covers; *missed* and *off-body*: its share of the voxels only "
+                "the ground truth has, and of those only the prediction has; *input view*: the share of its "
+                "ground-truth vertices that project onto a pixel the predicted parts cover, beside the same for "
+                "the ground truth's own render.", ""]
+        cov = seg["input_view_coverage"]
+        rows = [[k, seg["body_share"][k], seg["recall"][k], seg["missed_share"][k], seg["off_body_share"][k],
+                 *([cov[k], seg["gt_render_coverage"][k]] if cov else [])] for k in seg["segments"]]
+        out += [markdown_table(["GT segment", "Share of body", "Recall", "Share of missed", "Share of off-body",
+                                *(["Input view: predicted", "Input view: ground truth"] if cov else [])], rows, 3), ""]
+    labels = {p["part"]: p["label"] for p in pq["parts"]} if pq else {}
+    rows = [[p, labels.get(p) or "-", loss, "spare" if p in seg["spare_parts"] else ""]
+            for p, loss in enumerate(seg["deletion_loss"])]
+    out += [f"IoU lost when a learned part is deleted (mean over images; spare: at most {seg['spare_threshold']:g}):",
+            "", markdown_table(["Learned part", "Majority GT part", "IoU lost when deleted", "Spare"], rows, 4), ""]
+    return out
 
 
 def _visibility_sentence(vis: Mapping[str, Any]) -> str:

@@ -1,4 +1,5 @@
-"""One pass over a test set: standard voxel IoU, Hard Human, part quality and part visibility together.
+"""One pass over a test set: standard voxel IoU, Hard Human, part quality, part visibility, depth across
+views and body segments together.
 
 The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartSet``
 (world-frame output; the camera is the one the image was rendered with, which the model needs to
@@ -27,6 +28,7 @@ from tqdm import tqdm
 
 from cerberus_core.eval.accumulators import (
     BatchResult,
+    BodySegments,
     HardHumanIoU,
     MetricAccumulator,
     PartQuality,
@@ -129,8 +131,10 @@ class EvaluationResult:
         part_quality: :meth:`PartQualityAccumulator.summary` (``None`` if not run).
         part_visibility: :meth:`VisibilityAccumulator.summary` (``None`` if not run).
         depth: :meth:`DepthAccumulator.summary` (``None`` if not run or no pose has two views).
+        segments: :meth:`~cerberus_core.eval.segments.SegmentAccumulator.summary` (``None`` if not run).
         records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error,
-            visible_pixels (per part, in the input view).
+            visible_pixels (per part, in the input view), voxel_precision, voxel_recall,
+            segment_recall (per ground-truth segment), deletion_loss (per learned part).
         seconds: wall time.
     """
 
@@ -142,6 +146,7 @@ class EvaluationResult:
     part_quality: dict[str, Any] | None
     part_visibility: dict[str, Any] | None = None
     depth: dict[str, Any] | None = None
+    segments: dict[str, Any] | None = None
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -155,6 +160,7 @@ class EvaluationResult:
             "part_quality": self.part_quality,
             "part_visibility": self.part_visibility,
             "depth": self.depth,
+            "segments": self.segments,
             "seconds": round(self.seconds, 3),
             "records": self.records,
         }
@@ -186,6 +192,9 @@ class EvalConfig(Checked):
             render per batch, see :mod:`cerberus_core.eval.visibility`).
         depth: also measure depth across the views of each test pose (per-part translation
             disagreement, turned-view silhouette IoU; :mod:`cerberus_core.eval.depth`).
+        segments: also measure, per ground-truth body segment, voxel recall, off-body voxels and input-view
+            coverage, and per learned part the IoU lost when it is deleted (:mod:`cerberus_core.eval.segments`;
+            no voxelization beyond the standard IoU's, one render of each ground truth per batch).
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
         batch_size, num_workers: model batching, data-loading workers.
         weighting: part-quality vertex weights, ``"area"`` or ``"count"``.
@@ -202,6 +211,7 @@ class EvalConfig(Checked):
     part_quality: bool = True
     visibility: bool = True
     depth: bool = True
+    segments: bool = True
     canonical_view: int | None = ranged(None, ge=0, integer=True)
     batch_size: int = ranged(16, ge=1)
     num_workers: int = ranged(0, ge=0, le=MAX_WORKERS)
@@ -213,14 +223,15 @@ class EvalConfig(Checked):
 def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalConfig, scorer: VoxelScorer,
                         renderer: Renderer | None, device: torch.device | str) -> list[MetricAccumulator]:
     """The accumulators ``config`` asks for, in the order they fill each record: standard IoU, part
-    visibility, Hard Human (its canonical shapes reconstructed now), part quality, depth."""
+    visibility, Hard Human (its canonical shapes reconstructed now), part quality, depth, body segments."""
     hard = None
     if config.hard and (chosen := select_canonical(dataset_metadata(dataset), config.canonical_view)):
         hard = HardHumanIoU(scorer, extract_canonical(dataset, reconstruct, chosen, device, config.batch_size))
-    renderer = renderer or (make_renderer("auto") if config.visibility or config.depth else None)
+    renderer = renderer or (make_renderer("auto") if config.visibility or config.depth or config.segments else None)
     optional = [PartVisibility(renderer) if config.visibility else None, hard,
                 PartQuality(config.weighting, config.density) if config.part_quality else None,
-                DepthAccumulator(renderer) if config.depth else None]
+                DepthAccumulator(renderer) if config.depth else None,
+                BodySegments(scorer, renderer) if config.segments else None]
     return [StandardIoU(scorer), *(a for a in optional if a is not None)]
 
 
@@ -287,6 +298,7 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
         part_quality=None if PartQuality not in found else found[PartQuality].summary(),
         part_visibility=None if PartVisibility not in found else found[PartVisibility].summary(),
         depth=None if DepthAccumulator not in found else found[DepthAccumulator].summary(),
+        segments=None if BodySegments not in found else found[BodySegments].summary(),
         records=records,
         seconds=time.perf_counter() - t0,
     )

@@ -4,7 +4,8 @@ The paper (§5.2) voxelizes prediction and ground truth at 32^3 and takes the un
 voxels as the output. The metric lives in the ``cerberus-metrics`` package and is reached only
 through its ``cerberus.metrics`` entry point ``voxel_iou_scorer`` (:func:`cerberus_core.plugins.get_metric`):
 a factory ``(protocol=, resolution=, cache=) -> scorer`` whose ``scorer(pred_parts, gt)`` returns
-``(iou, clipped)``. The scorer owns what only the metric knows: the ground-truth grid cache (the views
+``(iou, clipped)`` and whose ``scorer.grids(pred_parts, gt)`` keeps the voxels behind that score, each
+predicted part's apart (:class:`Voxels`: per-part and per-region figures scored exactly like the IoU). The scorer owns what only the metric knows: the ground-truth grid cache (the views
 of a pose voxelize their mesh once), the protocol's grid (a predicted part leaving the ``kato`` grid is
 clamped to it, one rule for faces, edges and corners: its voxels outside are dropped; ``clipped`` is the
 number of parts so clamped) and the mesh-quality policy for predictions. Core never imports the
@@ -44,6 +45,29 @@ class Score:
     error: str | None = None
 
 
+@dataclass
+class Voxels:
+    """The voxels one :class:`Score` comes from, each predicted part's apart (:meth:`VoxelScorer.voxels`).
+
+    Attributes:
+        parts: ``(P, X, Y, Z)`` bool, each predicted part's solid voxels (all empty for a prediction
+            the metric rejected).
+        gt: ``(X, Y, Z)`` bool, the ground truth's, on the same lattice box.
+        score: the score of the union of ``parts`` against ``gt`` (what :meth:`VoxelScorer.__call__` gives).
+        centers: ``(N, 3)`` voxel indices of this box → ``(N, 3)`` mesh coordinates of their centres.
+    """
+
+    parts: np.ndarray
+    gt: np.ndarray
+    score: Score
+    centers: Callable[[np.ndarray], np.ndarray]
+
+    @property
+    def union(self) -> np.ndarray:
+        """``(X, Y, Z)`` bool, the prediction (the union of its parts)."""
+        return self.parts.any(axis=0)
+
+
 class VoxelScorer:
     """Voxel IoU of predicted parts (their union) against a ground-truth mesh.
 
@@ -74,6 +98,17 @@ class VoxelScorer:
             self.scorer([gt], gt)
             return Score(0.0, 0, f"{type(exc).__name__}: {exc}")
         return Score(iou, int(clipped))
+
+    def voxels(self, parts: list[MeshPair], gt: MeshPair) -> Voxels:
+        """Score one prediction like :meth:`__call__` and keep its voxels, part by part (the metric's
+        ``scorer.grids``: the same voxelization, so ``voxels(...).score == self(...)``)."""
+        try:
+            grids = self.scorer.grids(parts, gt)
+        except Exception as exc:  # noqa: BLE001 - a rejected prediction scores 0, as in __call__
+            truth = self.scorer.grids([gt], gt)  # a ground truth the metric refuses raises here
+            return Voxels(np.zeros_like(truth.parts[:1]).repeat(len(parts), 0), truth.gt,
+                          Score(0.0, 0, f"{type(exc).__name__}: {exc}"), truth.centers)
+        return Voxels(grids.parts, grids.gt, Score(grids.iou, int(grids.clamped)), grids.centers)
 
 
 class GroundTruthMemo:

@@ -32,22 +32,31 @@ from cerberus_core.shapes import check_shapes
 Tensor = torch.Tensor
 
 
-def visible_pixels(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor:
-    """Pixels where each part is the front surface, seen from the given cameras.
+def input_view_part_id(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor:
+    """The part in front at each pixel, seen from the given cameras.
 
     Args:
         renderer: a backend from :func:`cerberus_core.make_renderer`.
         recon: ``B`` reconstructions of ``P`` parts (world frame).
         camera: ``B`` cameras (the input views); the render is ``camera.height x camera.width``.
     Returns:
-        ``(B, P)`` int64 on the CPU: pixel counts (0: the part is wholly hidden in that image).
+        ``(B, H, W)`` int64 on the camera's device: the part index, -1 on background.
     """
     if recon.batch_size != camera.batch_size:
-        raise ValueError(f"visible_pixels: {recon.batch_size} reconstructions but {camera.batch_size} cameras")
+        raise ValueError(f"input_view_part_id: {recon.batch_size} reconstructions but {camera.batch_size} cameras")
     recon = recon.to(camera.device)
     with torch.no_grad():
-        part_id = render_parts(renderer, recon.posed(), recon.faces, camera).part_id  # (B, H, W), -1 background
-    return part_pixel_counts(part_id, recon.num_parts).cpu()
+        return render_parts(renderer, recon.posed(), recon.faces, camera).part_id
+
+
+def visible_pixels(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor:
+    """Pixels where each part is the front surface, seen from the given cameras (arguments as
+    :func:`input_view_part_id`).
+
+    Returns:
+        ``(B, P)`` int64 on the CPU: pixel counts (0: the part is wholly hidden in that image).
+    """
+    return part_pixel_counts(input_view_part_id(renderer, recon, camera), recon.num_parts).cpu()
 
 
 @dataclass

@@ -1,0 +1,260 @@
+"""Body segments: which parts of the body a reconstruction misses, where its extra voxels lie, which
+learned parts matter, and what the input view already shows of each segment. (Beyond the paper.)
+
+Everything voxel-based here comes from the voxels the standard IoU is scored on
+(:meth:`cerberus_core.eval.standard.VoxelScorer.voxels`: the same voxelization, each predicted part
+kept apart), so it adds no voxelization. Per test image (:func:`image_segments`):
+
+* **Segment of a voxel.** A voxel belongs to the ground-truth segment (``PosedBody.vertex_parts``:
+  head, torso, lower_arm.L, ...) of the ground-truth vertex nearest to its centre (a k-d tree).
+* **Recall per segment**: the fraction of a segment's ground-truth voxels that the prediction (the
+  union of its parts) covers. **Missed** voxels are ground truth only.
+* **Off-body voxels**: predicted voxels outside the ground truth, each attributed to the nearest
+  segment (same rule); a segment's *off-body share* is its share of all of them.
+* **Deletion loss** per learned part (:func:`deletion_losses`): the voxel IoU minus the IoU of the
+  prediction without that part (the voxels only it covers removed). A part whose mean loss over the
+  test set is at most :data:`SPARE_LOSS` is *spare*: the reconstruction barely needs it.
+* **Input-view coverage** per segment (:func:`covered_vertices`): the fraction of a segment's
+  ground-truth vertices that project onto a pixel the predicted parts cover in the input view
+  (the reconstruction rendered from the image's camera, at the image's size), beside the same
+  fraction for the ground truth's own render (the ceiling at that resolution: vertices of thin limbs
+  project between pixel centres). A segment missed in the voxels but covered in the image is a depth
+  problem; one missed in the image already is a silhouette problem.
+
+Over the test set (:class:`SegmentAccumulator`) voxel and vertex counts are summed before dividing
+(pooled), and deletion losses are averaged over images.
+
+**No segment labels.** A mesh folder without ``parts.npy`` has one ground-truth part, ``body``; then
+no per-segment figure is scored (``segment_labels`` is ``False`` and ``note`` says so in one line),
+while the overall voxel precision and recall, the deletion losses and the spare parts still are.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from cerberus_core.errors import MissingPackageError, ShapeError
+from cerberus_core.eval.standard import Voxels
+from cerberus_core.render.camera import Camera
+from cerberus_core.shapes import check_shapes
+
+Tensor = torch.Tensor
+
+SPARE_LOSS = 0.003
+"""A learned part whose deletion costs at most this much voxel IoU (mean over the test set) is spare."""
+
+
+def nearest_labels(points: np.ndarray, vertices: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """``(N,)`` the label of the vertex nearest to each of ``points`` ``(N, 3)`` (``vertices`` ``(V, 3)``,
+    ``labels`` ``(V,)``; same frame)."""
+    try:
+        from scipy.spatial import cKDTree
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MissingPackageError("body-segment evaluation needs scipy: pip install 'cerberus-core[eval]', "
+                                  "or pass segments=False") from exc
+    if len(points) == 0:
+        return np.zeros(0, np.int64)
+    _, idx = cKDTree(np.asarray(vertices, np.float64)).query(np.asarray(points, np.float64), k=1)
+    return np.asarray(labels, np.int64)[idx]
+
+
+def deletion_losses(parts: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Voxel IoU lost when each part is deleted.
+
+    Args:
+        parts: ``(P, X, Y, Z)`` bool, each part's voxels; gt: ``(X, Y, Z)`` bool (not empty).
+    Returns:
+        ``(P,)`` float64: ``IoU(union of parts, gt) - IoU(union of the other parts, gt)`` (>= 0 only
+        where the part helps; a part wholly off the body has a negative loss).
+    """
+    check_shapes("deletion_losses", parts=(parts, "P X Y Z"), gt=(gt, "X Y Z"))
+    count = parts.sum(axis=0, dtype=np.int32)
+    union = count > 0
+    inter = int(np.count_nonzero(union & gt))
+    total = int(np.count_nonzero(union | gt))
+    sole = parts & (count == 1)  # voxels only this part covers: deleting it removes exactly these
+    sole_in = np.count_nonzero(sole & gt, axis=(1, 2, 3))
+    sole_out = np.count_nonzero(sole & ~gt, axis=(1, 2, 3))
+    return inter / total - (inter - sole_in) / (total - sole_out)
+
+
+def covered_vertices(mask: Tensor, vertices: Tensor, camera: Camera) -> Tensor:
+    """Which vertices project onto a pixel of a mask.
+
+    Args:
+        mask: ``(B, H, W)`` bool, e.g. where a render shows anything.
+        vertices: ``(B, V, 3)`` world coordinates.
+        camera: ``B`` cameras of size ``H x W``.
+    Returns:
+        ``(B, V)`` bool: the vertex's projection lies in a pixel (``[j, j + 1)``) where ``mask`` is set
+        (occluded vertices count: coverage, not visibility; vertices off the image are uncovered).
+    """
+    check_shapes("covered_vertices", mask=(mask, "B H W"), vertices=(vertices, "B V 3"))
+    uv, _ = camera.project(vertices)
+    col, row = uv[..., 0].floor().long(), uv[..., 1].floor().long()
+    h, w = mask.shape[-2:]
+    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    flat = (row.clamp(0, h - 1) * w + col.clamp(0, w - 1))
+    return inside & torch.gather(mask.reshape(mask.shape[0], -1), 1, flat)
+
+
+@dataclass
+class ImageSegments:
+    """One image's counts per ground-truth segment (``K``) and per learned part (``P``).
+
+    Attributes:
+        gt_voxels, hit_voxels, off_voxels: ``(K,)`` the segment's ground-truth voxels, those the
+            prediction covers, and the off-body predicted voxels attributed to it.
+        deletion_loss: ``(P,)`` :func:`deletion_losses`.
+        vertices, covered, gt_covered: ``(K,)`` the segment's ground-truth vertices, those projecting
+            onto a pixel the predicted parts cover in the input view, and onto one the ground truth's
+            own render covers (all zero when coverage was not measured).
+    """
+
+    gt_voxels: np.ndarray
+    hit_voxels: np.ndarray
+    off_voxels: np.ndarray
+    deletion_loss: np.ndarray
+    vertices: np.ndarray
+    covered: np.ndarray
+    gt_covered: np.ndarray
+
+    def record(self) -> dict[str, Any]:
+        """What an image's record keeps: voxel precision and recall, recall per segment (``None``
+        where the segment has no voxel) and the deletion loss per learned part."""
+        pred = int(self.hit_voxels.sum() + self.off_voxels.sum())
+        gt = int(self.gt_voxels.sum())
+        return {"voxel_precision": float(self.hit_voxels.sum() / pred) if pred else None,
+                "voxel_recall": float(self.hit_voxels.sum() / gt) if gt else None,
+                "segment_recall": [round(float(h / g), 5) if g else None
+                                   for h, g in zip(self.hit_voxels, self.gt_voxels, strict=True)],
+                "deletion_loss": [round(float(v), 5) for v in self.deletion_loss]}
+
+
+def image_segments(voxels: Voxels, gt_vertices: np.ndarray, vertex_parts: np.ndarray, num_segments: int,
+                   coverage: tuple[np.ndarray, np.ndarray] | None = None) -> ImageSegments:
+    """The counts of one image (see the module docstring).
+
+    Args:
+        voxels: the image's :class:`~cerberus_core.eval.standard.Voxels`.
+        gt_vertices: ``(V, 3)`` the ground-truth mesh's vertices (mesh units, the frame voxelized);
+            vertex_parts: ``(V,)`` their segments, ``num_segments`` of them.
+        coverage: ``(covered, gt_covered)``, ``(V,)`` bool each (:func:`covered_vertices` for the
+            prediction's and the ground truth's renders), or ``None``.
+    """
+    labels = np.asarray(vertex_parts, np.int64)
+    union = voxels.union
+    occupied = voxels.gt | union
+    seg = nearest_labels(voxels.centers(np.argwhere(occupied)), gt_vertices, labels)  # one k-d tree per image
+    in_gt = voxels.gt[occupied]  # np.argwhere and boolean indexing share C order
+    gt_seg, off_seg = seg[in_gt], seg[~in_gt]
+    hit = union[voxels.gt]
+    k = num_segments
+    zeros = np.zeros(k, np.int64)
+    counts = np.bincount(labels, minlength=k)
+    return ImageSegments(
+        gt_voxels=np.bincount(gt_seg, minlength=k), hit_voxels=np.bincount(gt_seg[hit], minlength=k),
+        off_voxels=np.bincount(off_seg, minlength=k), deletion_loss=deletion_losses(voxels.parts, voxels.gt),
+        vertices=counts if coverage is not None else zeros,
+        covered=zeros if coverage is None else np.bincount(labels[coverage[0]], minlength=k),
+        gt_covered=zeros if coverage is None else np.bincount(labels[coverage[1]], minlength=k))
+
+
+def _ratio(num: np.ndarray, den: np.ndarray) -> list[float | None]:
+    return [float(n / d) if d else None for n, d in zip(num, den, strict=True)]
+
+
+@dataclass
+class SegmentAccumulator:
+    """Collects :class:`ImageSegments` and summarises them over the test set.
+
+    Args:
+        segments: the ``K`` ground-truth segment names; num_parts: learned parts ``P``.
+    """
+
+    segments: list[str]
+    num_parts: int
+    images: list[ImageSegments] = field(default_factory=list)
+
+    def add(self, image: ImageSegments) -> None:
+        check_shapes("SegmentAccumulator.add", gt_voxels=(image.gt_voxels, f"{len(self.segments)}"),
+                     deletion_loss=(image.deletion_loss, f"{self.num_parts}"))
+        self.images.append(image)
+
+    def summary(self) -> dict[str, Any]:
+        """Returns a dict: ``images``, ``segments`` (K names), ``segment_labels`` (bool: at least two
+        segments hold voxels), ``note`` (one line without segment labels, else ``None``),
+        ``voxel_precision`` and ``voxel_recall`` (pooled over every voxel), ``spare_threshold``,
+        ``deletion_loss`` (per learned part, mean over images), ``spare_parts`` (their indices) and
+        ``spare_count``; and per segment, ``{name: value}`` (``None`` where undefined; empty without
+        segment labels): ``body_share`` (its share of the ground-truth voxels), ``recall``,
+        ``missed_share`` (its share of the missed voxels), ``off_body_share``, ``input_view_coverage``
+        and ``gt_render_coverage`` (the last two empty when coverage was not measured).
+        """
+        if not self.images:
+            raise ShapeError("SegmentAccumulator.summary: no images were added; add each image's counts "
+                             "(SegmentAccumulator.add) before summarising")
+
+        def total(name: str) -> np.ndarray:
+            return np.sum([getattr(im, name) for im in self.images], axis=0)
+
+        gt, hit, off = total("gt_voxels"), total("hit_voxels"), total("off_voxels")
+        verts, covered, gt_covered = total("vertices"), total("covered"), total("gt_covered")
+        loss = np.mean([im.deletion_loss for im in self.images], axis=0)
+        spare = [p for p in range(self.num_parts) if loss[p] <= SPARE_LOSS]
+        present = [self.segments[k] for k in np.flatnonzero(gt > 0)]
+        labelled = len(present) >= 2
+        out: dict[str, Any] = {
+            "images": len(self.images), "segments": list(self.segments), "segment_labels": labelled,
+            "note": None if labelled else (
+                f"no segment labels: the ground truth has {len(present)} labelled segment"
+                f"{'' if len(present) == 1 else 's'} ({', '.join(present) or 'none'}), so nothing is scored per "
+                "segment; give the meshes per-vertex part labels (parts.npy) to score it"),
+            "voxel_precision": float(hit.sum() / (hit.sum() + off.sum())) if hit.sum() + off.sum() else None,
+            "voxel_recall": float(hit.sum() / gt.sum()) if gt.sum() else None,
+            "spare_threshold": SPARE_LOSS,
+            "deletion_loss": [float(v) for v in loss],
+            "spare_parts": spare, "spare_count": len(spare),
+            "body_share": {}, "recall": {}, "missed_share": {}, "off_body_share": {},
+            "input_view_coverage": {}, "gt_render_coverage": {},
+        }
+        if not labelled:
+            return out
+        missed = gt - hit
+        per_segment = {"body_share": _ratio(gt, np.full_like(gt, gt.sum())), "recall": _ratio(hit, gt),
+                       "missed_share": _ratio(missed, np.full_like(missed, missed.sum())),
+                       "off_body_share": _ratio(off, np.full_like(off, off.sum()))}
+        if verts.sum():
+            per_segment |= {"input_view_coverage": _ratio(covered, verts),
+                            "gt_render_coverage": _ratio(gt_covered, verts)}
+        for key, values in per_segment.items():
+            out[key] = dict(zip(self.segments, values, strict=True))
+        return out
+
+
+def segments_line(summary: dict[str, Any], lowest: int = 4) -> str:
+    """One line for a console: the ``lowest`` segment recalls and the spare parts, e.g. ``voxel recall
+    by body segment: lowest lower_arm.R 0.13, lower_arm.L 0.15 (highest torso 0.91); spare learned parts
+    (deleting one costs <= 0.003 IoU): 6 of 9``; works on :meth:`SegmentAccumulator.summary` or its JSON form."""
+    spare = (f"spare learned parts (deleting one costs <= {summary['spare_threshold']:g} IoU): "
+             f"{summary['spare_count']} of {len(summary['deletion_loss'])}")
+    recall = {k: v for k, v in summary["recall"].items() if v is not None}
+    if not summary["segment_labels"] or not recall:
+        return f"{summary['note'] or 'no segment recall'}; {spare}"
+    order = sorted(recall, key=recall.get)
+    best = order[-1]
+    return ("voxel recall by body segment: lowest " + ", ".join(f"{k} {recall[k]:.2f}" for k in order[:lowest])
+            + f" (highest {best} {recall[best]:.2f}); {spare}")
+
+
+def group_by_body(bodies: Sequence[Any]) -> list[list[int]]:
+    """Indices of a batch's images grouped by their ground-truth body object (the views of a pose share
+    one), in first-seen order: one render per group."""
+    groups: dict[int, list[int]] = {}
+    for b, body in enumerate(bodies):
+        groups.setdefault(id(body), []).append(b)
+    return list(groups.values())
