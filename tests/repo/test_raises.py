@@ -10,21 +10,6 @@ PACKAGES = Path(__file__).resolve().parents[2] / "packages"
 
 BARE = {"ValueError", "TypeError", "RuntimeError"}
 
-#: Modules whose raises are still to be typed: other branches were rewriting them while the data wing (bodies/,
-#: datasets/) was swept (issue 32). Shrink it; a module that is clean must leave it (the test says so).
-NOT_YET_SWEPT = {
-    "cerberus_core/eval/accumulators.py", "cerberus_core/eval/depth.py", "cerberus_core/eval/export.py",
-    "cerberus_core/eval/figures.py", "cerberus_core/eval/hard.py", "cerberus_core/eval/images.py",
-    "cerberus_core/eval/part_quality.py", "cerberus_core/eval/runner.py", "cerberus_core/eval/standard.py",
-    "cerberus_core/eval/viewer.py", "cerberus_core/eval/visibility.py", "cerberus_core/losses.py",
-    "cerberus_core/model/cerberus.py", "cerberus_core/model/encoder.py", "cerberus_core/model/heads.py",
-    "cerberus_core/parts.py", "cerberus_core/render/antialias.py", "cerberus_core/render/api.py",
-    "cerberus_core/render/camera.py", "cerberus_core/render/interface.py", "cerberus_core/render/ops.py",
-    "cerberus_core/render/templates.py", "cerberus_core/train/data.py", "cerberus_core/train/objective.py",
-    "cerberus_metrics/distances.py", "cerberus_render_torch/rasterize.py", "cerberus_render_warp/_runtime.py",
-    "cerberus_render_warp/rasterize.py",
-}
-
 
 def bare_raises(source: str) -> list[tuple[int, str]]:
     """``(line, name)`` of every ``raise ValueError(...)`` (or ``TypeError``, ``RuntimeError``, or the bare name)."""
@@ -50,11 +35,8 @@ def test_no_bare_builtin_error_is_raised_on_purpose():
     modules = _modules()
     assert "cerberus_core/datasets/dataset.py" in modules
     found = {name: bare_raises(path.read_text(encoding="utf-8")) for name, path in modules.items()}
-    offenders = [f"{name}:{line}: raise {kind}" for name, hits in found.items() if name not in NOT_YET_SWEPT
-                 for line, kind in hits]
-    assert not offenders, "raise a CerberusError subclass that says the problem and the fix:\n" + "\n".join(offenders)
-    clean = sorted(name for name in NOT_YET_SWEPT if name in modules and not found[name])
-    assert not clean, f"these modules are swept now: drop them from NOT_YET_SWEPT: {clean}"
+    offenders = [f"{name}:{line}: raise {kind}" for name, hits in found.items() for line, kind in hits]
+    assert not offenders, "raise a CerberusError subclass (in cerberus_metrics a MetricsError) that says the problem and the fix:\n" + "\n".join(offenders)
 
 
 def test_the_scan_sees_every_form_of_a_bare_raise():

@@ -12,13 +12,23 @@ of them the same way, and one module, so that no layer imports another just for 
 * :class:`MissingPackageError` — an optional package a feature needs is not installed (the message
   names the ``pip install`` that brings it);
 * :class:`OutputError` — a result cannot be written (read-only, unwritable or full destination, a name
-  the file system refuses); nothing half-written is left behind.
+  the file system refuses); nothing half-written is left behind;
+* :class:`RenderInputError` — a camera or render call the renderer cannot draw (a field of view, image size
+  or near/far out of range, more faces than a backend holds);
+* :class:`MeshError` — a mesh (a template, a reconstruction's parts, an exported mesh) that is broken: no
+  faces, faces indexing outside the vertices, templates that differ, NaN or inf vertices;
+* :class:`BackendError` — a renderer backend cannot run here (its runtime does not start, no device of it
+  matches the tensors');
+* :class:`InputTypeError` — an argument of the wrong kind (not the model, renderer or reconstruction the function
+  takes) or an option the callee does not know.
 
 Errors that belong to one module derive from :class:`CerberusError` there (the plugin errors in
 :mod:`cerberus_core.plugins`, the lock, checkpoint, zoo and image-input errors).
 
-``DatasetError`` and ``ConfigError`` are also ``ValueError``\\ s, so ``except ValueError`` keeps
-catching them; ``OutputError`` is an ``OSError`` (with the original ``errno``).
+Each is also the builtin error it replaced, so ``except ValueError`` keeps catching them: ``DatasetError``,
+``ConfigError``, ``ShapeError``, ``DeviceError``, ``RenderInputError`` and ``MeshError`` are ``ValueError``\\ s,
+``BackendError`` a ``RuntimeError``, ``InputTypeError`` a ``TypeError``, ``OutputError`` an ``OSError`` (with
+the original ``errno``).
 
 Messages say the problem and the fix in Python terms, never a command-line flag: a setting is named as its
 config key, parameter or field, in backticks where the fix sets it (`` `train.steps=VALUE` ``,
@@ -95,4 +105,25 @@ class OutputError(CerberusError, OSError):
     read-only or full file system, a name too long) and the fix."""
 
 
-__all__ = ["CerberusError", "ConfigError", "DatasetError", "DeviceError", "MissingPackageError", "OutputError", "ShapeError"]
+class RenderInputError(CerberusError, ValueError):
+    """A camera or a render call the renderer cannot draw (field of view, image size, near/far planes, a
+    backend's face limit): the message names the value and the range allowed."""
+
+
+class MeshError(CerberusError, ValueError):
+    """A broken mesh (a template without faces, faces outside the vertices, part sets on different templates,
+    NaN or inf vertices): the message names the mesh and the fix."""
+
+
+class BackendError(CerberusError, RuntimeError):
+    """A renderer backend cannot run here (its runtime fails to start, it has no device matching the
+    tensors'): the message names the backend, the cause and the fix."""
+
+
+class InputTypeError(CerberusError, TypeError):
+    """An argument of the wrong kind (an object that is not the model, renderer or reconstruction the function
+    takes) or an option the callee does not know: the message names what came and what is taken."""
+
+
+__all__ = ["BackendError", "CerberusError", "ConfigError", "DatasetError", "DeviceError", "InputTypeError",
+           "MeshError", "MissingPackageError", "OutputError", "RenderInputError", "ShapeError"]

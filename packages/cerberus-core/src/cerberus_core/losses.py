@@ -33,6 +33,7 @@ from collections.abc import Callable
 
 import torch
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.parts import pose_parts
 from cerberus_core.render.nearest import nearest_indices
 from cerberus_core.shapes import check_shapes
@@ -122,7 +123,8 @@ def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Te
     if cross_view == "own":
         return own, own
     if cross_view != "partner":
-        raise ValueError(f"viewpoint_scenes: cross_view must be 'partner' or 'own', got {cross_view!r}")
+        raise ConfigError.about("losses.cross_view", cross_view, "viewpoint_scenes: must be 'partner' or 'own'",
+                                "`losses.cross_view=\"partner\"` (the paper's)")
     cross = pose_parts(local_vertices, rotations, translations[:, list(VIEW_PARTNER)])
     return own, cross
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from cerberus_core.errors import MeshError, ShapeError
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
@@ -57,9 +58,10 @@ class PartSet:
         v = check_shapes("PartSet", local_vertices=(lv, "B P V 3"), faces=(f, "F 3"), rotations=(r, "B P 3 3"),
                          translations=(t, "B P 3"))["V"]
         if f.dtype not in (torch.int32, torch.int64):
-            raise ValueError(f"PartSet.faces must be an integer tensor, got {f.dtype}")
+            raise ShapeError(f"PartSet.faces must be an integer tensor, got {f.dtype}; pass `faces.long()`")
         if f.numel() and (int(f.min()) < 0 or int(f.max()) >= v):
-            raise ValueError(f"PartSet.faces index vertices outside 0..{v - 1}")
+            raise MeshError(f"PartSet.faces index vertices outside 0..{v - 1}; pass the faces of the template the "
+                            "vertices were made from")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -119,7 +121,8 @@ class PartSet:
         first = items[0]
         for it in items[1:]:
             if it.faces.shape != first.faces.shape or not torch.equal(it.faces.cpu(), first.faces.cpu()):
-                raise ValueError("PartSet.cat: reconstructions must share one face template")
+                raise MeshError("PartSet.cat: reconstructions must share one face template; concatenate only "
+                                "reconstructions of one model")
         return PartSet(torch.cat([i.local_vertices for i in items]), first.faces,
                                   torch.cat([i.rotations for i in items]), torch.cat([i.translations for i in items]))
 
@@ -146,10 +149,12 @@ def transfer_pose(shapes: PartSet, poses: PartSet) -> PartSet:
         A batch-``B`` reconstruction whose ``posed()`` is ``shapes.local @ poses.R^T + poses.T``.
     """
     if shapes.num_parts != poses.num_parts:
-        raise ValueError(f"transfer_pose: shapes have {shapes.num_parts} parts but poses have {poses.num_parts}")
+        raise ShapeError(f"transfer_pose: shapes have {shapes.num_parts} parts but poses have {poses.num_parts}; "
+                         "pass shapes and poses of one model")
     b = poses.batch_size
     if shapes.batch_size not in (1, b):
-        raise ValueError(f"transfer_pose: shapes batch must be 1 or {b}, got {shapes.batch_size}")
+        raise ShapeError(f"transfer_pose: shapes batch must be 1 or {b}, got {shapes.batch_size}; pass one shape, "
+                         "or one per pose")
     local = shapes.local_vertices.to(poses.rotations.device)
     if local.shape[0] != b:
         local = local.expand(b, -1, -1, -1)

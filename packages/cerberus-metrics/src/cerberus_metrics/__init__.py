@@ -20,6 +20,7 @@ from .api import (
     voxelize,
 )
 from .cache import GridCache
+from .errors import MeasurementError, MetricsError
 from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
 from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
 from .voxelize import PartGrids, VoxelGrid, grid_iou
@@ -31,10 +32,12 @@ __all__ = [
     "PROTOCOLS",
     "Frame",
     "GridCache",
+    "MeasurementError",
     "Mesh",
     "MeshInputError",
     "MeshQualityWarning",
     "MeshReport",
+    "MetricsError",
     "PartGrids",
     "Protocol",
     "VoxelGrid",

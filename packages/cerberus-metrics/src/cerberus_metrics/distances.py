@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymeshlab
 
+from .errors import MeasurementError
 from .io import Mesh, MeshInputError
 
 __all__ = ["MAX_SAMPLES", "check_samples", "sample_surface", "nearest_distances", "PointDistances", "point_distances"]
@@ -74,7 +75,7 @@ def nearest_distances(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
         maxdist=pymeshlab.PureValue(2.0 * diag + 1.0),
     )
     if int(res["n_samples"]) != src.shape[0]:
-        raise RuntimeError(f"pymeshlab measured {res['n_samples']} of {src.shape[0]} points; please report this")
+        raise MeasurementError(f"pymeshlab measured {res['n_samples']} of {src.shape[0]} points; please report this")
     a = ms.mesh(2).vertex_matrix()
     b = ms.mesh(3).vertex_matrix()
     return np.linalg.norm(a - b, axis=1)

@@ -29,6 +29,7 @@ from typing import Any, Union
 import numpy as np
 import pymeshlab
 
+from .errors import MetricsError
 from .filecheck import FileDefect, check_counts, scan_mesh_file
 
 __all__ = [
@@ -49,7 +50,7 @@ MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf", ".3ds", ".dae"
 OPEN_MESH_POLICIES = ("warn", "close", "error")
 
 
-class MeshInputError(ValueError):
+class MeshInputError(MetricsError, ValueError):
     """An input mesh cannot be evaluated. The message names the input, the problem and the fix."""
 
 

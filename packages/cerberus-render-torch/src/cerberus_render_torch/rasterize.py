@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import torch
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.render.camera import centre_range, pixel_centres
 from cerberus_core.render.interface import Renderer
 
@@ -121,7 +122,8 @@ class TorchRenderer(Renderer):
     def __init__(self, max_candidates: int = 1 << 23, **options) -> None:
         super().__init__(**options)
         if max_candidates < 1:
-            raise ValueError("max_candidates must be positive")
+            raise ConfigError.about("max_candidates", max_candidates, "must be positive",
+                                    "lower it to save memory, but keep it 1 or more")
         self.max_candidates = int(max_candidates)
 
     def rasterize(self, clip: Tensor, faces: Tensor, height: int, width: int, near: float) -> Tensor:

@@ -12,12 +12,14 @@ from typing import Any
 
 import torch
 
+from cerberus_core.errors import BackendError, DeviceError, MissingPackageError
+
 WARP_REQUIREMENT = "warp-lang>=1.19"
 
 try:
     import warp as wp
 except ImportError as exc:  # pragma: no cover - exercised only without warp installed
-    raise ImportError(
+    raise MissingPackageError(
         f"the 'warp' renderer needs NVIDIA Warp, which could not be imported ({exc}). "
         f"Install it with `pip install '{WARP_REQUIREMENT}'`, or use the 'torch' renderer."
     ) from exc
@@ -28,7 +30,7 @@ quiet_warp_logging()  # no banner on init, no "module loaded/compiled" lines
 _pool_lock = threading.Lock()
 
 
-class WarpInitError(RuntimeError):
+class WarpInitError(BackendError):
     """Warp is installed but its runtime could not be initialised."""
 
 
@@ -48,11 +50,12 @@ def warp_device(device: torch.device):
     """The Warp device for a torch device (``cpu`` or the matching ``cuda:N``)."""
     ensure_init()
     if device.type not in ("cpu", "cuda"):
-        raise ValueError(f"the 'warp' renderer runs on cpu or cuda tensors, got device {device}")
+        raise DeviceError(f"the 'warp' renderer runs on cpu or cuda tensors, got device {device}; move the tensors "
+                          "there, or use the 'torch' renderer")
     try:
         return wp.device_from_torch(device)
     except RuntimeError as exc:
-        raise RuntimeError(
+        raise BackendError(
             f"Warp has no device matching torch device {device} ({exc}); check the NVIDIA driver, "
             "or move the tensors to the CPU"
         ) from exc

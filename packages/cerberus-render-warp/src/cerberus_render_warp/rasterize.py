@@ -19,6 +19,7 @@ from typing import Any
 
 import torch
 
+from cerberus_core.errors import ConfigError, RenderInputError
 from cerberus_core.render.camera import BBOX_EPS, PIXEL_CENTRE, pixel_centres
 from cerberus_render_warp._common import KERNEL_OPTIONS, Tensor, span, wp
 from cerberus_render_warp._runtime import as_warp, items_per_thread, launch_scenes, launch_stream, vec_view, warp_device
@@ -211,7 +212,8 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
     if bsz == 0 or nfaces == 0:
         return out
     if nfaces >= NO_FACE:
-        raise ValueError(f"warp renderer: at most {NO_FACE - 1} faces per scene, got {nfaces}")
+        raise RenderInputError(f"warp renderer: at most {NO_FACE - 1} faces per scene, got {nfaces}; split the "
+                               "scene, or use the 'torch' renderer")
     device = warp_device(clip.device)
     stream = launch_stream(clip.device)
     clip = clip.detach()
@@ -224,7 +226,7 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
     if serial is None:
         serial = device.is_cpu
     elif serial and not device.is_cpu:
-        raise ValueError("warp renderer: serial rasterization is only exact on the CPU; use serial=False on CUDA")
+        raise ConfigError("warp renderer: serial rasterization is only exact on the CPU; use `serial=False` on CUDA")
     # Each vertex's pixel bounds once, instead of re-projecting it for every triangle it is in.
     nverts = clip.shape[1]
     bounds = torch.empty((bsz, nverts, 4), dtype=torch.int32, device=clip.device)

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from cerberus_core.bodies.body import PosedBody
+from cerberus_core.errors import DatasetError
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
 from cerberus_core.eval.segments import (
@@ -178,8 +179,9 @@ class PartQuality:
             if self.overlaps is None:
                 self.overlaps = PartQualityAccumulator(batch.recon.num_parts, list(body.part_names))
             elif list(body.part_names) != self.overlaps.gt_part_names:
-                raise ValueError(f"item {item.index}: ground-truth part names {body.part_names} differ from the "
-                                 f"first item's {self.overlaps.gt_part_names}; part quality needs one part vocabulary")
+                raise DatasetError(f"item {item.index}: ground-truth part names {body.part_names} differ from the "
+                                   f"first item's {self.overlaps.gt_part_names}; part quality needs one part "
+                                   "vocabulary: evaluate a dataset of one body source")
             self.overlaps.add(image_overlap(one.posed()[0].numpy(), faces, body.vertices, body.faces,
                                             body.vertex_parts, len(body.part_names), weighting=self.weighting,
                                             density=self.density), item.subject)
@@ -211,8 +213,9 @@ class BodySegments:
             if self.counts is None:
                 self.counts = SegmentAccumulator(list(body.part_names), one.num_parts)
             elif list(body.part_names) != self.counts.segments:
-                raise ValueError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
-                                 f"item's {self.counts.segments}; body segments need one vocabulary")
+                raise DatasetError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
+                                   f"item's {self.counts.segments}; body segments need one vocabulary: evaluate a "
+                                   "dataset of one body source")
             image = image_segments(batch.voxels(b, self.scorer), body.vertices, body.vertex_parts,
                                    len(body.part_names), coverage[b])
             self.counts.add(image)

@@ -24,6 +24,7 @@ from typing import Any
 
 import torch
 
+from cerberus_core.errors import ShapeError
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -45,7 +46,8 @@ def translation_disagreement(translations: Tensor) -> Tensor:
     check_shapes("translation_disagreement", translations=(translations, "K N 3"))
     k = translations.shape[0]
     if k < 2:
-        raise ValueError("translation_disagreement: needs the translations of at least 2 views of the pose")
+        raise ShapeError("translation_disagreement: needs the translations of at least 2 views of the pose; "
+                         "pass (K, N, 3) with K >= 2")
     pairs = torch.tensor(list(combinations(range(k), 2)))
     return (translations[pairs[:, 0]] - translations[pairs[:, 1]]).norm(dim=-1).mean(0)
 
@@ -80,7 +82,8 @@ def turned_view_ious(renderer: Renderer, parts: PartSet, cameras: Camera, body: 
     """
     k = parts.batch_size
     if cameras.batch_size != k:
-        raise ValueError(f"turned_view_ious: {k} reconstructions but {cameras.batch_size} cameras")
+        raise ShapeError(f"turned_view_ious: {k} reconstructions but {cameras.batch_size} cameras; pass one camera "
+                         "per reconstruction")
     seen_by = torch.arange(k).repeat(k)  # (x, y) pairs, x major
     from_view = torch.arange(k).repeat_interleave(k)
     posed = parts.posed()[from_view]  # (K K, N, V, 3)

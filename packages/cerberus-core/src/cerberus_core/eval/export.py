@@ -21,6 +21,7 @@ import numpy as np
 import torch
 import trimesh
 
+from cerberus_core.errors import ConfigError, MeshError, ShapeError
 from cerberus_core.parts import PartSet
 from cerberus_core.plumbing.atomic import atomic_write
 from cerberus_core.shapes import check_shapes
@@ -45,7 +46,8 @@ def _part_meshes(part_vertices: np.ndarray, faces: np.ndarray) -> list[trimesh.T
     pv = np.asarray(part_vertices, dtype=np.float64)
     check_shapes("export", part_vertices=(pv, "P V 3"))
     if not np.isfinite(pv).all():
-        raise ValueError("export: part vertices contain NaN or inf; the reconstruction is broken, nothing was written")
+        raise MeshError("export: part vertices contain NaN or inf; the reconstruction is broken, nothing was written "
+                        "(export a reconstruction of a checkpoint whose training losses stayed finite)")
     f = np.asarray(faces, dtype=np.int64)
     return [trimesh.Trimesh(v, f, process=False) for v in pv]
 
@@ -113,9 +115,10 @@ def export_parts(part_vertices: np.ndarray, faces: np.ndarray, out_dir: str | Pa
     """
     unknown = set(formats) - set(FORMATS)
     if unknown:
-        raise ValueError(f"export: unknown format(s) {sorted(unknown)}; choose from {list(FORMATS)}")
+        raise ConfigError.about("formats", sorted(unknown), "unknown format(s)", f"choose from {list(FORMATS)}")
     if not stem or "/" in stem or "\\" in stem:
-        raise ValueError(f"export: stem must be a plain file name, got {stem!r}")
+        raise ConfigError.about("stem", stem, "must be a plain file name",
+                                "a name without a folder, e.g. `stem=\"recon\"`")
     out_dir = Path(out_dir)
     meshes = _part_meshes(part_vertices, faces)
     rgba = _rgba(colors, len(meshes))
@@ -136,7 +139,8 @@ def export_reconstruction(recon: PartSet, out_dir: str | Path, stems: Sequence[s
     """Export every image of a reconstruction (``stems[i]`` names image ``i``; default ``recon_000``...)."""
     stems = [f"recon_{i:03d}" for i in range(recon.batch_size)] if stems is None else list(stems)
     if len(stems) != recon.batch_size:
-        raise ValueError(f"export_reconstruction: {len(stems)} names for {recon.batch_size} reconstructions")
+        raise ShapeError(f"export_reconstruction: {len(stems)} names for {recon.batch_size} reconstructions; pass one "
+                         "name per reconstruction or `stems=None`")
     posed = recon.posed().detach().cpu().numpy()
     faces = recon.faces.detach().cpu().numpy()
     written = []

@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import write_reconstruction_viewer
@@ -59,7 +60,8 @@ def render_reconstruction(renderer: Renderer, recon: PartSet, camera: Camera, *,
     The light defaults to the datasets' (white, following the camera, ambient 0.4, diffuse 0.6).
     """
     if recon.batch_size != camera.batch_size:
-        raise ValueError(f"render_reconstruction: {recon.batch_size} reconstructions but {camera.batch_size} cameras")
+        raise ShapeError(f"render_reconstruction: {recon.batch_size} reconstructions but {camera.batch_size} cameras; "
+                         "pass one camera per reconstruction")
     recon = recon.to(camera.device)
     alb = part_colors(recon.num_parts).to(camera.device) if parts else albedo
     with torch.no_grad():
@@ -72,9 +74,9 @@ def turntable(renderer: Renderer, recon: PartSet, camera: Camera, n_views: int =
     """``(n_views, 3, H, W)``: one reconstruction seen from ``n_views`` azimuths evenly spaced from the
     input camera's, each lit by a light following that view."""
     if recon.batch_size != 1:
-        raise ValueError(f"turntable: expected one reconstruction, got {recon.batch_size}")
+        raise ShapeError(f"turntable: expected one reconstruction, got {recon.batch_size}; pass `recon.index([i])`")
     if n_views < 1:
-        raise ValueError(f"turntable: n_views must be >= 1, got {n_views}")
+        raise ConfigError.about("n_views", n_views, "turntable: must be >= 1", "`n_views=1` or more")
     cams = camera.orbit([k * 360.0 / n_views for k in range(n_views)])
     many = recon.index([0] * n_views)
     return render_reconstruction(renderer, many, cams, parts=parts, background=background)
@@ -138,15 +140,17 @@ def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequen
     """
     cells = [c for row in rows for c in row if c is not None]
     if not cells:
-        raise ValueError("labelled_grid: no images")
+        raise ConfigError("labelled_grid: no images; pass at least one row with one image")
     h, w = cells[0].shape[-2:]
     if any(c.shape[-2:] != (h, w) for c in cells):
-        raise ValueError("labelled_grid: all images must share one size")
+        raise ShapeError("labelled_grid: all images must share one size; resize them to one (H, W)")
     ncols = max(len(r) for r in rows)
     if column_titles is not None and len(column_titles) != ncols:
-        raise ValueError(f"labelled_grid: {len(column_titles)} column titles for {ncols} columns")
+        raise ShapeError(f"labelled_grid: {len(column_titles)} column titles for {ncols} columns; pass one title "
+                         "per column, or `column_titles=None`")
     if row_titles is not None and len(row_titles) != len(rows):
-        raise ValueError(f"labelled_grid: {len(row_titles)} row titles for {len(rows)} rows")
+        raise ShapeError(f"labelled_grid: {len(row_titles)} row titles for {len(rows)} rows; pass one title per row, "
+                         "or `row_titles=None`")
     top = TITLE_HEIGHT if column_titles else 0
     left = ROW_LABEL_WIDTH if row_titles else 0
     cw, ch = w * scale, h * scale
@@ -201,7 +205,8 @@ def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartSet, camera:
         light: the new light (default :func:`camera_relative_light`).
     """
     if recon.batch_size != 1 or camera.batch_size != 1:
-        raise ValueError("figure_one_panels: expected one reconstruction and one camera")
+        raise ShapeError("figure_one_panels: expected one reconstruction and one camera; pass `recon.index([i])` and "
+                         "`camera.index([i])`")
     panels = {
         "input": image.detach().float().cpu().clamp(0, 1),
         "output": render_reconstruction(renderer, recon, camera, background=background)[0],
@@ -271,7 +276,8 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
     n = images.shape[0]
     for name, rec in [("ours", ours), *baselines.items()]:
         if rec.batch_size != n:
-            raise ValueError(f"comparison_rows: {name} has {rec.batch_size} reconstructions for {n} images")
+            raise ShapeError(f"comparison_rows: {name} has {rec.batch_size} reconstructions for {n} images; pass one "
+                             "reconstruction per image for every baseline")
     columns = {"Input": images.detach().float().cpu().clamp(0, 1)}
     for name, rec in baselines.items():
         columns[name] = render_reconstruction(renderer, rec, camera, background=background).cpu()

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.parts import PartSet, transfer_pose
 
 
@@ -58,10 +59,12 @@ class CanonicalParts:
     def __init__(self, shapes: dict[str, PartSet], indices: dict[str, int]) -> None:
         missing = set(indices) - set(shapes)
         if missing:
-            raise ValueError(f"CanonicalParts: no shapes for subjects {sorted(missing)}")
+            raise ConfigError(f"CanonicalParts: no shapes for subjects {sorted(missing)}; pass a canonical "
+                              "reconstruction in `shapes` for every subject in `indices`")
         for s, r in shapes.items():
             if r.batch_size != 1:
-                raise ValueError(f"CanonicalParts: subject {s!r} needs a batch-1 reconstruction, got {r.batch_size}")
+                raise ShapeError(f"CanonicalParts: subject {s!r} needs a batch-1 reconstruction, got {r.batch_size}; "
+                                 "pass one reconstruction per subject")
         self.shapes = shapes
         self.indices = indices
 

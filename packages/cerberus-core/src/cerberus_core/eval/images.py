@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageOps, UnidentifiedImageError
 
-from cerberus_core.errors import CerberusError
+from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.plumbing.names import printable
 
 Tensor = torch.Tensor
@@ -169,7 +169,8 @@ def square_resize(arr: np.ndarray, size: int, notes: list[str]) -> np.ndarray:
 def _check_background(background: Sequence[float]) -> np.ndarray:
     bg = np.asarray(background, dtype=np.float64).reshape(-1)
     if bg.shape != (3,) or (bg < 0).any() or (bg > 1).any():
-        raise ValueError(f"background must be 3 values in [0, 1], got {background!r}")
+        raise ConfigError.about("background", background, "must be 3 values in [0, 1]",
+                                "an RGB colour, e.g. `background=(1.0, 1.0, 1.0)`")
     return bg
 
 
@@ -214,7 +215,8 @@ def read_image(path: str | Path, image_size: int) -> RawImage:
         ImageInputError: see the table in the module docstring.
     """
     if int(image_size) <= 0:
-        raise ValueError(f"image_size must be positive, got {image_size}")
+        raise ConfigError.about("image_size", image_size, "must be positive",
+                                "the model's input size, e.g. `image_size=128`")
     path = Path(path)
     notes: list[str] = []
     oriented = open_oriented(path, notes)

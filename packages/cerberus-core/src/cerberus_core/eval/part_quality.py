@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.errors import ConfigError, MeshError, MissingPackageError, ShapeError
 from cerberus_core.shapes import check_shapes
 
 
@@ -62,7 +62,7 @@ def barycentric_lattice(density: int) -> np.ndarray:
     """``(M, 3)`` barycentric weights ``(i, j, k) / density`` with ``i + j + k = density``;
     ``M = (density + 1)(density + 2) / 2``."""
     if density < 1:
-        raise ValueError(f"density must be >= 1, got {density}")
+        raise ConfigError.about("density", density, "must be >= 1", "`density=1` or more")
     return np.array([(i, j, density - i - j) for i in range(density + 1) for j in range(density + 1 - i)],
                     dtype=np.float64) / density
 
@@ -123,9 +123,11 @@ def overlap_matrix(assignment: np.ndarray, gt_labels: np.ndarray, num_parts: int
     g = _np(gt_labels, np.int64)
     check_shapes("overlap_matrix", assignment=(a, "N"), gt_labels=(g, "N"))
     if a.size and (a.min() < 0 or a.max() >= num_parts):
-        raise ValueError(f"overlap_matrix: assignments must lie in [0, {num_parts})")
+        raise MeshError(f"overlap_matrix: assignments must lie in [0, {num_parts}); pass part indices below "
+                        "`num_parts`")
     if g.size and (g.min() < 0 or g.max() >= num_gt_parts):
-        raise ValueError(f"overlap_matrix: ground-truth labels must lie in [0, {num_gt_parts})")
+        raise MeshError(f"overlap_matrix: ground-truth labels must lie in [0, {num_gt_parts}); pass labels below "
+                        "`num_gt_parts`")
     w = np.ones(a.shape[0]) if weights is None else _np(weights, np.float64)
     return np.bincount(a * num_gt_parts + g, weights=w, minlength=num_parts * num_gt_parts).reshape(
         num_parts, num_gt_parts)
@@ -142,7 +144,7 @@ def image_overlap(part_vertices: np.ndarray, faces: np.ndarray, gt_vertices: np.
         weighting: ``"area"`` (vertex area, default) or ``"count"`` (one per vertex).
     """
     if weighting not in ("area", "count"):
-        raise ValueError(f"weighting must be 'area' or 'count', got {weighting!r}")
+        raise ConfigError.about("weighting", weighting, "must be 'area' or 'count'")
     assignment = assign_to_parts(gt_vertices, part_vertices, faces, density)
     weights = vertex_areas(gt_vertices, gt_faces) if weighting == "area" else None
     return overlap_matrix(assignment, gt_labels, _np(part_vertices).shape[0], num_gt_parts, weights)
@@ -229,7 +231,8 @@ class PartQualityAccumulator:
         ``None`` without part labels or when no part has a side).
         """
         if not self.overlaps:
-            raise ValueError("PartQualityAccumulator.summary: no images were added")
+            raise ShapeError("PartQualityAccumulator.summary: no images were added; add each image's overlap with "
+                             "`add` before the summary")
         stack = np.stack(self.overlaps)  # (N, P, K)
         present = [self.gt_part_names[k] for k in np.flatnonzero(stack.sum(axis=(0, 1)) > 0)]
         if len(present) < 2:

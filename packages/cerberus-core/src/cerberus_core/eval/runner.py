@@ -26,6 +26,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from cerberus_core.errors import DatasetError, InputTypeError, ShapeError
 from cerberus_core.eval.accumulators import (
     BatchResult,
     BodySegments,
@@ -97,8 +98,9 @@ def iterate_batches(dataset: Any, indices: Sequence[int], batch_size: int, num_w
     loader = torch.utils.data.DataLoader(subset, batch_size=batch_size, shuffle=False, num_workers=num_workers,
                                          collate_fn=collate)
     if not callable(getattr(dataset, "cameras", None)):
-        raise TypeError(f"{type(dataset).__name__} has no cameras(batch) method; the evaluation needs the cameras "
-                        "the test images were rendered with (see cerberus_core.datasets.readers.ViewDataset.cameras)")
+        raise InputTypeError(f"{type(dataset).__name__} has no cameras(batch) method; the evaluation needs the "
+                             "cameras the test images were rendered with (see "
+                             "cerberus_core.datasets.readers.ViewDataset.cameras)")
     start = 0
     for batch in loader:
         n = batch["images"].shape[0]
@@ -112,9 +114,11 @@ def reconstruct_batch(reconstruct: Reconstructor, images: Tensor, camera: Camera
     with torch.no_grad():
         recon = reconstruct(images.to(device), camera.to(device))
     if not isinstance(recon, PartSet):
-        raise TypeError(f"the model must return a PartSet (cerberus_core.parts), got {type(recon).__name__}")
+        raise InputTypeError(f"the model must return a PartSet (cerberus_core.parts), got {type(recon).__name__}; "
+                             "return `Cerberus.reconstruct`'s result from `reconstruct`")
     if recon.batch_size != images.shape[0]:
-        raise ValueError(f"the model returned {recon.batch_size} reconstructions for {images.shape[0]} images")
+        raise ShapeError(f"the model returned {recon.batch_size} reconstructions for {images.shape[0]} images; "
+                         "return one reconstruction per image")
     return recon.detach().to("cpu")
 
 
@@ -269,9 +273,11 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
     scorer = scorer or VoxelScorer(config.protocol, config.resolution)
     indices = list(range(len(dataset))) if indices is None else [int(i) for i in indices]
     if not indices:
-        raise ValueError("evaluate_dataset: no images to evaluate (empty dataset or index list)")
+        raise DatasetError("evaluate_dataset: no images to evaluate (empty dataset or index list); pass a split that "
+                           "holds views, or `indices=None`")
     if not callable(getattr(dataset, "gt_mesh", None)):
-        raise TypeError(f"{type(dataset).__name__} has no gt_mesh(i) method; evaluation needs the ground-truth meshes")
+        raise InputTypeError(f"{type(dataset).__name__} has no gt_mesh(i) method; evaluation needs the ground-truth "
+                             "meshes (pass a ViewDataset)")
     accumulators = metric_accumulators(dataset, reconstruct, config, scorer, renderer, device)
     standard = accumulators[0]  # StandardIoU, always first
     gt_memo = GroundTruthMemo(dataset.gt_mesh)

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from cerberus_core.errors import ShapeError
 from cerberus_core.plugins import get_metric
 
 MeshPair = tuple[np.ndarray, np.ndarray]
@@ -159,7 +160,7 @@ class IoUSummary:
 def summarize(scores: list[Score], groups: list[str]) -> IoUSummary:
     """Average scores overall and per group (the order of ``groups`` matches ``scores``)."""
     if len(scores) != len(groups):
-        raise ValueError("summarize: one group per score is needed")
+        raise ShapeError("summarize: one group per score is needed; pass `groups` as long as `scores`")
     if not scores:
         return IoUSummary(float("nan"), 0)
     ious = np.array([s.iou for s in scores])

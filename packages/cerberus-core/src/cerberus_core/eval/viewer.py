@@ -35,6 +35,7 @@ import torch
 import trimesh
 from PIL import Image
 
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.export import export_parts
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
@@ -132,7 +133,7 @@ def import_map() -> dict:
 def camera_view(camera: Camera) -> dict:
     """``{"azimuth", "elevation", "distance", "fov_y"}`` of a batch-1 look-at camera aimed at the origin."""
     if camera.batch_size != 1:
-        raise ValueError(f"camera_view: expected one camera, got {camera.batch_size}")
+        raise ShapeError(f"camera_view: expected one camera, got {camera.batch_size}; pass `camera.index([i])`")
     az, el, dist = camera.spherical()
     return {"azimuth": float(az[0]), "elevation": float(el[0]), "distance": float(dist[0]),
             "fov_y": float(camera.fov_y_deg.reshape(-1)[0])}
@@ -197,12 +198,12 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
         The page's path.
     """
     if limit < 1:
-        raise ValueError(f"write_viewer: limit must be >= 1, got {limit}")
+        raise ConfigError.about("limit", limit, "write_viewer: must be >= 1", "`limit=1` or more")
     entries = list(entries)
     total = len(entries) if total is None else total
     shown = entries[:limit]
     if not shown:
-        raise ValueError("write_viewer: no entries")
+        raise ConfigError("write_viewer: no entries; pass at least one `ViewerEntry` in `entries`")
     data_entries, cards = [], []
     for i, e in enumerate(shown):
         models = [(k, getattr(e, k)) for k in ("reconstruction", "ground_truth", "new_pose") if getattr(e, k)]
@@ -300,11 +301,13 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
     """
     n = recon.batch_size
     if notes is not None and len(notes) != n:
-        raise ValueError(f"write_reconstruction_viewer: {n} reconstructions but {len(notes)} notes")
+        raise ShapeError(f"write_reconstruction_viewer: {n} reconstructions but {len(notes)} notes; pass one note "
+                         "per image (\"\" for none)")
     if len(stems) != n or images.shape[0] != n or camera.batch_size != n or (bodies is not None and len(bodies) != n):
-        raise ValueError(f"write_reconstruction_viewer: {n} reconstructions but {images.shape[0]} images, "
+        raise ShapeError(f"write_reconstruction_viewer: {n} reconstructions but {images.shape[0]} images, "
                          f"{camera.batch_size} cameras, {len(stems)} names"
-                         + ("" if bodies is None else f", {len(bodies)} bodies"))
+                         + ("" if bodies is None else f", {len(bodies)} bodies")
+                         + "; pass one image, camera, name (and body) per reconstruction")
     if limit <= 0:
         return []
     out_dir = Path(out_dir)

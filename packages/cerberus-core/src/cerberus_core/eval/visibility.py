@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from cerberus_core.errors import ShapeError
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera
@@ -43,7 +44,8 @@ def input_view_part_id(renderer: Renderer, recon: PartSet, camera: Camera) -> Te
         ``(B, H, W)`` int64 on the camera's device: the part index, -1 on background.
     """
     if recon.batch_size != camera.batch_size:
-        raise ValueError(f"input_view_part_id: {recon.batch_size} reconstructions but {camera.batch_size} cameras")
+        raise ShapeError(f"input_view_part_id: {recon.batch_size} reconstructions but {camera.batch_size} cameras; "
+                         "pass one camera per reconstruction")
     recon = recon.to(camera.device)
     with torch.no_grad():
         return render_parts(renderer, recon.posed(), recon.faces, camera).part_id
@@ -81,7 +83,8 @@ class VisibilityAccumulator:
     def summary(self) -> dict[str, Any]:
         """Per-part visibility over every image added (see the module docstring)."""
         if not self.counts:
-            raise ValueError("VisibilityAccumulator.summary: no images were added")
+            raise ShapeError("VisibilityAccumulator.summary: no images were added; add each image's part pixel counts "
+                             "with `add` before the summary")
         stack = np.stack(self.counts).astype(np.float64)  # (N, P)
         hidden = (stack == 0).mean(0)
         silhouette = stack.sum(1)

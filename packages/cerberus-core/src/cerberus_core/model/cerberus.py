@@ -139,8 +139,9 @@ class Cerberus(nn.Module):
         super().__init__()
         config.check()
         if isinstance(config.depth_offset, str):
-            raise ValueError("Cerberus: model.depth_offset is still 'auto'; set it to the camera distance "
-                             "(the trainer does this from the dataset's scene)")
+            raise ConfigError.about("model.depth_offset", config.depth_offset, "Cerberus: still 'auto'; set it to the "
+                                    "camera distance (the trainer does this from the dataset's scene)",
+                                    "`model.depth_offset=VALUE`")
         self.config = config
         self.template: MeshTemplate = icosphere(config.sphere_level)
         self.register_buffer("faces", self.template.faces.clone(), persistent=False)
@@ -219,7 +220,7 @@ class Cerberus(nn.Module):
             return PartSet(pred.local_vertices, self.faces, r_world, t_world)
         if frame == "camera":
             return PartSet(pred.local_vertices, self.faces, r_cam, t_cam)
-        raise ValueError(f"Cerberus.pose: frame must be 'world' or 'camera', got {frame!r}")
+        raise ConfigError.about("frame", frame, "Cerberus.pose: must be 'world' or 'camera'")
 
     def reconstruct(self, images: Tensor, camera: Camera) -> PartSet:
         """Images and their known cameras → posed parts in the world frame (differentiable; no mode

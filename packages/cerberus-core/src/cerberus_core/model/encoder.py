@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
@@ -82,7 +83,8 @@ class ResNet10(nn.Module):
     def __init__(self, in_channels: int = 3, width: int = 64) -> None:
         super().__init__()
         if in_channels < 1 or width < 1:
-            raise ValueError(f"ResNet10 needs positive in_channels and width, got {in_channels}, {width}")
+            raise ConfigError(f"ResNet10 needs positive in_channels and width, got {in_channels}, {width}; pass "
+                              "`in_channels` >= 1 and `width` >= 1")
         self.channels = (width, 2 * width, 4 * width, 8 * width)
         self.stem = nn.Sequential(
             nn.Conv2d(in_channels, width, 7, 2, 3, bias=False),
@@ -108,7 +110,8 @@ class ResNet10(nn.Module):
         """``(B, in_channels, H, W)`` → :class:`FeaturePyramid`."""
         check_shapes("ResNet10", images=(images, "B C H W"))
         if min(images.shape[-2:]) < 32:
-            raise ValueError(f"ResNet10 needs images of at least 32x32 pixels, got {tuple(images.shape[-2:])}")
+            raise ShapeError(f"ResNet10 needs images of at least 32x32 pixels, got {tuple(images.shape[-2:])}; "
+                             "resize the images to 32x32 or more")
         c1 = self.layer1(self.stem(images))
         c2 = self.layer2(c1)
         c3 = self.layer3(c2)

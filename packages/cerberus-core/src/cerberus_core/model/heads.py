@@ -29,6 +29,7 @@ from kornia.geometry.conversions import quaternion_to_rotation_matrix
 from kornia.geometry.subpix import spatial_expectation2d
 from torch import nn
 
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.render.camera import PIXEL_CENTRE, Camera, pixel_centres
 
 Tensor = torch.Tensor
@@ -74,7 +75,8 @@ class ShapeHead(nn.Module):
         self.vertex_bound = None if vertex_bound is None else float(vertex_bound)
         if self.vertex_bound is not None:
             if not self.vertex_bound > init_scale:
-                raise ValueError(f"vertex_bound ({vertex_bound}) must exceed init_scale ({init_scale})")
+                raise ConfigError.about("vertex_bound", vertex_bound, f"must exceed init_scale ({init_scale})",
+                                        "a bound larger than the template's scale, or `vertex_bound=None`")
             self.register_buffer("template_logit", torch.atanh(self.template / self.vertex_bound), persistent=False)
 
     def latent(self, object_latent: Tensor) -> Tensor:
@@ -269,6 +271,6 @@ def unproject_expectation(maps: KeypointMaps, camera: Camera, *, to_world: bool)
     """
     h, w = maps.prob.shape[-2:]
     if (camera.height, camera.width) != (h, w):
-        raise ValueError(f"camera image size {camera.height}x{camera.width} does not match the maps' {h}x{w}; "
+        raise ShapeError(f"camera image size {camera.height}x{camera.width} does not match the maps' {h}x{w}; "
                          "build the camera with the size of the images given to the model")
     return camera.unproject(maps.uv, maps.depth, to_world=to_world)

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import torch
 
 import cerberus_core.render.ops as ops
+from cerberus_core.errors import MeshError, RenderInputError, ShapeError
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Light, Renderer, RenderOutput
 from cerberus_core.shapes import check_shapes
@@ -30,22 +31,22 @@ MAX_COORDINATE = 1e8
 def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
     check_shapes("render", vertices=(vertices, "B V 3"), faces=(faces, "F 3"))
     if faces.dtype not in (torch.int32, torch.int64):
-        raise ValueError(f"render: faces must be an integer tensor, got {faces.dtype}")
+        raise ShapeError(f"render: faces must be an integer tensor, got {faces.dtype}; pass `faces.long()`")
     if vertices.shape[0] != camera.batch_size:
-        raise ValueError(f"render: {vertices.shape[0]} scenes but {camera.batch_size} cameras; pass one camera per scene")
+        raise ShapeError(f"render: {vertices.shape[0]} scenes but {camera.batch_size} cameras; pass one camera per scene")
     if faces.numel() and (int(faces.min()) < 0 or int(faces.max()) >= vertices.shape[1]):
-        raise ValueError(f"render: faces index vertices outside 0..{vertices.shape[1] - 1}; "
-                         "check the face template matches the vertex count")
+        raise MeshError(f"render: faces index vertices outside 0..{vertices.shape[1] - 1}; "
+                        "check the face template matches the vertex count")
     bad = ~torch.isfinite(vertices.detach()).all(-1)
     if bool(bad.any()):
         scene, vert = (int(i) for i in torch.nonzero(bad)[0])
-        raise ValueError(f"render: vertex {vert} of scene {scene} is NaN or inf ({int(bad.sum())} bad vertices in all); "
-                         "the model or data produced non-finite geometry — check the loss/learning rate or the input mesh")
+        raise MeshError(f"render: vertex {vert} of scene {scene} is NaN or inf ({int(bad.sum())} bad vertices in all); "
+                        "the model or data produced non-finite geometry — check the loss/learning rate or the input mesh")
     biggest = float(vertices.detach().abs().max()) if vertices.numel() else 0.0
     if biggest > MAX_COORDINATE:
-        raise ValueError(f"render: vertex coordinates reach {biggest:.3g}, beyond the supported range |x| <= {MAX_COORDINATE:g} "
-                         "(float32 edge functions overflow there); the geometry has diverged — check the loss/learning rate "
-                         "or rescale the scene to normalised units")
+        raise RenderInputError(f"render: vertex coordinates reach {biggest:.3g}, beyond the supported range |x| <= {MAX_COORDINATE:g} "
+                               "(float32 edge functions overflow there); the geometry has diverged — check the loss/learning rate "
+                               "or rescale the scene to normalised units")
 
 
 def _per_vertex(value: Tensor | Sequence[float], bsz: int, nverts: int, like: Tensor, what: str) -> Tensor:
@@ -56,7 +57,8 @@ def _per_vertex(value: Tensor | Sequence[float], bsz: int, nverts: int, like: Te
         return t.unsqueeze(1).expand(bsz, nverts, 3)
     if t.shape == (bsz, nverts, 3):
         return t
-    raise ValueError(f"render: {what} must be (3,), (B, 3) or (B, V, 3); got {tuple(t.shape)}")
+    raise ShapeError(f"render: {what} must be (3,), (B, 3) or (B, V, 3); got {tuple(t.shape)}; pass one colour, "
+                     "one per scene or one per vertex")
 
 
 def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, light: Light | None = None, *,
@@ -84,7 +86,8 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     bsz, nverts, _ = vertices.shape
     light = Light.following(camera) if light is None else light
     if light.direction.shape[0] != bsz:
-        raise ValueError(f"render: light has batch {light.direction.shape[0]}, scene has {bsz}")
+        raise ShapeError(f"render: light has batch {light.direction.shape[0]}, scene has {bsz}; pass one light per "
+                         "scene (e.g. `Light.following(camera)`)")
     alb = _per_vertex(albedo, bsz, nverts, vertices, "albedo")
     clip = camera.world_to_clip(vertices)
     face_id = ops.rasterize(renderer, clip, faces, (camera.height, camera.width), camera.near)

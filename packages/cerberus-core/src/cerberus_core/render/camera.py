@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import torch
 
+from cerberus_core.errors import RenderInputError, ShapeError
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
@@ -141,11 +142,14 @@ class Camera:
         self.fov_y_deg = _as_batch(self.fov_y_deg, b, dtype=self.rotation.dtype, device=self.rotation.device)
         check_shapes("Camera (fov_y_deg: a scalar or one per camera)", fov_y_deg=(self.fov_y_deg, f"{b}"))
         if not bool(((self.fov_y_deg > 0) & (self.fov_y_deg < 180)).all()):
-            raise ValueError("Camera.fov_y_deg must lie strictly between 0 and 180 degrees")
+            raise RenderInputError("Camera.fov_y_deg must lie strictly between 0 and 180 degrees; e.g. "
+                                   "`fov_y_deg=default_fov_for(distance)`")
         if self.height <= 0 or self.width <= 0:
-            raise ValueError(f"Camera image size must be positive, got {self.height}x{self.width}")
+            raise RenderInputError(f"Camera image size must be positive, got {self.height}x{self.width}; pass a "
+                                   "`height` and `width` (or `image_size`) of 1 or more")
         if not 0 < self.near < self.far:
-            raise ValueError(f"Camera needs 0 < near < far, got near={self.near}, far={self.far}")
+            raise RenderInputError(f"Camera needs 0 < near < far, got near={self.near}, far={self.far}; set `near` "
+                                   "above 0 and `far` above `near`")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -171,9 +175,11 @@ class Camera:
         b = max(t.shape[0] for t in tensors)
         az, el, dist = (t.expand(b) if t.shape[0] == 1 else t for t in tensors)
         if not all(t.shape[0] == b for t in (az, el, dist)):
-            raise ValueError("look_at: azimuth, elevation and distance must be scalars or share one batch size")
+            raise ShapeError("look_at: azimuth, elevation and distance must be scalars or share one batch size; pass "
+                             "scalars or tensors of one length")
         if bool((dist <= 0).any()):
-            raise ValueError("look_at: distance must be positive")
+            raise RenderInputError("look_at: distance must be positive; place the camera at `distance` > 0 from its "
+                                   "target")
         tgt = torch.zeros(b, 3, device=az.device) if target is None else target.to(az).reshape(-1, 3).expand(b, 3)
         eye = spherical_to_eye(az, el, dist) + tgt
         rot = look_at_rotation(eye, tgt)
@@ -200,7 +206,7 @@ class Camera:
             ``n`` cameras.
         """
         if self.batch_size != 1:
-            raise ValueError(f"Camera.orbit: expected one camera, got {self.batch_size}")
+            raise ShapeError(f"Camera.orbit: expected one camera, got {self.batch_size}; orbit `camera.index([i])`")
         az, el, dist = self.spherical()
         offsets = torch.as_tensor(azimuth_offsets_deg, dtype=az.dtype, device=az.device).reshape(-1)
         return Camera.look_at(az + offsets, el.expand_as(offsets), dist.expand_as(offsets),
@@ -240,7 +246,8 @@ class Camera:
         first = cameras[0]
         for c in cameras[1:]:
             if (c.height, c.width, c.near, c.far) != (first.height, first.width, first.near, first.far):
-                raise ValueError("Camera.cat: cameras must share image size and near/far planes")
+                raise RenderInputError("Camera.cat: cameras must share image size and near/far planes; concatenate "
+                                       "cameras made with one `image_size`, `near` and `far`")
         return Camera(torch.cat([c.rotation for c in cameras]), torch.cat([c.translation for c in cameras]),
                       torch.cat([c.fov_y_deg for c in cameras]), first.height, first.width, first.near, first.far)
 

@@ -32,6 +32,7 @@ from typing import ClassVar
 
 import torch
 
+from cerberus_core.errors import InputTypeError
 from cerberus_core.render.antialias import antialias
 from cerberus_core.render.camera import pixel_centres
 from cerberus_core.render.light import Light
@@ -81,7 +82,8 @@ class Renderer(ABC):
     def __init__(self, **options) -> None:
         unknown = set(options) - {"device"}
         if unknown:
-            raise TypeError(f"renderer '{self.name}' got unknown options {sorted(unknown)}")
+            raise InputTypeError(f"renderer '{self.name}' got unknown options {sorted(unknown)}; pass only the options "
+                                 "its class documents (and `device`)")
 
     @abstractmethod
     def rasterize(self, clip: Tensor, faces: Tensor, height: int, width: int, near: float) -> Tensor:

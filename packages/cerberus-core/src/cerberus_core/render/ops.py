@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import torch
 
+from cerberus_core.errors import RenderInputError
 from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import Light
 from cerberus_core.render.shading import foreground, homogeneous_barycentrics, pixel_ndc
@@ -55,7 +56,8 @@ def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int,
     check_shapes("rasterize", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS))
     height, width = resolution
     if int(height) < 1 or int(width) < 1:
-        raise ValueError(f"rasterize: the image size must be positive, got {height}x{width}")
+        raise RenderInputError(f"rasterize: the image size must be positive, got {height}x{width}; pass "
+                               "`resolution=(height, width)` with both 1 or more")
     with torch.no_grad():
         return ctx.rasterize(clip.detach(), faces, int(height), int(width), float(near))
 

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
+from cerberus_core.errors import ConfigError, MeshError
+
 if TYPE_CHECKING:
     import trimesh
 
@@ -57,7 +59,7 @@ class MeshTemplate:
     def from_trimesh(cls, mesh: trimesh.Trimesh) -> MeshTemplate:
         """Build a template (with its connectivity) from any closed trimesh."""
         if len(mesh.faces) == 0:
-            raise ValueError("MeshTemplate needs a mesh with at least one face")
+            raise MeshError("MeshTemplate needs a mesh with at least one face; build it from a closed triangle mesh")
         faces = np.asarray(mesh.faces, dtype=np.int64)
         edges = np.asarray(mesh.edges_unique, dtype=np.int64)
         edges = np.sort(edges, axis=1)
@@ -98,7 +100,8 @@ def icosphere(level: int = 2, radius: float = 1.0) -> MeshTemplate:
         radius: sphere radius.
     """
     if not isinstance(level, int) or not 0 <= level <= 6:
-        raise ValueError(f"icosphere level must be an integer in 0..6, got {level!r}")
+        raise ConfigError.about("level", level, "icosphere level must be an integer in 0..6",
+                                "`level=2` is the paper's part template")
     t = _icosphere_cached(level)
     if radius == 1.0:
         return t

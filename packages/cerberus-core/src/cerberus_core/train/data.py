@@ -30,23 +30,33 @@ from torch.utils.data import Sampler
 
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.render.camera import Camera
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
 
+class TrainingDatasetError(DatasetError, TypeError):
+    """An object given as the training dataset breaks the contract above (a missing attribute, a ``scene`` that
+    is not a :class:`SceneSetup`, no quadruplets); a ``TypeError`` (and a ``ValueError``) too, for callers that
+    caught one."""
+
+
 def check_dataset(dataset: Any) -> None:
-    """Raise ``TypeError`` with the missing pieces if ``dataset`` does not follow the contract."""
+    """Raise :class:`TrainingDatasetError` with the missing pieces if ``dataset`` does not follow the contract."""
     missing = [a for a in ("image_size", "scene", "__len__", "__getitem__") if not hasattr(dataset, a)]
     if missing:
-        raise TypeError(f"training dataset {type(dataset).__name__} lacks {missing}; it must be a map-style "
-                        "dataset of quadruplet dicts with .image_size and .scene (see cerberus_core.train.data)")
+        raise TrainingDatasetError(f"training dataset {type(dataset).__name__} lacks {missing}; it must be a "
+                                   "map-style dataset of quadruplet dicts with .image_size and .scene "
+                                   "(see cerberus_core.train.data)")
     if not isinstance(dataset.scene, SceneSetup):
-        raise TypeError(f"training dataset {type(dataset).__name__}: .scene must be a SceneSetup, got "
-                        f"{type(dataset.scene).__name__} (SceneSetup.from_dict reads a manifest's scene dict)")
+        raise TrainingDatasetError(f"training dataset {type(dataset).__name__}: .scene must be a SceneSetup, got "
+                                   f"{type(dataset.scene).__name__} (SceneSetup.from_dict reads a manifest's "
+                                   "scene dict)")
     if len(dataset) == 0:
-        raise ValueError("the training dataset is empty")
+        raise TrainingDatasetError("the training dataset is empty; generate its split or point `data.root` and "
+                                   "`data.split` at one that holds quadruplets")
 
 
 def build_dataset(root: str, split: str) -> Any:
@@ -89,8 +99,9 @@ class StepBatchSampler(Sampler[list[int]]):
     def __init__(self, n: int, seed: int, batch_size: int, start: int, end: int, rank: int = 0,
                  world_size: int = 1) -> None:
         if batch_size % world_size:
-            raise ValueError(f"train.batch_size={batch_size} must be divisible by the number of processes "
-                             f"({world_size}) so each draws an equal slice")
+            raise ConfigError.about("train.batch_size", batch_size, "must be divisible by the number of processes "
+                                    f"({world_size}) so each draws an equal slice",
+                                    f"`train.batch_size=VALUE`, VALUE a multiple of {world_size}")
         self.n, self.seed, self.batch_size = n, seed, batch_size
         self.start, self.end = start, end
         self.per_rank = batch_size // world_size

@@ -26,6 +26,7 @@ import torch
 from torch import nn
 
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import InputTypeError
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.losses import (
     VIEW_PARTNER,
@@ -80,7 +81,8 @@ def unwrap(model: nn.Module) -> Cerberus:
     """The :class:`Cerberus` inside a DistributedDataParallel wrapper (or the model itself)."""
     inner = getattr(model, "module", model)
     if not isinstance(inner, Cerberus):
-        raise TypeError(f"expected a Cerberus model, got {type(inner).__name__}")
+        raise InputTypeError(f"expected a Cerberus model, got {type(inner).__name__}; pass a `Cerberus` (or one "
+                             "wrapped in DistributedDataParallel)")
     return inner
 
 
