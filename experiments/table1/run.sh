@@ -20,7 +20,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --scale) SCALE=${2:-}; shift 2 ;;
     --scale=*) SCALE=${1#--scale=}; shift ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run.sh: unknown argument '$1' (use --scale small|large)" >&2; exit 2 ;;
   esac
 done
