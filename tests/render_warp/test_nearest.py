@@ -7,7 +7,7 @@ import torch
 from cerberus_core.losses import hidden_part_pull, mask_pixel_centres, silhouette_chamfer
 from cerberus_core.render.nearest import nearest_indices as torch_search
 from cerberus_render_warp.nearest import nearest_indices as warp_search
-from tests.support.reference_ops import chosen_distances, loop_search, pull_scene
+from tests.support.reference_ops import chosen_distances, loop_search, pull_scene, pulls_with_each_search
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -37,12 +37,7 @@ def test_the_pulls_with_the_warp_search_equal_the_torch_search(warp_renderer):
     visible = torch.rand(6, 5, generator=torch.Generator().manual_seed(4)) > 0.5
     for pull in (lambda s, p: silhouette_chamfer(p, fg, max_points=64, search=s),
                  lambda s, p: hidden_part_pull(p.view(6, 5, 30, 2), visible, fg, search=s)):
-        out = []
-        for search in (warp_renderer.nearest_indices, torch_search):
-            p = points.clone().requires_grad_(True)
-            value = pull(search, p)
-            (grad,) = torch.autograd.grad(value.sum(), p)
-            out.append((value.detach(), grad))
+        out = pulls_with_each_search(pull, (warp_renderer.nearest_indices, torch_search), points)
         torch.testing.assert_close(out[0][0], out[1][0], atol=1e-6, rtol=0)
         torch.testing.assert_close(out[0][1], out[1][1], atol=1e-6, rtol=0)
 

@@ -72,3 +72,15 @@ def chosen_distances(points, targets, counts, found):
     near_t = (points - targets.gather(1, to_target[..., None].expand(-1, -1, 2))).norm(dim=-1)
     near_p = (targets - points.gather(1, to_point[..., None].expand(-1, -1, 2))).norm(dim=-1) * valid
     return near_t * (counts > 0)[:, None], near_p
+
+
+def pulls_with_each_search(pull, searches, points):
+    """``[(value, gradient w.r.t. the points)]`` of ``pull(search, points)`` for each search, each on a
+    fresh copy of ``points``: what the nearest-neighbour tests compare between two searches."""
+    out = []
+    for search in searches:
+        p = points.clone().requires_grad_(True)
+        value = pull(search, p)
+        (grad,) = torch.autograd.grad(value.sum(), p)
+        out.append((value.detach(), grad))
+    return out

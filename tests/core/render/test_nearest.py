@@ -6,7 +6,7 @@ import torch
 
 from cerberus_core.losses import hidden_part_pull, mask_pixel_centres, silhouette_chamfer
 from cerberus_core.render.nearest import nearest_indices
-from tests.support.reference_ops import chosen_distances, loop_search, pull_scene
+from tests.support.reference_ops import chosen_distances, loop_search, pull_scene, pulls_with_each_search
 
 
 @pytest.fixture(autouse=True)
@@ -32,11 +32,6 @@ def test_the_pulls_values_and_gradients_equal_the_loop_searchs():
     for pull in (lambda s, p: silhouette_chamfer(p, fg, max_points=64, search=s),
                  lambda s, p: hidden_part_pull(p.view(6, 5, 30, 2), torch.rand(6, 5, generator=torch.Generator()
                                                                              .manual_seed(3)) > 0.5, fg, search=s)):
-        out = []
-        for search in (nearest_indices, loop_search):
-            p = points.clone().requires_grad_(True)
-            value = pull(search, p)
-            (grad,) = torch.autograd.grad(value.sum(), p)
-            out.append((value.detach(), grad))
+        out = pulls_with_each_search(pull, (nearest_indices, loop_search), points)
         torch.testing.assert_close(out[0][0], out[1][0], atol=1e-6, rtol=0)
         torch.testing.assert_close(out[0][1], out[1][1], atol=1e-6, rtol=0)
