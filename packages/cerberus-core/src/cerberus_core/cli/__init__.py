@@ -3,7 +3,7 @@
 
 * a typed error (:class:`cerberus_core.errors.CerberusError`, a plugin error) → one line
   ``cerberus COMMAND: message`` on standard error, exit status 2 (or the error's ``exit_code``), said in
-  this command's flags (:class:`Terms`);
+  this command's flags (:class:`FlagNames`);
 * any other ``OSError`` (a full disk, a read-only or missing folder, whatever its errno) → one line
   naming the path and the system's reason, exit 2;
 * Ctrl-C (SIGINT) at any moment, imports included → exit 130; SIGTERM → exit 143 (a training writes
@@ -13,7 +13,7 @@
 
 The library says a setting in Python terms (docs/architecture.md, "Errors"): a
 :class:`~cerberus_core.errors.ConfigError`'s ``key``, and in any message a parameter, field or config key
-in backticks (`` `resume=True` ``, `` `data` ``, `` `train.steps=VALUE` ``). :class:`Terms` is the one
+in backticks (`` `resume=True` ``, `` `data` ``, `` `train.steps=VALUE` ``). :class:`FlagNames` is the one
 place that says each as the flag of the command that was run, or as ``--set KEY=VALUE``.
 
 Sub-commands validate every argument before they write anything, and raise typed errors instead of
@@ -56,9 +56,9 @@ SETTING = re.compile(r"`([a-z_][a-z0-9_]*(?:\.[a-z0-9_]+)*)(?:=([^`]*))?`")
 
 
 @dataclasses.dataclass(frozen=True)
-class Terms:
+class FlagNames:
     """How one command says the settings the library names (a sub-command passes its own with
-    ``set_defaults(terms=...)``; :func:`main` adds the flags typed).
+    ``set_defaults(flag_names=...)``; :func:`main` adds the flags typed).
 
     Attributes:
         flags: setting (a library parameter, a settings field or a config key) → this command's flag,
@@ -97,7 +97,7 @@ class Terms:
         return SETTING.sub(say, text)
 
     def error(self, exc: BaseException) -> str:
-        """The message of ``exc`` in this command's terms: an error about one setting (``key``, ``value``,
+        """The message of ``exc`` in this command's flags: an error about one setting (``key``, ``value``,
         ``problem``) leads with its flag (``--resolution 999: must be ...``) or, for a config key, ends with
         the ``--set`` that fixes it; every setting the message names is said as a flag (:meth:`text`)."""
         key, problem = getattr(exc, "key", None), getattr(exc, "problem", None)
@@ -145,8 +145,8 @@ def one_line(text: object) -> str:
 
 
 @contextlib.contextmanager
-def _cli_environment(command: str, terms: Terms) -> Iterator[None]:
-    """SIGTERM raises :class:`Terminated`; warnings print as one line, in the command's terms. Both restored
+def _cli_environment(command: str, names: FlagNames) -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated`; warnings print as one line, in the command's flags. Both restored
     on exit."""
     def on_term(signum, frame):  # noqa: ARG001
         raise Terminated()
@@ -155,7 +155,7 @@ def _cli_environment(command: str, terms: Terms) -> Iterator[None]:
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         previous = signal.signal(signal.SIGTERM, on_term)
     saved_format = warnings.formatwarning
-    warnings.formatwarning = lambda message, *a, **k: f"cerberus {command}: warning: {one_line(terms.text(str(message)))}\n"
+    warnings.formatwarning = lambda message, *a, **k: f"cerberus {command}: warning: {one_line(names.text(str(message)))}\n"
     try:
         yield
     finally:
@@ -173,8 +173,8 @@ def _os_error_line(exc: OSError) -> str:
     return f"{reason}: {where}" if where else reason
 
 
-def _said(exc: CerberusError, terms: Terms) -> str:
-    """The message of ``exc`` in this command's terms (:meth:`Terms.error`); an incomplete dataset's names the
+def _said(exc: CerberusError, names: FlagNames) -> str:
+    """The message of ``exc`` in this command's flags (:meth:`FlagNames.error`); an incomplete dataset's names the
     ``cerberus data generate`` command that finishes it."""
     from cerberus_core.datasets.manifest import IncompleteDatasetError
 
@@ -182,7 +182,7 @@ def _said(exc: CerberusError, terms: Terms) -> str:
         from cerberus_core.cli.data import incomplete_message
 
         return incomplete_message(exc)
-    return terms.error(exc)
+    return names.error(exc)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
 
     words = sys.argv[1:] if argv is None else argv
     command = next((a for a in words if not a.startswith("-")), "")
-    terms = Terms()
+    names = FlagNames()
     with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
         signal.signal(signal.SIGINT, on_int)
         signal.signal(signal.SIGTERM, on_term)
@@ -209,11 +209,11 @@ def main(argv: list[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         command = args.command
-        terms = dataclasses.replace(getattr(args, "terms", terms), typed=typed_flags(words))
-        with _cli_environment(command, terms):
+        names = dataclasses.replace(getattr(args, "flag_names", names), typed=typed_flags(words))
+        with _cli_environment(command, names):
             return int(args.func(args) or 0)
     except CerberusError as exc:  # every typed error, plugin and dataset errors included
-        print(f"cerberus {command}: {one_line(_said(exc, terms))}", file=sys.stderr)
+        print(f"cerberus {command}: {one_line(_said(exc, names))}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_ERROR))
     except Terminated:
         print(f"cerberus {command}: terminated (SIGTERM)", file=sys.stderr)

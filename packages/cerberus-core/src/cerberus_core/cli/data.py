@@ -9,7 +9,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from cerberus_core.cli import Terms
+from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
 
 #: Config keys that ``generate`` also takes as a flag of their own (same as ``--set KEY=...``).
@@ -86,7 +86,7 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     from cerberus_core.datasets.settings import GenerationConfig
 
-    g.set_defaults(func=run_generate, terms=Terms({
+    g.set_defaults(func=run_generate, flag_names=FlagNames({
         **CONFIG_FLAGS, **SOURCE_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",
         "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device"}, GenerationConfig))
 
@@ -108,8 +108,8 @@ def _add_check_and_show(dsub: argparse._SubParsersAction) -> None:
     s.add_argument("--parts", action="store_true", help="add ground-truth part renderings")
     s.add_argument("--scale", type=positive_int, default=2, help="tile upscaling, 1..16 (default 2)")
     s.add_argument("--renderer", default="auto", help="backend for --parts (default auto: warp, else torch)")
-    s.set_defaults(func=run_show, terms=Terms({"out": "--out", "split": "--split", "renderer": "--renderer",
-                                               "count": "--count", "scale": "--scale"}))
+    s.set_defaults(func=run_show, flag_names=FlagNames({"out": "--out", "split": "--split", "renderer": "--renderer",
+                                                        "count": "--count", "scale": "--scale"}))
 
 
 def _source_options(args: argparse.Namespace) -> dict:

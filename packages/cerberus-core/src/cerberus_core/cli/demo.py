@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from cerberus_core.cli import Terms
+from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.outputs import output_folder
@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--renderer", action="append", help="backend(s) to use (default: all installed)")
     p.add_argument("--image-size", type=positive_int, default=128,
                    help=f"image size in pixels, 1..{MAX_IMAGE_SIZE} (default: 128)")
-    p.set_defaults(func=run, terms=Terms({"out": "--out"}))
+    p.set_defaults(func=run, flag_names=FlagNames({"out": "--out"}))
 
 
 def run(args: argparse.Namespace) -> int:

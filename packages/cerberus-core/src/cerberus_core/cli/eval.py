@@ -5,15 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli import Terms
+from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
-
-#: The flag of each setting of Run.load and Run.evaluate (its EvalSettings fields included).
-TERMS = Terms({"data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
-               "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
-               "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device"})
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -58,7 +53,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--renderer", help="renderer backend for the figure and the part-visibility render "
                    "(default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
-    p.set_defaults(func=run, terms=TERMS)
+    # The flag of each setting of Run.load and Run.evaluate (its EvalSettings fields included).
+    p.set_defaults(func=run, flag_names=FlagNames({
+        "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
+        "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
+        "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device"}))
 
 
 def baseline_runs(specs: list[str], device: str) -> dict:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli import Terms
+from cerberus_core.cli import FlagNames
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import printable
@@ -56,9 +56,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--renderer", help="renderer backend for the pictures (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     # The flag of each setting of Run.load and Run.reconstruct_images (and an image's mask).
-    p.set_defaults(func=run, terms=Terms({"masks": "--mask", "mask": "--mask", "viewer_images": "--viewer-images",
-                                          "out": "--out", "overwrite": "--overwrite", "data": "--data",
-                                          "azimuth": "--azimuth", "renderer": "--renderer", "device": "--device"}))
+    p.set_defaults(func=run, flag_names=FlagNames({
+        "masks": "--mask", "mask": "--mask", "viewer_images": "--viewer-images", "out": "--out", "overwrite": "--overwrite",
+        "data": "--data", "azimuth": "--azimuth", "renderer": "--renderer", "device": "--device"}))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from cerberus_core.cli import Terms
+from cerberus_core.cli import FlagNames
 from cerberus_core.config import load_yaml
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
@@ -62,9 +62,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(default: the config's, auto: Warp if it works, else torch)")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
     # The flag of each setting of train() and check_run_folder(); the config's keys are said with --set.
-    p.set_defaults(func=run, terms=Terms({"run_dir": "--out", "out": "--out", "resume": "--resume",
-                                          "overrides": "--set", "device": "--device",
-                                          "renderer": "--renderer"}, TrainConfig))
+    p.set_defaults(func=run, flag_names=FlagNames({"run_dir": "--out", "out": "--out", "resume": "--resume",
+                                                   "overrides": "--set", "device": "--device",
+                                                   "renderer": "--renderer"}, TrainConfig))
 
 
 def _check_config_file(path: Path) -> None:
