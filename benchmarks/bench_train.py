@@ -83,9 +83,9 @@ def trainer_step(spec: dict):
     import torch
 
     from cerberus_core.datasets.readers import QuadrupletDataset
-    from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
     from cerberus_core.train.distributed import init_distributed
+    from cerberus_core.train.settings import load_config
     from cerberus_core.train.trainer import _Trainer
 
     cfg = load_config(preset=spec["preset"])
@@ -318,7 +318,7 @@ def dataset_for(args: argparse.Namespace, preset: str, tmp: Path) -> Path:
     """``--data``, or a ``primitives`` set at the preset's resolution generated under ``tmp`` (once per size)."""
     if args.data is not None:
         return args.data.resolve()
-    from cerberus_core.train.config import load_config
+    from cerberus_core.train.settings import load_config
 
     size = load_config(preset=preset).data.image_size or 64
     root = tmp / f"prim{size}"

@@ -21,9 +21,9 @@ def main(argv: list[str]) -> int:
     from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core.model import Cerberus
     from cerberus_core.run import Run
-    from cerberus_core.train.config import load_config
     from cerberus_core.train.data import quadruplet_batch
     from cerberus_core.train.objective import TERMS, quadruplet_objective
+    from cerberus_core.train.settings import load_config
 
     if not argv:
         print(__doc__)

@@ -22,7 +22,7 @@ from cerberus_core.datasets.plan import preset_config
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.plugins import PluginError, get_metric
 from cerberus_core.render.backends import make_renderer
-from cerberus_core.train.config import load_config
+from cerberus_core.train.settings import load_config
 from tests.support.oracle import TinyViewDataset
 
 

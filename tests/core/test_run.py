@@ -22,7 +22,7 @@ pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/confte
 
 @pytest.fixture(scope="module")
 def tiny_run(tiny_root, tmp_path_factory):
-    from cerberus_core.train.config import load_config
+    from cerberus_core.train.settings import load_config
 
     config = load_config(preset="tiny", overrides=[f"data.root={tiny_root}", "train.tensorboard=false",
                                                     "train.steps=2", "train.progress=false"])

@@ -6,7 +6,7 @@ import re
 
 from cerberus_core.cli import build_parser
 from cerberus_core.plugins import BODY_GROUP, get_plugin, plugin_names
-from cerberus_core.train.config import preset_names
+from cerberus_core.train.settings import preset_names
 from tests.support.paths import REPO
 
 

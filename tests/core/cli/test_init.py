@@ -99,7 +99,7 @@ def test_flag_names_say_the_library_settings_as_the_command_flags():
     command that was run (typed, or the command's only way to set it), else ``--set KEY=VALUE``."""
     from cerberus_core.cli import FlagNames, typed_flags
     from cerberus_core.errors import ConfigError
-    from cerberus_core.train.config import TrainConfig
+    from cerberus_core.train.settings import TrainConfig
 
     names = FlagNames({"run_dir": "--out", "resume": "--resume", "device": "--device", "masks": "--mask"}, TrainConfig,
                       typed_flags(["train", "--out=runs/a", "--set", "device=cuda"]))

@@ -27,7 +27,8 @@ def test_safe_stem_is_short_valid_and_distinct() -> None:
 
 
 def test_did_you_mean_finds_case_and_typos_and_nothing_far():
-    assert did_you_mean("Warp", ["torch", "warp"]) == "warp"
-    assert did_you_mean("humna", ["human", "animal"]) == "human"
-    assert did_you_mean("zzz", ["human", "animal"]) is None
-    assert did_you_mean("warp", ["warp"]) is None
+    assert did_you_mean("Warp", ["torch", "warp"]) == " (did you mean 'warp'?)"
+    assert did_you_mean("humna", ["human", "animal"]) == " (did you mean 'human'?)"
+    assert did_you_mean(7, [8, 17]) == " (did you mean '17'?)"  # a YAML key or value may be a number
+    assert did_you_mean("zzz", ["human", "animal"]) == ""
+    assert did_you_mean("warp", ["warp"]) == ""

@@ -292,7 +292,7 @@ def test_the_first_step_equals_the_one_before_the_speed_rewrites():
     the same gradient up to rounding."""
     import copy
 
-    from cerberus_core.train.config import load_config
+    from cerberus_core.train.settings import load_config
     from tests.support.reference_ops import ReferenceTranslationHead, loop_search
 
     cfg = load_config(preset="cpu")

@@ -202,7 +202,7 @@ def test_adam_is_fused_and_loads_the_state_of_the_foreach_adam_before_it():
     it, so a run started before the change resumes bit for bit as it would have."""
     import copy
 
-    from cerberus_core.train.config import OptimConfig
+    from cerberus_core.train.settings import OptimConfig
     from cerberus_core.train.trainer import fused_adam_devices, make_optimizer
 
     def net():

@@ -9,7 +9,7 @@ from cerberus_core import zoo
 from cerberus_core.model import Cerberus, ModelConfig
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
-from cerberus_core.train.config import TrainConfig
+from cerberus_core.train.settings import TrainConfig
 
 
 def _fake_zoo(tmp_path, monkeypatch, tamper=False):

@@ -30,15 +30,8 @@ import yaml
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import did_you_mean
 
-__all__ = ["ConfigError", "Presets", "build", "deep_merge", "did_you_mean_hint", "flatten", "load_raw",
-           "load_yaml", "omit_defaults", "parse_overrides"]
-
-
-def did_you_mean_hint(word: Any, options: Iterable[Any]) -> str:
-    """`` (did you mean 'x'?)`` for the option closest to ``word``
-    (:func:`~cerberus_core.plumbing.names.did_you_mean`), or ``""`` if none is close."""
-    close = did_you_mean(str(word), [str(o) for o in options])
-    return f" (did you mean {close!r}?)" if close else ""
+__all__ = ["ConfigError", "Presets", "build", "deep_merge", "flatten", "load_raw", "load_yaml", "omit_defaults",
+           "parse_overrides"]
 
 
 # ------------------------------------------------------------------ mappings
@@ -174,7 +167,7 @@ class Presets:
         """The YAML text of preset ``name``; a :class:`ConfigError` naming the bundled ones otherwise."""
         res = self._dir().joinpath(f"{name}.yaml")
         if not res.is_file():
-            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean_hint(name, self.names())}; bundled "
+            raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; bundled "
                               f"{self.kind}s: {', '.join(self.names())}")
         return res.read_text()
 
@@ -272,7 +265,7 @@ def _coerce_literal(value: Any, allowed: tuple, key: str) -> Any:
     if any(value == a and type(value) is type(a) for a in allowed):
         return value
     raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
-                      f"{did_you_mean_hint(value, allowed)}")
+                      f"{did_you_mean(value, allowed)}")
 
 
 def _coerce_int(value: Any, key: str) -> int:
@@ -358,7 +351,7 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     unknown = sorted(set(d) - set(known), key=str)  # a YAML key may be a number
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
-                          f"{did_you_mean_hint(prefix + str(unknown[0]), [prefix + k for k in known])}; "
+                          f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
                           f"valid keys here: {sorted(prefix + k for k in known)}")
     missing = [f.name for f in fields(cls)
                if f.init and f.name not in d and f.default is MISSING and f.default_factory is MISSING]

@@ -140,12 +140,9 @@ def get_plugin(group: str, name: str, path: list[str] | None = None) -> Any:
     if name not in plugins:
         known = ", ".join(sorted(plugins)) or "none"
         kind = KINDS.get(group, "plugin")
-        close = did_you_mean(name, sorted(plugins))
-        if close:
-            raise UnknownPluginError(f"unknown {kind} '{name}' (group {group}); did you mean '{close}'? Installed: {known}.")
-        raise UnknownPluginError(
-            f"unknown {kind} '{name}' (group {group}); installed: {known}. To use '{name}', {_install_hint(group, name)}."
-        )
+        hint = did_you_mean(name, sorted(plugins))
+        fix = "" if hint else f" To use '{name}', {_install_hint(group, name)}."
+        raise UnknownPluginError(f"unknown {kind} '{name}'{hint} (group {group}); installed: {known}.{fix}")
     return plugins[name].load()
 
 

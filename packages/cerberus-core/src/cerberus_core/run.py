@@ -48,7 +48,7 @@ from cerberus_core.plumbing.outputs import result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
-from cerberus_core.train.config import TrainConfig
+from cerberus_core.train.settings import TrainConfig
 from cerberus_core.zoo import available, model_path
 
 #: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without ``overwrite``.
@@ -404,7 +404,7 @@ class Run:
 
     Attributes:
         model: the :class:`~cerberus_core.model.Cerberus` model, in eval mode on :attr:`device`.
-        config: its :class:`~cerberus_core.train.config.TrainConfig`.
+        config: its :class:`~cerberus_core.train.settings.TrainConfig`.
         weights_info: which file was loaded, its step and the run's newer checkpoint, if any
             (:meth:`WeightsInfo.stale_warning`).
         source: the argument it was loaded from (a path, or a shipped model's name).

@@ -33,17 +33,14 @@ class OneLineParser(argparse.ArgumentParser):
     """An ArgumentParser whose usage errors are one line (exit 2), like every other CLI error."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: {message}; {_choice_hint(message)}see {self.prog} --help\n")
+        self.exit(2, f"{self.prog}: {message}{_choice_hint(message)}; see {self.prog} --help\n")
 
 
 def _choice_hint(message: str) -> str:
-    """``"did you mean 'a'? "`` for an argparse "invalid choice: 'x' (choose from 'a', 'b')" message."""
+    """`` (did you mean 'a'?)`` for an argparse "invalid choice: 'x' (choose from 'a', 'b')" message."""
     import re
 
     from cerberus_core.plumbing.names import did_you_mean
 
     found = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
-    if not found:
-        return ""
-    close = did_you_mean(found.group(1), re.findall(r"'([^']*)'", found.group(2)))
-    return f"did you mean '{close}'? " if close else ""
+    return did_you_mean(found.group(1), re.findall(r"'([^']*)'", found.group(2))) if found else ""

@@ -33,7 +33,7 @@ with --resume. Errors print one line and exit 2 (3: stopped on a non-finite loss
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from cerberus_core.train.config import TrainConfig, preset_names
+    from cerberus_core.train.settings import TrainConfig, preset_names
 
     p = sub.add_parser(
         "train", help="train Cerberus (or a baseline) on a quadruplet dataset",
@@ -86,7 +86,7 @@ def _check_config_file(path: Path) -> None:
 def resolve_config(args: argparse.Namespace, out: Path):
     """The run's config from --config / --preset / the run's saved config (:func:`resume_config`), plus
     --set; validated."""
-    from cerberus_core.train.config import load_config, resume_config
+    from cerberus_core.train.settings import load_config, resume_config
 
     config = None
     if args.resume and args.config is None and args.preset is None:
@@ -101,7 +101,7 @@ def resolve_config(args: argparse.Namespace, out: Path):
 
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.plumbing.signals import interrupt_for
-    from cerberus_core.train.config import default_preset
+    from cerberus_core.train.settings import default_preset
     from cerberus_core.train.trainer import check_run_folder, train
 
     if args.config is None and not args.preset and not (args.resume and args.out):

@@ -30,12 +30,13 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class
-from cerberus_core.config import build, did_you_mean_hint, flatten, load_raw
+from cerberus_core.config import build, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.plumbing.names import did_you_mean
 
 # ------------------------------------------------------------------------------------ presets
 SET_EXAMPLE = "splits.train.pairs=2000"
@@ -60,7 +61,7 @@ def load_generation_config(dataset: str, size: str | None = None, overrides: Ite
     known = cls.sizes()
     if size not in known:
         raise ConfigError.about("size", size, f"unknown size preset for dataset {dataset!r}"
-                                f"{did_you_mean_hint(size, known)}; choose one of {', '.join(known)}")
+                                f"{did_you_mean(size, known)}; choose one of {', '.join(known)}")
     raw = load_raw(cls.presets, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
     for key, why in (("dataset", "`dataset`"), ("preset", "`size`"), ("source", "the body source")):
         if key in raw:

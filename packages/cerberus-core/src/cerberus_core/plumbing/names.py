@@ -2,7 +2,7 @@
 
 * :func:`printable` — for a terminal or a one-line message: control characters (ANSI escapes, newlines,
   carriage returns) and undecodable bytes of a file name are shown as ``\\xNN`` escapes, never sent raw;
-* :func:`did_you_mean` — the hint after an unknown name: the closest known one, if any is close;
+* :func:`did_you_mean` — the hint after an unknown name (`` (did you mean 'x'?)``), if a known one is close;
 * :func:`safe_stem` — for an output file name: valid UTF-8, no control or path characters, no leading
   dot, and short enough that every name derived from it stays within the file system's limit.
 
@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import os
 import unicodedata
+from collections.abc import Iterable
 
 #: Longest output stem in UTF-8 bytes: the longest suffix a command adds (``_reconstruction.png``,
 #: 19 bytes), a de-duplicating counter and the atomic writer's temporary name (14 bytes) stay within
@@ -59,17 +60,18 @@ def safe_stem(stem: str, max_bytes: int = MAX_STEM_BYTES) -> str:
     return f"{cut}-{digest}"
 
 
-__all__ = ["MAX_STEM_BYTES", "printable", "safe_stem"]
+__all__ = ["MAX_STEM_BYTES", "did_you_mean", "printable", "safe_stem"]
 
 
-def did_you_mean(name: str, known: list[str] | tuple[str, ...]) -> str | None:
-    """The known name closest to ``name`` (case ignored first, then :func:`difflib.get_close_matches`),
-    or ``None`` when none is close: for the "did you mean 'warp'?" of an error message."""
+def did_you_mean(name: object, known: Iterable[object]) -> str:
+    """`` (did you mean 'warp'?)``, to follow an unknown ``name`` in a message: the known name closest to it (case
+    ignored first, then :func:`difflib.get_close_matches`), or ``""`` when none is close (or it is ``name`` itself)."""
     import difflib
 
-    lowered = {k.lower(): k for k in known}
-    match = lowered.get(str(name).lower())
+    name = str(name)
+    lowered = {str(k).lower(): str(k) for k in known}
+    match = lowered.get(name.lower())
     if match is None:
-        close = difflib.get_close_matches(str(name).lower(), list(lowered), n=1, cutoff=0.6)
+        close = difflib.get_close_matches(name.lower(), list(lowered), n=1, cutoff=0.6)
         match = lowered[close[0]] if close else None
-    return match if match != name else None
+    return f" (did you mean {match!r}?)" if match is not None and match != name else ""

@@ -1,8 +1,8 @@
-"""Training: config (:mod:`.config`), data contract and order (:mod:`.data`), objective
+"""Training: settings (:mod:`.settings`), data contract and order (:mod:`.data`), objective
 (:mod:`.objective`), loop (:mod:`.trainer`), checkpoints (:mod:`.checkpoint`), data parallelism
 (:mod:`.distributed`) and logs (:mod:`.logs`). ``cerberus train`` drives :func:`train`."""
 from cerberus_core.train.checkpoint import load_checkpoint
-from cerberus_core.train.config import TrainConfig, load_config, preset_names
+from cerberus_core.train.settings import TrainConfig, load_config, preset_names
 from cerberus_core.train.trainer import NonFiniteError, TrainResult, train
 
 __all__ = [

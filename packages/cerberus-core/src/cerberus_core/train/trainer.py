@@ -62,7 +62,6 @@ from cerberus_core.train.checkpoint import (
     restore_rng,
     save_checkpoint,
 )
-from cerberus_core.train.config import OptimConfig, TrainConfig, config_diff
 from cerberus_core.train.data import (
     StepBatchSampler,
     build_dataset,
@@ -80,6 +79,7 @@ from cerberus_core.train.distributed import (
 )
 from cerberus_core.train.logs import MetricsLog, plot_loss_curves, save_progress_grid
 from cerberus_core.train.objective import quadruplet_objective
+from cerberus_core.train.settings import OptimConfig, TrainConfig, config_diff
 from cerberus_core.train.speed import apply_speed, release_speed, resolve_autocast
 
 RESUMABLE_CHANGES = frozenset({

@@ -1,4 +1,5 @@
-"""Training configuration: one YAML file with data, model, renderer, losses, optimiser, schedule, device.
+"""Training settings (:class:`TrainConfig` and its sections): one YAML file with data, model, renderer, losses,
+optimiser, schedule, device.
 
 A config file holds any subset of the sections below; missing keys take the defaults (which are the
 paper's settings). ``extends: NAME`` (a bundled preset) or ``extends: path/to/other.yaml`` (relative
@@ -31,7 +32,7 @@ from cerberus_core.train.objective import LossConfig
 from cerberus_core.train.speed import SpeedConfig
 
 __all__ = ["DataConfig", "DebugConfig", "LoopConfig", "OptimConfig", "RenderConfig", "TrainConfig", "config_diff",
-           "deep_merge", "load_config", "parse_overrides", "preset_names"]
+           "default_preset", "load_config", "preset_names", "resume_config"]
 
 
 MAX_IMAGE_SIZE = 4096

@@ -2,8 +2,9 @@
 
 import pytest
 
+from cerberus_core.config import parse_overrides
 from cerberus_core.errors import ConfigError
-from cerberus_core.train.config import TrainConfig, config_diff, load_config, parse_overrides, preset_names
+from cerberus_core.train.settings import TrainConfig, config_diff, load_config, preset_names
 from tests.support.paths import REPO
 
 
