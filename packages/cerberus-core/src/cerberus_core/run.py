@@ -34,7 +34,7 @@ from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
-from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, reconstruct_images
+from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, write_reconstructions
 from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
 from cerberus_core.eval.segments import segments_line
@@ -569,7 +569,7 @@ class Run:
                            data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
                            viewer_images: int = 12) -> Reconstruction:
         """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
-        the 3D viewer; :func:`cerberus_core.eval.reconstruct.reconstruct_images`).
+        the 3D viewer; :func:`cerberus_core.eval.reconstruct.write_reconstructions`).
 
         Args:
             images: the input files.
@@ -590,10 +590,10 @@ class Run:
         mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(Path(out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
-        return reconstruct_images(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
-                                  renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
-                                  viewer_images=viewer_images, device=self.device,
-                                  title=f"cerberus reconstruct: {printable(self.source)}")
+        return write_reconstructions(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
+                                     renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
+                                     viewer_images=viewer_images, device=self.device,
+                                     title=f"cerberus reconstruct: {printable(self.source)}")
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
         """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and

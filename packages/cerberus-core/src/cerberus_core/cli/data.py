@@ -45,7 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     dsub = p.add_subparsers(dest="data_command", metavar="ACTION")
     dsub.required = True
     _add_generate(dsub)
-    _add_check_and_show(dsub)
+    _add_check(dsub)
+    _add_show(dsub)
 
 
 def _add_generate(dsub: argparse._SubParsersAction) -> None:
@@ -61,18 +62,8 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
     g.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
-    g.add_argument("--source", dest="root", help="folder source: the folder of meshes, "
-                   "SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl>")
-    g.add_argument("--test-subjects", help="folder source: comma-separated test subject names (default: --test-fraction)")
-    g.add_argument("--test-fraction", type=float, help="folder source: fraction of subjects (last in sorted order) "
-                   "held out for testing (default 0.3; 1: a test-only dataset, to evaluate a trained model on your meshes)")
-    g.add_argument("--up-axis", help="folder source: the meshes' up axis, +y -y +z -z +x -x, turned into +Y (default "
-                   "+y, the toolkit's world; Blender, anny and many scans are +z); recorded in the manifest")
-    g.add_argument("--canonical", metavar="POSE", help="folder source: the pose file stem that is each subject's "
-                   "canonical pose, rendered and flagged in the test split for the Hard Human test of cerberus eval "
-                   "(default: a pose named 'canonical')")
-    g.add_argument("--option", dest="options", action="append", default=[], metavar="KEY=VALUE",
-                   help="any option of the body source (repeatable; values are YAML)")
+    _add_source_options(g.add_argument_group("body source options", "the folder source's have flags of their own; "
+                                              "any source's option is --option KEY=VALUE"))
     g.add_argument("--renderer", help="renderer backend: warp, torch or auto (default: auto, warp if it works, else "
                    "torch); same as --set renderer=...")
     g.add_argument("--image-size", type=int, help="image size in pixels (default 64); same as --set image_size=...")
@@ -91,13 +82,31 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
         "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device"}, GenerationConfig))
 
 
-def _add_check_and_show(dsub: argparse._SubParsersAction) -> None:
+def _add_source_options(g: argparse._ArgumentGroup) -> None:
+    g.add_argument("--source", dest="root", help="folder source: the folder of meshes, "
+                   "SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl>")
+    g.add_argument("--test-subjects", help="folder source: comma-separated test subject names (default: --test-fraction)")
+    g.add_argument("--test-fraction", type=float, help="folder source: fraction of subjects (last in sorted order) "
+                   "held out for testing (default 0.3; 1: a test-only dataset, to evaluate a trained model on your meshes)")
+    g.add_argument("--up-axis", help="folder source: the meshes' up axis, +y -y +z -z +x -x, turned into +Y (default "
+                   "+y, the toolkit's world; Blender, anny and many scans are +z); recorded in the manifest")
+    g.add_argument("--canonical", metavar="POSE", help="folder source: the pose file stem that is each subject's "
+                   "canonical pose, rendered and flagged in the test split for the Hard Human test of cerberus eval "
+                   "(default: a pose named 'canonical')")
+    g.add_argument("--option", dest="options", action="append", default=[], metavar="KEY=VALUE",
+                   help="any option of the body source (repeatable; values are YAML)")
+
+
+def _add_check(dsub: argparse._SubParsersAction) -> None:
     c = dsub.add_parser("check", help="verify a dataset's checksums and report its contents",
                         description="Verify the manifest (format version, paths), every shard file (size, sha256, "
                         "array shapes) and completeness. Exit status 1 on any problem.")
     c.add_argument("root", type=Path, help="dataset folder")
     c.add_argument("--quick", action="store_true", help="sizes and headers only, no sha256")
     c.set_defaults(func=run_check)
+
+
+def _add_show(dsub: argparse._SubParsersAction) -> None:
     s = dsub.add_parser("show", help="write a contact sheet PNG of a split",
                         description="Rows of quadruplets (a0 a1 b0 b1) for training splits, or the views of each "
                         "pose for test splits; --parts adds the ground-truth parts in colour.")
@@ -112,14 +121,20 @@ def _add_check_and_show(dsub: argparse._SubParsersAction) -> None:
                                                         "count": "--count", "scale": "--scale"}))
 
 
-def _source_options(args: argparse.Namespace) -> dict:
-    """The body source's options: its flags, then ``--option KEY=VALUE`` (the source's ``Options`` check them)."""
-    from cerberus_core.config import parse_overrides
+def generation_request(args: argparse.Namespace):  # noqa: ANN201 - a GenerationRequest (imported lazily)
+    """The dataset the flags ask for: --dataset, --size, the config keys (--seed, --image-size, --renderer,
+    --shard-images, then --set, which wins) and the body source's options (its flags, then --option KEY=VALUE;
+    the source's ``Options`` check them). The inverse of :func:`generate_command`."""
+    from cerberus_core.config import flatten, parse_overrides
+    from cerberus_core.datasets.plan import SET_EXAMPLE, GenerationRequest
 
-    options = {key: getattr(args, key) for key in SOURCE_FLAGS if getattr(args, key) is not None}
+    config = {key: value for key in CONFIG_FLAGS if (value := getattr(args, key)) is not None}
+    options = {key: value for key in SOURCE_FLAGS if (value := getattr(args, key)) is not None}
     if "test_subjects" in options:
         options["test_subjects"] = [s.strip() for s in options["test_subjects"].split(",") if s.strip()]
-    return {**options, **parse_overrides(args.options, example="root=DIR")}
+    return GenerationRequest(args.dataset, args.size or args.size_alias,
+                             {**config, **flatten(parse_overrides(args.overrides, example=SET_EXAMPLE))},
+                             {**options, **parse_overrides(args.options, example="root=DIR")})
 
 
 def run_generate(args: argparse.Namespace) -> int:
@@ -127,22 +142,19 @@ def run_generate(args: argparse.Namespace) -> int:
     import yaml
 
     from cerberus_core.datasets.dataset import Dataset
-    from cerberus_core.datasets.plan import load_generation_config
 
     if args.size_alias is not None:
         print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "
               "recipes are `cerberus train --preset`)", file=sys.stderr)
-    shortcuts = [f"{key}={value}" for key in CONFIG_FLAGS if (value := getattr(args, key)) is not None]
-    config = load_generation_config(args.dataset, args.size or args.size_alias, [*shortcuts, *args.overrides])
+    request = generation_request(args)
     if args.print_config:
-        print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
+        print(yaml.safe_dump(request.config().to_dict(), sort_keys=False), end="")
         return 0
-    how = dict(source_options=_source_options(args), overwrite=args.overwrite, device=args.device,
-               batch_size=args.batch_size)
+    how = dict(overwrite=args.overwrite, device=args.device, batch_size=args.batch_size)
     if args.dry_run:
-        print("\n".join(Dataset.plan(config, args.out, **how).plan_lines()))
+        print("\n".join(Dataset.plan(request, args.out, **how).plan_lines()))
         return 0
-    dataset = Dataset.generate(config, args.out, progress=not args.quiet, **how)
+    dataset = Dataset.generate(request, args.out, progress=not args.quiet, **how)
     print(*(f"{split:<6} {info.planned_images:>8} images {info.planned_quadruplets:>8} quadruplets"
             for split, info in dataset.manifest.splits.items()), f"dataset written to {args.out}", sep="\n")
     return 0

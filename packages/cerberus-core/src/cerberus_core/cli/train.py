@@ -4,12 +4,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cerberus_core.cli import FlagNames
 from cerberus_core.config import load_yaml
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.outputs import output_folder
+
+if TYPE_CHECKING:
+    from cerberus_core.train.settings import TrainConfig
 
 EPILOG = """\
 examples:
@@ -61,7 +65,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="renderer backend by name (see cerberus renderers) or auto; same as --set renderer=NAME "
                    "(default: the config's, auto: Warp if it works, else torch)")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
-    # The flag of each setting of train() and check_run_folder(); the config's keys are said with --set.
+    # The flag of each setting of train(); the config's keys are said with --set.
     p.set_defaults(func=run, flag_names=FlagNames({"run_dir": "--out", "out": "--out", "resume": "--resume",
                                                    "overrides": "--set", "device": "--device",
                                                    "renderer": "--renderer"}, TrainConfig))
@@ -83,26 +87,11 @@ def _check_config_file(path: Path) -> None:
                           "in it, or pass --preset paper to train with the paper's settings")
 
 
-def resolve_config(args: argparse.Namespace, out: Path):
-    """The run's config from --config / --preset / the run's saved config (:func:`resume_config`), plus
-    --set; validated."""
-    from cerberus_core.train.settings import load_config, resume_config
-
-    config = None
-    if args.resume and args.config is None and args.preset is None:
-        config = resume_config(out, args.overrides)
-    if config is None:
-        if args.config is not None:
-            _check_config_file(args.config)
-        config = load_config(args.config, preset=None if args.config else args.preset, overrides=args.overrides)
-    check_device(config.device)
-    return config
-
-
-def run(args: argparse.Namespace) -> int:
-    from cerberus_core.plumbing.signals import interrupt_for
-    from cerberus_core.train.settings import default_preset
-    from cerberus_core.train.trainer import check_run_folder, train
+def resolve(args: argparse.Namespace) -> tuple[Path, TrainConfig]:
+    """The run folder and its config from the flags: --config / --preset (the default one announced) or the run's
+    saved config (:func:`resume_config`), plus --set, --device and --renderer; validated, nothing written."""
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.train.settings import default_preset, load_config, resume_config
 
     if args.config is None and not args.preset and not (args.resume and args.out):
         chosen, why = default_preset(args.device)
@@ -110,17 +99,27 @@ def run(args: argparse.Namespace) -> int:
         print(f"no --preset or --config given: using the '{chosen}' preset ({why}); pass --preset NAME to choose",
               file=sys.stderr)
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
-    from cerberus_core.datasets.dataset import Dataset
-
     out = output_folder(args.out or Path("runs") / name, refuse=Dataset.not_an_output)
-    for key in ("device", "renderer"):  # one mechanism: --device and --renderer are the config keys of their names
-        if getattr(args, key) is not None:
-            args.overrides = [*args.overrides, f"{key}={getattr(args, key)}"]
-    config = resolve_config(args, out)
+    # one mechanism: --device and --renderer are the config keys of their names
+    overrides = [*args.overrides, *(f"{key}={getattr(args, key)}" for key in ("device", "renderer")
+                                    if getattr(args, key) is not None)]
+    config = resume_config(out, overrides) if args.resume and args.config is None and args.preset is None else None
+    if config is None:
+        if args.config is not None:
+            _check_config_file(args.config)
+        config = load_config(args.config, preset=None if args.config else args.preset, overrides=overrides)
+    check_device(config.device)
+    return out, config
+
+
+def run(args: argparse.Namespace) -> int:
+    from cerberus_core.plumbing.signals import interrupt_for
+    from cerberus_core.train.trainer import train
+
+    out, config = resolve(args)
     if args.print_config:
         print(config.to_yaml(), end="")
         return 0
-    check_run_folder(out, args.resume)  # before anything is built or written (train() checks again, locked)
     result = train(config, out, resume=args.resume)
     if result.rank != 0:
         if result.interrupted:

@@ -147,9 +147,8 @@ class Dataset:
     def resume(self, *, device: str = "cpu", batch_size: int = 64, progress: bool = True,
                log: Callable[[str], None] = print) -> Dataset:
         """Finish generating this dataset (the shards written are kept): :meth:`generate` with its :meth:`request`."""
-        request = self.request()
-        return Dataset.generate(request.config(), self.root, source_options=request.source_options, device=device,
-                                batch_size=batch_size, progress=progress, log=log)
+        return Dataset.generate(self.request(), self.root, device=device, batch_size=batch_size, progress=progress,
+                                log=log)
 
     # ---------------------------------------------------------------------------- looking
     def contact_sheet(self, out: str | Path | None = None, *, split: str = "train", count: int = 8, parts: bool = False,
@@ -177,17 +176,22 @@ class Dataset:
 
     # ---------------------------------------------------------------------------- making
     @classmethod
-    def plan(cls, config: GenerationConfig, out: str | Path | None = None, *,
+    def plan(cls, config: GenerationConfig | GenerationRequest, out: str | Path | None = None, *,
              source_options: Mapping[str, Any] | None = None, source: BodySource | None = None,
              overwrite: bool = False, device: str = "cpu", batch_size: int = 64) -> GenerationJob:
         """Check a whole generation and plan it, writing nothing (a dry run): the config, the body source
         registered as ``config.dataset`` and its options, the renderer, the shard plan, the memory a shard
         needs and, with ``out``, the folder (:func:`~cerberus_core.datasets.generate.validate_generation`);
-        the source's advice (:meth:`BodySource.warnings`) is warned.
+        the source's advice (:meth:`BodySource.warnings`) is warned. Arguments as in :meth:`generate`.
 
         Returns:
             The job: :meth:`GenerationJob.plan_lines` says the counts of each split.
         """
+        if isinstance(config, GenerationRequest):
+            if source_options is not None:
+                raise ConfigError.about("source_options", dict(source_options), "a GenerationRequest carries its own",
+                                        "pass them as its `source_options`")
+            config, source_options = config.config(), config.source_options
         if out is not None:
             output_folder(Path(out))
             if source_options and source_options.get("root"):  # the meshes read are not in the folder written
@@ -199,7 +203,8 @@ class Dataset:
         return job
 
     @classmethod
-    def generate(cls, config: GenerationConfig, out: str | Path, *, source_options: Mapping[str, Any] | None = None,
+    def generate(cls, config: GenerationConfig | GenerationRequest, out: str | Path, *,
+                 source_options: Mapping[str, Any] | None = None,
                  source: BodySource | None = None, overwrite: bool = False, device: str = "cpu", batch_size: int = 64,
                  progress: bool = True, log: Callable[[str], None] = print,
                  on_shard: ShardCallback | None = None) -> Dataset:
@@ -210,9 +215,12 @@ class Dataset:
         holds anything else is refused unless ``overwrite``.
 
         Args:
-            config: what to generate (:func:`~cerberus_core.datasets.plan.load_generation_config`).
+            config: what to generate: a config (:func:`~cerberus_core.datasets.plan.load_generation_config`), or
+                a :class:`~cerberus_core.datasets.plan.GenerationRequest` (source, size preset, overrides and the
+                source's options: what ``cerberus data generate`` asks for, and :meth:`request` of a dataset).
             out: the dataset folder (created if needed).
-            source_options: the body source's options (checked by its ``Options``; stored in the manifest).
+            source_options: the body source's options with a config (checked by its ``Options``; stored in the
+                manifest); a request carries its own.
             source: a body source built by the caller instead (``source_options`` are then stored as given).
             overwrite: replace a different dataset, or write into a folder holding other files.
             device: torch device for posing and rendering (no effect on the dataset).

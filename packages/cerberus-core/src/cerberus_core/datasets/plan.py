@@ -78,24 +78,27 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
 @dataclass(frozen=True)
 class GenerationRequest:
     """A dataset as it is asked for: a body source, a size preset, the config keys set over the preset and
-    the source's options. :meth:`Dataset.request <cerberus_core.datasets.dataset.Dataset.request>` gives the
-    one that resumes a dataset; ``cerberus data`` says it as a command.
+    the source's options. :meth:`Dataset.generate <cerberus_core.datasets.dataset.Dataset.generate>` takes one
+    (``cerberus data generate`` makes one from its flags); :meth:`Dataset.request
+    <cerberus_core.datasets.dataset.Dataset.request>` gives the one that resumes a dataset, which ``cerberus data``
+    says as a command.
 
     Attributes:
         dataset: the body source's name.
-        size: the size preset.
-        overrides: flat config key (``seed``, ``splits.train.pairs``) → value, where it differs from the preset.
-        source_options: the source's stored options.
+        size: the size preset (``None``: the source's :attr:`~BodySource.default_size`).
+        overrides: flat config key (``seed``, ``splits.train.pairs``) → value, set over the preset.
+        source_options: the source's options (checked by its ``Options``).
     """
 
     dataset: str
-    size: str
+    size: str | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     source_options: Mapping[str, Any] = field(default_factory=dict)
 
     def config(self) -> GenerationConfig:
         """The config asked for (:func:`load_generation_config`)."""
-        return load_generation_config(self.dataset, self.size, [f"{k}={json.dumps(v)}" for k, v in self.overrides.items()])
+        return load_generation_config(self.dataset, self.size,
+                                      [f"{k}={json.dumps(v, default=str)}" for k, v in self.overrides.items()])
 
     @classmethod
     def of(cls, manifest: Manifest) -> GenerationRequest:

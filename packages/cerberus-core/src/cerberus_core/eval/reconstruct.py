@@ -1,5 +1,5 @@
-"""Reconstruction of image files with a trained model: what ``cerberus reconstruct`` does, as one call
-(:meth:`cerberus_core.run.Run.reconstruct_images` or :func:`reconstruct_images`).
+"""Reconstruction of image files with a trained model: the implementation of
+:meth:`cerberus_core.run.Run.reconstruct_images` (what ``cerberus reconstruct`` does; the one way in).
 
 For each image: the posed part meshes (GLB, OBJ), the pictures of the paper's Figure 1 and a card of the
 offline 3D viewer, all written into one result folder that replaces ``out`` only once everything is
@@ -99,7 +99,7 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
 
 @dataclass
 class Reconstruction:
-    """What :func:`reconstruct_images` wrote.
+    """What :func:`write_reconstructions` wrote.
 
     Attributes:
         out: the result folder.
@@ -123,7 +123,7 @@ class Reconstruction:
         return lines + ([f"3D viewer: {printable(self.out / 'index.html')}"] if viewer else [])
 
 
-def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
+def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
                        out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
                        viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "") -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with

@@ -327,8 +327,11 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
     Returns:
         A :class:`TrainResult`.
     Raises:
+        RunExistsError, NoCheckpointError, LockedError: the run folder does not fit ``resume`` or is in use
+            (:func:`check_run_folder`: before anything is built).
         NonFiniteError: with ``train.on_nonfinite: stop``, when a step's loss or gradient is not finite.
     """
+    check_run_folder(Path(run_dir), resume)  # before anything is built or written (checked again under the lock)
     # Shallow copies (the caller's object is not mutated below); making them checks them (fields.Checked).
     config = dataclasses.replace(config)
     config.model = dataclasses.replace(config.model)
