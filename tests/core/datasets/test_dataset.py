@@ -1,0 +1,32 @@
+"""A dataset as one object (cerberus_core.datasets.dataset): a generation asked for as a request (what
+``cerberus data generate`` passes) is the generation of its config, and a dataset's own request rebuilds it."""
+from __future__ import annotations
+
+import pytest
+
+from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.datasets.format import sha256_file
+from cerberus_core.datasets.plan import GenerationRequest
+from cerberus_core.errors import ConfigError
+
+QUIET = {"progress": False, "log": lambda s: None}
+
+
+def _fingerprint(root) -> dict[str, str]:
+    return {p.relative_to(root).as_posix(): sha256_file(p) for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_a_request_generates_what_its_config_generates(tiny_root, tmp_path):
+    """``tiny_root`` is ``Dataset.generate(preset_config("primitives", "tiny", image_size=32), ...)``."""
+    request = GenerationRequest("primitives", "tiny", {"image_size": 32})
+    assert Dataset.plan(request).plan_lines() == Dataset.plan(request.config()).plan_lines()
+    made = Dataset.generate(request, tmp_path / "ds", **QUIET)
+    assert _fingerprint(made.root) == _fingerprint(tiny_root)
+    again = made.request()  # the stored config: the renderer `auto` resolved to the backend used
+    assert again == Dataset.open(tiny_root).request() and again.overrides["image_size"] == 32
+
+
+def test_a_request_carries_its_own_source_options(tmp_path):
+    with pytest.raises(ConfigError, match="source_options") as caught:
+        Dataset.generate(GenerationRequest("primitives", "tiny"), tmp_path / "ds", source_options={"a": 1}, **QUIET)
+    assert caught.value.key == "source_options" and not (tmp_path / "ds").exists()
