@@ -73,7 +73,7 @@ def test_pack_parts_offsets_faces() -> None:
 
 @pytest.mark.parametrize("mutate, message", [
     (lambda v, f, c: (v[0], f, c), r"vertices must be \(B, V, 3\)"),
-    (lambda v, f, c: (v, f.float(), c), "faces must be an integer tensor"),
+    (lambda v, f, c: (v, f.float(), c), "faces must be int32 or int64, got float32"),
     (lambda v, f, c: (v, f[:, :2], c), r"faces must be \(F, 3\)"),
     (lambda v, f, c: (v, f + 1000, c), "faces index vertices outside"),
     (lambda v, f, c: (v, f, c.index([0])), "2 scenes but 1 cameras"),
@@ -93,7 +93,7 @@ def test_parts_need_four_dimensions(renderer, scene) -> None:
 
 def test_light_batch_must_match(renderer, scene) -> None:
     parts, faces, cam = scene
-    with pytest.raises(ValueError, match="light has batch 1"):
+    with pytest.raises(ValueError, match=r"shade: light.direction must be \(B, 3\), got \(1, 3\)"):
         render_parts(renderer, parts, faces, cam, Light.following(cam.index([0])))
 
 

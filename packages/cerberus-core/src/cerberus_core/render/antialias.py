@@ -48,7 +48,6 @@ from __future__ import annotations
 import torch
 
 from cerberus_core.render.shading import homogeneous_barycentrics, pixel_ndc
-from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
 
@@ -63,7 +62,8 @@ def edge_neighbors(faces: Tensor) -> Tensor:
     (it is opposite vertex ``k``, like the edge function ``c_k`` of the rasterization rule).
 
     Args:
-        faces: ``(F, 3)`` int vertex indices.
+        faces: ``(F, 3)`` int vertex indices (not checked here: the op that needs the topology,
+            :func:`cerberus_core.render.ops.antialias`, checked them).
     Returns:
         ``(F, 3)`` int64: the other face sharing edge ``k`` of face ``f``, or -1 on a boundary edge.
         On a non-manifold edge (more than two faces) one of the others is picked.
@@ -71,7 +71,6 @@ def edge_neighbors(faces: Tensor) -> Tensor:
     The result is cached by the faces' content (an equality check per call), so calling it every
     render with freshly packed faces costs one comparison.
     """
-    check_shapes("edge_neighbors", faces=(faces, "F 3"))
     key = (str(faces.device), tuple(faces.shape))
     entries = _NEIGHBOR_CACHE.setdefault(key, [])
     for cached, nbrs in entries:

@@ -1,5 +1,5 @@
-"""User-facing rendering: validate a scene, rasterize with a backend, shade, composite (the ops of
-:mod:`cerberus_core.render.ops`, composed).
+"""User-facing rendering: the ops of :mod:`cerberus_core.render.ops` composed (rasterize with a backend, shade,
+composite), and the checks of a scene that no op can make (one camera per scene, finite and bounded vertices).
 
 >>> from cerberus_core import Camera, Light, make_renderer, render_parts, icosphere
 >>> r = make_renderer("torch")
@@ -28,15 +28,11 @@ MAX_COORDINATE = 1e8
 """Largest supported absolute vertex coordinate (world units); larger ones are rejected with a clear error."""
 
 
-def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
-    check_shapes("render", vertices=(vertices, "B V 3"), faces=(faces, "F 3"))
-    if faces.dtype not in (torch.int32, torch.int64):
-        raise ShapeError(f"render: faces must be an integer tensor, got {faces.dtype}; pass `faces.long()`")
+def _check_scene(vertices: Tensor, camera: Camera) -> None:
+    """What no op checks: one camera per scene, and finite world coordinates within :data:`MAX_COORDINATE`
+    (``vertices`` is ``(B, V, 3)``: :func:`ops.vertex_normals <cerberus_core.render.ops.vertex_normals>` checked it)."""
     if vertices.shape[0] != camera.batch_size:
         raise ShapeError(f"render: {vertices.shape[0]} scenes but {camera.batch_size} cameras; pass one camera per scene")
-    if faces.numel() and (int(faces.min()) < 0 or int(faces.max()) >= vertices.shape[1]):
-        raise MeshError(f"render: faces index vertices outside 0..{vertices.shape[1] - 1}; "
-                        "check the face template matches the vertex count")
     bad = ~torch.isfinite(vertices.detach()).all(-1)
     if bool(bad.any()):
         scene, vert = (int(i) for i in torch.nonzero(bad)[0])
@@ -81,17 +77,16 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     Returns:
         :class:`RenderOutput`.
     """
-    _check_scene(vertices, faces, camera)
-    faces = faces.to(device=vertices.device, dtype=torch.int64)
+    # The ops check the tensors (the first, vertex_normals: vertices, faces and their indices), render the scene.
+    faces = faces.to(vertices.device)
+    normals = ops.vertex_normals(renderer, vertices, faces)
+    _check_scene(vertices, camera)
+    faces = faces.long()
     bsz, nverts, _ = vertices.shape
     light = Light.following(camera) if light is None else light
-    if light.direction.shape[0] != bsz:
-        raise ShapeError(f"render: light has batch {light.direction.shape[0]}, scene has {bsz}; pass one light per "
-                         "scene (e.g. `Light.following(camera)`)")
     alb = _per_vertex(albedo, bsz, nverts, vertices, "albedo")
     clip = camera.world_to_clip(vertices)
     face_id = ops.rasterize(renderer, clip, faces, (camera.height, camera.width), camera.near)
-    normals = ops.vertex_normals(renderer, vertices, faces)
     rgb, depth = ops.shade(renderer, clip, faces, face_id, normals, alb, light)
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
     bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)

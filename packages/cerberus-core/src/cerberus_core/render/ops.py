@@ -2,9 +2,11 @@
 
 ``ctx`` is a renderer backend (:class:`~cerberus_core.render.interface.Renderer`, from
 :func:`cerberus_core.make_renderer`); each op validates its inputs once (shapes, dtypes, one device:
-:class:`~cerberus_core.errors.ShapeError`, :class:`~cerberus_core.errors.DeviceError`), calls the
-backend's kernel for it (or the shared torch reference the backend inherits; backends do not check
-again) and returns plain tensors, channels last like nvdiffrast's. These ops are the one way to a
+:class:`~cerberus_core.errors.ShapeError`, :class:`~cerberus_core.errors.DeviceError`; the ops that take
+geometry without face ids, :func:`rasterize` and :func:`vertex_normals`, also that the faces index existing
+vertices: :class:`~cerberus_core.errors.MeshError`), calls the backend's kernel for it (or the shared torch
+reference the backend inherits; backends do not check again) and returns plain tensors, channels last like
+nvdiffrast's. The other ops take the faces :func:`rasterize` was given, which its face ids index. These ops are the one way to a
 backend: :func:`cerberus_core.render.render` is them composed:
 
 >>> import torch
@@ -28,7 +30,7 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.errors import RenderInputError
+from cerberus_core.errors import MeshError, RenderInputError
 from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import Light
 from cerberus_core.render.shading import foreground, homogeneous_barycentrics, pixel_ndc
@@ -43,6 +45,15 @@ INTS = (torch.int32, torch.int64)
 """The index dtypes the ops take (faces, face ids are int64)."""
 
 
+def _check_indices(where: str, faces: Tensor, vertices: int) -> None:
+    """``faces`` index ``vertices`` vertices (:class:`MeshError` naming the range otherwise)."""
+    if faces.numel():
+        low, high = torch.stack(torch.aminmax(faces)).tolist()
+        if low < 0 or high >= vertices:
+            raise MeshError(f"{where}: faces index vertices outside 0..{vertices - 1} (from {low} to {high}); check "
+                            "the face template matches the vertex count")
+
+
 def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int, int], near: float) -> Tensor:
     """The visible face of every pixel (not differentiable: the barycentrics are recomputed by the
     differentiable ops from ``clip`` and these ids). The rule is the contract of
@@ -54,6 +65,7 @@ def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int,
         ``(B, H, W)`` int64 face ids, -1 on background.
     """
     check_shapes("rasterize", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS))
+    _check_indices("rasterize", faces, clip.shape[1])
     height, width = resolution
     if int(height) < 1 or int(width) < 1:
         raise RenderInputError(f"rasterize: the image size must be positive, got {height}x{width}; pass "
@@ -86,6 +98,7 @@ def vertex_normals(ctx: Renderer, vertices: Tensor, faces: Tensor) -> Tensor:
     """``(B, V, 3)`` area-weighted unit vertex normals of ``(B, V, 3)`` world vertices (differentiable;
     the backend's kernel or the shared torch code)."""
     check_shapes("vertex_normals", same_device=True, vertices=(vertices, "B V 3", FLOATS), faces=(faces, "F 3", INTS))
+    _check_indices("vertex_normals", faces, vertices.shape[1])
     return ctx.vertex_normals(vertices, faces)
 
 

@@ -125,8 +125,9 @@ def test_single_mesh_render_matches_render_parts(renderer) -> None:
 
 def test_bad_inputs_are_typed_errors_from_the_op_before_the_backend(renderer):
     """Each op of cerberus_core.render.ops checks shapes, dtypes and devices once, for every backend (the
-    backends do not check again): ShapeError / DeviceError naming the op and the tensor."""
-    from cerberus_core.errors import DeviceError, ShapeError
+    backends do not check again): ShapeError / DeviceError naming the op and the tensor; rasterize and
+    vertex_normals also the face indices (MeshError)."""
+    from cerberus_core.errors import DeviceError, MeshError, ShapeError
     from cerberus_core.render import ops
     from cerberus_core.render.interface import Light
 
@@ -144,6 +145,11 @@ def test_bad_inputs_are_typed_errors_from_the_op_before_the_backend(renderer):
         ops.rasterize(renderer, clip, faces, (0, 8), cam.near)
     with pytest.raises(DeviceError, match="rasterize: clip, faces must be on one device, got cpu, meta"):
         ops.rasterize(renderer, clip, faces.to("meta"), (8, 8), cam.near)
+    for bad in (faces + v.shape[1], faces - 1):  # faces outside the vertices: refused before a kernel reads them
+        with pytest.raises(MeshError, match="rasterize: faces index vertices outside 0..41"):
+            ops.rasterize(renderer, clip, bad, (8, 8), cam.near)
+        with pytest.raises(MeshError, match="vertex_normals: faces index vertices outside 0..41"):
+            ops.vertex_normals(renderer, v, bad)
     face_id = ops.rasterize(renderer, clip, faces, (8, 8), cam.near)
     normals = ops.vertex_normals(renderer, v, faces)
     albedo, light = torch.full_like(v, 0.8), Light.following(cam)
