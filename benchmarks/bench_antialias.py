@@ -24,7 +24,7 @@ from bench_render import training_batch  # noqa: E402  (the shared workload)
 
 from cerberus_core.render.api import render_parts  # noqa: E402
 from cerberus_core.render.backends import available_renderers, make_renderer  # noqa: E402
-from cerberus_core.render.interface import Light  # noqa: E402
+from cerberus_core.render.light import Light  # noqa: E402
 
 HEADER = (f"{'size':>4}  {'backend':<8} {'aa':<4} {'fwd ms':>8} {'fwd+bwd ms':>11} {'+fwd ms':>8} "
           f"{'+fwd+bwd ms':>12} {'edge px':>8}")

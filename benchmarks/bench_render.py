@@ -39,7 +39,7 @@ from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.demo import demo_scene
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.viz import part_colors
 
 Tensor = torch.Tensor

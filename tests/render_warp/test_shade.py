@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.render.shading import shade as reference_shade
 from cerberus_render_warp import rasterize, shade
 from tests.support.scenes import shading_inputs

@@ -14,7 +14,7 @@ from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import icosphere
 
 IMAGE_SIZE = 32

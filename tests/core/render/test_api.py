@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from cerberus_core.render.api import pack_parts, render, render_parts
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import icosphere
 from tests.support.scenes import two_sphere_scene
 

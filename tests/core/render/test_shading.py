@@ -17,7 +17,7 @@ def test_lambert_clamps_back_facing_light() -> None:
 
 def test_one_pixel_centre_rule_in_every_dtype():
     """The shared shading and the rasterizers take pixel centres from one function, in the scene's dtype."""
-    from cerberus_core.render.interface import pixel_centres
+    from cerberus_core.render.camera import pixel_centres
     from cerberus_core.render.shading import pixel_ndc
 
     for dtype in (torch.float32, torch.float64):

@@ -30,7 +30,7 @@ import yaml
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import did_you_mean
 
-__all__ = ["ConfigError", "Presets", "build", "deep_merge", "flatten", "load_raw", "load_yaml", "omit_defaults",
+__all__ = ["Presets", "build", "deep_merge", "flatten", "load_raw", "load_yaml", "omit_defaults",
            "parse_overrides"]
 
 

@@ -1,7 +1,7 @@
 """Every loss term of the paper, each a small function (sections 3.2, 4 and 5).
 
 A training example is a *quadruplet* of images of one body: two poses ``a, b`` seen from two
-viewpoints ``0, 1``, stacked in the order :data:`QUADRUPLET` = ``(a0, a1, b0, b1)`` along a
+viewpoints ``0, 1``, stacked in the order ``(a0, a1, b0, b1)`` along a
 dimension of size 4. Per-image tensors are shaped ``(B, 4, ...)`` here.
 
 ====================  ==================================================  =========================
@@ -44,9 +44,6 @@ NearestSearch = Callable[..., tuple[Tensor, "Tensor | None"]]
 """The pulls' nearest-neighbour search, ``(points, targets, counts, both) -> (to_target, to_point)``:
 :func:`cerberus_core.render.nearest.nearest_indices` or a renderer backend's kernel for it
 (:meth:`Renderer.nearest_indices <cerberus_core.render.interface.Renderer.nearest_indices>`)."""
-
-QUADRUPLET: tuple[str, ...] = ("a0", "a1", "b0", "b1")
-"""Order of the four images of a training example."""
 
 VIEW_PARTNER: tuple[int, ...] = (1, 0, 3, 2)
 """Index of the image of the same pose from the other viewpoint: a0 <-> a1, b0 <-> b1."""

@@ -27,7 +27,6 @@ __all__ = [
     "voxelize",
     "voxel_iou",
     "voxel_iou_clamped",
-    "grid_iou",
     "chamfer_l2",
     "fscore",
     "evaluate_pair",

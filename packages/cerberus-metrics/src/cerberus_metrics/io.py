@@ -24,7 +24,7 @@ import os
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 import pymeshlab
@@ -37,7 +37,6 @@ __all__ = [
     "MeshQualityWarning",
     "Mesh",
     "MeshReport",
-    "MeshLike",
     "load_mesh",
     "load_parts",
     "content_digest",
@@ -128,9 +127,6 @@ class Mesh:
     def triangles(self) -> np.ndarray:
         """(F, 3, 3) float64 corner coordinates."""
         return self.vertices[self.faces]
-
-
-MeshLike = Union[str, os.PathLike, Mesh, "Any"]  # trimesh.Trimesh, Scene, (vertices, faces)
 
 
 # --------------------------------------------------------------------------- coercion

@@ -41,7 +41,6 @@ __all__ = [
     "kato_surface_parts",
     "fill_exterior",
     "center_occupancy",
-    "voxelize_meshes",
     "grid_iou",
     "OUTSIDE",
 ]
@@ -105,8 +104,8 @@ class PartGrids:
     """Solid occupancy of each part of a multi-part shape, on one lattice box.
 
     occupancy: (P, nx, ny, nz) bool, part ``p``'s voxels in ``occupancy[p]``. origin, frame,
-    protocol, clamped: as :class:`VoxelGrid`. :meth:`union` is the grid :func:`voxelize_meshes`
-    gives for the same parts (it is computed this way), so per-part figures (a part's own voxels,
+    protocol, clamped: as :class:`VoxelGrid`. :meth:`union` is the grid of the whole shape
+    (the parts voxelized alone, then OR-ed), so per-part figures (a part's own voxels,
     the IoU without one part) are scored exactly like the union.
     """
 
@@ -473,13 +472,6 @@ def _clamp_boxes(bounds: np.ndarray, frame: Frame, names: Sequence[str]) -> tupl
     lo = np.where(keep[:, None], lo, 0).astype(np.int64)
     hi = np.where(keep[:, None], hi, 1).astype(np.int64)
     return keep, lo, hi
-
-
-def voxelize_meshes(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,
-                    outside: str = "error") -> VoxelGrid:
-    """Voxelize the union of cleaned parts: each part is voxelized alone, then OR-ed
-    (:meth:`PartGrids.union` of :func:`voxelize_parts`, which takes the same arguments)."""
-    return voxelize_parts(parts, protocol, frame, fill, outside).union()
 
 
 def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,

@@ -27,9 +27,6 @@ from cerberus_render_warp.arith import cross_term, torch_cross_is_fused
 
 wp.set_module_options(KERNEL_OPTIONS)
 
-SUPPORTED_DTYPES = (torch.float32, torch.float64)
-
-
 @wp.func
 def _pixel_bound(lo: Any, hi: Any, size: int):
     """The kernel form of :func:`cerberus_core.render.camera.centre_range`: the inclusive index range

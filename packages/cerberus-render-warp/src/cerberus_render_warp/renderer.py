@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import torch
 
-from cerberus_core.render.interface import Light, Renderer
+from cerberus_core.render.interface import Renderer
+from cerberus_core.render.light import Light
 from cerberus_render_warp.antialias import antialias
 from cerberus_render_warp.nearest import nearest_indices
 from cerberus_render_warp.normals import vertex_normals

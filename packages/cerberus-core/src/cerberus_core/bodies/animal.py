@@ -48,9 +48,7 @@ __all__ = [
     "DEFAULT_TARGET_FACES",
     "N_SPECIES",
     "N_TEST_POSES",
-    "N_TEST_VIEWS",
     "N_TRAIN_POSES",
-    "N_TRAIN_VIEWS",
     "animal_pose_splits",
     "build_animal",
     "rest_pose",
@@ -68,8 +66,6 @@ ANIMAL_PART_NAMES: list[str] = list(PART_GROUPS)
 N_SPECIES: int = 41
 N_TRAIN_POSES: int = 47
 N_TEST_POSES: int = 3
-N_TRAIN_VIEWS: int = 4
-N_TEST_VIEWS: int = 8
 
 DEFAULT_TARGET_FACES: int = 10_000
 """Face budget after decimation."""

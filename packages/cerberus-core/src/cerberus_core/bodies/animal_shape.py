@@ -107,8 +107,6 @@ ARCHETYPES: dict[str, dict[str, float]] = {
     k: dict(zip(_P, row, strict=True)) for k, (_, row) in _ARCHETYPE_ROWS.items()
 }
 """Archetype name -> parameter centre."""
-ARCHETYPE_DESCRIPTIONS: dict[str, str] = {k: desc for k, (desc, _) in _ARCHETYPE_ROWS.items()}
-"""Archetype name -> one-line description."""
 
 SPECIES_JITTER: float = 0.08
 """Log-normal sigma of the per-parameter species jitter (angles: additive, in rad)."""

@@ -34,9 +34,6 @@ import numpy as np
 from cerberus_core.bodies.animal_sdf import Ellipsoid, Primitive, RoundCone
 from cerberus_core.bodies.body import BodyError
 
-LEG_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "back_left", "back_right")
-"""Leg order used by :attr:`AnimalPose.legs`."""
-
 
 @dataclass(frozen=True)
 class AnimalPose:
@@ -44,7 +41,7 @@ class AnimalPose:
 
     Attributes:
         kind: the behaviour it was drawn from (a key of :data:`~cerberus_core.bodies.animal_pose.POSE_KINDS`, or ``"rest"``).
-        legs: four ``(swing, bend, abduct)`` triples in :data:`LEG_NAMES` order.
+        legs: four ``(swing, bend, abduct)`` triples: front left, front right, back left, back right.
     """
 
     kind: str = "rest"

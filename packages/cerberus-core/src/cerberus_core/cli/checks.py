@@ -1,10 +1,9 @@
-"""Argument checks shared by the sub-commands: argparse types for numbers, and the one-line usage error (the
+"""Argument checks shared by the sub-commands: the argparse type of a count, and the one-line usage error (the
 path checks are :mod:`cerberus_core.plumbing.outputs`, the device check :func:`cerberus_core.devices.check_device`,
 which library code uses too)."""
 from __future__ import annotations
 
 import argparse
-import math
 
 
 def positive_int(text: str) -> int:
@@ -15,17 +14,6 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def finite_float(text: str) -> float:
-    """argparse type: a finite number (no nan / inf)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
     return value
 
 

@@ -12,7 +12,7 @@ from cerberus_core.plumbing.outputs import output_folder
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.demo import demo_scene
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.viz import part_colors, save_image_grid
 
 #: Largest --image-size (4 views of it are rendered per backend).

@@ -40,10 +40,6 @@ VIEW_DTYPE = np.dtype([
 ])
 """One record per image (packed, 31 bytes)."""
 
-SHARD_ROLES = ("images", "views", "quads", "vertices", "meshes")
-"""The files of a shard, by role; ``vertices`` and ``meshes`` exist only when meshes are stored."""
-
-
 # ------------------------------------------------------------------------------------ atomic I/O
 def atomic_save_npy(path: Path, array: np.ndarray) -> None:
     """``np.save`` atomically (no pickles)."""

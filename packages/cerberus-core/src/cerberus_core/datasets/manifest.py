@@ -163,7 +163,7 @@ class ShardRecord:
         index: its position in the split (``shard-NNNNN``).
         name: ``shard-NNNNN``.
         images, quadruplets, meshes: what it holds.
-        files: ``{role: FileRecord}`` (roles: :data:`cerberus_core.datasets.format.SHARD_ROLES`).
+        files: ``{role: FileRecord}`` (roles ``images``, ``views``, ``quads``, and ``vertices``, ``meshes`` when meshes are stored).
         subjects: indices (into :attr:`Manifest.subjects`) of the subjects whose bodies it holds.
     """
 

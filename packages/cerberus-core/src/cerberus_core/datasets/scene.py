@@ -31,7 +31,7 @@ from cerberus_core.config import omit_defaults
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 
 Tensor = torch.Tensor
 

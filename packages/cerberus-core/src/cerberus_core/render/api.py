@@ -19,7 +19,8 @@ import torch
 import cerberus_core.render.ops as ops
 from cerberus_core.errors import MeshError, RenderInputError, ShapeError
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light, Renderer, RenderOutput
+from cerberus_core.render.interface import Renderer, RenderOutput
+from cerberus_core.render.light import Light
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor

@@ -34,7 +34,6 @@ import torch
 
 from cerberus_core.errors import InputTypeError
 from cerberus_core.render.antialias import antialias
-from cerberus_core.render.camera import pixel_centres
 from cerberus_core.render.light import Light
 from cerberus_core.render.nearest import nearest_indices
 from cerberus_core.render.shading import shade
@@ -43,7 +42,7 @@ from cerberus_core.render.templates import vertex_normals
 Tensor = torch.Tensor
 
 #: The contract's types and its pixel rule, importable from here as the backends always have.
-__all__ = ["Light", "RenderOutput", "Renderer", "pixel_centres"]
+__all__ = ["RenderOutput", "Renderer"]
 
 
 @dataclass

@@ -8,7 +8,7 @@ import torch
 
 from cerberus_core.render.api import render
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import icosphere
 
 RADIUS, DISTANCE, FOV, SIZE, LEVEL = 0.5, 2.5, 30.0, 129, 4  # odd size: the centre pixel is on the axis

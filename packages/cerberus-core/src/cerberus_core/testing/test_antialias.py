@@ -16,7 +16,7 @@ import torch
 
 from cerberus_core.render.api import pack_parts, render, render_parts
 from cerberus_core.render.camera import Camera
-from cerberus_core.render.interface import Light
+from cerberus_core.render.light import Light
 from cerberus_core.render.templates import icosphere
 
 from .scenes import body_scene, double_camera

@@ -129,7 +129,7 @@ def test_bad_inputs_are_typed_errors_from_the_op_before_the_backend(renderer):
     vertex_normals also the face indices (MeshError)."""
     from cerberus_core.errors import DeviceError, MeshError, ShapeError
     from cerberus_core.render import ops
-    from cerberus_core.render.interface import Light
+    from cerberus_core.render.light import Light
 
     cam = _camera(1, 8)
     sphere = icosphere(1)
