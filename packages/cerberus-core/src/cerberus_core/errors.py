@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import os
 
-from cerberus_core.plumbing.names import printable
 
 
 class CerberusError(Exception):
@@ -67,12 +66,13 @@ class ConfigError(CerberusError, ValueError):
     @classmethod
     def about(cls, key: str, value: object, problem: str, fix: str = "") -> ConfigError:
         """The error of the setting ``key``: ``key = value: problem (fix)`` (``key: problem`` when ``value``
-        is ``None``; a path shown as it is written), with ``key``, ``value`` and ``problem`` kept.
+        is ``None``; a path shown as it is written: the CLI escapes what a terminal must not receive), with
+        ``key``, ``value`` and ``problem`` kept.
 
         Args:
             fix: the Python fix, where the problem does not say it, e.g. ``EvalSettings(resolution=...)``.
         """
-        shown = "" if value is None else f" = {printable(value)}" if isinstance(value, os.PathLike) else f" = {value!r}"
+        shown = "" if value is None else f" = {os.fspath(value)}" if isinstance(value, os.PathLike) else f" = {value!r}"
         return cls(f"{key}{shown}: {problem}" + (f" ({fix})" if fix else ""), key=key, value=value, problem=problem)
 
     def within(self, prefix: str) -> ConfigError:
