@@ -40,7 +40,6 @@ from __future__ import annotations
 import os
 
 
-
 class CerberusError(Exception):
     """Base class of the toolkit's own errors."""
 
