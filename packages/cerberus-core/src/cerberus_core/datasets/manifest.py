@@ -377,10 +377,10 @@ class Manifest:
             raise DatasetError(f"{root} is a file, not a dataset folder; pass the folder that holds {MANIFEST}")
         if not root.is_dir():
             raise DatasetError(f"dataset folder {root} does not exist; generate one there first "
-                               "(cerberus_core.datasets.generate, or `cerberus data generate`)")
+                               "(`Dataset.generate`, or `cerberus data generate`)")
         if not path.is_file():
             raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset (generate one there first: "
-                               "cerberus_core.datasets.generate, or `cerberus data generate`)")
+                               "`Dataset.generate`, or `cerberus data generate`)")
         try:
             record = json.loads(path.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:

@@ -20,7 +20,7 @@ Tensor = torch.Tensor
 
 
 def pixel_ndc(height: int, width: int, rows: Tensor, cols: Tensor, dtype: torch.dtype = torch.float32) -> Tensor:
-    """NDC of pixel centres (:func:`~cerberus_core.render.interface.pixel_centres`).
+    """NDC of pixel centres (:func:`~cerberus_core.render.camera.pixel_centres`).
 
     Args:
         rows, cols: ``(N,)`` integer pixel indices.
