@@ -114,8 +114,11 @@ def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, mo
     monkeypatch.setattr(run_module, "find_spec", lambda name: None if name == "scipy" else find_spec(name))
     with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics and scipy, .*cerberus-core\[eval\]"):
         run_module.EvalSettings()
-    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics, "):
+    # the body segments need scipy too: checked up front, not after the evaluation's bar has started
+    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics and scipy, "):
         run_module.EvalSettings(part_quality=False)
+    with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics, which is not installed: .* brings it "):
+        run_module.EvalSettings(part_quality=False, segments=False)
 
 
 

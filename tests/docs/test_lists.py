@@ -1,5 +1,5 @@
 """The lists of training presets and dataset sizes agree between the bundled files, the command's --help and
-the docs (issue 34: they differed)."""
+the docs, and every preset or size a page names exists (issue 34: they differed)."""
 from __future__ import annotations
 
 import re
@@ -8,6 +8,8 @@ from cerberus_core.cli import build_parser
 from cerberus_core.plugins import BODY_GROUP, get_plugin, plugin_names
 from cerberus_core.train.settings import preset_names
 from tests.support.paths import REPO
+
+PAGES = [REPO / "README.md", REPO / "benchmarks" / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 
 
 def _sub(parser, *names):
@@ -31,3 +33,15 @@ def test_every_dataset_size_is_in_the_help_and_in_the_data_docs():
         for size in get_plugin(BODY_GROUP, dataset).sizes():
             assert size in helptext, (dataset, size)
             assert f"`{size}`" in docs, (dataset, size)
+
+
+def test_every_preset_and_size_a_page_names_exists():
+    """A page names presets and sizes in commands (`--preset cpu`, `--size small`); each must be one that exists."""
+    sizes = {size for dataset in plugin_names(BODY_GROUP) for size in get_plugin(BODY_GROUP, dataset).sizes()}
+    named = {"preset": set(), "size": set()}
+    for page in PAGES:
+        for kind, name in re.findall(r"--(preset|size)[ =]([a-z0-9_]+)", page.read_text()):
+            named[kind].add((page.name, name))
+    assert named["preset"] and named["size"]
+    assert [(page, n) for page, n in named["preset"] if n not in preset_names()] == []
+    assert [(page, n) for page, n in named["size"] if n not in sizes] == []

@@ -301,23 +301,39 @@ def test_loading_the_body_model_prints_nothing():
     assert res.stdout == "" and res.stderr == "", (res.stdout, res.stderr)
 
 
-def test_the_anny_cache_build_is_announced_before_it_starts(tmp_path, capsys):
-    """Issue 34: anny builds its model cache silently for a minute and more; the source says so first."""
+def test_the_anny_cache_build_is_announced_and_shows_its_progress(tmp_path, capsys):
+    """Issue 34: anny builds its model cache for two minutes without a word. The source says what it builds,
+    where and about how long first, then shows the bytes of blend shapes anny has read (each ``*.target.gz``
+    file anny opens, seen through Python's audit hook); once the cache is there, it says nothing."""
+    import gzip
+
+    from anny.models.model_data import CURRENT_DATA_VERSION
     from anny.paths import get_anny_cache_path, set_anny_cache_path
 
-    from cerberus_core.bodies.human import _announce_anny_cache
+    from cerberus_core.bodies import human
 
+    target = tmp_path / "arms-elbow-decr.target.gz"  # a blend shape, read the way anny reads one
+    with gzip.open(target, "wt") as f:
+        f.write("0 0.1 0.2 0.3\n")
     before = get_anny_cache_path()
-    set_anny_cache_path(tmp_path)
+    set_anny_cache_path(tmp_path / "cache")
     try:
-        _announce_anny_cache()
-        assert f"building anny's model cache in {tmp_path}" in capsys.readouterr().err
-        from anny.models.model_data import CURRENT_DATA_VERSION
-
-        folder = tmp_path / f"v{CURRENT_DATA_VERSION}"
-        folder.mkdir()
+        with human._anny_cache_build():
+            with gzip.open(target, "rt") as f:
+                f.read()
+            (tmp_path / "notes.txt").write_text("not a blend shape")
+            assert human._cache_bar.n == target.stat().st_size
+        err = capsys.readouterr().err
+        announced = err.index(f"building anny's model cache in {tmp_path / 'cache' / f'v{CURRENT_DATA_VERSION}'}: "
+                              "once per machine")
+        assert "about 2 minutes" in err and announced < err.index("anny's model cache: ")
+        assert human._cache_bar is None  # the build is over: later opens count nowhere
+        folder = tmp_path / "cache" / f"v{CURRENT_DATA_VERSION}"
+        folder.mkdir(parents=True)
         (folder / "build_model_data_0123.safetensors").write_bytes(b"")
-        _announce_anny_cache()
+        with human._anny_cache_build():
+            with gzip.open(target, "rt") as f:
+                f.read()
         assert capsys.readouterr().err == ""
     finally:
         set_anny_cache_path(before)

@@ -195,6 +195,48 @@ def test_the_memory_of_a_generation_is_checked_where_it_lives(monkeypatch, tmp_p
 
 
 
+def test_the_body_source_is_loaded_before_the_progress_bar_starts(tmp_path, capsys):
+    """Issue 34: anny's one-time cache build (two minutes) ran under the generation's bar, frozen at 0/44, and
+    then poisoned its rate (38 s/img). The source's load, announced, now comes before the bar's first line;
+    a finished dataset does not load it at all."""
+    from cerberus_core.bodies.sources import PrimitiveSource
+    from cerberus_core.plumbing.stdio import announce
+
+    class SlowToLoad(PrimitiveSource):
+        loads = 0
+
+        def prepare(self) -> None:
+            announce("loading the body model")
+            self.loads += 1
+
+        def bodies(self, subject, pose_ids):
+            assert self.loads == 1, "posed before prepare()"
+            return super().bodies(subject, pose_ids)
+
+    config, source = preset_config("primitives", "tiny", image_size=32), SlowToLoad()
+    Dataset.generate(config, tmp_path / "ds", source=source, log=lambda s: None)
+    err = capsys.readouterr().err
+    assert "loading the body model" in err and err.index("loading the body model") < err.index("img")
+    Dataset.generate(config, tmp_path / "ds", source=source, log=lambda s: None)  # finished: nothing to pose
+    assert source.loads == 1
+
+
+def test_a_source_missing_its_packages_is_refused_before_anything_is_written(tmp_path):
+    """Issue 34: the human source without anny (the animal one without scipy) wrote its manifest and failed later,
+    under the bar; every missing package is now named up front, with the extra that brings it."""
+    from cerberus_core.bodies.sources import PrimitiveSource
+    from cerberus_core.errors import ConfigError
+
+    class Needy(PrimitiveSource):
+        packages = {"numpy": "numpy", "no_such_package_a": "needy[extra]", "no_such_package_b": "needy[extra]"}
+
+    config = preset_config("primitives", "tiny", image_size=32)
+    with pytest.raises(ConfigError, match=r"^the primitives body source needs no_such_package_a and no_such_package_b, "
+                       r"which are not installed: pip install 'needy\[extra\]'$"):
+        Dataset.generate(config, tmp_path / "ds", source=Needy(), **QUIET)
+    assert not (tmp_path / "ds").exists()
+
+
 def test_supersampled_images_blend_edges_and_keep_the_coverage(tmp_path):
     """``supersample``: images are rendered larger and box-filtered, so edges take intermediate values
     while the body's total brightness matches the hard render's; stored only when not 1."""

@@ -288,21 +288,22 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
 
 
 # ------------------------------------------------------------------ evaluation settings
-def check_eval_packages(part_quality: bool = True) -> None:
+def check_eval_packages(part_quality: bool = True, segments: bool = True) -> None:
     """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
-    metric entry point; scipy, for the part quality), else one :class:`MissingPackageError` naming them all and
-    the extra that brings them, ``cerberus-core[eval]``."""
+    metric entry point; scipy, for the part quality and the body segments), else one
+    :class:`MissingPackageError` naming them all and the extra that brings them, ``cerberus-core[eval]``."""
     missing = []
     try:
         get_metric(SCORER_ENTRY_POINT)
     except UnknownPluginError:
         missing.append("cerberus-metrics")
-    if part_quality and find_spec("scipy") is None:
+    if (part_quality or segments) and find_spec("scipy") is None:
         missing.append("scipy")
     if missing:
-        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which are not installed: pip install "
-                                  "'cerberus-core[eval]' brings them (from the toolkit's wheelhouse: README, "
-                                  "'Installing with pip')")
+        many = len(missing) > 1
+        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which {'are' if many else 'is'} not "
+                                  f"installed: pip install 'cerberus-core[eval]' brings {'them' if many else 'it'} "
+                                  "(from the toolkit's wheelhouse: README, 'Installing with pip')")
 
 
 def check_protocol(name: str) -> str:
@@ -338,7 +339,7 @@ class EvalSettings(EvalConfig):
     overwrite: bool = False
 
     def validate(self) -> None:
-        check_eval_packages(self.part_quality)
+        check_eval_packages(self.part_quality, self.segments)
         check_protocol(self.protocol)
 
 

@@ -12,7 +12,7 @@ import threading
 import torch
 import warp as wp
 
-from cerberus_core.plumbing.stdio import call_dropping_stderr
+from cerberus_core.plumbing.stdio import announce, call_dropping_stderr
 
 CUDA_DRIVER_NOTE = "Could not find or load the NVIDIA CUDA driver"
 """The start of Warp's warning on machines without an NVIDIA driver (dropped when torch has no CUDA)."""
@@ -52,12 +52,12 @@ def init_warp_quietly() -> None:
 
 def announce_first_compile() -> None:
     """Say on standard error, before it starts, that this backend's kernels compile now: the first use on a
-    machine compiles them into Warp's kernel cache (30 s on a 2-core CPU, as issue 34 reports), silently
-    otherwise. Nothing is said once the cache holds them."""
-    import sys
+    machine compiles them into Warp's kernel cache (measured 4-8 s on a 2-core CPU with an empty cache,
+    ``WARP_CACHE_PATH`` pointed at an empty folder), silently otherwise. Nothing is said once the cache holds
+    them. The line goes above any progress bar being drawn (:func:`~cerberus_core.plumbing.stdio.announce`)."""
     from pathlib import Path
 
     cache = getattr(wp.config, "kernel_cache_dir", None)
     if cache and not any(Path(cache).glob("wp_cerberus_render_warp.*")):
-        print(f"cerberus-render-warp: compiling the Warp renderer's kernels into {cache} (once per machine and "
-              "Warp version; about half a minute on a CPU)...", file=sys.stderr, flush=True)
+        announce(f"cerberus-render-warp: compiling the Warp renderer's kernels into {cache} (once per machine and "
+                 "Warp version: about 5 s on 2 CPU cores, longer on a busy machine)")

@@ -19,13 +19,14 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
+from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
 from cerberus_core.config import Presets, build
-from cerberus_core.errors import CerberusError, ConfigError, DatasetError
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError, MissingPackageError
 from cerberus_core.fields import Checked
 from cerberus_core.plugins import BODY_GROUP, get_plugin
 from cerberus_core.shapes import check_shapes
@@ -158,6 +159,8 @@ class BodySource(ABC):
             a model trained on one kind is compared with.
         canonical_hint: how to give its subjects canonical poses, where it may lack them ("" if it
             always has them): said when the Hard Human test cannot run.
+        packages: the optional packages its bodies need, import name → what brings it
+            (``{"anny": "cerberus-core[human]"}``), checked before a generation starts (:meth:`check_packages`).
     """
 
     name: ClassVar[str] = "abstract"
@@ -167,6 +170,7 @@ class BodySource(ABC):
     presets: ClassVar[Presets] = DATA_PRESETS
     default_size: ClassVar[str] = "small"
     canonical_hint: ClassVar[str] = ""
+    packages: ClassVar[Mapping[str, str]] = {}
 
     @classmethod
     def body_kind(cls) -> str | None:
@@ -201,6 +205,16 @@ class BodySource(ABC):
         """The source built from checked ``options``; ``device`` is where it may pose bodies (no effect on
         them). The default passes every option as a keyword argument."""
         return cls(**{f.name: getattr(options, f.name) for f in fields(options)})
+
+    @classmethod
+    def check_packages(cls) -> None:
+        """Every package of :attr:`packages` is installed, else one :class:`MissingPackageError` naming all that
+        are missing and the ``pip install`` that brings them (before anything is generated)."""
+        missing = [name for name in cls.packages if find_spec(name) is None]
+        if missing:
+            bring = " ".join(f"'{extra}'" for extra in dict.fromkeys(cls.packages[name] for name in missing))
+            raise MissingPackageError(f"the {cls.name} body source needs {' and '.join(missing)}, which "
+                                      f"{'are' if len(missing) > 1 else 'is'} not installed: pip install {bring}")
 
     @classmethod
     def sizes(cls) -> list[str]:
@@ -249,6 +263,14 @@ class BodySource(ABC):
         """
         raise ConfigError.about(f"splits.{split}.pose_pairs", "motion", f"the {self.name} source has no motion pose "
                                 f"pairs; use `splits.{split}.pose_pairs=independent`")
+
+    def prepare(self) -> None:
+        """Load now what posing needs (a body model, its one-time cache) rather than in the first :meth:`bodies`
+        call: the generator calls it before its progress bar starts, so a slow first load is neither hidden
+        under a bar nor counted in its rate. A one-time cost of a minute or more is announced here, before it
+        starts, with what it is and about how long it takes
+        (:func:`~cerberus_core.plumbing.stdio.announce`). Default: nothing to load."""
+        return None
 
     @abstractmethod
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:

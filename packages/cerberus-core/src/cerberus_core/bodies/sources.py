@@ -8,7 +8,8 @@ options (and, for ``folder``, the files it reads):
 * :meth:`~BodySource.canonical_pose` ``(subject) -> pose id | None``;
 * :meth:`~BodySource.motion_pairs` ``(subject, split, n) -> [(pose id, pose id)]`` — pairs of nearby
   frames of one motion (``human`` only; the others refuse);
-* :meth:`~BodySource.bodies` ``(subject, pose ids) -> [PosedBody]`` — mesh + part labels.
+* :meth:`~BodySource.bodies` ``(subject, pose ids) -> [PosedBody]`` — mesh + part labels;
+* :meth:`~BodySource.prepare` ``()`` — load a body model now (``human``: anny), before the generator's bar.
 
 A :class:`~cerberus_core.bodies.body.Subject` is a small JSON-ready record (its ``name`` and
 ``info``: phenotype, species parameters, pose seed, file names ...) that holds everything :meth:`~BodySource.bodies` needs. The
@@ -64,18 +65,19 @@ class _SeededSubjects(BodySource):
 
 
 class HumanSource(_SeededSubjects):
-    """anny humans (:mod:`cerberus_core.bodies.human`); loads anny lazily on first posing.
+    """anny humans (:mod:`cerberus_core.bodies.human`); loads anny in :meth:`prepare` or on first posing.
 
     Subject record: ``{"phenotype": {...}, "split": ..., "pose_seed": int}``.
     """
 
     name = "human"
+    packages = {"anny": "cerberus-core[human]"}
 
     def __init__(self, device: str = "cpu") -> None:
         self._human = human
         self.part_names = list(human.PART_NAMES)
         self._device = device
-        self._model = None  # a cache: the loaded anny model
+        self._model: human.HumanBodySource | None = None  # a cache: the loaded anny model
 
     @classmethod
     def from_options(cls, options: Any, *, device: str = "cpu") -> HumanSource:
@@ -97,9 +99,16 @@ class HumanSource(_SeededSubjects):
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
         phenotype, split, pose_seed = subject.need(self.name, "phenotype", "split", "pose_seed")
         person = self._human.HumanSubject(subject.name, dict(phenotype), str(split), int(pose_seed))
+        return self._loaded().posed_bodies(person, list(pose_ids))
+
+    def prepare(self) -> None:
+        """Load anny (building its model cache on a machine's first use: announced, with its progress)."""
+        self._loaded()
+
+    def _loaded(self) -> human.HumanBodySource:
         if self._model is None:
             self._model = self._human.HumanBodySource(device=self._device)
-        return self._model.posed_bodies(person, list(pose_ids))
+        return self._model
 
     def describe(self) -> dict[str, Any]:
         import importlib.metadata as md
@@ -148,6 +157,7 @@ class AnimalSource(BodySource):
 
     name = "animal"
     shared_subjects = True
+    packages = {"scipy": "cerberus-core[animal]", "pymeshlab": "cerberus-core[animal]"}
     TEST_POSE_BASE = 1000
 
     def __init__(self) -> None:

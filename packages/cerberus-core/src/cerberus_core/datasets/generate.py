@@ -104,9 +104,9 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                         out: str | Path | None = None, overwrite: bool = False) -> GenerationJob:
     """Check a whole generation before anything is written (``--dry-run`` stops after this).
 
-    Checks the device, the batch size, the body source and its options, the renderer (resolved
-    through the ``cerberus.renderers`` entry points and built once), the shard plan (split sizes:
-    a split with subjects, subjects disjoint) and the memory the largest shard needs against the
+    Checks the device, the batch size, the body source (its optional packages installed) and its options,
+    the renderer (resolved through the ``cerberus.renderers`` entry points and built once), the shard plan
+    (split sizes: a split with subjects, subjects disjoint) and the memory the largest shard needs against the
     machine's (or the GPU's); with ``out``, also the folder (:func:`check_folder`: a file, another
     dataset or other files without ``overwrite``). The image size bound itself is
     :class:`GenerationConfig`'s; the folder's lock is the caller's (:mod:`cerberus_core.plumbing.lock`).
@@ -126,9 +126,11 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
     try:
         if source is None:
             cls = source_class(config.dataset)
+            cls.check_packages()
             options = cls.options(source_options)
             source, stored = cls.from_options(options, device=device), cls.stored_options(options)
         else:
+            type(source).check_packages()
             stored = dict(source_options or {})
         renderer = resolve_renderer(config.renderer)
         make_renderer(renderer)  # installed, imports, builds: before the manifest names it
@@ -206,6 +208,17 @@ def render_views(renderer: Renderer, bodies: list[PosedBody], mesh_index: np.nda
             if on_batch is not None:
                 on_batch(len(idx))
     return out
+
+
+def warm_up(renderer: Renderer, scene: SceneSetup, device: str | torch.device = "cpu") -> None:
+    """Render one triangle (8 x 8 pixels) the way :func:`render_views` renders, so that a backend's one-time
+    start happens now: Warp compiles its kernels into its cache on a machine's first use (announced by the
+    backend; about 5 s on 2 CPU cores)."""
+    verts = torch.tensor([[[-0.3, -0.3, 0.0], [0.3, -0.3, 0.0], [0.0, 0.3, 0.0]]], device=device)
+    camera = scene.cameras(np.zeros(1), 8, device=device)
+    with torch.no_grad():
+        render(renderer, verts, torch.tensor([[0, 1, 2]], device=device), camera, scene.light(camera),
+               albedo=scene.albedo, background=scene.background)
 
 
 def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list[tuple[int, int]],
@@ -376,7 +389,11 @@ def write_dataset(job: GenerationJob, out: str | Path, *, overwrite: bool = Fals
 
     todo: list[ShardPlan] = [s for split in config.splits for s in plan.shards[split] if s.index not in done[split]]
     if todo:
+        # One-time costs before the bar, so it neither hides them nor counts them in its rate: the body
+        # source's load (anny builds its model cache on a machine's first use) and the renderer's first call.
+        source.prepare()
         renderer = make_renderer(config.renderer)
+        warm_up(renderer, config.scene, device)
         from tqdm import tqdm
 
         bar = tqdm(total=sum(len(s.views) for s in todo), unit="img", disable=not progress,

@@ -1,7 +1,8 @@
-"""Process-level standard-error filtering, for libraries whose C code writes straight to fd 2.
+"""Standard error: what one-time costs say before they start (:func:`announce`), and process-level
+filtering for libraries whose C code writes straight to fd 2 (:func:`call_dropping_stderr`).
 
-Used by the Warp start-up of the ``warp`` backend and of the ``anny`` body model, which print a
-"Could not find or load the NVIDIA CUDA driver" note on machines without one; this module knows
+The filter is used by the Warp start-up of the ``warp`` backend and of the ``anny`` body model, which
+print a "Could not find or load the NVIDIA CUDA driver" note on machines without one; this module knows
 nothing about Warp: it runs a call with file descriptor 2 captured and writes back what was not
 asked to be dropped.
 """
@@ -14,6 +15,16 @@ from collections.abc import Callable
 from typing import TypeVar
 
 T = TypeVar("T")
+
+
+def announce(text: str) -> None:
+    """Say ``text`` on standard error now, on a line of its own: how a one-time cost (a cache built, kernels
+    compiled) says what it is and about how long it takes before it starts. A progress bar being drawn
+    (tqdm) is cleared, the line written above it and the bar drawn again, so the text never runs into it."""
+    from tqdm import tqdm
+
+    tqdm.write(text, file=sys.stderr)
+    sys.stderr.flush()
 
 
 def call_dropping_stderr(fn: Callable[[], T], drop: str) -> T:
