@@ -216,3 +216,30 @@ def test_a_coloured_or_textured_body_is_out_of_domain_even_as_a_cutout(generated
     assert any("alpha composited over the training background" in m for m in messages)  # the input's note
     domain = [m for m in messages if "out of the training domain" in m]
     assert len(domain) == 1 and "give an RGBA cut-out" not in domain[0] and "coarse grey body" in domain[0]
+
+
+def test_one_resize_is_one_warning_in_the_reconstruct_path(generated, tmp_path):
+    """Issue 34: ``cerberus reconstruct`` with a 512 px image said "downscaled 4x (box filter) from 512x512 before
+    conversion" and "resized from 128x128 to 64x64" for its one resize; a framed cut-out said the window in the
+    reduced pixels."""
+    big = np.asarray(Image.fromarray(_u8(generated["images"][0])).resize((512, 512), Image.NEAREST))
+    Image.fromarray(big).save(tmp_path / "big.png")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", str(tmp_path / "big.png"), "--out", str(tmp_path / "out"),
+                     "--viewer-images", "0"]) == 0
+    sizes = [str(w.message) for w in caught if "512" in str(w.message) or "128" in str(w.message)]
+    assert sizes == [f"{tmp_path / 'big.png'}: resized from 512x512 to 64x64"], sizes
+    cutout = np.zeros((600, 600, 4), np.uint8)  # the body small in a large RGBA canvas: framed, then resized
+    cutout[100:228, 300:428] = np.concatenate([big[::4, ::4], 255 * generated["silhouettes"][0][..., None].repeat(
+        2, 0).repeat(2, 1).astype(np.uint8)], -1)
+    Image.fromarray(cutout, "RGBA").save(tmp_path / "cutout.png")
+    li = D.prepare_input(tmp_path / "cutout.png", 64, generated["scene"], warn=False)
+    framed = [n for n in li.notes if "framed" in n]
+    side = int(framed[0].split("(a ")[1].split("x")[0])
+    rows, cols = np.nonzero(cutout[..., 3].any(1))[0], np.nonzero(cutout[..., 3].any(0))[0]
+    longest = max(rows[-1] - rows[0], cols[-1] - cols[0]) + 1  # in the file's pixels
+    want = longest / (D.FRAMING_MEDIAN * D.projected_extent(generated["scene"]))
+    assert abs(side - want) <= 600 // 128, (framed, want)  # the file's pixels, to the reduction's factor (4)
+    assert [n for n in li.notes if "resized" in n] == [f"resized from {side}x{side} to 64x64"], li.notes
+    assert not any("downscaled" in n for n in li.notes)

@@ -185,22 +185,30 @@ def _crop_padded(arr: np.ndarray, top: int, left: int, side: int, fill: Sequence
 
 
 def frame_to_training(image: np.ndarray, silhouette: np.ndarray, scene, size: int,
-                      notes: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      notes: list[str] | None = None, *, raw: RawImage | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Crop or pad ``(H, W, 3)`` ``image`` (already over the training background) and its silhouette to the
     :func:`training_window`, then resize both to ``size``.
 
+    Args:
+        raw: the file ``image`` was read from, if it may have been reduced on reading: the notes then give
+            the file's pixels (:attr:`RawImage.shown_size`).
     Returns:
         ``(size, size, 3)`` image and ``(size, size)`` silhouette; each change is appended to ``notes``.
     """
     notes = [] if notes is None else notes
+    scale = 1.0 if raw is None else raw.scale
+    shown = None if raw is None else raw.shown_size
     window = training_window(silhouette, scene)
     if window is not None:
         top, left, side = window
         image = _crop_padded(image, top, left, side, scene.background)
         silhouette = _crop_padded(silhouette[..., None], top, left, side, (0.0,))[..., 0]
-        notes.append(f"framed to its silhouette like the training images (a {side}x{side} square around the body, "
+        seen = round(side * scale)
+        shown = None if shown is None else (seen, seen)
+        notes.append(f"framed to its silhouette like the training images (a {seen}x{seen} square around the body, "
                      "padded with the training background where it leaves the image)")
-    return square_resize(image, size, notes), square_resize(silhouette[..., None], size, [])[..., 0]
+    return (square_resize(image, size, notes, shown_size=shown),
+            square_resize(silhouette[..., None], size, [])[..., 0])
 
 
 # ------------------------------------------------------------------ no silhouette
@@ -319,7 +327,7 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
     reasons, advice = [], []
     if silhouette is None:
         arr = raw.rgb if raw.alpha is None else composite(raw.rgb, raw.alpha, scene.background)
-        arr = square_resize(arr, size, notes)
+        arr = square_resize(arr, size, notes, shown_size=raw.shown_size)
         ok, reason = background_check(arr, scene)
         if not ok:
             reasons.append(reason)
@@ -328,7 +336,8 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
         notes.append(f"{'mask' if mask is not None else 'alpha'} composited over the training background "
                      f"{_colour(scene.background)}")
         cut = cut_off_sides(silhouette)
-        arr, _ = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size, notes)
+        arr, _ = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size, notes,
+                                   raw=raw)
         if cut:
             reasons.append(f"the body runs along the image's {' and '.join(cut)} edge: it looks cut off (a "
                            "portrait?), and the model was trained on whole bodies")
