@@ -243,3 +243,28 @@ def test_one_resize_is_one_warning_in_the_reconstruct_path(generated, tmp_path):
     assert abs(side - want) <= 600 // 128, (framed, want)  # the file's pixels, to the reduction's factor (4)
     assert [n for n in li.notes if "resized" in n] == [f"resized from {side}x{side} to 64x64"], li.notes
     assert not any("downscaled" in n for n in li.notes)
+
+
+def test_the_photo_warning_names_the_kind_of_body_the_model_learned(generated, tmp_path):
+    """Issue 34: the animal model's warning spoke of "a clothed or coloured person". The phrase is the body
+    source's (``BodySource.photo_subject``), found from the model's training data (a shipped model's registry
+    entry, a run's manifest); a kind not known here gets the generic phrase."""
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    tinted = np.where(m[..., None], a * np.array([1.0, 0.7, 0.5]), a)
+    said = {kind: D.appearance_check(tinted, generated["scene"], kind)[1]
+            for kind in ("human", "animal", "primitives", "folder", None, "not-installed")}
+    assert "a clothed or coloured person" in said["human"]
+    assert "animal" in said["animal"] and "person" not in said["animal"]
+    assert "figure" in said["primitives"] and "person" not in said["primitives"]
+    assert said["folder"] == said[None] == said["not-installed"] and "a coloured or textured body" in said[None]
+    rgba = np.concatenate([_u8(tinted), m[..., None].astype(np.uint8) * 255], -1)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "coloured.png")
+    for model, phrase in (("animal", "a furred, patterned or coloured animal"),
+                          ("human-nmrr", "a clothed or coloured person")):  # a shipped name is not a body kind
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["reconstruct", "--model", model, str(tmp_path / "coloured.png"),
+                         "--out", str(tmp_path / model), "--viewer-images", "0"]) == 0
+        domain = [str(w.message) for w in caught if "out of the training domain" in str(w.message)]
+        assert len(domain) == 1 and phrase in domain[0], domain
+        assert model == "human-nmrr" or "person" not in domain[0]

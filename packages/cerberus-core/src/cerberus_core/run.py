@@ -470,10 +470,11 @@ class Run:
         return model_scene(self.config, data, self.recorded_scene)
 
     def training_kind(self) -> str | None:
-        """The kind of bodies the model was trained on (``human``, ``animal``...): a shipped model's name,
-        else its training data's manifest if that is still here; ``None`` when unknown."""
+        """The kind of bodies the model was trained on (``human``, ``animal``...: a body source's name): a shipped
+        model's training dataset (its registry entry), else its training data's manifest if that is still
+        here; ``None`` when unknown."""
         if self.shipped:
-            return str(self.source)
+            return available()[str(self.source)].data.get("dataset")
         if Dataset.is_dataset(self.data_root):
             return Dataset.open(self.data_root).body_kind
         return None
@@ -593,7 +594,7 @@ class Run:
         return reconstruct_images(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                   renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
                                   viewer_images=viewer_images, device=self.device,
-                                  title=f"cerberus reconstruct: {printable(self.source)}")
+                                  title=f"cerberus reconstruct: {printable(self.source)}", kind=self.training_kind())
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
         """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and

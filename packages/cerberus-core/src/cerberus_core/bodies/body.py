@@ -158,6 +158,9 @@ class BodySource(ABC):
             a model trained on one kind is compared with.
         canonical_hint: how to give its subjects canonical poses, where it may lack them ("" if it
             always has them): said when the Hard Human test cannot run.
+        photo_subject: what a photograph of its kind of body shows that the untextured grey renders do
+            not, as a noun phrase (``"a clothed or coloured person"``): said when a model trained on it is
+            given such a photo (:func:`cerberus_core.eval.input_domain.appearance_check`).
     """
 
     name: ClassVar[str] = "abstract"
@@ -167,6 +170,7 @@ class BodySource(ABC):
     presets: ClassVar[Presets] = DATA_PRESETS
     default_size: ClassVar[str] = "small"
     canonical_hint: ClassVar[str] = ""
+    photo_subject: ClassVar[str] = "a coloured or textured body"
 
     @classmethod
     def body_kind(cls) -> str | None:

@@ -70,6 +70,7 @@ class HumanSource(_SeededSubjects):
     """
 
     name = "human"
+    photo_subject = "a clothed or coloured person"
 
     def __init__(self, device: str = "cpu") -> None:
         self._human = human
@@ -118,6 +119,7 @@ class PrimitiveSource(_SeededSubjects):
     """
 
     name = "primitives"
+    photo_subject = "a painted or textured figure"
 
     def __init__(self) -> None:
         self._prim = primitives
@@ -147,6 +149,7 @@ class AnimalSource(BodySource):
     """
 
     name = "animal"
+    photo_subject = "a furred, patterned or coloured animal"
     shared_subjects = True
     TEST_POSE_BASE = 1000
 

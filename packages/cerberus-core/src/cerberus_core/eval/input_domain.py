@@ -32,7 +32,8 @@ import numpy as np
 import torch
 from PIL import Image
 
-from cerberus_core.bodies.body import FILL
+from cerberus_core.bodies.body import FILL, BodySource, source_class
+from cerberus_core.errors import CerberusError
 from cerberus_core.eval.images import (
     ImageInputError,
     LoadedImage,
@@ -249,9 +250,22 @@ def background_check(image: np.ndarray | torch.Tensor, scene) -> tuple[bool, str
 
 
 # ------------------------------------------------------------------ one input
-def appearance_check(image: np.ndarray, scene) -> tuple[bool, str]:
+def photo_subject(kind: str | None) -> str:
+    """What a photograph of a body of ``kind`` (a body source's name, e.g. ``"animal"``) shows that the training
+    renders do not: the source's :attr:`~cerberus_core.bodies.body.BodySource.photo_subject`; for an unknown
+    kind (``None``: a folder of meshes, or a source not installed here) the generic one."""
+    if kind:
+        try:
+            return source_class(kind).photo_subject
+        except CerberusError:  # not installed here: the generic phrase still says what is wrong
+            pass
+    return BodySource.photo_subject
+
+
+def appearance_check(image: np.ndarray, scene, kind: str | None = None) -> tuple[bool, str]:
     """Whether the body in ``image`` (``(S, S, 3)`` in [0, 1], over the training background) looks like the
-    training bodies: grey and smoothly shaded. Returns ``(ok, reason)``."""
+    training bodies: grey and smoothly shaded. ``kind``: the kind of bodies the model learned (a body
+    source's name; :func:`photo_subject` says what a photo of one looks like). Returns ``(ok, reason)``."""
     arr = np.asarray(image, dtype=np.float64)
     body = np.abs(arr - np.asarray(scene.background, dtype=np.float64)).max(-1) > BACKGROUND_TOLERANCE
     if body.sum() < 16:
@@ -269,8 +283,8 @@ def appearance_check(image: np.ndarray, scene) -> tuple[bool, str]:
     found = [f for f in found if f]
     if not found:
         return True, ""
-    return False, (f"the body is {' and '.join(found)}: the model learned untextured grey renders only, so a "
-                   "clothed or coloured person is outside what it learned however well it is masked")
+    return False, (f"the body is {' and '.join(found)}: the model learned untextured grey renders only, so "
+                   f"{photo_subject(kind)} is outside what it learned however well it is masked")
 
 
 def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.ndarray:
@@ -305,8 +319,9 @@ def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.nda
 
 
 def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = None, *,
-                  warn: bool = True) -> LoadedImage:
-    """Read one image for a model of ``size`` pixels trained on ``scene`` (see the module docstring).
+                  kind: str | None = None, warn: bool = True) -> LoadedImage:
+    """Read one image for a model of ``size`` pixels trained on ``scene`` and on bodies of ``kind`` (a body
+    source's name; ``None``: unknown) (see the module docstring).
 
     Returns:
         The :class:`LoadedImage`; its ``out_of_domain`` holds the reason when the image does not look like
@@ -342,7 +357,7 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
             reasons.append(f"the body runs along the image's {' and '.join(cut)} edge: it looks cut off (a "
                            "portrait?), and the model was trained on whole bodies")
             advice.append("give images of the whole body")
-    looks, reason = appearance_check(arr, scene)
+    looks, reason = appearance_check(arr, scene, kind)
     if not looks:
         reasons.append(reason)
         advice.append("expect a coarse grey body: no mask or framing brings a photo's appearance into the "

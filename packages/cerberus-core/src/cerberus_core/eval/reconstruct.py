@@ -81,10 +81,12 @@ def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Pat
     return list(masks)
 
 
-def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene) -> tuple[torch.Tensor, list[str]]:
+def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene,
+                kind: str | None = None) -> tuple[torch.Tensor, list[str]]:
     """The model's input images and, per image, its out-of-domain note (``""`` when in domain); one warning
-    names the images out of the training domain and the fix."""
-    loaded = [prepare_input(p, size, scene, m) for p, m in zip(paths, masks, strict=True)]
+    names the images out of the training domain and the fix. ``kind``: the bodies the model learned
+    (:func:`~cerberus_core.eval.input_domain.prepare_input`)."""
+    loaded = [prepare_input(p, size, scene, m, kind=kind) for p, m in zip(paths, masks, strict=True)]
     out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
     if out:
         shown = [printable(li.path.name) for li, _ in out[:3]]
@@ -125,7 +127,8 @@ class Reconstruction:
 
 def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
                        out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
-                       viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "") -> Reconstruction:
+                       viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "",
+                       kind: str | None = None) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
     :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
 
@@ -138,9 +141,11 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
         azimuth: the camera azimuth assumed for every input, degrees.
         viewer_images: cards in ``out/index.html`` (0: no viewer).
         title: the viewer's title.
+        kind: the kind of bodies the model learned (a body source's name, :meth:`Run.training_kind
+            <cerberus_core.run.Run.training_kind>`; ``None``: unknown), for the out-of-domain notes.
     """
     masks = list(masks) if masks is not None else [None] * len(images)
-    pictures, notes = load_inputs(images, masks, image_size, scene)
+    pictures, notes = load_inputs(images, masks, image_size, scene, kind)
     backend = make_renderer(renderer)
     stems = output_names(list(images))
     camera = scene.cameras([azimuth] * len(pictures), image_size)
