@@ -150,7 +150,7 @@ def test_a_body_cut_off_by_the_frame_is_out_of_domain(generated):
     Image.fromarray(_u8(top)).save(root / "portrait.png")
     Image.fromarray(m[:cut].astype(np.uint8) * 255).save(root / "portrait_mask.png")
     plain = D.prepare_input(root / "portrait.png", 64, scene, warn=False)
-    assert "runs along its bottom" in plain.out_of_domain
+    assert "run along the image's bottom" in plain.out_of_domain and "whole body" in plain.advice
     masked = D.prepare_input(root / "portrait.png", 64, scene, root / "portrait_mask.png", warn=False)
     assert "bottom" in masked.out_of_domain and "cut off" in masked.out_of_domain
     assert D.domain_note(masked).startswith("out of the training domain: ")
@@ -268,3 +268,73 @@ def test_the_photo_warning_names_the_kind_of_body_the_model_learned(generated, t
         domain = [str(w.message) for w in caught if "out of the training domain" in str(w.message)]
         assert len(domain) == 1 and phrase in domain[0], domain
         assert model == "human-nmrr" or "person" not in domain[0]
+
+
+def _closeup(a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """The head and shoulders (a square 30 % of the body high from its top, centred on the head)."""
+    rows = np.nonzero(m.any(1))[0]
+    side = int(0.3 * (rows[-1] - rows[0]))
+    head = np.nonzero(m[rows[0]:rows[0] + side // 3].any(0))[0]
+    top, left = rows[0] - 2, int(head.mean()) - side // 2
+    pad = np.pad(a, ((side, side), (side, side), (0, 0)), mode="edge")
+    return np.ascontiguousarray(pad[top + side:top + 2 * side, left + side:left + 2 * side])
+
+
+def test_a_half_body_or_close_up_without_a_mask_is_named_cut_off(generated, tmp_path):
+    """Issue 34: without a mask, a face close-up (its border only partly the training background) or a half-body
+    on a photo's plain wall was named only "its border is not the training background" (and the fix offered
+    was a mask), never cut off. The body is now estimated from the image alone (what differs from the training
+    background or from the photo's own plain background, connected to the centre), the image is still
+    reconstructed, and a whole body on a wall or a body on clutter is not called cut off."""
+    scene, wall = generated["scene"], np.array([0.85, 0.8, 0.7])
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    walled = a * m[..., None] + wall * (1 - m[..., None])
+    rows = np.nonzero(m.any(1))[0]
+    half = slice(0, (rows[0] + rows[-1]) // 2)
+    cases = {"closeup": _closeup(a, m), "closeup_on_wall": _closeup(walled, m),
+             "half_body_on_wall": np.ascontiguousarray(walled[half]), "whole_on_wall": walled,
+             "on_clutter": a * m[..., None] + _clutter(a.shape[0], 3) * (1 - m[..., None])}
+    said = {}
+    for name, arr in cases.items():
+        Image.fromarray(_u8(arr)).save(tmp_path / f"{name}.png")
+        said[name] = D.prepare_input(tmp_path / f"{name}.png", 64, scene, warn=False)
+    assert "the body seems to run along the image's" in said["closeup"].out_of_domain
+    assert "not the training background" not in said["closeup"].out_of_domain  # the sides it crosses are left out
+    assert "whole body" in said["closeup"].advice and "mask" not in said["closeup"].advice
+    for name in ("closeup_on_wall", "half_body_on_wall"):
+        reason = said[name].out_of_domain
+        assert "not the training background" in reason and "may be cut off" in reason, (name, reason)
+        assert "whole body" in said[name].advice and "mask" in said[name].advice
+    assert "bottom" in said["half_body_on_wall"].out_of_domain
+    for name in ("whole_on_wall", "on_clutter"):
+        assert "not the training background" in said[name].out_of_domain and "cut off" not in said[name].out_of_domain
+    assert D.estimated_foreground(D._array(_clutter(64, 3)), scene) is None  # a cluttered border: no estimate
+    fg = D.estimated_foreground(a, scene)
+    assert fg is not None and D.cut_off_sides(fg) == [] and (fg == (np.abs(a).max(-1) > 0.1)).mean() > 0.99
+
+
+def test_the_new_pose_borrows_an_in_domain_pose_or_says_it_cannot(generated, tmp_path):
+    """Issue 34: the new pose (Figure 1 (f), the viewer's "New pose") borrowed the next image's pose, out of the
+    training domain or not, without a word. Now it borrows the next in-domain image's; where no other image is
+    in the domain, it borrows a flagged one and says so (a warning, the figure's note, the viewer card)."""
+    photo = tmp_path / "photo.png"
+    Image.fromarray(_u8(_on_clutter(generated))).save(photo)
+    gen1, gen2 = (str(p) for p in generated["paths"][1:3])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", gen1, gen2, str(photo), "--out", str(tmp_path / "a")]) == 0
+    assert not [w for w in caught if "borrows" in str(w.message)]
+    page = (tmp_path / "a" / "index.html").read_text()
+    assert "predicted from gen1." in page and "predicted from photo" not in page  # gen2 skips the photo for gen1
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", gen1, str(photo), "--out", str(tmp_path / "b")]) == 0
+    borrowed = [str(w.message) for w in caught if "borrows" in str(w.message)]
+    assert len(borrowed) == 1 and "gen1 from photo" in borrowed[0] and "\n" not in borrowed[0], borrowed
+    page = (tmp_path / "b" / "index.html").read_text()
+    assert "predicted from photo, which is out of the training domain" in page
+    one = Image.open(tmp_path / "b" / "gen1_figure1.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["reconstruct", "--model", "human", gen1, gen2, "--out", str(tmp_path / "c")]) == 0
+    assert one.height > Image.open(tmp_path / "c" / "gen1_figure1.png").height  # the note above gen1's figure

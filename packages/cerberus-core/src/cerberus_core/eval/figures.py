@@ -24,7 +24,7 @@ from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import write_reconstruction_viewer
-from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.parts import PartSet, pose_donors, transfer_pose
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
@@ -415,8 +415,9 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     fig.paste(grid, (0, 0))
     fig.paste(legend, (0, grid.height))
     stems = [f"test_{i:05d}" for i in idx]
-    for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
-        donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
+    donors = pose_donors(len(stems))  # test images are in the training domain: each borrows the next one's pose
+    for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image
+        donor = None if donors[k] is None else ours.index([donors[k]])
         save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
                             stem, pose_donor=donor, background=background)
     write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,

@@ -23,6 +23,7 @@ from cerberus_core.eval.figures import save_image_pictures
 from cerberus_core.eval.input_domain import domain_note, prepare_input
 from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.parts import pose_donors
 from cerberus_core.plumbing.names import printable, safe_stem
 from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
 from cerberus_core.render.backends import make_renderer
@@ -99,6 +100,21 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
     return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded]
 
 
+def borrowed_pose_notes(stems: Sequence[str], notes: Sequence[str], donors: Sequence[int | None]) -> list[str]:
+    """Per image, ``""`` or the note that its new pose (Figure 1 (f)) borrows the pose of an image out of the
+    training domain (``notes[donors[i]]`` not empty: no other image was in it,
+    :func:`~cerberus_core.parts.pose_donors`); one warning names those images."""
+    out = [f"(f) New Pose borrows the pose of {stems[j]}, which is out of the training domain"
+           if j is not None and notes[j] else "" for j in donors]
+    named = [f"{printable(stems[i])} from {printable(stems[j])}" for i, j in enumerate(donors) if out[i]]
+    if named:
+        more = f" (and {len(named) - 3} more)" if len(named) > 3 else ""
+        warnings.warn(f"the new pose of {len(named)} image(s) borrows the pose of an out-of-domain image, as no "
+                      f"other image is in the domain: {', '.join(named[:3])}{more}; add an image of a whole body on "
+                      "the training background to lend a reliable pose", UserWarning, stacklevel=2)
+    return out
+
+
 @dataclass
 class Reconstruction:
     """What :func:`reconstruct_images` wrote.
@@ -151,12 +167,15 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
     camera = scene.cameras([azimuth] * len(pictures), image_size)
     with torch.no_grad():
         recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
+    donors = pose_donors(len(stems), [bool(n) for n in notes])
+    borrowed = borrowed_pose_notes(stems, notes, donors)
     with writing_results(out, "cerberus reconstruct") as tmp:  # out is replaced only once all is written
         written = export_reconstruction(recon, tmp, stems)
         for i, stem in enumerate(stems):
-            donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
+            donor = None if donors[i] is None else recon.index([donors[i]])
+            note = "; ".join(n for n in (notes[i], borrowed[i]) if n)
             written += save_image_pictures(backend, pictures[i], recon.index([i]), camera.index([i]), tmp, stem,
-                                           pose_donor=donor, background=scene.background, note=notes[i])
+                                           pose_donor=donor, background=scene.background, note=note)
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems, limit=viewer_images, notes=notes,
                                                limit_hint="viewer_images", title=title,
                                                background=scene.background)

@@ -37,7 +37,7 @@ from PIL import Image
 
 from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.export import export_parts
-from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.parts import PartSet, pose_donors, transfer_pose
 from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
 from cerberus_core.plumbing.names import printable
 from cerberus_core.render.camera import Camera
@@ -287,15 +287,16 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
     """Export the meshes of the first ``limit`` images and write ``out_dir/index.html``.
 
     For image ``i`` named ``stems[i]`` writes ``<stem>.glb`` (the reconstruction), ``<stem>_new_pose.glb``
-    (its parts with the rotations and translations predicted from the next image, as the ``new_pose``
-    picture of :func:`cerberus_core.eval.figures.save_image_pictures`; only with two or more images) and,
-    with ``bodies`` (``bodies[i]`` the ground-truth :class:`PosedBody` of image ``i``), ``<stem>_gt.glb``.
+    (its parts with the rotations and translations predicted from another image, as the ``new_pose``
+    picture of :func:`cerberus_core.eval.figures.save_image_pictures`: the next one in the training domain,
+    :func:`~cerberus_core.parts.pose_donors`; only with two or more images) and, with ``bodies``
+    (``bodies[i]`` the ground-truth :class:`PosedBody` of image ``i``), ``<stem>_gt.glb``.
 
     Args:
         images: ``(N, 3, H, W)`` the inputs in [0, 1]; camera: their ``N`` cameras; recon: batch ``N``.
         limit: cards on the page (``0``: write nothing).
-        notes: a line per image for its card (e.g. that the input is out of the training domain), ``""``
-            for none.
+        notes: a line per image for its card: why the input is out of the training domain, ``""`` for none
+            (an image with a note lends its pose only where no other can).
     Returns:
         The files written, the page last.
     """
@@ -312,6 +313,7 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
         return []
     out_dir = Path(out_dir)
     faces = recon.faces.detach().cpu().numpy()
+    donors = pose_donors(n, None if notes is None else [bool(x) for x in notes])
     written, entries = [], []
     for i in range(min(limit, n)):
         stem, one = stems[i], recon.index([i])
@@ -320,12 +322,14 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
         if bodies is not None:
             entry.ground_truth = export_body_glb(bodies[i], out_dir / f"{stem}_gt.glb")
             written.append(entry.ground_truth)
-        if n > 1:
-            j = (i + 1) % n
+        j = donors[i]
+        if j is not None:
             posed = transfer_pose(one, recon.index([j])).posed()[0].detach().cpu().numpy()
             written += export_parts(posed, faces, out_dir, f"{stem}_new_pose", formats=("glb",))
             entry.new_pose = out_dir / f"{stem}_new_pose.glb"
-            entry.note = f"New pose: these parts with the rotations and translations predicted from {stems[j]}."
+            flagged = ", which is out of the training domain (no other image is in it)" if notes and notes[j] else ""
+            entry.note = (f"New pose: these parts with the rotations and translations predicted from "
+                          f"{stems[j]}{flagged}.")
         if notes is not None and notes[i]:
             entry.note = f"{notes[i][:1].upper()}{notes[i][1:]}. {entry.note}".strip()
         entries.append(entry)
