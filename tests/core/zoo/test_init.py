@@ -51,10 +51,22 @@ def test_unknown_names_and_damaged_files_are_refused_with_the_fix(tmp_path, monk
 
 
 def test_every_shipped_entry_matches_its_file():
-    """The real registry: every entry's weights exist, verify, and name a model card."""
+    """The real registry: every entry's weights exist, verify, and name a model card; its part labels (issue 34:
+    the viewer names parts by them) are one per learned part."""
     for name, entry in zoo.available().items():
         assert zoo.model_path(name).is_file()
         assert entry.card_path.is_file(), f"{name}: model card {entry.card_path} missing"
+        assert len(entry.part_labels) == Run.load(name).model.config.num_parts, name
+
+
+def test_part_labels_of_the_wrong_type_are_one_clear_error(tmp_path, monkeypatch):
+    _fake_zoo(tmp_path, monkeypatch)
+    assert zoo.available()["tiny"].part_labels == []  # an entry without them: the viewer says part_NN
+    data = json.loads((tmp_path / "tiny.json").read_text())
+    for bad in ("head", [1, 2], {"0": "head"}):
+        (tmp_path / "tiny.json").write_text(json.dumps(data | {"part_labels": bad}))
+        with pytest.raises(zoo.ZooError, match="'part_labels' must be a JSON list of strings"):
+            zoo.available()
 
 
 @pytest.mark.parametrize(("entry", "expected"), [
@@ -90,3 +102,4 @@ def test_registry_text_reaches_the_terminal_escaped(tmp_path, monkeypatch, capsy
     assert main(["models"]) == 0
     out = capsys.readouterr().out
     assert "\x1b" not in out and "\x07" not in out and "\\x1b[2J" in out
+

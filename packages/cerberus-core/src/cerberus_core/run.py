@@ -479,6 +479,15 @@ class Run:
             return Dataset.open(self.data_root).body_kind
         return None
 
+    def part_labels(self) -> list[str | None] | None:
+        """Each learned part's label as a shipped model's card gives it (:attr:`PretrainedModel.part_labels
+        <cerberus_core.zoo.PretrainedModel.part_labels>`: the ground-truth part it covers most; ``None`` where it
+        covers none); ``None`` when not known (a run folder or model file, or a card without the table)."""
+        if not self.shipped:
+            return None
+        labels = available()[str(self.source)].part_labels
+        return list(labels) if len(labels) == self.model.config.num_parts else None
+
     def domain_notes(self, data: str | Path) -> list[str]:
         """How the dataset ``data`` differs from what the model was trained on (the kind of bodies, the
         camera and the look), one sentence each; empty when nothing known differs."""
@@ -558,7 +567,8 @@ class Run:
             self._write_report(result, tmp, at_step, backend)
             evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
                                device=self.device, viewer_images=s.viewer_images, scorer=scorer,
-                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
+                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)",
+                               part_labels=result.part_labels() or self.part_labels(), ious=result.image_ious())
         evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
                                 canonical_hint=_canonical_hint(source))
         if verbose:
@@ -594,7 +604,8 @@ class Run:
         return reconstruct_images(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                   renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
                                   viewer_images=viewer_images, device=self.device,
-                                  title=f"cerberus reconstruct: {printable(self.source)}", kind=self.training_kind())
+                                  title=f"cerberus reconstruct: {printable(self.source)}", kind=self.training_kind(),
+                                  part_labels=self.part_labels())
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
         """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and

@@ -367,7 +367,8 @@ def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camer
 
 def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_images: int = 5,
                        baselines: Mapping[str, object] | None = None, device: str = "cpu", viewer_images: int = 12,
-                       title: str = "cerberus eval", scorer: VoxelScorer | None = None) -> Path:
+                       title: str = "cerberus eval", scorer: VoxelScorer | None = None,
+                       part_labels: Sequence[str | None] | None = None, ious: Mapping[int, float] | None = None) -> Path:
     """The pictures ``cerberus eval`` writes for ``n_images`` test images spread over ``dataset``: the
     Table-2 figure ``out/table2.png`` (with two more columns: our voxels seen from the front and the
     side, :func:`voxel_views`, under a key), Figure 1's panels per image in ``out/pictures/``, and the
@@ -377,6 +378,9 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     Args:
         model, baselines: objects with ``reconstruct(images, camera) -> PartSet`` (baselines by name).
         scorer: the voxels' scorer (default ``VoxelScorer()``: the paper's protocol).
+        part_labels: each learned part's label, for the viewer's part toggles (``None``: ``part_NN`` alone).
+        ious: ``{dataset index: voxel IoU}`` the evaluation computed
+            (:meth:`~cerberus_core.eval.runner.EvaluationResult.image_ious`), shown on the viewer's cards.
     Returns:
         The path of the Table-2 figure.
     """
@@ -409,6 +413,6 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
         save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
                             stem, pose_donor=donor, background=background)
     write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,
-                                bodies=bodies, limit=viewer_images,
-                                limit_hint="viewer_images", background=background, title=title)
+                                bodies=bodies, limit=viewer_images, limit_hint="viewer_images", background=background,
+                                title=title, part_labels=part_labels, ious=[(ious or {}).get(i) for i in idx])
     return save_png(fig, out / "table2.png")

@@ -144,7 +144,7 @@ class Reconstruction:
 def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
                        out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
                        viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "",
-                       kind: str | None = None) -> Reconstruction:
+                       kind: str | None = None, part_labels: Sequence[str | None] | None = None) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
     :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
 
@@ -159,6 +159,8 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
         title: the viewer's title.
         kind: the kind of bodies the model learned (a body source's name, :meth:`Run.training_kind
             <cerberus_core.run.Run.training_kind>`; ``None``: unknown), for the out-of-domain notes.
+        part_labels: each learned part's label for the viewer (:meth:`Run.part_labels
+            <cerberus_core.run.Run.part_labels>`; ``None``: the node names alone).
     """
     masks = list(masks) if masks is not None else [None] * len(images)
     pictures, notes = load_inputs(images, masks, image_size, scene, kind)
@@ -178,6 +180,6 @@ def reconstruct_images(model: Cerberus, scene: SceneSetup, image_size: int, rend
                                            pose_donor=donor, background=scene.background, note=note)
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems, limit=viewer_images, notes=notes,
                                                limit_hint="viewer_images", title=title,
-                                               background=scene.background)
+                                               background=scene.background, part_labels=part_labels)
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
     return Reconstruction(out, stems, written, renamed, notes)
