@@ -62,7 +62,8 @@ def main() -> None:
         figures["part_consistency"] = round(pq["consistency"], 3)
     entry = {"name": args.name, "summary": args.summary, "weights": weights.name, "sha256": sha256_file(weights),
              "card": f"{args.name}.md", "results": figures,
-             "data": {"dataset": manifest.dataset, "size": size}}
+             "data": {"dataset": manifest.dataset, "size": size},
+             "part_labels": [p["label"] for p in sorted(pq.get("parts", []), key=lambda p: p["part"])]}
     atomic_write_text(ZOO_DIR / f"{args.name}.json", json.dumps(entry, indent=2) + "\n")
     parts = "\n".join(f"| {p['part']} | {p['label']} | {p['agreement']:.2f} | {p['images']} |" for p in pq.get("parts", []))
     seg = ", ".join(f"{k} {v:.2f}" for k, v in (pq.get("segmentation_iou") or {}).items() if v > 0)

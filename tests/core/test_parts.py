@@ -4,6 +4,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+from cerberus_core.errors import ShapeError
 from cerberus_core.parts import PartSet, transfer_pose
 from tests.support.oracle import body_parts, random_partset, random_rotations
 
@@ -60,3 +61,17 @@ def test_from_posed_index_cat_and_part_meshes():
     meshes = r.part_meshes(1)
     assert len(meshes) == 2 and meshes[0][0].shape == (r.num_vertices, 3)
     torch.testing.assert_close(torch.as_tensor(meshes[1][0]).float(), r.posed()[1, 1])
+
+
+def test_pose_donors_skip_images_to_avoid_where_another_can_lend():
+    """Issue 34: the new pose borrowed the next image's pose whether or not that image was out of the training
+    domain; now the next one not to avoid, else the next one."""
+    from cerberus_core.parts import pose_donors
+
+    assert pose_donors(3) == [1, 2, 0]
+    assert pose_donors(3, [False, True, False]) == [2, 2, 0]
+    assert pose_donors(2, [True, False]) == [1, 0]  # the in-domain image has only the flagged one to borrow from
+    assert pose_donors(3, [True, True, True]) == [1, 2, 0]
+    assert pose_donors(1, [True]) == [None] and pose_donors(0) == []
+    with pytest.raises(ShapeError, match="2 flags for 3 images"):
+        pose_donors(3, [False, False])

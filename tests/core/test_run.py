@@ -163,3 +163,37 @@ def test_model_reconstruct_refuses_nan_images(tiny_run):
     camera = Camera.look_at(torch.zeros(2), torch.zeros(2), 2.0, image_size=32)
     with pytest.raises(ShapeError, match="reconstruct: 1 of 6144 image values are NaN or infinite"):
         run.model.reconstruct(images, camera)
+
+
+def test_the_viewer_names_parts_by_their_labels_and_shows_each_scored_image_s_iou(tiny_run, tiny_root, tmp_path):
+    """Issue 34: the viewer said ``part_05`` where the model card knows the head, and no image's IoU. ``cerberus
+    eval`` labels the parts it scored (part quality) and shows the IoU it computed for each card (none for an
+    image outside ``limit``); ``cerberus reconstruct`` with a shipped model takes its card's labels; a run
+    folder's reconstruction keeps ``part_NN``."""
+    from PIL import Image
+
+    from tests.support.viewer import page_data
+
+    run = Run.load(tiny_run)
+    settings = EvalSettings(limit=3, figure_images=2, viewer_images=2, renderer="torch")
+    evaluation = run.evaluate(tiny_root, settings, tmp_path / "ev", verbose=False)
+    data = page_data(tmp_path / "ev" / "pictures" / "index.html")
+    labels = evaluation.result.part_labels()
+    assert labels and len(labels) == run.model.config.num_parts
+    assert data["part_labels"] == {f"part_{k:02d}": label for k, label in enumerate(labels) if label}
+    scored = evaluation.result.image_ious()
+    assert sorted(scored) == [0, 1, 2]
+    figure = [int(e["name"].split("_")[1]) for e in data["entries"]]  # test_00000 and the split's last image
+    assert figure[0] == 0 and figure[1] > 2
+    assert [e["iou"] for e in data["entries"]] == [scored[0], None]
+
+    human = Run.load("human")
+    assert human.part_labels() == ["torso", "lower_arm.L", "pelvis", "shin.R", "shin.L", "head", "torso",
+                                   "thigh.L", "pelvis"]  # the card's part table
+    assert run.part_labels() is None
+    picture = tmp_path / "in.png"
+    Image.new("RGB", (64, 64)).save(picture)
+    human.reconstruct_images([picture], tmp_path / "rec", viewer_images=1)
+    assert page_data(tmp_path / "rec" / "index.html")["part_labels"]["part_05"] == "head"
+    run.reconstruct_images([picture], tmp_path / "rec_run", viewer_images=1)
+    assert page_data(tmp_path / "rec_run" / "index.html")["part_labels"] == {}

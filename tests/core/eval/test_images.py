@@ -76,3 +76,14 @@ def test_load_images_stacks(tmp_path):
     b = _save(tmp_path / "b.png", np.full((S, S, 3), 255, np.uint8))
     batch, records = load_images([a, b], S, warn=False)
     assert batch.shape == (2, 3, S, S) and [r.path.name for r in records] == ["a.png", "b.png"]
+
+
+def test_a_large_file_resized_to_the_model_is_one_note_in_the_file_s_pixels(tmp_path):
+    """Issue 34: a file reduced on reading (box filter, while 8-bit) and then resized gave two warnings for its
+    one resize ("downscaled 4x ... from 512x512" and "resized from 128x128 to 32x32")."""
+    with pytest.warns(ImageInputWarning) as rec:
+        li = load_image(_save(tmp_path / "big.png", np.full((4 * S + 8, 8 * S, 3), 90, np.uint8)), S)
+    msgs = [str(w.message) for w in rec]
+    assert msgs == [f"{tmp_path / 'big.png'}: centre-cropped from {8 * S}x{4 * S + 8} to {4 * S + 8}x{4 * S + 8}",
+                    f"{tmp_path / 'big.png'}: resized from {4 * S + 8}x{4 * S + 8} to {S}x{S}"], msgs
+    assert li.image.shape == (3, S, S) and li.original_size == (8 * S, 4 * S + 8)

@@ -150,7 +150,7 @@ def test_a_body_cut_off_by_the_frame_is_out_of_domain(generated):
     Image.fromarray(_u8(top)).save(root / "portrait.png")
     Image.fromarray(m[:cut].astype(np.uint8) * 255).save(root / "portrait_mask.png")
     plain = D.prepare_input(root / "portrait.png", 64, scene, warn=False)
-    assert "runs along its bottom" in plain.out_of_domain
+    assert "run along the image's bottom" in plain.out_of_domain and "whole body" in plain.advice
     masked = D.prepare_input(root / "portrait.png", 64, scene, root / "portrait_mask.png", warn=False)
     assert "bottom" in masked.out_of_domain and "cut off" in masked.out_of_domain
     assert D.domain_note(masked).startswith("out of the training domain: ")
@@ -216,3 +216,125 @@ def test_a_coloured_or_textured_body_is_out_of_domain_even_as_a_cutout(generated
     assert any("alpha composited over the training background" in m for m in messages)  # the input's note
     domain = [m for m in messages if "out of the training domain" in m]
     assert len(domain) == 1 and "give an RGBA cut-out" not in domain[0] and "coarse grey body" in domain[0]
+
+
+def test_one_resize_is_one_warning_in_the_reconstruct_path(generated, tmp_path):
+    """Issue 34: ``cerberus reconstruct`` with a 512 px image said "downscaled 4x (box filter) from 512x512 before
+    conversion" and "resized from 128x128 to 64x64" for its one resize; a framed cut-out said the window in the
+    reduced pixels."""
+    big = np.asarray(Image.fromarray(_u8(generated["images"][0])).resize((512, 512), Image.NEAREST))
+    Image.fromarray(big).save(tmp_path / "big.png")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", str(tmp_path / "big.png"), "--out", str(tmp_path / "out"),
+                     "--viewer-images", "0"]) == 0
+    sizes = [str(w.message) for w in caught if "512" in str(w.message) or "128" in str(w.message)]
+    assert sizes == [f"{tmp_path / 'big.png'}: resized from 512x512 to 64x64"], sizes
+    cutout = np.zeros((600, 600, 4), np.uint8)  # the body small in a large RGBA canvas: framed, then resized
+    cutout[100:228, 300:428] = np.concatenate([big[::4, ::4], 255 * generated["silhouettes"][0][..., None].repeat(
+        2, 0).repeat(2, 1).astype(np.uint8)], -1)
+    Image.fromarray(cutout, "RGBA").save(tmp_path / "cutout.png")
+    li = D.prepare_input(tmp_path / "cutout.png", 64, generated["scene"], warn=False)
+    framed = [n for n in li.notes if "framed" in n]
+    side = int(framed[0].split("(a ")[1].split("x")[0])
+    rows, cols = np.nonzero(cutout[..., 3].any(1))[0], np.nonzero(cutout[..., 3].any(0))[0]
+    longest = max(rows[-1] - rows[0], cols[-1] - cols[0]) + 1  # in the file's pixels
+    want = longest / (D.FRAMING_MEDIAN * D.projected_extent(generated["scene"]))
+    assert abs(side - want) <= 600 // 128, (framed, want)  # the file's pixels, to the reduction's factor (4)
+    assert [n for n in li.notes if "resized" in n] == [f"resized from {side}x{side} to 64x64"], li.notes
+    assert not any("downscaled" in n for n in li.notes)
+
+
+def test_the_photo_warning_names_the_kind_of_body_the_model_learned(generated, tmp_path):
+    """Issue 34: the animal model's warning spoke of "a clothed or coloured person". The phrase is the body
+    source's (``BodySource.photo_subject``), found from the model's training data (a shipped model's registry
+    entry, a run's manifest); a kind not known here gets the generic phrase."""
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    tinted = np.where(m[..., None], a * np.array([1.0, 0.7, 0.5]), a)
+    said = {kind: D.appearance_check(tinted, generated["scene"], kind)[1]
+            for kind in ("human", "animal", "primitives", "folder", None, "not-installed")}
+    assert "a clothed or coloured person" in said["human"]
+    assert "animal" in said["animal"] and "person" not in said["animal"]
+    assert "figure" in said["primitives"] and "person" not in said["primitives"]
+    assert said["folder"] == said[None] == said["not-installed"] and "a coloured or textured body" in said[None]
+    rgba = np.concatenate([_u8(tinted), m[..., None].astype(np.uint8) * 255], -1)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "coloured.png")
+    for model, phrase in (("animal", "a furred, patterned or coloured animal"),
+                          ("human-nmrr", "a clothed or coloured person")):  # a shipped name is not a body kind
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["reconstruct", "--model", model, str(tmp_path / "coloured.png"),
+                         "--out", str(tmp_path / model), "--viewer-images", "0"]) == 0
+        domain = [str(w.message) for w in caught if "out of the training domain" in str(w.message)]
+        assert len(domain) == 1 and phrase in domain[0], domain
+        assert model == "human-nmrr" or "person" not in domain[0]
+
+
+def _closeup(a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """The head and shoulders (a square 30 % of the body high from its top, centred on the head)."""
+    rows = np.nonzero(m.any(1))[0]
+    side = int(0.3 * (rows[-1] - rows[0]))
+    head = np.nonzero(m[rows[0]:rows[0] + side // 3].any(0))[0]
+    top, left = rows[0] - 2, int(head.mean()) - side // 2
+    pad = np.pad(a, ((side, side), (side, side), (0, 0)), mode="edge")
+    return np.ascontiguousarray(pad[top + side:top + 2 * side, left + side:left + 2 * side])
+
+
+def test_a_half_body_or_close_up_without_a_mask_is_named_cut_off(generated, tmp_path):
+    """Issue 34: without a mask, a face close-up (its border only partly the training background) or a half-body
+    on a photo's plain wall was named only "its border is not the training background" (and the fix offered
+    was a mask), never cut off. The body is now estimated from the image alone (what differs from the training
+    background or from the photo's own plain background, connected to the centre), the image is still
+    reconstructed, and a whole body on a wall or a body on clutter is not called cut off."""
+    scene, wall = generated["scene"], np.array([0.85, 0.8, 0.7])
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    walled = a * m[..., None] + wall * (1 - m[..., None])
+    rows = np.nonzero(m.any(1))[0]
+    half = slice(0, (rows[0] + rows[-1]) // 2)
+    cases = {"closeup": _closeup(a, m), "closeup_on_wall": _closeup(walled, m),
+             "half_body_on_wall": np.ascontiguousarray(walled[half]), "whole_on_wall": walled,
+             "on_clutter": a * m[..., None] + _clutter(a.shape[0], 3) * (1 - m[..., None])}
+    said = {}
+    for name, arr in cases.items():
+        Image.fromarray(_u8(arr)).save(tmp_path / f"{name}.png")
+        said[name] = D.prepare_input(tmp_path / f"{name}.png", 64, scene, warn=False)
+    assert "the body seems to run along the image's" in said["closeup"].out_of_domain
+    assert "not the training background" not in said["closeup"].out_of_domain  # the sides it crosses are left out
+    assert "whole body" in said["closeup"].advice and "mask" not in said["closeup"].advice
+    for name in ("closeup_on_wall", "half_body_on_wall"):
+        reason = said[name].out_of_domain
+        assert "not the training background" in reason and "may be cut off" in reason, (name, reason)
+        assert "whole body" in said[name].advice and "mask" in said[name].advice
+    assert "bottom" in said["half_body_on_wall"].out_of_domain
+    for name in ("whole_on_wall", "on_clutter"):
+        assert "not the training background" in said[name].out_of_domain and "cut off" not in said[name].out_of_domain
+    assert D.estimated_foreground(D._array(_clutter(64, 3)), scene) is None  # a cluttered border: no estimate
+    fg = D.estimated_foreground(a, scene)
+    assert fg is not None and D.cut_off_sides(fg) == [] and (fg == (np.abs(a).max(-1) > 0.1)).mean() > 0.99
+
+
+def test_the_new_pose_borrows_an_in_domain_pose_or_says_it_cannot(generated, tmp_path):
+    """Issue 34: the new pose (Figure 1 (f), the viewer's "New pose") borrowed the next image's pose, out of the
+    training domain or not, without a word. Now it borrows the next in-domain image's; where no other image is
+    in the domain, it borrows a flagged one and says so (a warning, the figure's note, the viewer card)."""
+    photo = tmp_path / "photo.png"
+    Image.fromarray(_u8(_on_clutter(generated))).save(photo)
+    gen1, gen2 = (str(p) for p in generated["paths"][1:3])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", gen1, gen2, str(photo), "--out", str(tmp_path / "a")]) == 0
+    assert not [w for w in caught if "borrows" in str(w.message)]
+    page = (tmp_path / "a" / "index.html").read_text()
+    assert "predicted from gen1." in page and "predicted from photo" not in page  # gen2 skips the photo for gen1
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["reconstruct", "--model", "human", gen1, str(photo), "--out", str(tmp_path / "b")]) == 0
+    borrowed = [str(w.message) for w in caught if "borrows" in str(w.message)]
+    assert len(borrowed) == 1 and "gen1 from photo" in borrowed[0] and "\n" not in borrowed[0], borrowed
+    page = (tmp_path / "b" / "index.html").read_text()
+    assert "predicted from photo, which is out of the training domain" in page
+    one = Image.open(tmp_path / "b" / "gen1_figure1.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["reconstruct", "--model", "human", gen1, gen2, "--out", str(tmp_path / "c")]) == 0
+    assert one.height > Image.open(tmp_path / "c" / "gen1_figure1.png").height  # the note above gen1's figure

@@ -22,6 +22,7 @@ from cerberus_core.eval import viewer
 from cerberus_core.parts import PartSet, transfer_pose
 from cerberus_core.render.camera import Camera
 from tests.support.oracle import body_parts
+from tests.support.viewer import page_data
 
 STEMS = ["alpha", "beta", "gamma"]
 
@@ -98,6 +99,27 @@ def test_page_writes_glbs_and_bounds_its_entries(page, batch) -> None:
                                atol=1e-5)
 
 
+def test_part_labels_and_ious_reach_the_page(batch, tmp_path) -> None:
+    """Issue 34: the viewer named every learned part ``part_05`` where the card or the evaluation knows it is the
+    head, and showed no image's IoU."""
+    labels = ["head", None, *[f"segment {k}" for k in range(2, 10)]]
+    viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS,
+                                       bodies=batch["bodies"], part_labels=labels, ious=[0.5, None, 0.25])
+    data = page_data(tmp_path / "index.html")
+    assert data["part_labels"] == {"part_00": "head", **{f"part_{k:02d}": f"segment {k}" for k in range(2, 10)}}
+    assert [e["iou"] for e in data["entries"]] == [0.5, None, 0.25]
+    text = (tmp_path / "index.html").read_text()
+    assert "Input · voxel IoU 0.500" in text and "Input · voxel IoU 0.250" in text and text.count("voxel IoU") == 2
+    for bad, match in (({"part_labels": ["head"]}, "10 parts but 1 part labels"), ({"ious": [0.5]}, "3 reconstructions but 1 IoUs"),
+                       ({"part_labels": ["head"] * 9 + ["x\x1b[2J"]}, None)):
+        if match is None:  # a hostile label is escaped, not refused
+            viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS, **bad)
+            assert "\x1b" not in (tmp_path / "index.html").read_text()
+            continue
+        with pytest.raises(ValueError, match=match):
+            viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS, **bad)
+
+
 def test_limit_zero_writes_nothing(batch, tmp_path) -> None:
     assert viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS,
                                               limit=0) == []
@@ -140,6 +162,21 @@ def test_page_loads_from_file_url_with_every_part(page, chromium) -> None:
                                       "new_pose": glb_mesh_count(out / f"{stem}_new_pose.glb")}
     assert st["meshCount"] == 2 * 10  # window.cerberusViewer.meshCount: the reconstructions' part meshes
     assert dom.count('type="checkbox"') == 2 * 10  # a toggle per part of the shown model
+
+
+def test_part_toggles_say_the_labels_of_learned_parts_only(batch, chromium, tmp_path) -> None:
+    labels = ["head", None, *[f"segment {k}" for k in range(2, 10)]]
+    viewer.write_reconstruction_viewer(tmp_path, batch["images"][:2], batch["recon"].index([0, 1]),
+                                       batch["camera"].index([0, 1]), STEMS[:2], bodies=batch["bodies"][:2],
+                                       part_labels=labels, ious=[0.5, None])
+    want = ["head (part_00)", "part_01", *[f"segment {k} (part_{k:02d})" for k in range(2, 10)]]
+    for model, names in (("reconstruction", [want] * 2), ("new_pose", [want] * 2),
+                         ("ground_truth", [sorted(b.part_names) for b in batch["bodies"][:2]])):
+        dom, console = chromium.dump_dom((tmp_path / "index.html").as_uri() + f"#model={model}")
+        st = status(dom)
+        assert console == [] and st["ready"] and st["errors"] == [], (console, st)
+        assert [sorted(c["parts"]) if model == "ground_truth" else c["parts"] for c in st["cards"]] == names, model
+        assert [c["iou"] for c in st["cards"]] == [0.5, None]
 
 
 def test_page_loads_over_http(page, chromium) -> None:

@@ -51,10 +51,22 @@ def test_unknown_names_and_damaged_files_are_refused_with_the_fix(tmp_path, monk
 
 
 def test_every_shipped_entry_matches_its_file():
-    """The real registry: every entry's weights exist, verify, and name a model card."""
+    """The real registry: every entry's weights exist, verify, and name a model card; its part labels (issue 34:
+    the viewer names parts by them) are one per learned part."""
     for name, entry in zoo.available().items():
         assert zoo.model_path(name).is_file()
         assert entry.card_path.is_file(), f"{name}: model card {entry.card_path} missing"
+        assert len(entry.part_labels) == Run.load(name).model.config.num_parts, name
+
+
+def test_part_labels_of_the_wrong_type_are_one_clear_error(tmp_path, monkeypatch):
+    _fake_zoo(tmp_path, monkeypatch)
+    assert zoo.available()["tiny"].part_labels == []  # an entry without them: the viewer says part_NN
+    data = json.loads((tmp_path / "tiny.json").read_text())
+    for bad in ("head", [1, 2], {"0": "head"}):
+        (tmp_path / "tiny.json").write_text(json.dumps(data | {"part_labels": bad}))
+        with pytest.raises(zoo.ZooError, match="'part_labels' must be a JSON list of strings"):
+            zoo.available()
 
 
 @pytest.mark.parametrize(("entry", "expected"), [
@@ -90,3 +102,23 @@ def test_registry_text_reaches_the_terminal_escaped(tmp_path, monkeypatch, capsy
     assert main(["models"]) == 0
     out = capsys.readouterr().out
     assert "\x1b" not in out and "\x07" not in out and "\\x1b[2J" in out
+
+
+def test_long_model_names_and_summaries_wrap_in_their_column(tmp_path, monkeypatch, capsys):
+    """Issue 34: ``cerberus models`` padded names to 8 characters, so a longer name (``human-nmrr``) pushed its
+    summary out of line with the others, and a long summary ran past the terminal's edge."""
+    from cerberus_core.cli import main
+
+    _fake_zoo(tmp_path, monkeypatch)
+    data = json.loads((tmp_path / "tiny.json").read_text())
+    name = "my_very_long_model_name"
+    summary = " ".join(f"word{k}" for k in range(60))
+    (tmp_path / "long.json").write_text(json.dumps(data | {"name": name, "summary": summary, "card": "tiny.md"}))
+    monkeypatch.setenv("COLUMNS", "70")
+    assert main(["models"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert all(len(line) <= 70 for line in lines), lines
+    column = lines[0].index("word0")  # "long" sorts first; every line of both rows starts its text here
+    assert lines[0].startswith(name) and all(line[:column].strip() in ("", name, "tiny") for line in lines)
+    row = [line[column:] for line in lines[:next(i for i, line in enumerate(lines) if line.startswith("tiny"))]]
+    assert " ".join(row).split()[:60] == summary.split()  # every word, in order, within the column

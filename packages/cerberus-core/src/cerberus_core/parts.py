@@ -12,6 +12,7 @@ with another image's transforms (the paper's "Hard Human" test and Figure 1 (f),
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -159,3 +160,26 @@ def transfer_pose(shapes: PartSet, poses: PartSet) -> PartSet:
     if local.shape[0] != b:
         local = local.expand(b, -1, -1, -1)
     return PartSet(local, shapes.faces.to(local.device), poses.rotations, poses.translations)
+
+
+def pose_donors(n: int, avoid: Sequence[bool] | None = None) -> list[int | None]:
+    """For each of ``n`` images, the image whose rotations and translations its "new pose" borrows (Figure 1 (f),
+    :func:`transfer_pose`): the next image (cyclically) not marked in ``avoid`` (e.g. out of the training
+    domain, whose pose is unreliable), else the next image; ``None`` for a single image (no other pose).
+
+    Args:
+        n: the number of images.
+        avoid: ``n`` flags, ``True`` for an image whose pose should not be borrowed (default: none).
+    Returns:
+        ``n`` indices (never the image's own) or ``None``.
+    """
+    if avoid is not None and len(avoid) != n:
+        raise ShapeError(f"pose_donors: {len(avoid)} flags for {n} images; pass one flag per image")
+    if n < 2:
+        return [None] * n
+    flags = [False] * n if avoid is None else [bool(a) for a in avoid]
+    out: list[int | None] = []
+    for i in range(n):
+        others = [(i + k) % n for k in range(1, n)]
+        out.append(next((j for j in others if not flags[j]), others[0]))
+    return out

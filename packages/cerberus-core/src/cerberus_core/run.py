@@ -471,13 +471,23 @@ class Run:
         return model_scene(self.config, data, self.recorded_scene)
 
     def training_kind(self) -> str | None:
-        """The kind of bodies the model was trained on (``human``, ``animal``...): a shipped model's name,
-        else its training data's manifest if that is still here; ``None`` when unknown."""
+        """The kind of bodies the model was trained on (``human``, ``animal``...: a body source's name): a shipped
+        model's training dataset (its registry entry), else its training data's manifest if that is still
+        here; ``None`` when unknown."""
         if self.shipped:
-            return str(self.source)
+            return available()[str(self.source)].data.get("dataset")
         if Dataset.is_dataset(self.data_root):
             return Dataset.open(self.data_root).body_kind
         return None
+
+    def part_labels(self) -> list[str | None] | None:
+        """Each learned part's label as a shipped model's card gives it (:attr:`PretrainedModel.part_labels
+        <cerberus_core.zoo.PretrainedModel.part_labels>`: the ground-truth part it covers most; ``None`` where it
+        covers none); ``None`` when not known (a run folder or model file, or a card without the table)."""
+        if not self.shipped:
+            return None
+        labels = available()[str(self.source)].part_labels
+        return list(labels) if len(labels) == self.model.config.num_parts else None
 
     def domain_notes(self, data: str | Path) -> list[str]:
         """How the dataset ``data`` differs from what the model was trained on (the kind of bodies, the
@@ -558,7 +568,8 @@ class Run:
             self._write_report(result, tmp, at_step, backend)
             evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
                                device=self.device, viewer_images=s.viewer_images, scorer=scorer,
-                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)")
+                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)",
+                               part_labels=result.part_labels() or self.part_labels(), ious=result.image_ious())
         evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
                                 canonical_hint=_canonical_hint(source))
         if verbose:
@@ -594,7 +605,8 @@ class Run:
         return write_reconstructions(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                      renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
                                      viewer_images=viewer_images, device=self.device,
-                                     title=f"cerberus reconstruct: {printable(self.source)}")
+                                     title=f"cerberus reconstruct: {printable(self.source)}", kind=self.training_kind(),
+                                     part_labels=self.part_labels())
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
         """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and

@@ -161,6 +161,9 @@ class BodySource(ABC):
             always has them): said when the Hard Human test cannot run.
         packages: the optional packages its bodies need, import name → what brings it
             (``{"anny": "cerberus-core[human]"}``), checked before a generation starts (:meth:`check_packages`).
+        photo_subject: what a photograph of its kind of body shows that the untextured grey renders do
+            not, as a noun phrase (``"a clothed or coloured person"``): said when a model trained on it is
+            given such a photo (:func:`cerberus_core.eval.input_domain.appearance_check`).
     """
 
     name: ClassVar[str] = "abstract"
@@ -171,6 +174,7 @@ class BodySource(ABC):
     default_size: ClassVar[str] = "small"
     canonical_hint: ClassVar[str] = ""
     packages: ClassVar[Mapping[str, str]] = {}
+    photo_subject: ClassVar[str] = "a coloured or textured body"
 
     @classmethod
     def body_kind(cls) -> str | None:

@@ -72,6 +72,7 @@ class HumanSource(_SeededSubjects):
 
     name = "human"
     packages = {"anny": "cerberus-core[human]"}
+    photo_subject = "a clothed or coloured person"
 
     def __init__(self, device: str = "cpu") -> None:
         self._human = human
@@ -127,6 +128,7 @@ class PrimitiveSource(_SeededSubjects):
     """
 
     name = "primitives"
+    photo_subject = "a painted or textured figure"
 
     def __init__(self) -> None:
         self._prim = primitives
@@ -156,6 +158,7 @@ class AnimalSource(BodySource):
     """
 
     name = "animal"
+    photo_subject = "a furred, patterned or coloured animal"
     shared_subjects = True
     packages = {"scipy": "cerberus-core[animal]", "pymeshlab": "cerberus-core[animal]"}
     TEST_POSE_BASE = 1000

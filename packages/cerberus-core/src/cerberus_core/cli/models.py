@@ -21,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.plumbing.names import printable
+    from cerberus_core.cli.tables import table
     from cerberus_core.zoo import available
 
     models = available()
@@ -32,9 +32,7 @@ def run(args: argparse.Namespace) -> int:
     if not models:
         print("no pretrained models are shipped with this install")
         return 0
-    for name, m in models.items():
-        figures = ", ".join(f"{k} {v}" for k, v in m.results.items())  # registry text: never raw escapes
-        print(f"{printable(name):<8} {printable(m.summary)}")
-        print(f"{'':<8} {printable(figures)}")
-        print(f"{'':<8} card: {printable(m.card_path)}")
+    rows = [[name, [m.summary, ", ".join(f"{k} {v}" for k, v in m.results.items()), f"card: {m.card_path}"]]
+            for name, m in models.items()]
+    print("\n".join(table(rows)))  # registry text, escaped (never raw control characters); fits the terminal
     return 0

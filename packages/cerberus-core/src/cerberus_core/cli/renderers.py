@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from cerberus_core.cli.tables import table
 from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, PluginError, plugin_table
 
 
@@ -11,7 +12,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("renderers", help="list installed renderer backends (and metrics) with their versions",
                        description="List the renderer backends found through the 'cerberus.renderers' entry-point "
                        "group, and the metrics found through 'cerberus.metrics', with package, version and status. "
-                       "A backend that fails to import is listed with its error; the others keep working.")
+                       "A backend that fails to import is listed with its error; the others keep working. The "
+                       "table fits the terminal's width: long names and errors wrap in their column.")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)
 
@@ -32,6 +34,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"{title}:")
         if not rows:
             print("  (none installed)")
-        for r in rows:
-            print(f"  {r['name']:<12} {r['package']:<24} {r['version']:<10} {r['status']}")
+        lines = table([[r["name"], r["package"], r["version"], r["status"]] for r in rows], indent="  ")
+        print("\n".join(lines)) if lines else None
     return status

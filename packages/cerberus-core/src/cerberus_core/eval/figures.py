@@ -24,12 +24,12 @@ from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import write_reconstruction_viewer
-from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.parts import PartSet, pose_donors, transfer_pose
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION, Light
-from cerberus_core.viz import atomic_save_png, part_colors, to_uint8
+from cerberus_core.viz import atomic_save_png, draw_text, figure_font, part_colors, text_width, to_uint8, wrap_text
 
 Tensor = torch.Tensor
 RGB = tuple[float, float, float]
@@ -96,33 +96,27 @@ def reposed(renderer: Renderer, shapes: PartSet, poses: PartSet, camera: Camera,
 
 
 # ------------------------------------------------------------------ layout
-def _font(size: int = 12) -> ImageFont.ImageFont:
-    try:
-        return ImageFont.load_default(size=size)
-    except TypeError:  # Pillow < 10.1 without FreeType sizes
-        return ImageFont.load_default()
-
-
-def _fit_title(draw: ImageDraw.ImageDraw, text: str, width: float, height: float) -> tuple[str, ImageFont.ImageFont]:
-    """``text`` fitted into a ``width x height`` box: a smaller font, else two lines, else cut with '…'
-    (column titles of small cells would otherwise run into each other)."""
+def _fit_title(text: str, width: float, height: float) -> tuple[list[str], ImageFont.ImageFont]:
+    """``text`` fitted into a ``width x height`` box as lines drawn with :func:`~cerberus_core.viz.draw_text`: a
+    smaller font, else two lines, else cut with '…' (column titles of small cells would otherwise run into
+    each other)."""
     for size in range(12, 6, -1):
-        font = _font(size)
-        if draw.textlength(text, font=font) <= width:
-            return text, font
+        font = figure_font(size)
+        if text_width(text, font) <= width:
+            return [text], font
     words = text.split()
     for size in range(10, 6, -1):
-        font = _font(size)
+        font = figure_font(size)
         if 2 * (size + 1) > height:
             continue
         for cut in range(len(words) - 1, 0, -1):
             lines = [" ".join(words[:cut]), " ".join(words[cut:])]
-            if all(draw.textlength(line, font=font) <= width for line in lines):
-                return "\n".join(lines), font
-    font = _font(7)
-    while len(text) > 1 and draw.textlength(text + "…", font=font) > width:
+            if all(text_width(line, font) <= width for line in lines):
+                return lines, font
+    font = figure_font(7)
+    while len(text) > 1 and text_width(text + "…", font) > width:
         text = text[:-1]
-    return text + "…", font
+    return [text + "…"], font
 
 
 def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequence[str] | None = None,
@@ -156,16 +150,18 @@ def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequen
     cw, ch = w * scale, h * scale
     canvas = Image.new("RGB", (left + ncols * (cw + PAD) + PAD, top + len(rows) * (ch + PAD) + PAD), "white")
     draw = ImageDraw.Draw(canvas)
-    font = _font()
+    font = figure_font()
     for c, title in enumerate(column_titles or []):
         x = left + PAD + c * (cw + PAD)
-        text, title_font = _fit_title(draw, title, cw + PAD - 2, top - 2)
-        draw.multiline_text((x + cw / 2, top / 2 + 1), text, fill=(0, 0, 0), font=title_font, anchor="mm",
-                            align="center", spacing=1)
+        lines, title_font = _fit_title(title, cw + PAD - 2, top - 2)
+        step = title_font.size + 1 if hasattr(title_font, "size") else 11
+        for k, line in enumerate(lines):  # the lines centred on the title row, one step apart
+            draw_text(draw, (x + cw / 2, top / 2 + 1 + (k - (len(lines) - 1) / 2) * step), line,
+                      font=title_font, fill=(0, 0, 0), anchor="mm")
     for r, row in enumerate(rows):
         y = top + PAD + r * (ch + PAD)
         if row_titles:
-            draw.text((4, y + ch / 2), row_titles[r], fill=(0, 0, 0), font=font, anchor="lm")
+            draw_text(draw, (4, y + ch / 2), row_titles[r], font=font, fill=(0, 0, 0), anchor="lm")
         for c, cell in enumerate(row):
             if cell is None:
                 continue
@@ -222,20 +218,12 @@ def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartSet, camera:
 
 def note_banner(text: str, width: int) -> Image.Image:
     """``text`` in dark red on white, wrapped to ``width`` pixels (a warning above a figure)."""
-    font = _font(11)
-    probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    lines, line = [], ""
-    for word in text.split():
-        candidate = f"{line} {word}".strip()
-        if line and probe.textlength(candidate, font=font) > width - 2 * PAD:
-            lines.append(line)
-            candidate = word
-        line = candidate
-    lines.append(line)
+    font = figure_font(11)
+    lines = wrap_text(text, font, width - 2 * PAD)
     out = Image.new("RGB", (width, 14 * len(lines) + PAD), "white")
     draw = ImageDraw.Draw(out)
     for k, text_line in enumerate(lines):
-        draw.text((PAD, PAD // 2 + 14 * k), text_line, fill=(160, 0, 0), font=font)
+        draw_text(draw, (PAD, PAD // 2 + 14 * k), text_line, font=font, fill=(160, 0, 0))
     return out
 
 
@@ -337,7 +325,7 @@ def voxel_views(voxels: Voxels, size: int, background: RGB = DEFAULT_BACKGROUND)
 
 def voxel_legend(width: int) -> Image.Image:
     """A one-line key to :data:`VOXEL_COLOURS`, ``width`` pixels wide."""
-    font = _font(11)
+    font = figure_font(11)
     out = Image.new("RGB", (width, 16 + PAD), "white")
     draw = ImageDraw.Draw(out)
     x = PAD
@@ -345,8 +333,8 @@ def voxel_legend(width: int) -> Image.Image:
               "off-body": "off the body (prediction only)"}
     for kind in ("hit", "missed", "off-body"):
         draw.rectangle((x, PAD, x + 10, PAD + 10), fill=tuple(round(255 * c) for c in VOXEL_COLOURS[kind]))
-        draw.text((x + 14, PAD - 1), labels[kind], fill=(0, 0, 0), font=font)
-        x += 14 + int(draw.textlength(labels[kind], font=font)) + 3 * PAD
+        draw_text(draw, (x + 14, PAD - 1), labels[kind], font=font, fill=(0, 0, 0))
+        x += 14 + int(text_width(labels[kind], font)) + 3 * PAD
     return out
 
 
@@ -379,7 +367,8 @@ def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camer
 
 def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_images: int = 5,
                        baselines: Mapping[str, object] | None = None, device: str = "cpu", viewer_images: int = 12,
-                       title: str = "cerberus eval", scorer: VoxelScorer | None = None) -> Path:
+                       title: str = "cerberus eval", scorer: VoxelScorer | None = None,
+                       part_labels: Sequence[str | None] | None = None, ious: Mapping[int, float] | None = None) -> Path:
     """The pictures ``cerberus eval`` writes for ``n_images`` test images spread over ``dataset``: the
     Table-2 figure ``out/table2.png`` (with two more columns: our voxels seen from the front and the
     side, :func:`voxel_views`, under a key), Figure 1's panels per image in ``out/pictures/``, and the
@@ -389,6 +378,9 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     Args:
         model, baselines: objects with ``reconstruct(images, camera) -> PartSet`` (baselines by name).
         scorer: the voxels' scorer (default ``VoxelScorer()``: the paper's protocol).
+        part_labels: each learned part's label, for the viewer's part toggles (``None``: ``part_NN`` alone).
+        ious: ``{dataset index: voxel IoU}`` the evaluation computed
+            (:meth:`~cerberus_core.eval.runner.EvaluationResult.image_ious`), shown on the viewer's cards.
     Returns:
         The path of the Table-2 figure.
     """
@@ -415,11 +407,12 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     fig.paste(grid, (0, 0))
     fig.paste(legend, (0, grid.height))
     stems = [f"test_{i:05d}" for i in idx]
-    for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image; the new pose borrows the next image's
-        donor = ours.index([(k + 1) % len(idx)]) if len(idx) > 1 else None
+    donors = pose_donors(len(stems))  # test images are in the training domain: each borrows the next one's pose
+    for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image
+        donor = None if donors[k] is None else ours.index([donors[k]])
         save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
                             stem, pose_donor=donor, background=background)
     write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,
-                                bodies=bodies, limit=viewer_images,
-                                limit_hint="viewer_images", background=background, title=title)
+                                bodies=bodies, limit=viewer_images, limit_hint="viewer_images", background=background,
+                                title=title, part_labels=part_labels, ious=[(ious or {}).get(i) for i in idx])
     return save_png(fig, out / "table2.png")

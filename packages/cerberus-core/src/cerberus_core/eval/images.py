@@ -149,20 +149,27 @@ def composite(image: np.ndarray, alpha: np.ndarray, background: Sequence[float])
     return image * a + np.asarray(background, dtype=np.float64).reshape(1, 1, 3) * (1 - a)
 
 
-def square_resize(arr: np.ndarray, size: int, notes: list[str]) -> np.ndarray:
-    """Centre-crop ``(H, W, C)`` to a square and resize it (Lanczos) to ``size``; each change in ``notes``."""
+def square_resize(arr: np.ndarray, size: int, notes: list[str], *,
+                  shown_size: tuple[int, int] | None = None) -> np.ndarray:
+    """Centre-crop ``(H, W, C)`` to a square and resize it (Lanczos) to ``size``; each change in ``notes``.
+
+    Args:
+        shown_size: the ``(width, height)`` the notes give ``arr`` (default its own): the file's size for an
+            image reduced on reading (:attr:`RawImage.shown_size`), so that the file's one resize is one note
+            in the file's pixels, not a reduction and a resize.
+    """
     h, w = arr.shape[:2]
+    sw, sh = (w, h) if shown_size is None else shown_size
     if h != w:
         s = min(h, w)
         top, left = (h - s) // 2, (w - s) // 2
         arr = arr[top:top + s, left:left + s]
-        notes.append(f"centre-cropped from {w}x{h} to {s}x{s}")
+        notes.append(f"centre-cropped from {sw}x{sh} to {min(sw, sh)}x{min(sw, sh)}")
     if arr.shape[0] != size:
-        src = arr.shape[0]
         chans = [Image.fromarray(arr[..., c].astype(np.float32), mode="F").resize((size, size), Image.LANCZOS)
                  for c in range(arr.shape[-1])]
         arr = np.clip(np.stack([np.asarray(c, dtype=np.float64) for c in chans], axis=-1), 0.0, 1.0)
-        notes.append(f"resized from {src}x{src} to {size}x{size}")
+        notes.append(f"resized from {min(sw, sh)}x{min(sw, sh)} to {size}x{size}")
     return arr
 
 
@@ -206,10 +213,23 @@ class RawImage:
     original_size: tuple[int, int]
     notes: list[str] = field(default_factory=list)
 
+    @property
+    def scale(self) -> float:
+        """File pixels per pixel of :attr:`rgb`: 1 unless the file was reduced on reading (then 2 or more)."""
+        return min(self.original_size) / min(self.rgb.shape[:2])
+
+    @property
+    def shown_size(self) -> tuple[int, int] | None:
+        """What :func:`square_resize` calls :attr:`rgb` in its notes: the file's size where it was reduced on
+        reading (its one resize is said once, in the file's pixels), else ``None`` (its own)."""
+        return None if self.scale == 1 else self.original_size
+
 
 def read_image(path: str | Path, image_size: int) -> RawImage:
     """Read ``path`` for a model of ``image_size`` pixels: oriented, converted to float RGB (and alpha), and
-    reduced by a whole factor (box filter, while still 8-bit) when it is 4 or more times the model's size.
+    reduced by a whole factor (box filter, while still 8-bit) when it is 4 or more times the model's size
+    (no note of its own: the reduction is the first step of the one resize :func:`square_resize` notes,
+    :attr:`RawImage.shown_size`).
 
     Raises:
         ImageInputError: see the table in the module docstring.
@@ -226,7 +246,6 @@ def read_image(path: str | Path, image_size: int) -> RawImage:
         factor = short // (2 * int(image_size))
         try:
             oriented = oriented.reduce(factor)
-            notes.append(f"downscaled {factor}x (box filter) from {original[0]}x{original[1]} before conversion")
         except (ValueError, NotImplementedError):  # a mode reduce() does not support: convert at full size
             pass
     rgb, alpha = _to_rgba_float(oriented, path, notes)
@@ -254,7 +273,7 @@ def load_image(path: str | Path, image_size: int, background: Sequence[float] = 
         if (raw.alpha < 1).any():
             notes.append(f"alpha composited over the background colour {tuple(round(float(b), 3) for b in bg)}")
         arr = composite(arr, raw.alpha, bg)
-    arr = square_resize(arr, int(image_size), notes)
+    arr = square_resize(arr, int(image_size), notes, shown_size=raw.shown_size)
     return finish(path, arr, raw.original_size, notes, warn=warn)
 
 

@@ -11,7 +11,10 @@ half-body portrait) is not such an image, and the model answers it with a full b
   the frame as they do (:func:`frame_to_training`). A silhouette that runs along an image edge means a
   body cut off by the frame (a portrait): out of the training domain (:func:`cut_off_sides`).
 * **without one**: the image is used as before (centre-cropped and resized), and
-  :func:`background_check` says whether its border looks like the training background.
+  :func:`background_check` says whether its border looks like the training background. The body is
+  then estimated from the image alone (:func:`estimated_foreground`: what differs from the training
+  background, or from a photo's own plain background), so that a half-body or a face close-up running
+  along the image's edge is named cut off as with a silhouette.
 
 Either way, :func:`appearance_check` then looks inside the body: the training bodies are untextured grey
 renders (no colour, smooth shading), so a coloured or textured body (a clothed person in a photo) is out
@@ -32,7 +35,8 @@ import numpy as np
 import torch
 from PIL import Image
 
-from cerberus_core.bodies.body import FILL
+from cerberus_core.bodies.body import FILL, BodySource, source_class
+from cerberus_core.errors import CerberusError
 from cerberus_core.eval.images import (
     ImageInputError,
     LoadedImage,
@@ -53,9 +57,12 @@ BACKGROUND_TOLERANCE = 0.1
 MIN_BACKGROUND_FRACTION = 0.9
 #: Largest colour spread (standard deviation of the ring, largest over channels; generated: 0.063 at most).
 MAX_BORDER_SPREAD = 0.15
-#: Largest fraction of one side of the ring that may differ from the background (a body touching the
-#: frame's edge; generated: 0.055 at most) and of one side of a silhouette image that may be body.
+#: Largest fraction of one side of the image that may be body (a silhouette's, or the foreground estimated without
+#: one): more is a body cut off by the frame's edge (generated: 0.055 at most).
 MAX_SIDE_FOREGROUND = 0.1
+#: Least share of the ring that must be one plain colour (the training background, or the ring's median colour:
+#: a photo's plain wall) for :func:`estimated_foreground` to tell body from background without a silhouette.
+MIN_PLAIN_BORDER = 0.5
 #: Where a training body's silhouette sits: its longest bounding-box side over the projected size of the
 #: normalised body size (:func:`projected_extent`), median (human ``small``) and range (human ``small``,
 #: the paper's look, animal ``tiny``), and how far (fraction of the frame) its bounding-box centre may
@@ -145,10 +152,24 @@ def _bbox(silhouette: np.ndarray) -> tuple[int, int, int, int]:
 
 def cut_off_sides(silhouette: np.ndarray) -> list[str]:
     """The image sides along which the body runs (more than :data:`MAX_SIDE_FOREGROUND` of the side):
-    a body cut off by the frame, which the model never saw."""
+    a body cut off by the frame, which the model never saw.
+
+    Args:
+        silhouette: ``(H, W)`` in [0, 1] or bool: a silhouette, or :func:`estimated_foreground`.
+    """
     body = silhouette >= SILHOUETTE_THRESHOLD
     edges = (body[0], body[-1], body[:, 0], body[:, -1])
     return [side for side, edge in zip(SIDES, edges, strict=True) if edge.mean() > MAX_SIDE_FOREGROUND]
+
+
+def cut_off_reason(sides: Sequence[str], estimated: bool = False) -> str:
+    """The out-of-domain reason of a body running along ``sides`` (:func:`cut_off_sides`) of a silhouette, or of
+    the foreground ``estimated`` without one (:func:`estimated_foreground`: said less surely, since an object
+    touching the body can cross the edge too)."""
+    edges = (f"{', '.join(sides[:-1])} and {sides[-1]} edges" if len(sides) > 1 else f"{sides[0]} edge")
+    said = (f"the body seems to run along the image's {edges}: it may be cut off" if estimated else
+            f"the body runs along the image's {edges}: it looks cut off")
+    return f"{said} (a half-body or a close-up?), and the model was trained on whole bodies"
 
 
 # ------------------------------------------------------------------ framing
@@ -185,22 +206,30 @@ def _crop_padded(arr: np.ndarray, top: int, left: int, side: int, fill: Sequence
 
 
 def frame_to_training(image: np.ndarray, silhouette: np.ndarray, scene, size: int,
-                      notes: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      notes: list[str] | None = None, *, raw: RawImage | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Crop or pad ``(H, W, 3)`` ``image`` (already over the training background) and its silhouette to the
     :func:`training_window`, then resize both to ``size``.
 
+    Args:
+        raw: the file ``image`` was read from, if it may have been reduced on reading: the notes then give
+            the file's pixels (:attr:`RawImage.shown_size`).
     Returns:
         ``(size, size, 3)`` image and ``(size, size)`` silhouette; each change is appended to ``notes``.
     """
     notes = [] if notes is None else notes
+    scale = 1.0 if raw is None else raw.scale
+    shown = None if raw is None else raw.shown_size
     window = training_window(silhouette, scene)
     if window is not None:
         top, left, side = window
         image = _crop_padded(image, top, left, side, scene.background)
         silhouette = _crop_padded(silhouette[..., None], top, left, side, (0.0,))[..., 0]
-        notes.append(f"framed to its silhouette like the training images (a {side}x{side} square around the body, "
+        seen = round(side * scale)
+        shown = None if shown is None else (seen, seen)
+        notes.append(f"framed to its silhouette like the training images (a {seen}x{seen} square around the body, "
                      "padded with the training background where it leaves the image)")
-    return square_resize(image, size, notes), square_resize(silhouette[..., None], size, [])[..., 0]
+    return (square_resize(image, size, notes, shown_size=shown),
+            square_resize(silhouette[..., None], size, [])[..., 0])
 
 
 # ------------------------------------------------------------------ no silhouette
@@ -209,31 +238,72 @@ def _ring(image: np.ndarray, width: int) -> dict[str, np.ndarray]:
             "left": image[:, :width].reshape(-1, 3), "right": image[:, -width:].reshape(-1, 3)}
 
 
-def background_check(image: np.ndarray | torch.Tensor, scene) -> tuple[bool, str]:
-    """Whether an image's border looks like the training background, and if not, why.
+def _array(image: np.ndarray | torch.Tensor) -> np.ndarray:
+    """``(S, S, 3)`` float64 of a ``(3, S, S)`` tensor or an ``(S, S, 3)`` array."""
+    arr = image.detach().cpu().numpy().transpose(1, 2, 0) if isinstance(image, torch.Tensor) else np.asarray(image)
+    return arr.astype(np.float64)
+
+
+def estimated_foreground(image: np.ndarray | torch.Tensor, scene) -> np.ndarray | None:
+    """The body as far as the image alone tells, for an image without a silhouette: the pixels farther than
+    :data:`BACKGROUND_TOLERANCE` (any channel) from its background, which is the training background or,
+    where more of the border is one other colour, that colour (the ring's median: a plain wall behind a
+    person in a photo).
 
     Args:
         image: ``(3, S, S)`` tensor or ``(S, S, 3)`` array in [0, 1], as the model sees it.
         scene: the training :class:`~cerberus_core.datasets.scene.SceneSetup` (its ``background``).
     Returns:
+        ``(S, S)`` bool, or ``None`` when less than :data:`MIN_PLAIN_BORDER` of the ring is either colour (a
+        cluttered border: nothing tells the body from the background).
+    """
+    arr = _array(image)
+    ring = np.concatenate(list(_ring(arr, BORDER_WIDTH).values()))
+    colours = [np.asarray(scene.background, dtype=np.float64), np.median(ring, axis=0)]
+    shares = [float((np.abs(ring - c).max(-1) <= BACKGROUND_TOLERANCE).mean()) for c in colours]
+    best = int(np.argmax(shares))
+    if shares[best] < MIN_PLAIN_BORDER:
+        return None
+    return _centre_connected(np.abs(arr - colours[best]).max(-1) > BACKGROUND_TOLERANCE)
+
+
+def _centre_connected(mask: np.ndarray) -> np.ndarray:
+    """The pixels of ``(H, W)`` bool ``mask`` connected (4-neighbourhood) to its pixels in the central third of the
+    image, where the training bodies are: a body crossing an edge, not clutter along it."""
+    h, w = mask.shape
+    grown = np.zeros_like(mask)
+    grown[h // 3:h - h // 3, w // 3:w - w // 3] = mask[h // 3:h - h // 3, w // 3:w - w // 3]
+    while True:
+        pad = np.pad(grown, 1)
+        more = mask & (grown | pad[:-2, 1:-1] | pad[2:, 1:-1] | pad[1:-1, :-2] | pad[1:-1, 2:])
+        if np.array_equal(more, grown):
+            return grown
+        grown = more
+
+
+def background_check(image: np.ndarray | torch.Tensor, scene, cut_off: Sequence[str] = ()) -> tuple[bool, str]:
+    """Whether an image's border looks like the training background, and if not, why.
+
+    Args:
+        image: ``(3, S, S)`` tensor or ``(S, S, 3)`` array in [0, 1], as the model sees it.
+        scene: the training :class:`~cerberus_core.datasets.scene.SceneSetup` (its ``background``).
+        cut_off: the sides along which the body runs (:func:`cut_off_sides`), left out of the border's
+            measures (a half-body crossing the bottom edge of a training-background image is cut off, not on
+            another background); all four: the whole ring is measured.
+    Returns:
         ``(in_domain, reason)``; the reason is empty when in domain.
     """
-    arr = image.detach().cpu().numpy().transpose(1, 2, 0) if isinstance(image, torch.Tensor) else np.asarray(image)
-    arr = arr.astype(np.float64)
+    arr = _array(image)
     bg = np.asarray(scene.background, dtype=np.float64)
     sides = _ring(arr, BORDER_WIDTH)
-    ring = np.concatenate(list(sides.values()))
-    near = lambda px: np.abs(px - bg).max(-1) <= BACKGROUND_TOLERANCE  # noqa: E731
-    fraction = float(near(ring).mean())
+    kept = [px for side, px in sides.items() if side not in cut_off] or list(sides.values())
+    ring = np.concatenate(kept)
+    fraction = float((np.abs(ring - bg).max(-1) <= BACKGROUND_TOLERANCE).mean())
     spread = float(ring.std(0).max())
-    touched = [s for s, px in sides.items() if 1 - near(px).mean() > MAX_SIDE_FOREGROUND]
     reasons = []
     if fraction < MIN_BACKGROUND_FRACTION:
         reasons.append(f"its border is not the training background {_colour(bg)} (only {fraction:.0%} of it is, "
                        f"training images {MIN_BACKGROUND_FRACTION:.0%} or more)")
-    elif touched:  # the background is there, but something crosses the frame's edge
-        reasons.append(f"something runs along its {' and '.join(touched)} edge: the body may be cut off by the "
-                       "frame (training bodies are whole)")
     if spread > MAX_BORDER_SPREAD:
         reasons.append(f"its border varies in colour (spread {spread:.2f}, training images at most "
                        f"{MAX_BORDER_SPREAD:.2f})")
@@ -241,9 +311,22 @@ def background_check(image: np.ndarray | torch.Tensor, scene) -> tuple[bool, str
 
 
 # ------------------------------------------------------------------ one input
-def appearance_check(image: np.ndarray, scene) -> tuple[bool, str]:
+def photo_subject(kind: str | None) -> str:
+    """What a photograph of a body of ``kind`` (a body source's name, e.g. ``"animal"``) shows that the training
+    renders do not: the source's :attr:`~cerberus_core.bodies.body.BodySource.photo_subject`; for an unknown
+    kind (``None``: a folder of meshes, or a source not installed here) the generic one."""
+    if kind:
+        try:
+            return source_class(kind).photo_subject
+        except CerberusError:  # not installed here: the generic phrase still says what is wrong
+            pass
+    return BodySource.photo_subject
+
+
+def appearance_check(image: np.ndarray, scene, kind: str | None = None) -> tuple[bool, str]:
     """Whether the body in ``image`` (``(S, S, 3)`` in [0, 1], over the training background) looks like the
-    training bodies: grey and smoothly shaded. Returns ``(ok, reason)``."""
+    training bodies: grey and smoothly shaded. ``kind``: the kind of bodies the model learned (a body
+    source's name; :func:`photo_subject` says what a photo of one looks like). Returns ``(ok, reason)``."""
     arr = np.asarray(image, dtype=np.float64)
     body = np.abs(arr - np.asarray(scene.background, dtype=np.float64)).max(-1) > BACKGROUND_TOLERANCE
     if body.sum() < 16:
@@ -261,8 +344,8 @@ def appearance_check(image: np.ndarray, scene) -> tuple[bool, str]:
     found = [f for f in found if f]
     if not found:
         return True, ""
-    return False, (f"the body is {' and '.join(found)}: the model learned untextured grey renders only, so a "
-                   "clothed or coloured person is outside what it learned however well it is masked")
+    return False, (f"the body is {' and '.join(found)}: the model learned untextured grey renders only, so "
+                   f"{photo_subject(kind)} is outside what it learned however well it is masked")
 
 
 def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.ndarray:
@@ -297,8 +380,9 @@ def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.nda
 
 
 def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = None, *,
-                  warn: bool = True) -> LoadedImage:
-    """Read one image for a model of ``size`` pixels trained on ``scene`` (see the module docstring).
+                  kind: str | None = None, warn: bool = True) -> LoadedImage:
+    """Read one image for a model of ``size`` pixels trained on ``scene`` and on bodies of ``kind`` (a body
+    source's name; ``None``: unknown) (see the module docstring).
 
     Returns:
         The :class:`LoadedImage`; its ``out_of_domain`` holds the reason when the image does not look like
@@ -319,8 +403,10 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
     reasons, advice = [], []
     if silhouette is None:
         arr = raw.rgb if raw.alpha is None else composite(raw.rgb, raw.alpha, scene.background)
-        arr = square_resize(arr, size, notes)
-        ok, reason = background_check(arr, scene)
+        arr = square_resize(arr, size, notes, shown_size=raw.shown_size)
+        foreground = estimated_foreground(arr, scene)
+        cut = [] if foreground is None else cut_off_sides(foreground)
+        ok, reason = background_check(arr, scene, cut)
         if not ok:
             reasons.append(reason)
             advice.append("give an RGBA cut-out (transparent background) or `mask=MASK.png` (white on the body)")
@@ -328,12 +414,12 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
         notes.append(f"{'mask' if mask is not None else 'alpha'} composited over the training background "
                      f"{_colour(scene.background)}")
         cut = cut_off_sides(silhouette)
-        arr, _ = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size, notes)
-        if cut:
-            reasons.append(f"the body runs along the image's {' and '.join(cut)} edge: it looks cut off (a "
-                           "portrait?), and the model was trained on whole bodies")
-            advice.append("give images of the whole body")
-    looks, reason = appearance_check(arr, scene)
+        arr, _ = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size, notes,
+                                   raw=raw)
+    if cut:
+        reasons.append(cut_off_reason(cut, estimated=silhouette is None))
+        advice.append("give images of the whole body")
+    looks, reason = appearance_check(arr, scene, kind)
     if not looks:
         reasons.append(reason)
         advice.append("expect a coarse grey body: no mask or framing brings a photo's appearance into the "

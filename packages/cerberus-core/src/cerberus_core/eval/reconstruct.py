@@ -23,6 +23,7 @@ from cerberus_core.eval.figures import save_image_pictures
 from cerberus_core.eval.input_domain import domain_note, prepare_input
 from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.parts import pose_donors
 from cerberus_core.plumbing.names import printable, safe_stem
 from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
 from cerberus_core.render.backends import make_renderer
@@ -81,10 +82,12 @@ def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Pat
     return list(masks)
 
 
-def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene) -> tuple[torch.Tensor, list[str]]:
+def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene,
+                kind: str | None = None) -> tuple[torch.Tensor, list[str]]:
     """The model's input images and, per image, its out-of-domain note (``""`` when in domain); one warning
-    names the images out of the training domain and the fix."""
-    loaded = [prepare_input(p, size, scene, m) for p, m in zip(paths, masks, strict=True)]
+    names the images out of the training domain and the fix. ``kind``: the bodies the model learned
+    (:func:`~cerberus_core.eval.input_domain.prepare_input`)."""
+    loaded = [prepare_input(p, size, scene, m, kind=kind) for p, m in zip(paths, masks, strict=True)]
     out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
     if out:
         shown = [printable(li.path.name) for li, _ in out[:3]]
@@ -95,6 +98,21 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
         warnings.warn(f"{len(out)} of {len(loaded)} image(s) are out of the training domain, so their reconstructions "
                       f"are unreliable: {named}{more}; {fix}", UserWarning, stacklevel=1)
     return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded]
+
+
+def borrowed_pose_notes(stems: Sequence[str], notes: Sequence[str], donors: Sequence[int | None]) -> list[str]:
+    """Per image, ``""`` or the note that its new pose (Figure 1 (f)) borrows the pose of an image out of the
+    training domain (``notes[donors[i]]`` not empty: no other image was in it,
+    :func:`~cerberus_core.parts.pose_donors`); one warning names those images."""
+    out = [f"(f) New Pose borrows the pose of {stems[j]}, which is out of the training domain"
+           if j is not None and notes[j] else "" for j in donors]
+    named = [f"{printable(stems[i])} from {printable(stems[j])}" for i, j in enumerate(donors) if out[i]]
+    if named:
+        more = f" (and {len(named) - 3} more)" if len(named) > 3 else ""
+        warnings.warn(f"the new pose of {len(named)} image(s) borrows the pose of an out-of-domain image, as no "
+                      f"other image is in the domain: {', '.join(named[:3])}{more}; add an image of a whole body on "
+                      "the training background to lend a reliable pose", UserWarning, stacklevel=2)
+    return out
 
 
 @dataclass
@@ -125,7 +143,8 @@ class Reconstruction:
 
 def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
                        out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
-                       viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "") -> Reconstruction:
+                       viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "",
+                       kind: str | None = None, part_labels: Sequence[str | None] | None = None) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
     :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
 
@@ -138,22 +157,29 @@ def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, r
         azimuth: the camera azimuth assumed for every input, degrees.
         viewer_images: cards in ``out/index.html`` (0: no viewer).
         title: the viewer's title.
+        kind: the kind of bodies the model learned (a body source's name, :meth:`Run.training_kind
+            <cerberus_core.run.Run.training_kind>`; ``None``: unknown), for the out-of-domain notes.
+        part_labels: each learned part's label for the viewer (:meth:`Run.part_labels
+            <cerberus_core.run.Run.part_labels>`; ``None``: the node names alone).
     """
     masks = list(masks) if masks is not None else [None] * len(images)
-    pictures, notes = load_inputs(images, masks, image_size, scene)
+    pictures, notes = load_inputs(images, masks, image_size, scene, kind)
     backend = make_renderer(renderer)
     stems = output_names(list(images))
     camera = scene.cameras([azimuth] * len(pictures), image_size)
     with torch.no_grad():
         recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
+    donors = pose_donors(len(stems), [bool(n) for n in notes])
+    borrowed = borrowed_pose_notes(stems, notes, donors)
     with writing_results(out, "cerberus reconstruct") as tmp:  # out is replaced only once all is written
         written = export_reconstruction(recon, tmp, stems)
         for i, stem in enumerate(stems):
-            donor = recon.index([(i + 1) % len(stems)]) if len(stems) > 1 else None
+            donor = None if donors[i] is None else recon.index([donors[i]])
+            note = "; ".join(n for n in (notes[i], borrowed[i]) if n)
             written += save_image_pictures(backend, pictures[i], recon.index([i]), camera.index([i]), tmp, stem,
-                                           pose_donor=donor, background=scene.background, note=notes[i])
+                                           pose_donor=donor, background=scene.background, note=note)
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems, limit=viewer_images, notes=notes,
                                                limit_hint="viewer_images", title=title,
-                                               background=scene.background)
+                                               background=scene.background, part_labels=part_labels)
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
     return Reconstruction(out, stems, written, renamed, notes)

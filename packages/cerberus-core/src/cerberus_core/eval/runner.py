@@ -154,6 +154,16 @@ class EvaluationResult:
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
 
+    def part_labels(self) -> list[str | None] | None:
+        """Each learned part's label (the ground-truth part it covers most over the images scored; ``None`` where
+        it covers none), in part order; ``None`` when part quality was not scored (not run, or no part labels)."""
+        parts = (self.part_quality or {}).get("parts") or []
+        return [p["label"] for p in sorted(parts, key=lambda p: p["part"])] or None
+
+    def image_ious(self) -> dict[int, float]:
+        """``{dataset index: voxel IoU}`` of every image scored."""
+        return {int(r["index"]): float(r["iou"]) for r in self.records if r.get("iou") is not None}
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "protocol": self.protocol,

@@ -1,10 +1,12 @@
 """An interactive 3D viewer of reconstructions: one self-contained ``index.html`` beside the GLBs.
 
-The page shows one card per image: the input picture, a 3D view (orbit with the mouse, wheel to zoom,
-right-drag to pan; it opens at the input camera's view), a switch between the models of that image
-(the reconstruction; the ground truth, where there is one; the new pose of Figure 1 (f)), one
-visibility toggle per part in its colour, and a light control (the training light, which follows the
-camera, or Figure 1 (d)'s new light, and its direction).
+The page shows one card per image: the input picture (with its voxel IoU where the evaluation scored it), a
+3D view (orbit with the mouse, wheel to zoom, right-drag to pan; it opens at the input camera's view), a
+switch between the models of that image (the reconstruction; the ground truth, where there is one; the
+new pose of Figure 1 (f)), one visibility toggle per part in its colour, named by the part's label where
+it is known (``head (part_05)``: the ground-truth part it covers most, from ``cerberus eval``'s part
+quality or a shipped model's card), and a light control (the training light, which follows the camera,
+or Figure 1 (d)'s new light, and its direction).
 
 It uses three.js, vendored at a pinned version in ``cerberus_core/vendor/three-<version>/`` (MIT;
 see the README there). Everything is inlined, so the page works offline from ``file://`` (where Chromium blocks
@@ -36,8 +38,8 @@ import trimesh
 from PIL import Image
 
 from cerberus_core.errors import ConfigError, ShapeError
-from cerberus_core.eval.export import export_parts
-from cerberus_core.parts import PartSet, transfer_pose
+from cerberus_core.eval.export import export_parts, part_name
+from cerberus_core.parts import PartSet, pose_donors, transfer_pose
 from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
 from cerberus_core.plumbing.names import printable
 from cerberus_core.render.camera import Camera
@@ -84,6 +86,8 @@ class ViewerEntry:
             the origin, +Y up): the view the page opens at (:func:`camera_view`). Default
             :data:`DEFAULT_CAMERA`.
         note: a line under the title.
+        iou: the reconstruction's voxel IoU against the ground truth, where the evaluation scored it
+            (``None``: not scored).
     """
 
     name: str
@@ -93,6 +97,7 @@ class ViewerEntry:
     new_pose: Path | str | None = None
     camera: dict | None = None
     note: str = ""
+    iou: float | None = None
 
 
 # ------------------------------------------------------------------ three.js as an import map
@@ -184,7 +189,8 @@ def _b64(path: Path | str) -> str:
 # ------------------------------------------------------------------ the page
 def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: str = "Cerberus reconstructions",
                  limit: int = DEFAULT_LIMIT, total: int | None = None, limit_hint: str = "",
-                 background: Sequence[float] = (1.0, 1.0, 1.0), filename: str = "index.html") -> Path:
+                 background: Sequence[float] = (1.0, 1.0, 1.0), filename: str = "index.html",
+                 part_labels: Sequence[str | None] | None = None) -> Path:
     """Write the viewer page ``out_dir/filename`` for the first ``limit`` entries.
 
     Args:
@@ -194,6 +200,9 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
         total: how many images there were in all (default ``len(entries)``), for that sentence.
         limit_hint: the setting that shows more, e.g. ``"viewer_images"``.
         background: the 3D views' background colour, RGB in [0, 1].
+        part_labels: the label of learned part ``k`` (the node ``part_NN`` of the reconstruction and new-pose
+            GLBs, :func:`~cerberus_core.eval.export.part_name`), ``None`` where unknown; the part toggles say
+            ``LABEL (part_NN)``. Default: the node names alone.
     Returns:
         The page's path.
     """
@@ -207,16 +216,19 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
     data_entries, cards = [], []
     for i, e in enumerate(shown):
         models = [(k, getattr(e, k)) for k in ("reconstruction", "ground_truth", "new_pose") if getattr(e, k)]
-        data_entries.append({"index": i, "name": printable(e.name), "camera": e.camera,
+        data_entries.append({"index": i, "name": printable(e.name), "camera": e.camera, "iou": e.iou,
                              "models": [{"key": k, "label": MODEL_LABELS[k], "glb": _b64(p)} for k, p in models]})
         mime, png = _image_png(e.image)
         note = f'<p class="meta">{_html(e.note)}</p>' if e.note else ""
+        caption = "Input" if e.iou is None else f"Input · voxel IoU {e.iou:.3f}"
         cards.append(f'<section class="card" data-index="{i}"><h2>{_html(e.name)}</h2>{note}'
                      f'<div class="row"><figure><img alt="input picture of {_html(e.name)}" '
-                     f'src="data:{mime};base64,{base64.b64encode(png).decode()}"><figcaption>Input</figcaption>'
-                     f'</figure><div class="view"></div></div></section>')
+                     f'src="data:{mime};base64,{base64.b64encode(png).decode()}"><figcaption>{_html(caption)}'
+                     f'</figcaption></figure><div class="view"></div></div></section>')
+    labels = {part_name(k): printable(label) for k, label in enumerate(part_labels or []) if label}
     data = {"canvas_size": CANVAS_SIZE, "background": [float(c) for c in background], "lights": LIGHTS,
-            "default_camera": DEFAULT_CAMERA, "entries": data_entries}
+            "default_camera": DEFAULT_CAMERA, "entries": data_entries, "part_labels": labels,
+            "labelled_models": ["reconstruction", "new_pose"]}
     count = (f"All {total} image(s)." if len(shown) == total else
              f"The first {len(shown)} of {total} images" + (f" ({limit_hint} sets how many)." if limit_hint else "."))
     page = _PAGE.format(
@@ -283,19 +295,24 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
                                 limit: int = DEFAULT_LIMIT, limit_hint: str = "",
                                 title: str = "Cerberus reconstructions",
                                 background: Sequence[float] = (1.0, 1.0, 1.0),
-                                notes: Sequence[str] | None = None) -> list[Path]:
+                                notes: Sequence[str] | None = None,
+                                part_labels: Sequence[str | None] | None = None,
+                                ious: Sequence[float | None] | None = None) -> list[Path]:
     """Export the meshes of the first ``limit`` images and write ``out_dir/index.html``.
 
     For image ``i`` named ``stems[i]`` writes ``<stem>.glb`` (the reconstruction), ``<stem>_new_pose.glb``
-    (its parts with the rotations and translations predicted from the next image, as the ``new_pose``
-    picture of :func:`cerberus_core.eval.figures.save_image_pictures`; only with two or more images) and,
-    with ``bodies`` (``bodies[i]`` the ground-truth :class:`PosedBody` of image ``i``), ``<stem>_gt.glb``.
+    (its parts with the rotations and translations predicted from another image, as the ``new_pose``
+    picture of :func:`cerberus_core.eval.figures.save_image_pictures`: the next one in the training domain,
+    :func:`~cerberus_core.parts.pose_donors`; only with two or more images) and, with ``bodies``
+    (``bodies[i]`` the ground-truth :class:`PosedBody` of image ``i``), ``<stem>_gt.glb``.
 
     Args:
         images: ``(N, 3, H, W)`` the inputs in [0, 1]; camera: their ``N`` cameras; recon: batch ``N``.
         limit: cards on the page (``0``: write nothing).
-        notes: a line per image for its card (e.g. that the input is out of the training domain), ``""``
-            for none.
+        notes: a line per image for its card: why the input is out of the training domain, ``""`` for none
+            (an image with a note lends its pose only where no other can).
+        part_labels: each learned part's label (:func:`write_viewer`).
+        ious: each image's voxel IoU where the evaluation scored it (``None`` where not).
     Returns:
         The files written, the page last.
     """
@@ -303,6 +320,12 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
     if notes is not None and len(notes) != n:
         raise ShapeError(f"write_reconstruction_viewer: {n} reconstructions but {len(notes)} notes; pass one note "
                          "per image (\"\" for none)")
+    if ious is not None and len(ious) != n:
+        raise ShapeError(f"write_reconstruction_viewer: {n} reconstructions but {len(ious)} IoUs; pass one per image "
+                         "(None where not scored)")
+    if part_labels is not None and len(part_labels) != recon.num_parts:
+        raise ShapeError(f"write_reconstruction_viewer: {recon.num_parts} parts but {len(part_labels)} part labels; "
+                         "pass one label per learned part (None where unknown), or `part_labels=None`")
     if len(stems) != n or images.shape[0] != n or camera.batch_size != n or (bodies is not None and len(bodies) != n):
         raise ShapeError(f"write_reconstruction_viewer: {n} reconstructions but {images.shape[0]} images, "
                          f"{camera.batch_size} cameras, {len(stems)} names"
@@ -312,23 +335,27 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
         return []
     out_dir = Path(out_dir)
     faces = recon.faces.detach().cpu().numpy()
+    donors = pose_donors(n, None if notes is None else [bool(x) for x in notes])
     written, entries = [], []
     for i in range(min(limit, n)):
         stem, one = stems[i], recon.index([i])
         written += export_parts(one.posed()[0].detach().cpu().numpy(), faces, out_dir, stem, formats=("glb",))
-        entry = ViewerEntry(stems[i], images[i], out_dir / f"{stem}.glb", camera=camera_view(camera.index([i])))
+        entry = ViewerEntry(stems[i], images[i], out_dir / f"{stem}.glb", camera=camera_view(camera.index([i])),
+                            iou=None if ious is None else ious[i])
         if bodies is not None:
             entry.ground_truth = export_body_glb(bodies[i], out_dir / f"{stem}_gt.glb")
             written.append(entry.ground_truth)
-        if n > 1:
-            j = (i + 1) % n
+        j = donors[i]
+        if j is not None:
             posed = transfer_pose(one, recon.index([j])).posed()[0].detach().cpu().numpy()
             written += export_parts(posed, faces, out_dir, f"{stem}_new_pose", formats=("glb",))
             entry.new_pose = out_dir / f"{stem}_new_pose.glb"
-            entry.note = f"New pose: these parts with the rotations and translations predicted from {stems[j]}."
+            flagged = ", which is out of the training domain (no other image is in it)" if notes and notes[j] else ""
+            entry.note = (f"New pose: these parts with the rotations and translations predicted from "
+                          f"{stems[j]}{flagged}.")
         if notes is not None and notes[i]:
             entry.note = f"{notes[i][:1].upper()}{notes[i][1:]}. {entry.note}".strip()
         entries.append(entry)
     written.append(write_viewer(out_dir, entries, title=title, limit=limit, total=n, limit_hint=limit_hint,
-                                background=background))
+                                background=background, part_labels=part_labels))
     return written

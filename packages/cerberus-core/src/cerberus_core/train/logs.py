@@ -24,7 +24,7 @@ from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.objective import TERMS
-from cerberus_core.viz import atomic_save_png, part_colors, save_image_grid
+from cerberus_core.viz import atomic_save_png, draw_text, figure_font, part_colors, save_image_grid
 
 Tensor = torch.Tensor
 
@@ -119,7 +119,7 @@ def plot_loss_curves(csv_path: str | Path, png_path: str | Path,
     draw = ImageDraw.Draw(img)
     draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
     if not series:
-        draw.text((left + 10, top + 10), "no finite losses logged", fill=(0, 0, 0))
+        draw_text(draw, (left + 10, top + 10), "no finite losses logged", font=figure_font(10), fill=(0, 0, 0))
         atomic_save_png(img, png_path)
         return Path(png_path)
     steps = [s for pts in series.values() for s, _ in pts]

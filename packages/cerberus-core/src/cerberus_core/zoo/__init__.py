@@ -6,7 +6,8 @@ Each model is three files in this folder, all package data:
   elevation, distance, field of view, light, background) in the safetensors metadata, so a model
   is self-contained. Loaded only with safetensors (never pickle).
 * ``NAME.json`` — the registry entry: the file's SHA-256 (checked on every load), a one-line
-  summary, and the figures of its model card (test IoU, part quality, training time).
+  summary, the figures of its model card (test IoU, part quality, training time) and each learned part's
+  label (the ground-truth part it covers most, from the card's part table).
 * ``NAME.md`` — the model card: data, preset, exact commands, results, machine, what changed.
 
 ``cerberus models`` lists them; :func:`model_path` resolves a name to its verified weights file.
@@ -42,6 +43,9 @@ class PretrainedModel:
         results: headline figures of the card (e.g. ``test_iou``), for ``cerberus models``.
         data: the dataset it was trained and scored on, ``{"dataset": ..., "size": ...}``: regenerate
             its test split with ``cerberus data generate --dataset DATASET --size SIZE``.
+        part_labels: per learned part, in order, the ground-truth part it covers most over the test
+            images (``cerberus eval``'s part quality; the card's part table), ``None`` for a part that
+            covers nothing; empty when unknown. Shown by the 3D viewer beside ``part_00``...
     """
 
     name: str
@@ -51,6 +55,7 @@ class PretrainedModel:
     card: str
     results: dict[str, Any] = field(default_factory=dict)
     data: dict[str, str] = field(default_factory=dict)
+    part_labels: list[str | None] = field(default_factory=list)
 
     @property
     def path(self) -> Path:
@@ -80,7 +85,7 @@ def _entry(path: Path) -> PretrainedModel:
     if not isinstance(data, dict):
         raise ZooError(f"model registry entry {path}: expected a JSON object, got {type(data).__name__}; {fix}")
     names = {f.name for f in fields(PretrainedModel)}
-    missing = sorted(names - set(data) - {"results", "data"})
+    missing = sorted(names - set(data) - {"results", "data", "part_labels"})
     unknown = sorted(set(data) - names)
     if missing or unknown:
         raise ZooError(f"model registry entry {path}: " + "; ".join(
@@ -92,6 +97,10 @@ def _entry(path: Path) -> PretrainedModel:
     for key in ("results", "data"):
         if not isinstance(data.get(key, {}), dict):
             raise ZooError(f"model registry entry {path}: {key!r} must be a JSON object; {fix}")
+    labels = data.get("part_labels", [])
+    if not isinstance(labels, list) or not all(label is None or isinstance(label, str) for label in labels):
+        raise ZooError(f"model registry entry {path}: 'part_labels' must be a JSON list of strings (null for a part "
+                       f"that covers nothing); {fix}")
     for key, suffix in (("weights", ".safetensors"), ("card", ".md")):
         value = data[key]
         if Path(value).name != value or value in ("", ".", "..") or "\\" in value or not value.endswith(suffix):

@@ -19,6 +19,7 @@ function publish() {  // a machine-readable summary in the DOM (tests read it wi
                 cards: viewer.cards.map((c) => {
                   const r = c.canvas.getBoundingClientRect();
                   return { name: c.entry.name, meshCounts: c.meshCounts, shown: c.current, light: c.lightSelect.value,
+                           iou: c.entry.iou, parts: [...c.parts.querySelectorAll('.part-name')].map((e) => e.textContent),
                            canvas: { x: r.left + window.scrollX, y: r.top + window.scrollY, width: r.width, height: r.height } };
                 }) };
   document.getElementById('viewer-status').textContent = JSON.stringify(out);
@@ -51,6 +52,13 @@ const dirFromAngles = (az, el) => new THREE.Vector3(Math.cos(deg(el)) * Math.sin
 function anglesFromDir(d) {
   const v = new THREE.Vector3(...d).normalize();
   return [THREE.MathUtils.radToDeg(Math.atan2(v.x, v.z)), THREE.MathUtils.radToDeg(Math.asin(v.y))];
+}
+
+// A learned part's toggle says its label where the card or the evaluation knows it ("head (part_05)"); the
+// ground truth's nodes are named by their semantic parts already.
+function partName(modelKey, node) {
+  const label = DATA.labelled_models.includes(modelKey) ? DATA.part_labels[node] : undefined;
+  return label ? `${label} (${node})` : node;
 }
 
 class Card {
@@ -134,11 +142,13 @@ class Card {
     for (const [k, g] of Object.entries(this.models)) g.visible = k === key;
     const meshes = [];
     this.models[key].traverse((o) => { if (o.isMesh) meshes.push(o); });
-    meshes.sort((a, b) => a.name.localeCompare(b.name, undefined, { numeric: true }));
+    // the glTF node's own name (three.js strips '.' and other characters from mesh.name: shin.L -> shinL)
+    const nodeName = (mesh) => mesh.userData.name || mesh.name;
+    meshes.sort((a, b) => nodeName(a).localeCompare(nodeName(b), undefined, { numeric: true }));
     this.parts.replaceChildren(...meshes.map((mesh) => el('label', { class: 'part' },
       el('input', { type: 'checkbox', checked: mesh.visible, onchange: (e) => { mesh.visible = e.target.checked; this.draw(); } }),
       el('span', { class: 'swatch', style: `background:#${mesh.material.color.getHexString(THREE.SRGBColorSpace)}` }),
-      ` ${mesh.name}`)));
+      ' ', el('span', { class: 'part-name', textContent: partName(key, nodeName(mesh)) }))));
     this.draw();
   }
 
