@@ -214,7 +214,8 @@ def _mesh_index(views):
      "meshes.npz holds an array numpy cannot read without pickle"),
     ("meshes", lambda z: {k: v for k, v in z.items() if k != "faces"}, "meshes.npz lacks the array 'faces'"),
     ("meshes", lambda z: z | {"vertex_offsets": z["vertex_offsets"] + 7}, "vertex_offsets run over"),
-], ids=["subject", "mesh-index", "quads", "images-count", "npz-object", "npz-missing", "npz-offsets"])
+    ("meshes", lambda z: z | {"vertex_parts": z["vertex_parts"] + 100}, "part labels index the manifest's"),
+], ids=["subject", "mesh-index", "quads", "images-count", "npz-object", "npz-missing", "npz-offsets", "part-labels"])
 def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_dataset, tmp_path, capsys, role, change,
                                                                      expected):
     """Issue 34: a shard whose files are whole (sizes and checksums agree) but whose arrays contradict the

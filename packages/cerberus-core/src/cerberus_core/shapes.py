@@ -16,11 +16,22 @@ tensors on different devices raise :class:`~cerberus_core.errors.DeviceError`.
 """
 from __future__ import annotations
 
-from cerberus_core.errors import DeviceError, ShapeError
+from cerberus_core.errors import DeviceError, InputTypeError, ShapeError
 
 
 def _expected(pattern: str) -> str:
     return "(" + ", ".join(pattern.split()) + ")"
+
+
+def _check_tensor(where: str, name: str, tensor: object, pattern: str) -> None:
+    """:class:`InputTypeError` for an argument that is not an array (a torch tensor, or a numpy array where the
+    function takes one), :class:`DeviceError` for a tensor without values."""
+    if not (hasattr(tensor, "shape") and hasattr(tensor, "dtype")):
+        raise InputTypeError(f"{where}: {name} is a {type(tensor).__name__}, not a tensor of shape "
+                             f"{_expected(pattern)}; pass torch.as_tensor(...)")
+    if getattr(tensor, "is_meta", False):
+        raise DeviceError(f"{where}: {name} is on the meta device, which holds no values; pass a tensor on the cpu "
+                          "or a cuda device")
 
 
 def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> dict[str, int]:
@@ -33,6 +44,7 @@ def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> 
     Returns:
         ``{dimension name: size}``.
     Raises:
+        InputTypeError: an argument that is not a tensor.
         ShapeError: ``"<where>: <name> must be (<pattern>), got (<shape>)"`` for the tensors that do
             not fit (or ``<name> must be float32 or float64, got int64``), with the sizes the other
             tensors bound.
@@ -43,6 +55,7 @@ def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> 
     problems: list[str] = []
     for name, spec in tensors.items():
         tensor, pattern = spec[0], spec[1]
+        _check_tensor(where, name, tensor, pattern)
         if len(spec) > 2 and tensor.dtype not in spec[2]:
             allowed = " or ".join(str(d).removeprefix("torch.") for d in spec[2])
             problems.append(f"{name} must be {allowed}, got {str(tensor.dtype).removeprefix('torch.')}")

@@ -103,7 +103,9 @@ def pairs_from_file(path: str | os.PathLike) -> list[PairSpec]:
     if suffix == ".json":
         try:
             data = json.loads(text)
-        except json.JSONDecodeError as exc:
+        except RecursionError:  # json.loads fails three ways: bad syntax, a number too long to read, deep nesting
+            raise MeshInputError(f"pairs file '{path}' is not valid JSON (nested too deeply); fix the file") from None
+        except ValueError as exc:
             raise MeshInputError(f"pairs file '{path}' is not valid JSON ({exc}); fix the file") from None
         items = data.get("pairs") if isinstance(data, dict) else data
         if not isinstance(items, list):

@@ -31,6 +31,7 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.datasets.show import save_contact_sheet
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.fields import check_kind, check_path
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
 from cerberus_core.plumbing.outputs import check_apart, output_file, output_folder, resolved
@@ -72,7 +73,7 @@ class Dataset:
         Raises:
             DatasetError: no dataset there, or a manifest that does not read (naming the problem and the fix).
         """
-        return cls(Manifest.read(root))
+        return cls(Manifest.read(check_path("root", root)))
 
     @property
     def root(self) -> Path:
@@ -169,7 +170,7 @@ class Dataset:
             if not 1 <= value <= most:
                 raise ConfigError.about(key, value, f"must be an integer in [1, {most}]")
         self.manifest.split(split)
-        out = output_file(Path(out) if out is not None else self.root / f"contact_{split}.png")
+        out = output_file(check_path("out", out) if out is not None else self.root / f"contact_{split}.png")
         if renderer != AUTO_RENDERER:
             get_plugin(RENDERER_GROUP, renderer)  # a known backend, even without parts
         return save_contact_sheet(self.root, out, split=split, count=count, parts=parts, renderer=renderer,
@@ -188,8 +189,9 @@ class Dataset:
         Returns:
             The job: :meth:`GenerationJob.plan_lines` says the counts of each split.
         """
+        check_kind("config", config, GenerationConfig, "a GenerationConfig (from load_generation_config)")
         if out is not None:
-            output_folder(Path(out))
+            output_folder(check_path("out", out))
             if source_options and source_options.get("root"):  # the meshes read are not in the folder written
                 check_apart(Path(out), [resolved(source_options["root"], "root")], what="a dataset is written there")
         job = validate_generation(config, source=source, source_options=source_options, device=device,
@@ -225,7 +227,7 @@ class Dataset:
             DatasetError: ``out`` holds something else.
             LockedError: another live process writes into ``out``.
         """
-        out = Path(out)
+        out = check_path("out", out)
         job = cls.plan(config, out, source_options=source_options, source=source, overwrite=overwrite, device=device,
                        batch_size=batch_size)
         if out.is_dir():

@@ -34,9 +34,6 @@ def _check_scene(vertices: Tensor, faces: Tensor, camera: Camera) -> None:
         raise ShapeError(f"render: faces must be an integer tensor, got {faces.dtype}; pass `faces.long()`")
     if vertices.shape[0] != camera.batch_size:
         raise ShapeError(f"render: {vertices.shape[0]} scenes but {camera.batch_size} cameras; pass one camera per scene")
-    if faces.numel() and (int(faces.min()) < 0 or int(faces.max()) >= vertices.shape[1]):
-        raise MeshError(f"render: faces index vertices outside 0..{vertices.shape[1] - 1}; "
-                        "check the face template matches the vertex count")
     bad = ~torch.isfinite(vertices.detach()).all(-1)
     if bool(bad.any()):
         scene, vert = (int(i) for i in torch.nonzero(bad)[0])
@@ -94,7 +91,10 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     normals = ops.vertex_normals(renderer, vertices, faces)
     rgb, depth = ops.shade(renderer, clip, faces, face_id, normals, alb, light)
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
-    bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
+    bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device)
+    check_shapes("render", background=(bg, "3"), **({} if face_part is None else {"faces": (faces, "F 3"),
+                                                                                  "face_part": (face_part, "F")}))
+    bg = bg.reshape(1, 1, 1, 3)
     # rgb is 0 on the background: over black (training's case) compositing would add zeros
     image = rgb + (1 - alpha) * bg if bg.requires_grad or bool(bg.any()) else rgb
     if antialias:
