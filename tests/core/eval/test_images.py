@@ -76,3 +76,17 @@ def test_load_images_stacks(tmp_path):
     b = _save(tmp_path / "b.png", np.full((S, S, 3), 255, np.uint8))
     batch, records = load_images([a, b], S, warn=False)
     assert batch.shape == (2, 3, S, S) and [r.path.name for r in records] == ["a.png", "b.png"]
+
+
+def test_an_image_over_the_pixel_limit_is_said_once(tmp_path, monkeypatch):
+    """Issue 34 campaign: the bound's own ImageInputError (a ValueError) was caught and wrapped again as "cannot be
+    read as an image (ImageInputError: ...)", naming the file twice."""
+    import cerberus_core.eval.images as images
+
+    monkeypatch.setattr(images, "MAX_INPUT_PIXELS", 100)
+    Image.fromarray(np.zeros((20, 20, 3), np.uint8)).save(tmp_path / "big.png")
+    with pytest.raises(ImageInputError) as caught:
+        load_image(tmp_path / "big.png", 16)
+    message = str(caught.value)
+    assert "20x20 pixels is too large (the limit is 100 pixels)" in message
+    assert "cannot be read" not in message and message.count("big.png") == 1
