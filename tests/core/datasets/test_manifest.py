@@ -137,6 +137,8 @@ MALFORMED = [  # (id, change to the stored manifest, words of the one-line Datas
     ("files-list", lambda m: _shard(m).update(files=[1]), "files is list, not an object"),
     ("splits-empty", lambda m: m.update(splits={}), "splits records [], but its config plans ['test', 'train']"),
     ("split-unplanned", lambda m: m["splits"].update(extra=m["splits"]["train"]), "but its config plans"),
+    ("shard-twice", lambda m: m["splits"]["train"]["shards"].append(_shard(m)),
+     "splits.train.shards records shards [0, 0, 1, 2, 3], not distinct shards of the 4 planned"),
 ]
 
 

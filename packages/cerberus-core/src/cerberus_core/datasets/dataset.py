@@ -34,6 +34,7 @@ from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.fields import check_kind, check_path
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
+from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import check_apart, output_file, output_folder, resolved
 from cerberus_core.render.backends import AUTO_RENDERER
 
@@ -114,17 +115,18 @@ class Dataset:
     def verify(self, *, checksums: bool = True, progress: bool = False) -> list[str]:
         """Check the whole dataset: every shard file (size, sha256 unless not ``checksums``, array shapes),
         views that render empty (:func:`~cerberus_core.datasets.format.empty_views`, on shards whose files
-        are sound), and completeness (:meth:`incomplete`, one problem per split). Empty: the dataset is sound."""
+        are sound), and completeness (:meth:`incomplete`, one problem per split). Empty: the dataset is sound.
+        Each problem is printable as it is: a name from the manifest is escaped (:func:`printable`)."""
         manifest, problems = self.manifest, []
         shards = [(name, s) for name, info in manifest.splits.items() for s in info.shards]
         for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
             problems.extend(check_shard_files(self.root, shard, checksums=checksums)
                             or check_shard_arrays(manifest, split, shard) or empty_views(manifest, split, shard))
-        return problems + list(self.incomplete().values())
+        return [printable(p) for p in problems + list(self.incomplete().values())]
 
     def summary(self) -> list[str]:
         """What it holds: the source, preset, image size, subjects and parts, then per split the shards
-        written of those planned and their images, quadruplets and meshes."""
+        written of those planned and their images, quadruplets and meshes (names from the manifest escaped)."""
         m = self.manifest
         lines = [f"{self.root}: {m.dataset}/{m.preset}, format v{FORMAT_VERSION}, {m.image_size}px, "
                  f"{len(m.subjects)} subjects, {len(m.part_names)} parts"]
@@ -132,7 +134,7 @@ class Dataset:
             count = info.totals()
             lines.append(f"  {split:<6} {len(info.shards)}/{info.planned_shards} shards, {count['images']} images, "
                          f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
-        return lines
+        return [printable(line) for line in lines]
 
     # ---------------------------------------------------------------------------- what is left to generate
     def incomplete(self) -> dict[str, str]:

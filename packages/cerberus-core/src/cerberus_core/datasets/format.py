@@ -115,7 +115,10 @@ def check_shard_files(root: Path, shard: ShardRecord, *, checksums: bool) -> lis
             problems.append(str(exc))
             continue
         if not path.is_file():
-            problems.append(f"{path}: missing ({role} of {shard.name}); resume the generation to rebuild it")
+            what = ("missing" if not path.exists() else "a folder, not a file" if path.is_dir()
+                    else "not a regular file (a FIFO, device or socket)")
+            problems.append(f"{path}: {what} ({role} of {shard.name}); delete it if it is there and resume the "
+                            "generation to rebuild it")
             continue
         size = path.stat().st_size
         if size != rec.bytes:

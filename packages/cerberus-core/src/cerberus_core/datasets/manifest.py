@@ -436,6 +436,10 @@ class Manifest:
         if set(self.splits) != set(self.config.splits):
             raise _Damaged(f"splits records {sorted(self.splits)}, but its config plans {sorted(self.config.splits)}")
         for name, split in self.splits.items():
+            indices = [shard.index for shard in split.shards]
+            if len(set(indices)) < len(indices) or any(not 0 <= i < split.planned_shards for i in indices):
+                raise _Damaged(f"splits.{name}.shards records shards {sorted(indices)}, not distinct shards of the "
+                               f"{split.planned_shards} planned")
             for shard in split.shards:
                 bad = [i for i in shard.subjects if i >= len(self.subjects)]
                 if bad:
