@@ -94,3 +94,10 @@ def test_overwrite_never_replaces_the_home_directory_or_a_file_system(tmp_path: 
         result_folder(Path("/proc"), overwrite=True)
     assert (home / "notes").is_dir()
     assert result_folder(home / "results", overwrite=True) == home / "results"
+
+
+def test_an_output_folder_that_is_a_symlink_loop_is_named(tmp_path: Path):
+    """Issue 34 campaign: `cerberus data generate --out LOOP` said only "File exists: LOOP"."""
+    (tmp_path / "loop").symlink_to(tmp_path / "loop")
+    with pytest.raises(ConfigError, match="out = .*loop.*: cannot be resolved: a symlink loop"):
+        output_folder(tmp_path / "loop")

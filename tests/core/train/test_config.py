@@ -167,3 +167,18 @@ def test_the_own_cross_view_must_start_before_the_end():
     for preset in ("paper", "paper_faithful", "cpu"):  # issue 30's limb terms: screened, in no preset yet
         c = load_config(preset=preset)
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
+
+
+def test_a_resume_without_config_yaml_continues_with_the_checkpoints_config(tiny_config, tmp_path):
+    """Issue 34 campaign: with RUN/config.yaml deleted, `cerberus train --out RUN --resume` fell back to the default
+    preset (another dataset, another model) instead of the config the run's checkpoint holds."""
+    from cerberus_core.train import train
+    from cerberus_core.train.config import resume_config
+
+    config = tiny_config("train.steps=2", "train.progress=false")
+    train(config, tmp_path / "run")
+    (tmp_path / "run" / "config.yaml").unlink()
+    resumed = resume_config(tmp_path / "run", ["train.steps=3"])
+    assert resumed.data.root == config.data.root and resumed.train.steps == 3
+    assert (resumed.model.num_parts, resumed.model.width) == (config.model.num_parts, config.model.width)
+    assert resume_config(tmp_path / "empty") is None

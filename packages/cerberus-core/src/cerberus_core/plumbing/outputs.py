@@ -78,9 +78,10 @@ def check_apart(path: Path, inputs: Sequence[str | os.PathLike], key: str = "out
 
 def output_folder(path: Path, key: str = "out", *, refuse: Refusal | None = None) -> Path:
     """``path`` may be created as a folder: not an existing file, nor under one, nor a path too long to
-    write (:func:`check_path_length`), nor a folder the caller's ``refuse`` finds a problem with (a
+    write (:func:`check_path_length`), nor a symlink loop, nor a folder the caller's ``refuse`` finds a problem with (a
     :class:`ConfigError` about ``key`` with that problem)."""
     check_path_length(path, key)
+    resolved(path, key)  # a symlink loop is one line here, not a FileExistsError from mkdir later
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():

@@ -236,17 +236,25 @@ def preset_names() -> list[str]:
 
 
 def resume_config(run_dir: str | Path, overrides: list[str] | None = None) -> TrainConfig | None:
-    """The config a resumed run continues with: the run's own saved ``config.yaml`` plus ``overrides``
-    (``section.key=value`` strings); ``None`` when the run folder holds no saved config.
+    """The config a resumed run continues with: the run's own saved ``config.yaml`` (or, where that file is gone,
+    the config its last checkpoint holds) plus ``overrides`` (``section.key=value`` strings); ``None`` when the
+    run folder holds neither.
 
     Raises:
         ConfigError: a damaged saved config, or a relative ``data.root`` (written by an older version)
             that does not exist from the current directory.
+        CheckpointError: no ``config.yaml`` and a damaged last checkpoint.
     """
     saved = Path(run_dir) / "config.yaml"
-    if not saved.is_file():
+    if saved.is_file():
+        text = saved.read_text()
+    elif (last := Path(run_dir) / "checkpoints" / "last.pt").is_file():  # a preset's defaults would be another run
+        from cerberus_core.train.checkpoint import load_checkpoint
+
+        saved, text = last, str(load_checkpoint(last)["config"])
+    else:
         return None
-    raw = load_yaml(saved.read_text(), saved, "the run's saved config is damaged")
+    raw = load_yaml(text, saved, "the run's saved config is damaged")
     config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(overrides or [])))
     root = Path(config.data.root)
     if not root.is_absolute() and not root.exists():
