@@ -138,6 +138,7 @@ def test_beyond_the_paper_switches_are_off_in_the_paper_presets_and_checked():
     ("? {a: 1}\n: 3\n", "a mapping is used as a key"),
     ("[" * 100_000, "nested deeper than 16 levels"),
     ("a:\n" + "".join("  " * i + f"b{i}:\n" for i in range(1, 40)), "f.yaml:16: not valid YAML (nested deeper"),
+    ("steps: " + "9" * 5000, "f.yaml: not valid YAML (a number of more than 4300 digits)"),  # was a ValueError
 ])
 def test_one_strict_reader_for_every_config_text(text, words):
     """Issue 34: files, presets, saved configs and ``--set`` values are read by one reader; a duplicate key, a
