@@ -25,13 +25,10 @@ def _expected(pattern: str) -> str:
 
 def _check_tensor(where: str, name: str, tensor: object, pattern: str) -> None:
     """:class:`InputTypeError` for an argument that is not an array (a torch tensor, or a numpy array where the
-    function takes one), :class:`DeviceError` for a tensor without values."""
+    function takes one)."""
     if not (hasattr(tensor, "shape") and hasattr(tensor, "dtype")):
         raise InputTypeError(f"{where}: {name} is a {type(tensor).__name__}, not a tensor of shape "
                              f"{_expected(pattern)}; pass torch.as_tensor(...)")
-    if getattr(tensor, "is_meta", False):
-        raise DeviceError(f"{where}: {name} is on the meta device, which holds no values; pass a tensor on the cpu "
-                          "or a cuda device")
 
 
 def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> dict[str, int]:
@@ -85,6 +82,9 @@ def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> 
     if same_device and len({str(spec[0].device) for spec in tensors.values()}) > 1:
         raise DeviceError(f"{where}: {', '.join(tensors)} must be on one device, got "
                           f"{', '.join(str(spec[0].device) for spec in tensors.values())}; move them with .to(device)")
+    if meta := [name for name, spec in tensors.items() if getattr(spec[0], "is_meta", False)]:
+        raise DeviceError(f"{where}: {', '.join(meta)} on the meta device, which holds no values; pass tensors on the "
+                          "cpu or a cuda device")
     return sizes
 
 
