@@ -326,7 +326,8 @@ def _run_batch(args: argparse.Namespace) -> int:
         pairs = pairs_from_folders(args.pred_dir, args.gt_dir)
     if not pairs:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
-    check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [])
+    check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [],
+                    folders={"--cache-dir": args.cache_dir})
     result = run_batch(
         pairs,
         metrics,
@@ -386,6 +387,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: nothing was written (outputs are written whole, at the end)
+        print("interrupted", file=sys.stderr)
+        return 130
     except MeshInputError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
