@@ -190,3 +190,13 @@ def test_ctrl_c_is_one_line_and_exit_130(bad_inputs, monkeypatch, capsys):
     assert main([*BATCH, *OUTS]) == 130
     assert capsys.readouterr().err == "interrupted\n"
     assert not (bad_inputs / "out.json").exists()
+
+
+def test_a_path_the_terminal_cannot_encode_is_printed_escaped(tmp_path, helpers):
+    """Issue 34 campaign: `cerberus-metrics check` of a non-ASCII file name under PYTHONIOENCODING=ascii was an
+    'internal error' (UnicodeEncodeError)."""
+    helpers.blob(1).export(tmp_path / "m\u00fc.ply")
+    env = dict(os.environ, PYTHONIOENCODING="ascii")
+    done = subprocess.run([sys.executable, "-m", "cerberus_metrics.cli", "check", str(tmp_path / "m\u00fc.ply")],
+                          capture_output=True, env=env, timeout=120)
+    assert done.returncode == 0 and b"m\\xfc.ply" in done.stdout and b"internal error" not in done.stderr

@@ -8,6 +8,7 @@ Exit codes: 0 success; 1 a batch finished but some pairs failed (see the summary
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -373,6 +374,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     an internal error instead.
     """
     cwd = os.getcwd()
+    for stream in (sys.stdout, sys.stderr):  # a path the stream's encoding cannot say is printed escaped (LANG=C)
+        if hasattr(stream, "reconfigure"):
+            with contextlib.suppress(ValueError, OSError):
+                stream.reconfigure(errors="backslashreplace")
     try:
         args = build_parser().parse_args(argv)
         if args.command == "protocols":

@@ -1,9 +1,11 @@
-"""Process-level standard-error filtering, for libraries whose C code writes straight to fd 2.
+"""The process's standard streams.
 
-Used by the Warp start-up of the ``warp`` backend and of the ``anny`` body model, which print a
-"Could not find or load the NVIDIA CUDA driver" note on machines without one; this module knows
-nothing about Warp: it runs a call with file descriptor 2 captured and writes back what was not
-asked to be dropped.
+* :func:`printable_streams` — a command's output never fails to print: a character the stream's encoding
+  cannot say (a non-ASCII path under ``LANG=C`` or ``PYTHONIOENCODING=ascii``) is written escaped;
+* :func:`call_dropping_stderr` — standard-error filtering for libraries whose C code writes straight to fd 2:
+  the Warp start-up of the ``warp`` backend and of the ``anny`` body model print a "Could not find or load
+  the NVIDIA CUDA driver" note on machines without one; it runs a call with file descriptor 2 captured and
+  writes back what was not asked to be dropped (it knows nothing about Warp).
 """
 from __future__ import annotations
 
@@ -14,6 +16,18 @@ from collections.abc import Callable
 from typing import TypeVar
 
 T = TypeVar("T")
+
+
+def printable_streams() -> None:
+    """Make ``sys.stdout`` and ``sys.stderr`` escape what their encoding cannot write (``errors="backslashreplace"``)
+    instead of raising :class:`UnicodeEncodeError` midway through a command."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)  # a replaced stream (a test's capture) may not have it
+        if reconfigure is not None:
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # a closed or detached stream: nothing will be printed to it anyway
+                pass
 
 
 def call_dropping_stderr(fn: Callable[[], T], drop: str) -> T:
