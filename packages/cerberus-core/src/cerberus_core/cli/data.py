@@ -133,7 +133,8 @@ def run_generate(args: argparse.Namespace) -> int:
         print("cerberus data generate: --preset is deprecated here, use --size (a dataset size; training "
               "recipes are `cerberus train --preset`)", file=sys.stderr)
     shortcuts = [f"{key}={value}" for key in CONFIG_FLAGS if (value := getattr(args, key)) is not None]
-    config = load_generation_config(args.dataset, args.size or args.size_alias, [*shortcuts, *args.overrides])
+    size = args.size if args.size is not None else args.size_alias  # --size "" is refused, not the default size
+    config = load_generation_config(args.dataset, size, [*shortcuts, *args.overrides])
     if args.print_config:
         print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
         return 0
