@@ -2,12 +2,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import pytest
 
-from cerberus_core.errors import ConfigError
-from cerberus_core.fields import Checked, Range, check_fields, ranged
+from cerberus_core.errors import ConfigError, InputTypeError
+from cerberus_core.fields import Checked, Range, check_fields, check_kind, check_path, check_paths, ranged
 
 
 @dataclass
@@ -68,3 +69,25 @@ def test_a_field_changed_in_place_is_checked_again_by_check():
     ex.lr = 0
     with pytest.raises(ConfigError, match=r"^lr = 0"):
         check_fields(ex)
+
+
+@pytest.mark.parametrize(("call", "words"), [
+    (lambda: check_path("out", None), "out: got NoneType None; pass a path"),
+    (lambda: check_path("out", 5), "out: got int 5; pass a path"),
+    (lambda: check_path("out", ""), "out: got str ''; pass a path"),
+    (lambda: check_path("out", b"x"), "out: got bytes b'x'; pass a path"),
+    (lambda: check_paths("images", "a.png"), r"images: got str 'a.png'; pass a list of paths \(e.g. \[image\]\)"),
+    (lambda: check_paths("images", None), "images: got NoneType None; pass a list of paths"),
+    (lambda: check_paths("images", [Path("a.png"), 3]), r"images\[1\]: got int 3; pass a path"),
+    (lambda: check_kind("settings", {}, Example, "an Example"), "settings: got dict {}; pass an Example"),
+], ids=["none", "int", "empty", "bytes", "one-str", "images-none", "item", "kind"])
+def test_a_parameter_of_the_wrong_kind_is_one_input_type_error_naming_it(call, words):
+    """Issue 34 campaign: ``Run.load(None)``, ``reconstruct_images("a.png", ...)`` (read one character at a time) and
+    ``evaluate(settings={...})`` ended in a TypeError or AttributeError naming no parameter."""
+    with pytest.raises(InputTypeError, match=words):
+        call()
+
+
+def test_paths_are_taken_as_str_or_path_like():
+    assert check_path("out", "a/b") == Path("a/b") and check_path("out", Path("c")) == Path("c")
+    assert check_paths("images", ("a.png", Path("b.png"))) == [Path("a.png"), Path("b.png")]

@@ -197,3 +197,24 @@ def test_the_viewer_names_parts_by_their_labels_and_shows_each_scored_image_s_io
     assert page_data(tmp_path / "rec" / "index.html")["part_labels"]["part_05"] == "head"
     run.reconstruct_images([picture], tmp_path / "rec_run", viewer_images=1)
     assert page_data(tmp_path / "rec_run" / "index.html")["part_labels"] == {}
+
+
+@pytest.mark.parametrize(("call", "words"), [
+    (lambda run, tmp: Run.load(None), "path: got NoneType None"),
+    (lambda run, tmp: run.reconstruct_images(str(tmp / "a.png"), tmp / "out"), "images: got str"),
+    (lambda run, tmp: run.reconstruct_images([1], tmp / "out"), r"images\[0\]: got int 1"),
+    (lambda run, tmp: run.reconstruct_images([tmp / "a.png"], None), "out: got NoneType None"),
+    (lambda run, tmp: run.reconstruct_images([tmp / "a.png"], tmp / "out", masks=str(tmp / "m.png")), "masks: got str"),
+    (lambda run, tmp: run.evaluate(tmp, {"limit": 1}, tmp / "out"), "settings: got dict"),
+    (lambda run, tmp: run.evaluate(tmp, out=tmp / "out", baselines={"b": 5}), r"baselines\['b'\]: got int 5"),
+    (lambda run, tmp: run.evaluate(out=7), "out: got int 7"),
+], ids=["load-none", "images-str", "images-int", "out-none", "masks-str", "settings-dict", "baseline-int", "out-int"])
+def test_the_api_names_a_parameter_of_the_wrong_kind(tiny_run, tmp_path, call, words):
+    """Issue 34 campaign: these ended in a TypeError or AttributeError naming no parameter, or (a str of images)
+    read one character at a time ("/: is a folder")."""
+    from cerberus_core.errors import InputTypeError
+
+    run = Run.load(tiny_run)
+    with pytest.raises(InputTypeError, match=words):
+        call(run, tmp_path)
+    assert list(tmp_path.iterdir()) == []

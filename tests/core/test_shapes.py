@@ -36,3 +36,13 @@ def test_partset_and_losses_name_the_tensor_that_does_not_fit():
         mix_shape_latents(torch.zeros(2, 3, 8))
     with pytest.raises(ValueError, match=r"translation_loss: translations must be \(B, 4, N, 3\)"):
         translation_loss(torch.zeros(2, 4, 9))
+
+
+def test_an_argument_that_is_not_an_array_is_named():
+    """Issue 34 campaign: ``render(ctx, vertices.tolist(), ...)`` was an AttributeError ('list' has no 'shape')."""
+    from cerberus_core.errors import DeviceError, InputTypeError
+
+    with pytest.raises(InputTypeError, match=r"render: vertices is a list, not a tensor of shape \(B, V, 3\)"):
+        check_shapes("render", vertices=([[0.0, 0.0, 0.0]], "B V 3"))
+    with pytest.raises(DeviceError, match="vertices on the meta device, which holds no values"):
+        check_shapes("render", vertices=(torch.zeros(1, 2, 3, device="meta"), "B V 3"))

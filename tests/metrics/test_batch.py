@@ -176,3 +176,15 @@ def test_results_are_written_atomically(tmp_path):
     write_results(result, tmp_path / "r.json", tmp_path / "r.csv")
     assert json.loads((tmp_path / "r.json").read_text())["summary"] == {"pairs": 1}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv", "r.json"]
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("[" * 100_000 + "]" * 100_000, r"is not valid JSON \(nested too deeply\)"),
+    ('[{"pred": 1' + "0" * 5000 + "}]", "is not valid JSON"),
+], ids=["deep", "long-number"])
+def test_a_pairs_file_json_can_not_read_is_one_mesh_input_error(tmp_path, text, words):
+    """Issue 34 campaign: json.loads raises RecursionError and a plain ValueError besides JSONDecodeError; both
+    were an 'internal error' exit."""
+    (tmp_path / "pairs.json").write_text(text)
+    with pytest.raises(MeshInputError, match=words):
+        pairs_from_file(tmp_path / "pairs.json")

@@ -31,3 +31,17 @@ def test_cache_hits_skip_work_and_replay_warnings(tmp_path, box, helpers):
     with pytest.warns(MeshQualityWarning, match="not watertight"):
         voxel_iou(box, open_box, cache=mem)
     assert mem.hits == 1
+
+
+def test_a_damaged_cache_entry_is_a_miss_recomputed(tmp_path, box, helpers):
+    """Issue 34 campaign: a cache file overwritten with junk failed every pair that hit it (numpy's 'pickled data'
+    ValueError); it is a miss, and the grid is recomputed and rewritten."""
+    cache = GridCache(tmp_path / "grids")
+    pred = helpers.blob(3)
+    first = voxel_iou(pred, box, cache=cache)
+    entries = list((tmp_path / "grids").glob("*.npz"))
+    assert entries
+    for entry in entries:
+        entry.write_text("junk")
+    fresh = GridCache(tmp_path / "grids")
+    assert voxel_iou(pred, box, cache=fresh) == first and fresh.misses >= 1

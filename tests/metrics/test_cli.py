@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -48,6 +49,10 @@ def bad_inputs(tmp_path, helpers):
     (tmp_path / "ok.csv").write_text("pred,gt\npred.ply,gt.ply\n")
     (tmp_path / "afile").write_text("x")
     (tmp_path / "huge.off").write_text("OFF\n3 100000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    (tmp_path / "nul.csv").write_text("pred,gt\npred.ply\0,gt.ply\n")
+    (tmp_path / "cut.stl").write_bytes(b"\0" * 80 + (10**9).to_bytes(4, "little") + b"\0" * 50)
+    os.mkfifo(tmp_path / "pipe.ply")
+    (tmp_path / "loop.ply").symlink_to(tmp_path / "loop.ply")
     return tmp_path
 
 
@@ -93,6 +98,13 @@ BAD_CLI = [
     ("csv is an input mesh", [*BATCH, "--out", "out.json", "--csv", "gt.ply"], "--csv 'gt.ply' is one of the inputs"),
     ("out is an input mesh", [*BATCH, "--out", "pred.ply"], "--out 'pred.ply' is one of the inputs"),
     ("out is the pairs file", [*BATCH, "--out", "ok.csv"], "--out 'ok.csv' is one of the inputs"),
+    # issue 34 campaign: a cache written among the inputs, a NUL in a path (an 'internal error'), a cut STL (a hang),
+    # a FIFO and a symlink loop said not to exist
+    ("cache dir holds the inputs", [*BATCH, "--cache-dir", ".", *OUTS], "--cache-dir '.' holds the input"),
+    ("pairs path with NUL", ["batch", "--pairs", "nul.csv", "--no-progress", *OUTS], "holding a NUL byte"),
+    ("cut binary STL", ["iou", "cut.stl", "gt.ply"], "nor a whole binary STL"),
+    ("gt a FIFO", ["iou", "pred.ply", "pipe.ply"], "is not a regular file (a FIFO, device or socket)"),
+    ("gt a symlink loop", ["iou", "pred.ply", "loop.ply"], "is a symlink loop"),
 ]
 
 
@@ -164,3 +176,27 @@ def test_console_script_help():
     assert "kato" in out and "gt_bbox" in out and "batch" in out
     out = subprocess.run(exe + ["iou", "--help"], capture_output=True, text=True, check=True).stdout
     assert "PRED [PRED ...] GT" in out
+
+
+def test_ctrl_c_is_one_line_and_exit_130(bad_inputs, monkeypatch, capsys):
+    """Issue 34 campaign: Ctrl-C during a batch was a KeyboardInterrupt traceback from the parent and each worker."""
+    import cerberus_metrics.cli as cli
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.chdir(bad_inputs)
+    monkeypatch.setattr(cli, "run_batch", interrupted)
+    assert main([*BATCH, *OUTS]) == 130
+    assert capsys.readouterr().err == "interrupted\n"
+    assert not (bad_inputs / "out.json").exists()
+
+
+def test_a_path_the_terminal_cannot_encode_is_printed_escaped(tmp_path, helpers):
+    """Issue 34 campaign: `cerberus-metrics check` of a non-ASCII file name under PYTHONIOENCODING=ascii was an
+    'internal error' (UnicodeEncodeError)."""
+    helpers.blob(1).export(tmp_path / "m\u00fc.ply")
+    env = dict(os.environ, PYTHONIOENCODING="ascii")
+    done = subprocess.run([sys.executable, "-m", "cerberus_metrics.cli", "check", str(tmp_path / "m\u00fc.ply")],
+                          capture_output=True, env=env, timeout=120)
+    assert done.returncode == 0 and b"m\\xfc.ply" in done.stdout and b"internal error" not in done.stderr

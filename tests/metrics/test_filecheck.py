@@ -9,6 +9,7 @@ import pytest
 
 from cerberus_metrics import MeshInputError, inspect_mesh, voxel_iou
 from cerberus_metrics.cli import main
+from cerberus_metrics.filecheck import FileDefect, scan_mesh_file
 
 TETRA = "v 0 0 0\nv 0.3 0 0\nv 0 0.3 0\nv 0 0 0.3\n"
 PLY_HEAD = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
@@ -109,3 +110,16 @@ def test_valid_obj_index_forms_still_load(tmp_path, helpers):
             lines.append(f"f {a + 1}//1 {b + 1}//1 {c + 1}//1")
     (tmp_path / "forms.obj").write_text("\n".join(lines) + "\n")
     assert voxel_iou(str(tmp_path / "forms.obj"), box) == 1.0
+
+
+def test_an_stl_neither_ascii_nor_a_whole_binary_is_refused_before_pymeshlab(tmp_path):
+    """Issue 34 campaign: a binary STL header claiming 10^9 triangles over 50 bytes of data made pymeshlab run for
+    minutes (the check's 60 s timeout); it is now one line naming the claim and the file's size."""
+    path = tmp_path / "cut.stl"
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", 10**9) + b"\0" * 50)
+    with pytest.raises(FileDefect, match=r"neither an ASCII STL .* nor a whole binary STL \(its header claims "
+                                         r"1000000000 triangles \(50000000084 bytes\), the file has 134 bytes\)"):
+        scan_mesh_file(path)
+    path.write_bytes(b"\0" * 20)
+    with pytest.raises(FileDefect, match="shorter than a header"):
+        scan_mesh_file(path)

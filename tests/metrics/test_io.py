@@ -4,6 +4,7 @@ self-intersecting meshes."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -193,3 +194,21 @@ def test_a_header_claiming_a_huge_face_count_is_refused(tmp_path):
                                        "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
     with pytest.raises(MeshInputError, match="1000000000000000000 faces: a mesh may have"):
         load_parts(str(tmp_path / "huge.ply"), "gt")
+
+
+def test_what_stands_where_a_mesh_file_should_be_is_named(tmp_path):
+    """Issue 34 campaign: a FIFO, a device and a symlink loop were each said to "not exist"."""
+    import os
+
+    from cerberus_metrics.io import not_a_file
+
+    os.mkfifo(tmp_path / "pipe.obj")
+    (tmp_path / "loop.obj").symlink_to(tmp_path / "loop.obj")
+    (tmp_path / "dangling.obj").symlink_to(tmp_path / "gone.obj")
+    (tmp_path / "ok.obj").write_text("v 0 0 0\n")
+    assert not_a_file(tmp_path / "pipe.obj") == "is not a regular file (a FIFO, device or socket)"
+    assert not_a_file(Path("/dev/zero")) == "is not a regular file (a FIFO, device or socket)"
+    assert not_a_file(tmp_path / "loop.obj") == "is a symlink loop"
+    assert not_a_file(tmp_path / "dangling.obj") == "is a broken symlink"
+    assert not_a_file(tmp_path / "nope.obj") == "does not exist" and not_a_file(tmp_path) == "is a directory"
+    assert not_a_file(tmp_path / "ok.obj") is None

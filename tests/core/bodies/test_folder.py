@@ -319,3 +319,12 @@ def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
     assert "`test_fraction=0` of its 3 subjects gives 0 (a fraction of 0) test subjects" in hint
     hint = FolderSource.empty_split_hint({"test_fraction": 1.0}, 1, "train", out)
     assert "(its only subject is a test subject, `test_fraction=1`)" in hint
+
+
+def test_a_source_that_is_a_file_or_missing_is_named(tmp_path):
+    """Issue 34 campaign: `--source FILE` said the mesh folder "does not exist"."""
+    (tmp_path / "meshes.obj").write_text("v 0 0 0\n")
+    with pytest.raises(DatasetError, match=r"meshes.obj is a file, not a folder; pass the folder that holds"):
+        FolderSource(tmp_path / "meshes.obj")
+    with pytest.raises(DatasetError, match=r"nope does not exist; pass the folder"):
+        FolderSource(tmp_path / "nope")

@@ -134,3 +134,13 @@ def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, ca
     capsys.readouterr()
     assert main([*words[1:], "--quiet"]) == 0, capsys.readouterr().err
     assert re.search(r"resuming .*: (\d+) of \1 shards already done", capsys.readouterr().out)
+
+
+def test_an_empty_size_is_refused_not_taken_for_the_default(tmp_path, capsys):
+    """Issue 34 campaign: `--size "$SIZE"` with SIZE unset silently generated the default size (4,000 images of
+    primitives/small)."""
+    out = tmp_path / "d"
+    assert main(["data", "generate", "--dataset", "primitives", "--size", "", "--out", str(out), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert "--size '': unknown size preset for dataset 'primitives'; choose one of paper, small, tiny" in err
+    assert not out.exists()

@@ -1,5 +1,7 @@
 """A dataset as one object (cerberus_core.datasets.dataset): a generation asked for as a request (what
-``cerberus data generate`` passes) is the generation of its config, and a dataset's own request rebuilds it."""
+``cerberus data generate`` passes) is the generation of its config, and a dataset's own request rebuilds it; the
+object's own checks of its arguments (opening, reading and generating are tested with the modules that do them:
+test_manifest, test_readers, test_generate)."""
 from __future__ import annotations
 
 import pytest
@@ -7,7 +9,7 @@ import pytest
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import sha256_file
 from cerberus_core.datasets.plan import GenerationRequest
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, InputTypeError
 
 QUIET = {"progress": False, "log": lambda s: None}
 
@@ -30,3 +32,21 @@ def test_a_request_carries_its_own_source_options(tmp_path):
     with pytest.raises(ConfigError, match="source_options") as caught:
         Dataset.generate(GenerationRequest("primitives", "tiny"), tmp_path / "ds", source_options={"a": 1}, **QUIET)
     assert caught.value.key == "source_options" and not (tmp_path / "ds").exists()
+
+
+@pytest.mark.parametrize(("call", "words"), [
+    (lambda tmp: Dataset.open(None), "root: got NoneType None"),
+    (lambda tmp: Dataset.generate(None, tmp / "out"), "config: got NoneType None; pass a GenerationRequest or a GenerationConfig"),
+    (lambda tmp: Dataset.generate({"dataset": "primitives"}, tmp / "out"), "config: got dict"),
+    (lambda tmp: Dataset.plan({"dataset": "primitives"}), "config: got dict"),
+], ids=["open-none", "generate-none", "generate-dict", "plan-dict"])
+def test_an_argument_of_the_wrong_kind_is_named(tmp_path, call, words):
+    """Issue 34 campaign: these were a TypeError or AttributeError ('dict' object has no attribute 'dataset')."""
+    with pytest.raises(InputTypeError, match=words):
+        call(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_contact_sheet_names_an_out_of_the_wrong_kind(pairs_dataset):
+    with pytest.raises(InputTypeError, match="out: got int 3"):
+        Dataset.open(pairs_dataset).contact_sheet(3)

@@ -3,6 +3,7 @@ tests are in test_manifest.py)."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 
 import numpy as np
@@ -214,7 +215,8 @@ def _mesh_index(views):
      "meshes.npz holds an array numpy cannot read without pickle"),
     ("meshes", lambda z: {k: v for k, v in z.items() if k != "faces"}, "meshes.npz lacks the array 'faces'"),
     ("meshes", lambda z: z | {"vertex_offsets": z["vertex_offsets"] + 7}, "vertex_offsets run over"),
-], ids=["subject", "mesh-index", "quads", "images-count", "npz-object", "npz-missing", "npz-offsets"])
+    ("meshes", lambda z: z | {"vertex_parts": z["vertex_parts"] + 100}, "part labels index the manifest's"),
+], ids=["subject", "mesh-index", "quads", "images-count", "npz-object", "npz-missing", "npz-offsets", "part-labels"])
 def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_dataset, tmp_path, capsys, role, change,
                                                                      expected):
     """Issue 34: a shard whose files are whole (sizes and checksums agree) but whose arrays contradict the
@@ -233,3 +235,23 @@ def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_datas
     with pytest.raises(DatasetError, match="regenerate"):
         QuadrupletDataset(root)
     assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before
+
+
+def test_data_check_says_what_stands_where_a_shard_file_should_be_and_escapes_hostile_names(pairs_dataset, tmp_path):
+    """Issue 34 campaign: a folder or FIFO in place of a shard file was called "missing", and a shard path holding an
+    escape sequence was printed raw by `cerberus data check` (a terminal control string)."""
+    root = tmp_path / "ds"
+    shutil.copytree(pairs_dataset, root)
+    manifest = json.loads((root / MANIFEST).read_text())
+    files = manifest["splits"]["train"]["shards"][0]["files"]
+    images, views = root / files["images"]["path"], root / files["views"]["path"]
+    images.unlink()
+    images.mkdir()
+    views.unlink()
+    os.mkfifo(views)
+    files["quads"]["path"] = "train/\x1b[31mred.npy"
+    (root / MANIFEST).write_text(json.dumps(manifest))
+    problems = Dataset.open(root).verify(checksums=False)
+    assert any("a folder, not a file (images of shard-00000)" in p for p in problems), problems
+    assert any("not a regular file (a FIFO, device or socket) (views of" in p for p in problems), problems
+    assert any("\\x1b[31mred.npy: missing" in p for p in problems) and not any("\x1b" in p for p in problems)

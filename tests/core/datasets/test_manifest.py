@@ -135,6 +135,10 @@ MALFORMED = [  # (id, change to the stored manifest, words of the one-line Datas
     ("preset-number", lambda m: m.update(preset=3), "preset is 3, not str"),
     ("generator-list", lambda m: m.update(generator=[1]), "generator is list, not an object"),
     ("files-list", lambda m: _shard(m).update(files=[1]), "files is list, not an object"),
+    ("splits-empty", lambda m: m.update(splits={}), "splits records [], but its config plans ['test', 'train']"),
+    ("split-unplanned", lambda m: m["splits"].update(extra=m["splits"]["train"]), "but its config plans"),
+    ("shard-twice", lambda m: m["splits"]["train"]["shards"].append(_shard(m)),
+     "splits.train.shards records shards [0, 0, 1, 2, 3], not distinct shards of the 4 planned"),
 ]
 
 
@@ -163,4 +167,11 @@ def test_every_malformed_field_is_one_dataset_error_naming_it(pairs_dataset, tmp
 def test_a_manifest_nested_too_deeply_is_one_line(tmp_path):
     (tmp_path / MANIFEST).write_text("[" * 200_000 + "]" * 200_000)
     with pytest.raises(DatasetError, match="nested too deeply"):
+        Manifest.read(tmp_path)
+
+
+def test_a_manifest_with_a_number_too_long_to_read_is_one_line(tmp_path):
+    """Python's json raises a plain ValueError (not a JSONDecodeError) for an integer of more than 4300 digits."""
+    (tmp_path / MANIFEST).write_text('{"format_version": 1' + "0" * 5000 + "}")
+    with pytest.raises(DatasetError, match=r"not valid JSON \(holds a number of more than 4300 digits\); the dataset is corrupt"):
         Manifest.read(tmp_path)

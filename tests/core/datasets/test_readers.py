@@ -135,3 +135,13 @@ def test_background_mask_is_exact(pairs_dataset):
     assert mask.shape == (1, 32, 32)
     body = img[:, mask[0] == 0]
     assert float(body.max()) <= 0.8 + 1 / 255  # albedo * (ambient + diffuse)
+
+
+def test_an_index_that_is_not_an_integer_is_named(pairs_dataset):
+    """Issue 34 campaign: ``views["a"]`` was "'<' not supported between instances of 'str' and 'int'"."""
+    from cerberus_core.errors import InputTypeError
+
+    views = ViewDataset(pairs_dataset, "test")
+    with pytest.raises(InputTypeError, match=r"indexed by an integer 0..\d+, got str 'a'"):
+        views["a"]
+    assert views[np.int64(0)].keys() == views[0].keys()

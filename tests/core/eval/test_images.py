@@ -87,3 +87,17 @@ def test_a_large_file_resized_to_the_model_is_one_note_in_the_file_s_pixels(tmp_
     assert msgs == [f"{tmp_path / 'big.png'}: centre-cropped from {8 * S}x{4 * S + 8} to {4 * S + 8}x{4 * S + 8}",
                     f"{tmp_path / 'big.png'}: resized from {4 * S + 8}x{4 * S + 8} to {S}x{S}"], msgs
     assert li.image.shape == (3, S, S) and li.original_size == (8 * S, 4 * S + 8)
+
+
+def test_an_image_over_the_pixel_limit_is_said_once(tmp_path, monkeypatch):
+    """Issue 34 campaign: the bound's own ImageInputError (a ValueError) was caught and wrapped again as "cannot be
+    read as an image (ImageInputError: ...)", naming the file twice."""
+    import cerberus_core.eval.images as images
+
+    monkeypatch.setattr(images, "MAX_INPUT_PIXELS", 100)
+    Image.fromarray(np.zeros((20, 20, 3), np.uint8)).save(tmp_path / "big.png")
+    with pytest.raises(ImageInputError) as caught:
+        load_image(tmp_path / "big.png", 16)
+    message = str(caught.value)
+    assert "20x20 pixels is too large (the limit is 100 pixels)" in message
+    assert "cannot be read" not in message and message.count("big.png") == 1

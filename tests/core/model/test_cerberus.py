@@ -102,3 +102,13 @@ def test_reconstruct_refuses_images_that_are_not_float32_in_0_1(human_run):
     human_run.model.eval()
     with torch.no_grad():
         assert human_run.model.reconstruct(torch.rand(1, 3, 64, 64), cam).batch_size == 1
+
+
+@pytest.mark.parametrize(("dtype", "words"), [
+    (torch.uint8, r"Cerberus: the images are uint8 \(0-255\); pass images.float\(\) / 255"),
+    (torch.float64, r"Cerberus: the images are torch.float64; pass images.float\(\)"),
+], ids=["uint8", "float64"])
+def test_forward_names_images_of_another_dtype_than_the_weights(human_run, dtype, words):
+    """Issue 34 campaign: ``model(uint8 images)`` was a RuntimeError inside the first convolution."""
+    with pytest.raises(ValueError, match=words):
+        human_run.model(torch.zeros(1, 3, 64, 64, dtype=dtype))

@@ -77,3 +77,27 @@ def test_writing_results_leaves_the_old_results_on_error(tmp_path: Path):
         raise RuntimeError("midway")
     assert sorted(p.name for p in (tmp_path / "res").iterdir()) == sorted([RESULT_MARKER, "old.txt"])
     assert [p.name for p in tmp_path.iterdir()] == ["res"]  # no temporary left beside it
+
+
+def test_overwrite_never_replaces_the_home_directory_or_a_file_system(tmp_path: Path, monkeypatch):
+    """Issue 34 campaign: ``cerberus reconstruct ... --out ~ --overwrite`` replaced the whole home directory with
+    the results (its files deleted). A folder holding the home directory, or a mount point, is refused even with
+    ``overwrite``."""
+    home = tmp_path / "home" / "me"
+    (home / "notes").mkdir(parents=True)
+    monkeypatch.setenv("HOME", str(home))
+    monkeypatch.chdir(tmp_path)
+    for out in (home, home.parent):
+        with pytest.raises(ConfigError, match="holds your home directory, and a result folder is replaced whole"):
+            result_folder(out, overwrite=True)
+    with pytest.raises(ConfigError, match="is the root of a file system"):
+        result_folder(Path("/proc"), overwrite=True)
+    assert (home / "notes").is_dir()
+    assert result_folder(home / "results", overwrite=True) == home / "results"
+
+
+def test_an_output_folder_that_is_a_symlink_loop_is_named(tmp_path: Path):
+    """Issue 34 campaign: `cerberus data generate --out LOOP` said only "File exists: LOOP"."""
+    (tmp_path / "loop").symlink_to(tmp_path / "loop")
+    with pytest.raises(ConfigError, match="out = .*loop.*: cannot be resolved: a symlink loop"):
+        output_folder(tmp_path / "loop")

@@ -103,3 +103,15 @@ def test_part_pixel_counts_counts_front_pixels_per_part_and_image():
     part_id = torch.tensor([[[-1, 0], [2, 2]],
                             [[-1, -1], [-1, 1]]])  # (2, 2, 2): -1 where no part
     assert part_pixel_counts(part_id, 3).tolist() == [[1, 0, 2], [0, 1, 0]]
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"background": (1.0, 1.0)}, r"render: background must be \(3\), got \(2,\)"),
+    ({"face_part": torch.zeros(3, dtype=torch.long)}, r"face_part must be \(F\), got \(3,\) \(with F="),
+], ids=["background", "face-part"])
+def test_optional_tensors_of_the_wrong_shape_are_named(renderer, scene, options, message) -> None:
+    """Issue 34 campaign: a two-colour background was a reshape RuntimeError, a short face_part an IndexError."""
+    parts, faces, cam = scene
+    verts, packed, _ = pack_parts(parts, faces)
+    with pytest.raises(ValueError, match=message):
+        render(renderer, verts, packed, cam, **options)

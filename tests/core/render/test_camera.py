@@ -140,3 +140,13 @@ def test_spherical_inverts_look_at_and_orbit_turns_the_azimuth() -> None:
     torch.testing.assert_close(turned.spherical()[1], torch.full((2,), -20.0), atol=1e-4, rtol=0)
     with pytest.raises(ValueError, match="one camera"):
         cam.orbit([10.0])
+
+
+def test_the_transforms_take_points_of_another_float_dtype():
+    """Issue 34 campaign: float64 vertices with a (float32) camera were a matmul dtype error in render()."""
+    cam = Camera.look_at(30.0, 10.0, 2.5, image_size=16)
+    points = torch.tensor([[[0.1, 0.2, 0.3], [-0.2, 0.0, 0.1]]])
+    clip64 = cam.world_to_clip(points.double())
+    assert clip64.dtype == torch.float64
+    torch.testing.assert_close(clip64.float(), cam.world_to_clip(points))
+    torch.testing.assert_close(cam.camera_to_world(cam.world_to_camera(points.double())), points.double())

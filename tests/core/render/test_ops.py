@@ -48,3 +48,39 @@ def test_interpolate_gives_the_surface_point_under_each_pixel_and_its_gradient()
     torch.testing.assert_close(view_depth[covered], depth[covered], atol=1e-4, rtol=0)
     xyz[covered].sum().backward()
     assert v.grad.abs().sum() > 0
+
+
+def _scene():
+    ctx = make_renderer("torch")
+    cam = Camera.look_at(30.0, 10.0, 2.5, image_size=16)
+    sphere = icosphere(1)
+    v = 0.4 * sphere.vertices[None]
+    return ctx, cam, sphere.faces, v, cam.world_to_clip(v)
+
+
+@pytest.mark.parametrize(("call", "error", "words"), [
+    (lambda ctx, c, f, v: ops.rasterize(ctx, c * float("inf"), f, (16, 16), 0.05), "MeshError",
+     "42 clip-space vertices are NaN or inf"),
+    (lambda ctx, c, f, v: ops.rasterize(ctx, c, f + 1000, (16, 16), 0.05), "MeshError",
+     r"faces index vertices outside 0..41 \(they reach 1000..1041\)"),
+    (lambda ctx, c, f, v: ops.vertex_normals(ctx, v, -f - 1), "MeshError", "faces index vertices outside 0..41"),
+    (lambda ctx, c, f, v: ops.interpolate(v, c, f, torch.full((1, 16, 16), 10**6)), "MeshError",
+     r"face_id names faces outside -1..79"),
+    (lambda ctx, c, f, v: ops.rasterize(ctx, c, f, (100_000, 100_000), 0.05), "ConfigError",
+     r"resolution = \(100000, 100000\): needs at least .* of memory \(1 images of 100000x100000 pixels\)"),
+    (lambda ctx, c, f, v: ops.rasterize(ctx, c, f, 16, 0.05), "RenderInputError",
+     r"resolution is 16; pass `resolution=\(height, width\)`, two integers"),
+    (lambda ctx, c, f, v: ops.rasterize(ctx, c, f, ("a", "b"), 0.05), "RenderInputError", "resolution is"),
+    (lambda ctx, c, f, v: ops.rasterize(None, c, f, (16, 16), 0.05), "InputTypeError",
+     "rasterize: ctx is NoneType, not a renderer backend"),
+    (lambda ctx, c, f, v: ops.shade("torch", c, f, None, v, v, None), "InputTypeError", "shade: ctx is str"),
+], ids=["inf-clip", "faces-range", "negative-faces", "face-id-range", "huge-resolution", "one-number", "text",
+        "no-backend", "backend-name"])
+def test_each_op_refuses_what_its_backend_cannot_draw(call, error, words):
+    """Issue 34 campaign: these reached the backend and ended in an IndexError (an inf vertex gave a pixel index of
+    -2**63), an 80 GB allocation, or a TypeError/AttributeError naming nothing."""
+    import cerberus_core.errors as errors
+
+    ctx, cam, faces, v, clip = _scene()
+    with pytest.raises(getattr(errors, error), match=words):
+        call(ctx, clip, faces, v)

@@ -51,3 +51,23 @@ def test_two_processes_keep_identical_weights(tiny_root, tmp_path):
     torch.manual_seed(cfg.seed)
     init = dict(Cerberus(cfg.model).named_parameters())
     assert not torch.equal(init["shape.to_displacement.weight"], a["params"]["shape.to_displacement.weight"])
+
+
+@pytest.mark.parametrize(("env", "words"), [
+    ({"WORLD_SIZE": "2"}, "RANK is unset, not a whole number 0 or more below 2"),
+    ({"LOCAL_RANK": "abc"}, "LOCAL_RANK is 'abc', not a whole number"),
+    ({"WORLD_SIZE": "0"}, "WORLD_SIZE is '0', not a whole number 1 or more"),
+    ({"WORLD_SIZE": "2", "RANK": "5"}, "RANK is '5', not a whole number 0 or more below 2"),
+], ids=["no-rank", "local-text", "world-zero", "rank-beyond"])
+def test_a_launch_environment_set_by_hand_is_named(monkeypatch, env, words):
+    """Issue 34 campaign: WORLD_SIZE=2 without RANK was a KeyError traceback, LOCAL_RANK=abc a ValueError."""
+    from cerberus_core.errors import ConfigError
+    from cerberus_core.train.distributed import launch_environment
+
+    for name in ("WORLD_SIZE", "RANK", "LOCAL_RANK"):
+        monkeypatch.delenv(name, raising=False)
+    assert launch_environment().world_size == 1
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+    with pytest.raises(ConfigError, match=words):
+        launch_environment()

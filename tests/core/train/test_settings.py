@@ -139,6 +139,7 @@ def test_beyond_the_paper_switches_are_off_in_the_paper_presets_and_checked():
     ("? {a: 1}\n: 3\n", "a mapping is used as a key"),
     ("[" * 100_000, "nested deeper than 16 levels"),
     ("a:\n" + "".join("  " * i + f"b{i}:\n" for i in range(1, 40)), "f.yaml:16: not valid YAML (nested deeper"),
+    ("steps: " + "9" * 5000, "f.yaml: not valid YAML (a number of more than 4300 digits)"),  # was a ValueError
 ])
 def test_one_strict_reader_for_every_config_text(text, words):
     """Issue 34: files, presets, saved configs and ``--set`` values are read by one reader; a duplicate key, a
@@ -168,3 +169,19 @@ def test_the_own_cross_view_must_start_before_the_end():
     for preset in ("paper", "paper_faithful", "cpu"):  # issue 30's limb terms: screened, in no preset yet
         c = load_config(preset=preset)
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
+
+
+def test_a_resume_without_config_yaml_continues_with_the_checkpoints_config(tiny_config, tmp_path):
+    """Issue 34 campaign: with RUN/config.yaml deleted, `cerberus train --out RUN --resume` fell back to the default
+    preset (another dataset, another model) instead of the config the run's checkpoint holds."""
+    from cerberus_core.train.settings import resume_config
+
+    from cerberus_core.train import train
+
+    config = tiny_config("train.steps=2", "train.progress=false")
+    train(config, tmp_path / "run")
+    (tmp_path / "run" / "config.yaml").unlink()
+    resumed = resume_config(tmp_path / "run", ["train.steps=3"])
+    assert resumed.data.root == config.data.root and resumed.train.steps == 3
+    assert (resumed.model.num_parts, resumed.model.width) == (config.model.num_parts, config.model.width)
+    assert resume_config(tmp_path / "empty") is None

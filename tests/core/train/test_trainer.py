@@ -256,6 +256,11 @@ def test_settings_the_machine_cannot_honour_are_refused_before_anything_is_alloc
         train(tiny_config("model.num_parts=64", "model.sphere_level=5", "train.batch_size=1000"), tmp_path / "run",
               dataset=many)
     assert not (tmp_path / "run").exists()
+    with pytest.raises(ConfigError, match=r"model.width = 100000: needs at least .* of memory \(about .* million weights"):
+        train(tiny_config("model.width=100000"), tmp_path / "run", dataset=many)  # was a 360 GB allocation
+    with pytest.raises(ConfigError, match=r"model.shape_latent_dim = 100000000: needs at least"):
+        train(tiny_config("model.shape_latent_dim=100000000"), tmp_path / "run", dataset=many)
+    assert not (tmp_path / "run").exists()
     cores = len(os.sched_getaffinity(0))
     with pytest.warns(UserWarning, match=rf"data.num_workers=200 is more than this machine's {cores} cores"):
         result = train(tiny_config("data.num_workers=200", "train.steps=1", "train.image_every=0"), tmp_path / "w",

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import sys
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -117,6 +118,8 @@ def load_yaml(text: str, source: object = "config", fix: str = "fix the file") -
         where = f"{source}:{mark.line + 1}" if isinstance(exc, yaml.MarkedYAMLError) and mark is not None else f"{source}"
     except RecursionError:  # a guard of last resort: the composer stops at MAX_DEPTH first
         where, problem = f"{source}", f"nested deeper than {MAX_DEPTH} levels"
+    except ValueError:  # PyYAML's int() of a number longer than Python reads (sys.get_int_max_str_digits)
+        where, problem = f"{source}", f"a number of more than {sys.get_int_max_str_digits()} digits"
     raise ConfigError(f"{where}: not valid YAML ({problem}); {fix}", problem=problem)
 
 

@@ -24,14 +24,17 @@ from __future__ import annotations
 import functools
 import math
 import numbers
+import os
 import types
 import typing
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
+from pathlib import Path
 from typing import Any, ClassVar
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, InputTypeError
 
-__all__ = ["Checked", "Range", "check_fields", "check_value", "ranged"]
+__all__ = ["Checked", "Range", "check_fields", "check_kind", "check_path", "check_paths", "check_value", "ranged"]
 
 RANGE = "cerberus.range"
 """The ``dataclasses.field`` metadata key that holds a field's :class:`Range`."""
@@ -81,6 +84,36 @@ def check_value(key: str, value: Any, allowed: Range, fix: str = "") -> Any:
     if not allowed.admits(value) or value is None:
         raise ConfigError.about(key, value, f"must be {allowed.describe()}", fix)
     return value
+
+
+def _shown(value: Any) -> str:
+    text = repr(value)
+    return f"{type(value).__name__} {text if len(text) <= 40 else text[:37] + '...'}"
+
+
+def check_kind(key: str, value: Any, kind: type | tuple[type, ...], what: str) -> Any:
+    """``value`` of the parameter ``key`` when it is a ``kind``, else :class:`InputTypeError` naming the parameter,
+    what came and ``what`` is taken (``"an EvalSettings"``): a public function's object parameter checked before
+    it is used, not an ``AttributeError`` midway."""
+    if not isinstance(value, kind):
+        raise InputTypeError(f"{key}: got {_shown(value)}; pass {what}")
+    return value
+
+
+def check_path(key: str, value: Any) -> Path:
+    """The parameter ``key`` as a :class:`~pathlib.Path` (it takes a ``str`` or path-like object), else
+    :class:`InputTypeError` naming it (not ``TypeError: expected str, bytes or os.PathLike object``)."""
+    if isinstance(value, bytes) or not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        raise InputTypeError(f"{key}: got {_shown(value)}; pass a path (a str or pathlib.Path, not empty)")
+    return Path(value)
+
+
+def check_paths(key: str, value: Any) -> list[Path]:
+    """The parameter ``key``, a sequence of paths, as a list of :class:`~pathlib.Path`; :class:`InputTypeError` for
+    one path alone (a ``str`` would otherwise be read one character at a time) or an item that is not a path."""
+    if isinstance(value, (str, bytes, os.PathLike)) or not isinstance(value, Sequence):
+        raise InputTypeError(f"{key}: got {_shown(value)}; pass a list of paths (e.g. [{key[:-1] or 'path'}])")
+    return [check_path(f"{key}[{i}]", item) for i, item in enumerate(value)]
 
 
 def ranged(default: Any, *, ge: float | None = None, gt: float | None = None, le: float | None = None,

@@ -14,7 +14,6 @@ does with the same call::
 """
 from __future__ import annotations
 
-import json
 import os
 import stat
 import warnings
@@ -40,9 +39,10 @@ from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dat
 from cerberus_core.eval.segments import segments_line
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT, VoxelScorer
 from cerberus_core.eval.visibility import visibility_line
-from cerberus_core.fields import Range, check_value, ranged
+from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import UnknownPluginError, get_metric
+from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
@@ -225,7 +225,7 @@ def _load_weights(path: str | Path, device: str | torch.device = "cpu") -> tuple
         scene = payload.get("extra", {}).get("scene")
     if isinstance(scene, str):
         try:
-            scene = json.loads(scene)
+            scene = jsontext.loads(scene)
         except ValueError as exc:
             raise CheckpointError(f"{shown}: its recorded scene set-up is not JSON ({exc}); the file is damaged: "
                                   "re-export it, or use the run's checkpoints/last.pt") from None
@@ -436,6 +436,7 @@ class Run:
             ZooError: a shipped model's file is missing or damaged.
         """
         check_device(str(device))
+        check_path("path", path)  # a str stays one: a bare name is a shipped model's
         weights = describe_weights(path)
         model, config, scene = _load_weights(weights.path, device)
         return cls(model, config, weights, source=path, recorded_scene=scene, device=device)
@@ -539,10 +540,12 @@ class Run:
         Raises:
             ConfigError: ``data`` is not a dataset folder (``key="data"``), or ``out`` may not be written.
         """
-        s = settings if settings is not None else EvalSettings()
-        data = None if data is None else open_data(data).root
+        s = check_kind("settings", settings, EvalSettings, "an EvalSettings") if settings is not None else EvalSettings()
+        for name, baseline in (baselines or {}).items():
+            check_kind(f"baselines[{name!r}]", baseline, (Run, Cerberus), "a Run or a Cerberus model")
+        data = None if data is None else open_data(check_path("data", data)).root
         keep = [] if self.shipped else [Path(self.source)]
-        out = result_folder(Path(out) if out is not None else self.default_out(), overwrite=s.overwrite,
+        out = result_folder(check_path("out", out) if out is not None else self.default_out(), overwrite=s.overwrite,
                             keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS,
                             refuse=Dataset.not_an_output)
         baseline_models = {name: b.model if isinstance(b, Run) else b for name, b in (baselines or {}).items()}
@@ -596,12 +599,12 @@ class Run:
         """
         check_value("viewer_images", viewer_images, Range(ge=0, integer=True), "0: no viewer")
         check_value("azimuth", azimuth, Range())
-        images = [Path(p) for p in images]
+        images = check_paths("images", images)
         if not images:
             raise ConfigError.about("images", None, "no image given; pass at least one image file")
-        mask_list = mask_paths([Path(m) for m in masks] if masks else None, images)
+        mask_list = mask_paths(check_paths("masks", masks) if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
-        out = result_folder(Path(out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
+        out = result_folder(check_path("out", out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
         return write_reconstructions(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                      renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
                                      viewer_images=viewer_images, device=self.device,

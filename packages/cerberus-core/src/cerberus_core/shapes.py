@@ -16,11 +16,19 @@ tensors on different devices raise :class:`~cerberus_core.errors.DeviceError`.
 """
 from __future__ import annotations
 
-from cerberus_core.errors import DeviceError, ShapeError
+from cerberus_core.errors import DeviceError, InputTypeError, ShapeError
 
 
 def _expected(pattern: str) -> str:
     return "(" + ", ".join(pattern.split()) + ")"
+
+
+def _check_tensor(where: str, name: str, tensor: object, pattern: str) -> None:
+    """:class:`InputTypeError` for an argument that is not an array (a torch tensor, or a numpy array where the
+    function takes one)."""
+    if not (hasattr(tensor, "shape") and hasattr(tensor, "dtype")):
+        raise InputTypeError(f"{where}: {name} is a {type(tensor).__name__}, not a tensor of shape "
+                             f"{_expected(pattern)}; pass torch.as_tensor(...)")
 
 
 def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> dict[str, int]:
@@ -33,6 +41,7 @@ def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> 
     Returns:
         ``{dimension name: size}``.
     Raises:
+        InputTypeError: an argument that is not a tensor.
         ShapeError: ``"<where>: <name> must be (<pattern>), got (<shape>)"`` for the tensors that do
             not fit (or ``<name> must be float32 or float64, got int64``), with the sizes the other
             tensors bound.
@@ -43,6 +52,7 @@ def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> 
     problems: list[str] = []
     for name, spec in tensors.items():
         tensor, pattern = spec[0], spec[1]
+        _check_tensor(where, name, tensor, pattern)
         if len(spec) > 2 and tensor.dtype not in spec[2]:
             allowed = " or ".join(str(d).removeprefix("torch.") for d in spec[2])
             problems.append(f"{name} must be {allowed}, got {str(tensor.dtype).removeprefix('torch.')}")
@@ -72,6 +82,9 @@ def check_shapes(where: str, *, same_device: bool = False, **tensors: tuple) -> 
     if same_device and len({str(spec[0].device) for spec in tensors.values()}) > 1:
         raise DeviceError(f"{where}: {', '.join(tensors)} must be on one device, got "
                           f"{', '.join(str(spec[0].device) for spec in tensors.values())}; move them with .to(device)")
+    if meta := [name for name, spec in tensors.items() if getattr(spec[0], "is_meta", False)]:
+        raise DeviceError(f"{where}: {', '.join(meta)} on the meta device, which holds no values; pass tensors on the "
+                          "cpu or a cuda device")
     return sizes
 
 

@@ -25,6 +25,7 @@ import math
 import multiprocessing as mp
 import os
 import secrets
+import signal
 import stat
 import time
 import warnings
@@ -103,7 +104,9 @@ def pairs_from_file(path: str | os.PathLike) -> list[PairSpec]:
     if suffix == ".json":
         try:
             data = json.loads(text)
-        except json.JSONDecodeError as exc:
+        except RecursionError:  # json.loads fails three ways: bad syntax, a number too long to read, deep nesting
+            raise MeshInputError(f"pairs file '{path}' is not valid JSON (nested too deeply); fix the file") from None
+        except ValueError as exc:
             raise MeshInputError(f"pairs file '{path}' is not valid JSON ({exc}); fix the file") from None
         items = data.get("pairs") if isinstance(data, dict) else data
         if not isinstance(items, list):
@@ -128,6 +131,8 @@ def pairs_from_file(path: str | os.PathLike) -> list[PairSpec]:
         if not isinstance(r, dict) or "pred" not in r or "gt" not in r:
             raise MeshInputError(f"pairs file '{path}': entry {i} lacks 'pred' or 'gt': {r!r}")
         preds = r["pred"] if isinstance(r["pred"], list) else [r["pred"]]
+        if any("\0" in str(p) for p in (*preds, r["gt"])):  # no file system takes it: os calls raise ValueError
+            raise MeshInputError(f"pairs file '{path}': entry {i} names a path holding a NUL byte; fix the file")
         preds = [_resolve(base, str(p)) for p in preds if p is not None and str(p).strip()]
         gt = "" if r["gt"] is None else str(r["gt"]).strip()
         pair_id = str(r.get("id") or Path(gt).stem or i)
@@ -185,6 +190,13 @@ def _init_worker(options: dict[str, Any], cache_dir: str | None, use_cache: bool
     _CACHE = GridCache(cache_dir) if use_cache else None
     _OPTIONS = options
     _CWD = os.getcwd()
+
+
+def _init_pool_worker(options: dict[str, Any], cache_dir: str | None, use_cache: bool = True) -> None:
+    """:func:`_init_worker` in a pool's process, which leaves Ctrl-C to the parent: it stops the pool and says so
+    in one line (each worker would print a KeyboardInterrupt traceback)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _init_worker(options, cache_dir, use_cache)
 
 
 def _evaluate(spec: PairSpec) -> dict[str, Any]:
@@ -248,7 +260,7 @@ def run_batch(
             bar.update(1)
     else:
         chunk = max(1, min(16, len(pairs) // (jobs * 4)))
-        with mp.get_context().Pool(jobs, initializer=_init_worker, initargs=(options, cache, use_cache)) as pool:
+        with mp.get_context().Pool(jobs, initializer=_init_pool_worker, initargs=(options, cache, use_cache)) as pool:
             for r in pool.imap(_evaluate, ordered, chunksize=chunk):
                 rows.append(r)
                 bar.update(1)
@@ -323,15 +335,23 @@ def check_output_path(path: str | os.PathLike, flag: str) -> str:
     return str(p)
 
 
-def check_not_input(outputs: dict[str, str | None], pairs: Sequence[PairSpec], extra: Sequence[str] = ()) -> None:
+def check_not_input(outputs: dict[str, str | None], pairs: Sequence[PairSpec], extra: Sequence[str] = (),
+                    folders: dict[str, str | None] | None = None) -> None:
     """Refuse (:class:`MeshInputError` naming the flag) an output file (``{flag: path or None}``) that is one
-    of the inputs (a mesh of ``pairs`` or a file of ``extra``, e.g. the pairs file), compared by real path:
-    writing it would replace the input."""
+    of the inputs (a mesh of ``pairs`` or a file of ``extra``, e.g. the pairs file), or an output folder
+    (``folders``, e.g. the cache's) that holds one, compared by real path: writing would replace or mix with
+    the inputs."""
     inputs = {os.path.realpath(m): m for m in [*extra, *(m for pair in pairs for m in (*pair.pred, pair.gt) if m)]}
     for flag, out in outputs.items():
         if out and os.path.realpath(out) in inputs:
             raise MeshInputError(f"{flag} '{out}' is one of the inputs ({inputs[os.path.realpath(out)]}); writing it "
                                  "would replace that file: choose another name")
+    for flag, folder in (folders or {}).items():
+        real = os.path.realpath(folder) if folder else None
+        held = next((m for r, m in inputs.items() if real and r.startswith(real.rstrip(os.sep) + os.sep)), None)
+        if held:
+            raise MeshInputError(f"{flag} '{folder}' holds the input {held}; files written there would mix with "
+                                 "the inputs: choose a folder of its own")
 
 
 def _csv_text(rows: Sequence[dict[str, Any]]) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import zipfile
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,7 +57,10 @@ class GridCache:
     def get(self, key: str) -> CachedGrid | None:
         item = self._mem.get(key)
         if item is None and self.directory is not None:
-            item = self._read(self.directory / f"{key}.npz")
+            try:
+                item = self._read(self.directory / f"{key}.npz")
+            except (OSError, ValueError, KeyError, IndexError, TypeError, EOFError, zipfile.BadZipFile):
+                item = None  # a damaged entry (a killed writer, a disk error) is a miss: recomputed and rewritten
             if item is not None:
                 self._remember(key, item)
         if item is None:

@@ -8,6 +8,7 @@ Exit codes: 0 success; 1 a batch finished but some pairs failed (see the summary
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -326,7 +327,8 @@ def _run_batch(args: argparse.Namespace) -> int:
         pairs = pairs_from_folders(args.pred_dir, args.gt_dir)
     if not pairs:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
-    check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [])
+    check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [],
+                    folders={"--cache-dir": args.cache_dir})
     result = run_batch(
         pairs,
         metrics,
@@ -372,6 +374,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     an internal error instead.
     """
     cwd = os.getcwd()
+    for stream in (sys.stdout, sys.stderr):  # a path the stream's encoding cannot say is printed escaped (LANG=C)
+        if hasattr(stream, "reconfigure"):
+            with contextlib.suppress(ValueError, OSError):
+                stream.reconfigure(errors="backslashreplace")
     try:
         args = build_parser().parse_args(argv)
         if args.command == "protocols":
@@ -386,6 +392,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: nothing was written (outputs are written whole, at the end)
+        print("interrupted", file=sys.stderr)
+        return 130
     except MeshInputError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2

@@ -312,8 +312,11 @@ def _scan_stl(path: Path) -> None:
                         _FIX_NAN,
                     )
                 return
-    if not head.lstrip().startswith(b"solid"):
-        return
+    if not head.lstrip().startswith(b"solid"):  # nor binary (its size), nor ASCII: pymeshlab would read on and on
+        claimed = f"its header claims {n} triangles ({84 + 50 * n} bytes)" if len(head) == 84 else "shorter than a header"
+        raise FileDefect(f"'{path}' is neither an ASCII STL (it does not start with 'solid') nor a whole binary STL "
+                         f"({claimed}, the file has {size} bytes)", "re-export the mesh; a truncated download or copy "
+                         "is the usual cause")
     n_v = bad_v = 0
     first_bad = ("", "")
     for lineno, toks in _tokens(path):

@@ -19,8 +19,10 @@ Units: coordinates are returned unchanged (float64, the caller's units).
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -353,9 +355,22 @@ def _read_with_pymeshlab(ms: pymeshlab.MeshSet, path: Path) -> None:
             os.chdir(cwd)
 
 
+def not_a_file(path: Path) -> str | None:
+    """Why ``path`` is not a mesh file to read (``"does not exist"``, ``"is a directory"``, ``"is a symlink loop"``,
+    ``"is not a regular file (a FIFO, device or socket)"``), or ``None`` for a regular file."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return "is a broken symlink" if path.is_symlink() else "does not exist"
+    except OSError as exc:
+        return "is a symlink loop" if exc.errno == errno.ELOOP else f"cannot be read ({exc.strerror})"
+    if stat.S_ISDIR(mode):
+        return "is a directory"
+    return None if stat.S_ISREG(mode) else "is not a regular file (a FIFO, device or socket)"
+
+
 def _load_file(path: Path, name: str, check_self_intersections: bool | str, open_mesh: str) -> list[Mesh]:
-    if not path.is_file():
-        what = "is a directory" if path.is_dir() else "does not exist"
+    if what := not_a_file(path):
         raise MeshInputError(f"{name}: mesh file '{path}' {what}; pass the path of a mesh file")
     if path.stat().st_size == 0:
         raise MeshInputError(f"{name}: mesh file '{path}' is empty (0 bytes); check the export that produced it")
@@ -487,8 +502,8 @@ def content_digest(source: Any) -> str:
     for item in _split_parts(source):
         if isinstance(item, (str, os.PathLike)):
             p = Path(item)
-            if not p.is_file():
-                raise MeshInputError(f"mesh file '{p}' does not exist; pass the path of a mesh file")
+            if what := not_a_file(p):
+                raise MeshInputError(f"mesh file '{p}' {what}; pass the path of a mesh file")
             h.update(b"file" + p.suffix.lower().encode())
             h.update(_file_digest(p))
         else:

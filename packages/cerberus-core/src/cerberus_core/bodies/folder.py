@@ -58,6 +58,7 @@ from cerberus_core.bodies.body import (
 )
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.fields import Checked, ranged
+from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import resolved
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -272,7 +273,9 @@ class FolderSource(BodySource):
         self.options = opts = FolderOptions(root=str(root), **options)
         self.root = Path(root)
         if not self.root.is_dir():
-            raise DatasetError(f"mesh folder {self.root} does not exist")
+            what = "is a file, not a folder" if self.root.exists() else "does not exist"
+            raise DatasetError(f"mesh folder {printable(self.root)} {what}; pass the folder that holds "
+                               "<subject>/<pose> mesh files")
         self.up_axis = opts.up_axis or DEFAULT_UP_AXIS
         self._rotation = up_axis_rotation(self.up_axis)
         canonical = self.canonical = opts.canonical

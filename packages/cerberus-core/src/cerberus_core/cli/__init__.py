@@ -199,6 +199,9 @@ def main(argv: list[str] | None = None) -> int:
         interrupted.append(True)
         raise KeyboardInterrupt
 
+    from cerberus_core.plumbing.stdio import printable_streams
+
+    printable_streams()
     words = sys.argv[1:] if argv is None else argv
     command = next((a for a in words if not a.startswith("-")), "")
     names = FlagNames()

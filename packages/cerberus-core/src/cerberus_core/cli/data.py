@@ -132,7 +132,8 @@ def generation_request(args: argparse.Namespace):  # noqa: ANN201 - a Generation
     options = {key: value for key in SOURCE_FLAGS if (value := getattr(args, key)) is not None}
     if "test_subjects" in options:
         options["test_subjects"] = [s.strip() for s in options["test_subjects"].split(",") if s.strip()]
-    return GenerationRequest(args.dataset, args.size or args.size_alias,
+    size = args.size if args.size is not None else args.size_alias  # --size "" is refused, not the default size
+    return GenerationRequest(args.dataset, size,
                              {**config, **flatten(parse_overrides(args.overrides, example=SET_EXAMPLE))},
                              {**options, **parse_overrides(args.options, example="root=DIR")})
 

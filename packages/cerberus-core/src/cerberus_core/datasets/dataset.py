@@ -31,8 +31,10 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.datasets.show import save_contact_sheet
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.fields import check_kind, check_path
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
+from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import check_apart, output_file, output_folder, resolved
 from cerberus_core.render.backends import AUTO_RENDERER
 
@@ -72,7 +74,7 @@ class Dataset:
         Raises:
             DatasetError: no dataset there, or a manifest that does not read (naming the problem and the fix).
         """
-        return cls(Manifest.read(root))
+        return cls(Manifest.read(check_path("root", root)))
 
     @property
     def root(self) -> Path:
@@ -113,17 +115,18 @@ class Dataset:
     def verify(self, *, checksums: bool = True, progress: bool = False) -> list[str]:
         """Check the whole dataset: every shard file (size, sha256 unless not ``checksums``, array shapes),
         views that render empty (:func:`~cerberus_core.datasets.format.empty_views`, on shards whose files
-        are sound), and completeness (:meth:`incomplete`, one problem per split). Empty: the dataset is sound."""
+        are sound), and completeness (:meth:`incomplete`, one problem per split). Empty: the dataset is sound.
+        Each problem is printable as it is: a name from the manifest is escaped (:func:`printable`)."""
         manifest, problems = self.manifest, []
         shards = [(name, s) for name, info in manifest.splits.items() for s in info.shards]
         for split, shard in tqdm(shards, desc="checking shards", unit="shard", disable=not progress):
             problems.extend(check_shard_files(self.root, shard, checksums=checksums)
                             or check_shard_arrays(manifest, split, shard) or empty_views(manifest, split, shard))
-        return problems + list(self.incomplete().values())
+        return [printable(p) for p in problems + list(self.incomplete().values())]
 
     def summary(self) -> list[str]:
         """What it holds: the source, preset, image size, subjects and parts, then per split the shards
-        written of those planned and their images, quadruplets and meshes."""
+        written of those planned and their images, quadruplets and meshes (names from the manifest escaped)."""
         m = self.manifest
         lines = [f"{self.root}: {m.dataset}/{m.preset}, format v{FORMAT_VERSION}, {m.image_size}px, "
                  f"{len(m.subjects)} subjects, {len(m.part_names)} parts"]
@@ -131,7 +134,7 @@ class Dataset:
             count = info.totals()
             lines.append(f"  {split:<6} {len(info.shards)}/{info.planned_shards} shards, {count['images']} images, "
                          f"{count['quadruplets']} quadruplets, {count['meshes']} meshes")
-        return lines
+        return [printable(line) for line in lines]
 
     # ---------------------------------------------------------------------------- what is left to generate
     def incomplete(self) -> dict[str, str]:
@@ -168,7 +171,7 @@ class Dataset:
             if not 1 <= value <= most:
                 raise ConfigError.about(key, value, f"must be an integer in [1, {most}]")
         self.manifest.split(split)
-        out = output_file(Path(out) if out is not None else self.root / f"contact_{split}.png")
+        out = output_file(check_path("out", out) if out is not None else self.root / f"contact_{split}.png")
         if renderer != AUTO_RENDERER:
             get_plugin(RENDERER_GROUP, renderer)  # a known backend, even without parts
         return save_contact_sheet(self.root, out, split=split, count=count, parts=parts, renderer=renderer,
@@ -192,8 +195,9 @@ class Dataset:
                 raise ConfigError.about("source_options", dict(source_options), "a GenerationRequest carries its own",
                                         "pass them as its `source_options`")
             config, source_options = config.config(), config.source_options
+        check_kind("config", config, GenerationConfig, "a GenerationRequest or a GenerationConfig (from load_generation_config)")
         if out is not None:
-            output_folder(Path(out))
+            output_folder(check_path("out", out))
             if source_options and source_options.get("root"):  # the meshes read are not in the folder written
                 check_apart(Path(out), [resolved(source_options["root"], "root")], what="a dataset is written there")
         job = validate_generation(config, source=source, source_options=source_options, device=device,
@@ -233,7 +237,7 @@ class Dataset:
             DatasetError: ``out`` holds something else.
             LockedError: another live process writes into ``out``.
         """
-        out = Path(out)
+        out = check_path("out", out)
         job = cls.plan(config, out, source_options=source_options, source=source, overwrite=overwrite, device=device,
                        batch_size=batch_size)
         if out.is_dir():

@@ -111,7 +111,10 @@ def check_shard_files(root: Path, shard: ShardRecord, *, checksums: bool) -> lis
             problems.append(str(exc))
             continue
         if not path.is_file():
-            problems.append(f"{path}: missing ({role} of {shard.name}); resume the generation to rebuild it")
+            what = ("missing" if not path.exists() else "a folder, not a file" if path.is_dir()
+                    else "not a regular file (a FIFO, device or socket)")
+            problems.append(f"{path}: {what} ({role} of {shard.name}); delete it if it is there and resume the "
+                            "generation to rebuild it")
             continue
         size = path.stat().st_size
         if size != rec.bytes:
@@ -171,11 +174,12 @@ def check_shard_arrays(manifest: Manifest, split: str, shard: ShardRecord) -> li
     if n and (int(views["mesh"].min()) < -1 or int(views["mesh"].max()) >= shard.meshes):
         return bad(f"views name meshes {int(views['mesh'].min())}..{int(views['mesh'].max())}, the shard has "
                    f"{shard.meshes}")
-    return _check_meshes(load, where, shard.meshes, bad) if shard.meshes else []
+    return _check_meshes(load, where, shard.meshes, len(manifest.part_names), bad) if shard.meshes else []
 
 
-def _check_meshes(load, where: str, m: int, bad) -> list[str]:  # noqa: ANN001 - check_shard_arrays's helpers
-    """:func:`check_shard_arrays` for the ``vertices`` and ``meshes.npz`` of a shard with ``m`` meshes."""
+def _check_meshes(load, where: str, m: int, parts: int, bad) -> list[str]:  # noqa: ANN001 - check_shard_arrays's helpers
+    """:func:`check_shard_arrays` for the ``vertices`` and ``meshes.npz`` of a shard with ``m`` meshes whose part
+    labels index the manifest's ``parts`` part names."""
     vertices = load("vertices")
     if vertices.dtype != np.float32 or vertices.ndim != 2 or vertices.shape[1] != 3:
         return bad(f"vertices are {vertices.dtype}{list(vertices.shape)}, not float32[V, 3]")
@@ -202,6 +206,9 @@ def _check_meshes(load, where: str, m: int, bad) -> list[str]:  # noqa: ANN001 -
         (arrays["faces"].ndim == 2 and arrays["faces"].shape[1] == 3 and (not arrays["faces"].size
                                                                           or int(arrays["faces"].min()) >= 0),
          "faces are (F, 3) vertex indices"),
+        (not arrays["vertex_parts"].size or (int(arrays["vertex_parts"].min()) >= 0
+                                             and int(arrays["vertex_parts"].max()) < parts),
+         f"part labels index the manifest's {parts} part names"),
     ]
     failed = next((what for ok, what in checks if not ok), None)
     return [] if failed is None else bad(f"meshes.npz does not agree with the manifest (expected: {failed})")

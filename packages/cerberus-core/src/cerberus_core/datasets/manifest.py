@@ -31,6 +31,7 @@ from cerberus_core.bodies.body import BodySource, Subject, no_subjects_hint, sou
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.errors import CerberusError, ConfigError, DatasetError
+from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.atomic import atomic_write
 
 FORMAT_NAME = "cerberus-dataset"
@@ -382,12 +383,11 @@ class Manifest:
             raise DatasetError(f"{path} not found: {root} is not a Cerberus dataset (generate one there first: "
                                "`Dataset.generate`, or `cerberus data generate`)")
         try:
-            record = json.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            record = jsontext.loads(path.read_text())
+        except (OSError, UnicodeDecodeError) as exc:
+            raise DatasetError(f"{path} cannot be read ({exc}); the dataset is corrupt — regenerate it") from None
+        except ValueError as exc:
             raise DatasetError(f"{path} is not valid JSON ({exc}); the dataset is corrupt — regenerate it") from None
-        except RecursionError:
-            raise DatasetError(f"{path} is nested too deeply to be a manifest; the dataset is corrupt — regenerate "
-                               "it") from None
         return cls.from_json(record, root)
 
     @classmethod
@@ -431,8 +431,15 @@ class Manifest:
                                "corrupt — regenerate it") from None
 
     def _checked(self) -> Manifest:
-        """This manifest, after the checks between its records (a shard's subject index within the subjects)."""
+        """This manifest, after the checks between its records: the splits recorded are the splits its config
+        plans, and a shard's subject index is within the subjects."""
+        if set(self.splits) != set(self.config.splits):
+            raise _Damaged(f"splits records {sorted(self.splits)}, but its config plans {sorted(self.config.splits)}")
         for name, split in self.splits.items():
+            indices = [shard.index for shard in split.shards]
+            if len(set(indices)) < len(indices) or any(not 0 <= i < split.planned_shards for i in indices):
+                raise _Damaged(f"splits.{name}.shards records shards {sorted(indices)}, not distinct shards of the "
+                               f"{split.planned_shards} planned")
             for shard in split.shards:
                 bad = [i for i in shard.subjects if i >= len(self.subjects)]
                 if bad:

@@ -12,6 +12,7 @@ shards are opened lazily in each process with ``np.load(mmap_mode="r")``.
 """
 from __future__ import annotations
 
+import operator
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ from cerberus_core.datasets.format import (
 )
 from cerberus_core.datasets.manifest import Manifest, ShardRecord
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import InputTypeError
 from cerberus_core.render.camera import Camera
 
 Tensor = torch.Tensor
@@ -98,6 +100,10 @@ class _SplitReader:
     @staticmethod
     def locate(offsets: np.ndarray, i: int) -> tuple[int, int]:
         n = int(offsets[-1])
+        try:
+            i = operator.index(i)
+        except TypeError:
+            raise InputTypeError(f"a dataset is indexed by an integer 0..{n - 1}, got {type(i).__name__} {i!r}") from None
         if i < 0:
             i += n
         if not 0 <= i < n:

@@ -101,6 +101,8 @@ def _open(path: Path) -> Image.Image:
             raise ImageInputError(f"{shown}: {img.width}x{img.height} pixels is too large (the limit is "
                                   f"{MAX_INPUT_PIXELS:,} pixels); downscale it first, e.g. to 1024x1024")
         img.load()
+    except ImageInputError:  # our own bound: said once, not wrapped in "cannot be read" (a ValueError too)
+        raise
     except Image.DecompressionBombError as exc:
         raise ImageInputError(f"{shown}: too large to decode safely ({exc}); downscale it first, e.g. to "
                               "1024x1024") from None

@@ -110,15 +110,23 @@ class Predictions:
     maps: KeypointMaps
 
 
+def check_image_dtype(images: Tensor, what: str, dtype: torch.dtype) -> None:
+    """:class:`ShapeError` unless ``images`` are ``(B, 3, H, W)`` of ``dtype`` (the weights' dtype: a uint8 image
+    names its conversion from 0-255), before any layer sees them."""
+    check_shapes(what, images=(images, "B 3 H W"))
+    name = str(dtype).removeprefix("torch.")
+    convert = "images.float()" if dtype == torch.float32 else f"images.to(torch.{name})"
+    if images.dtype == torch.uint8:
+        raise ShapeError(f"{what}: the images are uint8 (0-255); pass {convert} / 255 ({name} in [0, 1])")
+    if images.dtype != dtype:
+        raise ShapeError(f"{what}: the images are {images.dtype}; pass {convert} ({name} in [0, 1])")
+
+
 def check_images(images: Tensor, what: str) -> None:
     """The network's input contract: ``(B, 3, H, W)`` float32 in ``[0, 1]``, every value a number
     (:class:`ShapeError` naming the conversion otherwise; a uint8 or 0-255 image would silently give a wrong
     reconstruction, a NaN one a NaN model)."""
-    check_shapes(what, images=(images, "B 3 H W"))
-    if images.dtype == torch.uint8:
-        raise ShapeError(f"{what}: the images are uint8 (0-255); pass images.float() / 255 (float32 in [0, 1])")
-    if images.dtype != torch.float32:
-        raise ShapeError(f"{what}: the images are {images.dtype}; pass images.float() (float32 in [0, 1])")
+    check_image_dtype(images, what, torch.float32)
     if images.numel() and not bool(torch.isfinite(images).all()):
         bad = int((~torch.isfinite(images)).sum())
         raise ShapeError(f"{what}: {bad} of {images.numel()} image values are NaN or infinite; images are float32 in "
@@ -171,7 +179,7 @@ class Cerberus(nn.Module):
             mix: optional map ``(B, S) → (B, S)`` applied to the shape latents before they are
                 decoded into vertices (pose consistency, equation 3).
         """
-        check_shapes("Cerberus", images=(images, "B 3 H W"))
+        check_image_dtype(images, "Cerberus", next(self.parameters()).dtype)
         c4, features = self._cnn(images)
         object_latent = c4.mean(dim=(-2, -1))
         shape_latent = self.shape.latent(object_latent)

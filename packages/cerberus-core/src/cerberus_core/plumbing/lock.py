@@ -30,6 +30,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from cerberus_core.errors import CerberusError
+from cerberus_core.plumbing import jsontext
 
 try:
     import fcntl
@@ -73,7 +74,7 @@ def _try_flock(fd: int) -> bool | None:
 def read_lock(folder: str | Path) -> dict | None:
     """The holder record of ``folder``'s lock file (``None`` if there is none or it is unreadable)."""
     try:
-        return json.loads((Path(folder) / LOCK_NAME).read_text())
+        return jsontext.loads((Path(folder) / LOCK_NAME).read_text())
     except (OSError, ValueError):
         return None
 

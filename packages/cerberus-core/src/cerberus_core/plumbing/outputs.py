@@ -78,9 +78,10 @@ def check_apart(path: Path, inputs: Sequence[str | os.PathLike], key: str = "out
 
 def output_folder(path: Path, key: str = "out", *, refuse: Refusal | None = None) -> Path:
     """``path`` may be created as a folder: not an existing file, nor under one, nor a path too long to
-    write (:func:`check_path_length`), nor a folder the caller's ``refuse`` finds a problem with (a
+    write (:func:`check_path_length`), nor a symlink loop, nor a folder the caller's ``refuse`` finds a problem with (a
     :class:`ConfigError` about ``key`` with that problem)."""
     check_path_length(path, key)
+    resolved(path, key)  # a symlink loop is one line here, not a FileExistsError from mkdir later
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
@@ -107,13 +108,21 @@ def output_file(path: Path, key: str = "out", inputs: Sequence[str | os.PathLike
     return path
 
 
+def _home() -> Path | None:
+    """The user's home directory, resolved (``None`` where the system does not say)."""
+    try:
+        return Path.home().resolve()
+    except (RuntimeError, OSError, KeyError):
+        return None
+
+
 def result_folder(path: Path, key: str = "out", *, overwrite: bool = False, keep: Sequence[Path] = (),
                   earlier: frozenset[str] = frozenset(), refuse: Refusal | None = None) -> Path:
     """``path`` may receive a result folder, which replaces it whole (:func:`writing_results`).
 
     Refused (:class:`ConfigError`, before anything is written): what :func:`output_folder` refuses; a
-    folder that is, or holds, one of ``keep`` (the inputs, the run, the dataset) or the current
-    directory, even with ``overwrite``; a non-empty folder that is not an earlier result
+    folder that is, or holds, one of ``keep`` (the inputs, the run, the dataset), the current directory or the
+    home directory, or is a file system's root (a mount point), even with ``overwrite``; a non-empty folder that is not an earlier result
     (no :data:`RESULT_MARKER`, nor only the names in ``earlier``: what an older version wrote) unless
     ``overwrite``; a folder a live process is writing into. A destination that is read-only or not
     writable is an :class:`~cerberus_core.errors.OutputError` now, before the work starts.
@@ -122,8 +131,12 @@ def result_folder(path: Path, key: str = "out", *, overwrite: bool = False, keep
     whole = f"a result folder is replaced whole: write the results to a folder of their own, e.g. " \
             f"`{key}={printable(path / 'results')}`"
     check_apart(path, keep, key, what=whole)
-    if Path.cwd().is_relative_to(resolved(path, key)):
-        raise ConfigError.about(key, path, f"holds the current directory, and {whole}")
+    where = resolved(path, key)
+    for place, name in ((Path.cwd(), "the current directory"), (_home(), "your home directory")):
+        if place is not None and place.is_relative_to(where):
+            raise ConfigError.about(key, path, f"holds {name}, and {whole}")
+    if where.is_dir() and os.path.ismount(where):
+        raise ConfigError.about(key, path, f"is the root of a file system, and {whole}")
     if path.is_dir():
         check_unlocked(path)
         held = sorted(p.name for p in path.iterdir() if not is_lock_file(p))

@@ -1,10 +1,12 @@
-"""Standard error: what one-time costs say before they start (:func:`announce`), and process-level
-filtering for libraries whose C code writes straight to fd 2 (:func:`call_dropping_stderr`).
+"""The process's standard streams.
 
-The filter is used by the Warp start-up of the ``warp`` backend and of the ``anny`` body model, which
-print a "Could not find or load the NVIDIA CUDA driver" note on machines without one; this module knows
-nothing about Warp: it runs a call with file descriptor 2 captured and writes back what was not
-asked to be dropped.
+* :func:`announce` — what a one-time cost (a cache built, kernels compiled) says before it starts;
+* :func:`printable_streams` — a command's output never fails to print: a character the stream's encoding
+  cannot say (a non-ASCII path under ``LANG=C`` or ``PYTHONIOENCODING=ascii``) is written escaped;
+* :func:`call_dropping_stderr` — standard-error filtering for libraries whose C code writes straight to fd 2:
+  the Warp start-up of the ``warp`` backend and of the ``anny`` body model print a "Could not find or load
+  the NVIDIA CUDA driver" note on machines without one; it runs a call with file descriptor 2 captured and
+  writes back what was not asked to be dropped (it knows nothing about Warp).
 """
 from __future__ import annotations
 
@@ -25,6 +27,18 @@ def announce(text: str) -> None:
 
     tqdm.write(text, file=sys.stderr)
     sys.stderr.flush()
+
+
+def printable_streams() -> None:
+    """Make ``sys.stdout`` and ``sys.stderr`` escape what their encoding cannot write (``errors="backslashreplace"``)
+    instead of raising :class:`UnicodeEncodeError` midway through a command."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)  # a replaced stream (a test's capture) may not have it
+        if reconfigure is not None:
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # a closed or detached stream: nothing will be printed to it anyway
+                pass
 
 
 def call_dropping_stderr(fn: Callable[[], T], drop: str) -> T:

@@ -90,7 +90,10 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
     face_id = ops.rasterize(renderer, clip, faces, (camera.height, camera.width), camera.near)
     rgb, depth = ops.shade(renderer, clip, faces, face_id, normals, alb, light)
     alpha = (face_id >= 0).to(vertices.dtype).unsqueeze(-1)
-    bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device).reshape(1, 1, 1, 3)
+    bg = torch.as_tensor(background, dtype=vertices.dtype, device=vertices.device)
+    check_shapes("render", background=(bg, "3"), **({} if face_part is None else {"faces": (faces, "F 3"),
+                                                                                  "face_part": (face_part, "F")}))
+    bg = bg.reshape(1, 1, 1, 3)
     # rgb is 0 on the background: over black (training's case) compositing would add zeros
     image = rgb + (1 - alpha) * bg if bg.requires_grad or bool(bg.any()) else rgb
     if antialias:

@@ -252,13 +252,20 @@ class Camera:
                       torch.cat([c.fov_y_deg for c in cameras]), first.height, first.width, first.near, first.far)
 
     # ------------------------------------------------------------------ transforms
+    def _pose_as(self, like: Tensor) -> tuple[Tensor, Tensor]:
+        """The rotation and translation in the dtype of ``like``: the transforms take points of any float dtype
+        (float64 geometry with a float32 camera, as the render ops do), in the points' dtype."""
+        return self.rotation.to(like.dtype), self.translation.to(like.dtype)
+
     def world_to_camera(self, points: Tensor) -> Tensor:
-        """``(B, N, 3)`` world points → ``(B, N, 3)`` camera-frame points."""
-        return points @ self.rotation.transpose(-1, -2) + self.translation.unsqueeze(-2)
+        """``(B, N, 3)`` world points → ``(B, N, 3)`` camera-frame points (in the points' dtype)."""
+        rotation, translation = self._pose_as(points)
+        return points @ rotation.transpose(-1, -2) + translation.unsqueeze(-2)
 
     def camera_to_world(self, points: Tensor) -> Tensor:
-        """``(B, N, 3)`` camera-frame points → ``(B, N, 3)`` world points."""
-        return (points - self.translation.unsqueeze(-2)) @ self.rotation
+        """``(B, N, 3)`` camera-frame points → ``(B, N, 3)`` world points (in the points' dtype)."""
+        rotation, translation = self._pose_as(points)
+        return (points - translation.unsqueeze(-2)) @ rotation
 
     def rotation_to_world(self, rot_cam: Tensor) -> Tensor:
         """Express rotations given in the camera frame in the world frame.

@@ -28,9 +28,12 @@ int64, ``face_id`` ``(B, H, W)`` int64 (-1 on background), images ``(B, H, W, C)
 """
 from __future__ import annotations
 
+import operator
+
 import torch
 
-from cerberus_core.errors import MeshError, RenderInputError
+from cerberus_core.errors import InputTypeError, MeshError, RenderInputError
+from cerberus_core.plumbing.machine import check_memory
 from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import Light
 from cerberus_core.render.shading import foreground, homogeneous_barycentrics, pixel_ndc
@@ -45,13 +48,26 @@ INTS = (torch.int32, torch.int64)
 """The index dtypes the ops take (faces, face ids are int64)."""
 
 
-def _check_indices(where: str, faces: Tensor, vertices: int) -> None:
-    """``faces`` index ``vertices`` vertices (:class:`MeshError` naming the range otherwise)."""
-    if faces.numel():
-        low, high = torch.stack(torch.aminmax(faces)).tolist()
-        if low < 0 or high >= vertices:
-            raise MeshError(f"{where}: faces index vertices outside 0..{vertices - 1} (from {low} to {high}); check "
-                            "the face template matches the vertex count")
+RASTER_BYTES_PER_PIXEL = 24
+"""Memory a rasterization holds per pixel of the batch at least: the face ids, a depth buffer and the winners
+(int64 / float64 each); a resolution whose total exceeds the device's memory is refused before allocating."""
+
+
+def _check_backend(op: str, ctx: object) -> None:
+    if not isinstance(ctx, Renderer):
+        raise InputTypeError(f"{op}: ctx is {type(ctx).__name__}, not a renderer backend; pass one from "
+                             "cerberus_core.make_renderer(name)")
+
+
+def _check_faces(op: str, faces: Tensor, nverts: int, face_id: Tensor | None = None) -> None:
+    """:class:`MeshError` when ``faces`` index a vertex outside ``0..nverts - 1``, or ``face_id`` a face outside
+    ``-1..F - 1`` (a backend would index out of bounds, or read another scene's memory)."""
+    if faces.numel() and (int(faces.min()) < 0 or int(faces.max()) >= nverts):
+        raise MeshError(f"{op}: faces index vertices outside 0..{nverts - 1} (they reach {int(faces.min())}.."
+                        f"{int(faces.max())}); check the face template matches the vertex count")
+    if face_id is not None and face_id.numel() and (int(face_id.min()) < -1 or int(face_id.max()) >= len(faces)):
+        raise MeshError(f"{op}: face_id names faces outside -1..{len(faces) - 1} (it reaches {int(face_id.min())}.."
+                        f"{int(face_id.max())}); pass the face ids rasterize gave for these faces")
 
 
 def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int, int], near: float) -> Tensor:
@@ -64,12 +80,22 @@ def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int,
     Returns:
         ``(B, H, W)`` int64 face ids, -1 on background.
     """
+    _check_backend("rasterize", ctx)
     check_shapes("rasterize", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS))
-    _check_indices("rasterize", faces, clip.shape[1])
-    height, width = resolution
-    if int(height) < 1 or int(width) < 1:
+    _check_faces("rasterize", faces, clip.shape[1])
+    if not bool(torch.isfinite(clip).all()):
+        raise MeshError(f"rasterize: {int((~torch.isfinite(clip)).any(-1).sum())} clip-space vertices are NaN or inf; "
+                        "the geometry (or the camera) is not finite — check the vertices given to the camera")
+    try:
+        height, width = (operator.index(n) for n in resolution)
+    except (TypeError, ValueError):
+        raise RenderInputError(f"rasterize: resolution is {resolution!r}; pass `resolution=(height, width)`, two "
+                               "integers") from None
+    if height < 1 or width < 1:
         raise RenderInputError(f"rasterize: the image size must be positive, got {height}x{width}; pass "
                                "`resolution=(height, width)` with both 1 or more")
+    check_memory("resolution", (height, width), clip.shape[0] * height * width * RASTER_BYTES_PER_PIXEL,
+                 f"{clip.shape[0]} images of {height}x{width} pixels", device=clip.device)
     with torch.no_grad():
         return ctx.rasterize(clip.detach(), faces, int(height), int(width), float(near))
 
@@ -85,6 +111,7 @@ def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> T
     """
     check_shapes("interpolate", same_device=True, attr=(attr, "B V C", FLOATS), clip=(clip, "B V 4", FLOATS),
                  faces=(faces, "F 3", INTS), face_id=(face_id, "B H W", (torch.int64,)))
+    _check_faces("interpolate", faces, clip.shape[1], face_id)
     bsz, height, width = face_id.shape
     b, r, c, f = foreground(face_id)
     bary, _ = homogeneous_barycentrics(pixel_ndc(height, width, r, c, clip.dtype), clip[b.unsqueeze(-1), faces[f]])
@@ -97,8 +124,9 @@ def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> T
 def vertex_normals(ctx: Renderer, vertices: Tensor, faces: Tensor) -> Tensor:
     """``(B, V, 3)`` area-weighted unit vertex normals of ``(B, V, 3)`` world vertices (differentiable;
     the backend's kernel or the shared torch code)."""
+    _check_backend("vertex_normals", ctx)
     check_shapes("vertex_normals", same_device=True, vertices=(vertices, "B V 3", FLOATS), faces=(faces, "F 3", INTS))
-    _check_indices("vertex_normals", faces, vertices.shape[1])
+    _check_faces("vertex_normals", faces, vertices.shape[1])
     return ctx.vertex_normals(vertices, faces)
 
 
@@ -112,10 +140,12 @@ def shade(ctx: Renderer, clip: Tensor, faces: Tensor, face_id: Tensor, normals: 
         ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)`` (distance along the view axis), both 0 on
         background.
     """
+    _check_backend("shade", ctx)
     check_shapes("shade", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS),
                  face_id=(face_id, "B H W", (torch.int64,)), normals=(normals, "B V 3", FLOATS),
                  albedo=(albedo, "B V 3", FLOATS),
                  **{f"light.{name}": (getattr(light, name), "B 3") for name in ("direction", "ambient", "diffuse")})
+    _check_faces("shade", faces, clip.shape[1], face_id)
     return ctx.shade(clip, faces, face_id, normals, albedo, light)
 
 
@@ -123,8 +153,10 @@ def antialias(ctx: Renderer, color: Tensor, clip: Tensor, faces: Tensor, face_id
     """Analytic anti-aliasing of silhouette and occlusion edges (visibility gradients): ``(B, H, W, C)``
     colours blended across the edges, differentiable w.r.t. ``color`` and ``clip``
     (:mod:`cerberus_core.render.antialias`)."""
+    _check_backend("antialias", ctx)
     check_shapes("antialias", same_device=True, color=(color, "B H W C", FLOATS), clip=(clip, "B V 4", FLOATS),
                  faces=(faces, "F 3", INTS), face_id=(face_id, "B H W", (torch.int64,)))
+    _check_faces("antialias", faces, clip.shape[1], face_id)
     return ctx.antialias(color, clip, faces, face_id)
 
 

@@ -14,6 +14,7 @@ import torch
 import torch.distributed as dist
 
 from cerberus_core.devices import check_device
+from cerberus_core.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,30 @@ class DistInfo:
         return self.world_size > 1
 
 
+def launch_environment() -> DistInfo:
+    """This process's place as the ``torchrun`` environment says (``WORLD_SIZE``, ``RANK``, ``LOCAL_RANK``; none
+    set: one process). :class:`ConfigError` naming the variable when one is not a whole number in its range or
+    ``RANK`` is missing for a group (set by hand, not by ``torchrun``)."""
+    def number(name: str, default: int | None, low: int, high: int | None) -> int:
+        text = os.environ.get(name)
+        if text is None and default is not None:
+            return default
+        try:
+            value = int(text) if text is not None else None
+        except ValueError:
+            value = None
+        if value is None or value < low or (high is not None and value >= high):
+            shown = "unset" if text is None else repr(text)
+            upper = "" if high is None else f" below {high}"
+            raise ConfigError(f"the environment variable {name} is {shown}, not a whole number {low} or more{upper}; "
+                              "launch with torchrun (which sets WORLD_SIZE, RANK and LOCAL_RANK) or unset them")
+        return value
+
+    world = number("WORLD_SIZE", 1, 1, None)
+    rank = number("RANK", 0 if world == 1 else None, 0, world)
+    return DistInfo(rank, world, number("LOCAL_RANK", rank, 0, None))
+
+
 def resolve_device(name: str, local_rank: int = 0) -> torch.device:
     """``auto`` → CUDA (this process's local GPU) if available, else CPU; ``cpu``; ``cuda[:N]``.
 
@@ -48,11 +73,10 @@ def resolve_device(name: str, local_rank: int = 0) -> torch.device:
 
 def init_distributed(device: torch.device) -> DistInfo:
     """Join the process group described by the ``torchrun`` environment (no-op for one process)."""
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    if world <= 1:
+    env = launch_environment()
+    if not env.enabled:
         return DistInfo()
-    rank = int(os.environ["RANK"])
-    local = int(os.environ.get("LOCAL_RANK", rank))
+    rank, world, local = env.rank, env.world_size, env.local_rank
     if dist.is_initialized():
         return DistInfo(rank, world, local)
     if device.type == "cuda":

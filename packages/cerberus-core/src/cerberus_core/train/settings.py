@@ -197,23 +197,32 @@ class TrainConfig(Checked):
         The estimate is a lower bound, counted from what every step must hold (float32, values and gradients):
         per input pixel of the quadruplets (``train.batch_size`` × 4 images of ``image_size``², px) its 3
         channels and the first convolution's ``model.width / 4`` channels; per part face of each rendering (2 per
-        image) the 25 numbers of its triangle set-up.
+        image) the 25 numbers of its triangle set-up; per weight (float32: its value, gradient and Adam's two
+        moments) the ResNet's about ``1800 * model.width²`` (its 3x3 convolutions of up to ``8 * width``
+        channels) and the shape head's ``model.shape_latent_dim * (8 * width + 3 * vertices * num_parts)``.
 
         Args:
             image_size: the training resolution (px; ``data.image_size`` or the dataset's).
         """
         from cerberus_core.plumbing.machine import check_memory
 
+        m = self.model
         images = self.train.batch_size * 4
-        part_faces = 20 * 4 ** self.model.sphere_level  # an icosphere's faces at its subdivision level
-        pixels = images * image_size ** 2 * (3 + self.model.width / 4) * 4 * 2
-        faces = images * 2 * self.model.num_parts * part_faces * 25 * 4 * 2
-        if pixels >= faces:
-            check_memory("data.image_size", image_size, pixels + faces, f"{images} images of {image_size}x{image_size} "
+        part_faces = 20 * 4 ** m.sphere_level  # an icosphere's faces at its subdivision level
+        pixels = images * image_size ** 2 * (3 + m.width / 4) * 4 * 2
+        faces = images * 2 * m.num_parts * part_faces * 25 * 4 * 2
+        trunk, head = 1800 * m.width ** 2, m.shape_latent_dim * (8 * m.width + 3 * (part_faces // 2 + 2) * m.num_parts)
+        weights = (trunk + head) * 4 * 4
+        if weights >= max(pixels, faces):
+            key, value = ("model.width", m.width) if trunk >= head else ("model.shape_latent_dim", m.shape_latent_dim)
+            check_memory(key, value, pixels + faces + weights, f"about {(trunk + head) / 1e6:,.0f} million weights, "
+                         "each with its gradient and the optimizer's two moments", device)
+        elif pixels >= faces:
+            check_memory("data.image_size", image_size, pixels + faces + weights, f"{images} images of {image_size}x{image_size} "
                          f"pixels per step at train.batch_size = {self.train.batch_size}", device)
         else:
-            check_memory("model.num_parts", self.model.num_parts, pixels + faces, f"{2 * images} renderings of "
-                         f"{self.model.num_parts} parts of {part_faces} faces per step", device)
+            check_memory("model.num_parts", m.num_parts, pixels + faces + weights, f"{2 * images} renderings of "
+                         f"{m.num_parts} parts of {part_faces} faces per step", device)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -237,17 +246,25 @@ def preset_names() -> list[str]:
 
 
 def resume_config(run_dir: str | Path, overrides: list[str] | None = None) -> TrainConfig | None:
-    """The config a resumed run continues with: the run's own saved ``config.yaml`` plus ``overrides``
-    (``section.key=value`` strings); ``None`` when the run folder holds no saved config.
+    """The config a resumed run continues with: the run's own saved ``config.yaml`` (or, where that file is gone,
+    the config its last checkpoint holds) plus ``overrides`` (``section.key=value`` strings); ``None`` when the
+    run folder holds neither.
 
     Raises:
         ConfigError: a damaged saved config, or a relative ``data.root`` (written by an older version)
             that does not exist from the current directory.
+        CheckpointError: no ``config.yaml`` and a damaged last checkpoint.
     """
     saved = Path(run_dir) / "config.yaml"
-    if not saved.is_file():
+    if saved.is_file():
+        text = saved.read_text()
+    elif (last := Path(run_dir) / "checkpoints" / "last.pt").is_file():  # a preset's defaults would be another run
+        from cerberus_core.train.checkpoint import load_checkpoint
+
+        saved, text = last, str(load_checkpoint(last)["config"])
+    else:
         return None
-    raw = load_yaml(saved.read_text(), saved, "the run's saved config is damaged")
+    raw = load_yaml(text, saved, "the run's saved config is damaged")
     config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(overrides or [])))
     root = Path(config.data.root)
     if not root.is_absolute() and not root.exists():

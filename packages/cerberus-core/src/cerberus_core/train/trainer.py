@@ -27,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import random
 import shutil
 import signal
@@ -73,6 +72,7 @@ from cerberus_core.train.distributed import (
     any_true,
     barrier,
     init_distributed,
+    launch_environment,
     mean_over_ranks,
     resolve_device,
     shutdown,
@@ -337,7 +337,7 @@ def train(config: TrainConfig, run_dir: str | Path, *, resume: bool = False, dat
     config.model = dataclasses.replace(config.model)
     if dataset is None:  # stored absolute: eval, reconstruct and --resume work from any directory
         config.data = dataclasses.replace(config.data, root=str(resolved(config.data.root, "data.root")))
-    device = resolve_device(config.device, int(os.environ.get("LOCAL_RANK", "0")))
+    device = resolve_device(config.device, launch_environment().local_rank)
     if config.threads is not None:
         config.threads = capped_to_cores("threads", config.threads)
         torch.set_num_threads(config.threads)
