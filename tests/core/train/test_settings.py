@@ -174,9 +174,8 @@ def test_the_own_cross_view_must_start_before_the_end():
 def test_a_resume_without_config_yaml_continues_with_the_checkpoints_config(tiny_config, tmp_path):
     """Issue 34 campaign: with RUN/config.yaml deleted, `cerberus train --out RUN --resume` fell back to the default
     preset (another dataset, another model) instead of the config the run's checkpoint holds."""
-    from cerberus_core.train.settings import resume_config
-
     from cerberus_core.train import train
+    from cerberus_core.train.settings import resume_config
 
     config = tiny_config("train.steps=2", "train.progress=false")
     train(config, tmp_path / "run")

@@ -119,10 +119,16 @@ class BackendError(CerberusError, RuntimeError):
     tensors'): the message names the backend, the cause and the fix."""
 
 
+class TextFormatError(CerberusError, ValueError):
+    """Text from outside (a manifest, a lock file, a weights file's metadata) that cannot be parsed: a number too
+    long to read, nesting too deep; the message says what is wrong and the reader that caught it names the file."""
+
+
 class InputTypeError(CerberusError, TypeError):
     """An argument of the wrong kind (an object that is not the model, renderer or reconstruction the function
     takes) or an option the callee does not know: the message names what came and what is taken."""
 
 
 __all__ = ["BackendError", "CerberusError", "ConfigError", "DatasetError", "DeviceError", "InputTypeError",
-           "MeshError", "MissingPackageError", "OutputError", "RenderInputError", "ShapeError"]
+           "MeshError", "MissingPackageError", "OutputError", "RenderInputError", "ShapeError",
+           "TextFormatError"]

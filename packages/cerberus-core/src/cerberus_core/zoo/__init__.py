@@ -21,6 +21,7 @@ from typing import Any
 
 from cerberus_core.datasets.format import sha256_file  # the project's one file checksum
 from cerberus_core.errors import CerberusError
+from cerberus_core.plumbing.names import printable
 
 ZOO_DIR = Path(__file__).resolve().parent
 """Where the shipped models live."""
@@ -74,8 +75,6 @@ def _entry(path: Path) -> PretrainedModel:
         ZooError: naming the entry, what is wrong and the fix (a damaged install: reinstall cerberus-core).
     """
     from dataclasses import fields
-
-    from cerberus_core.plumbing.names import printable
 
     fix = "the install is damaged or was edited: reinstall cerberus-core"
     try:
