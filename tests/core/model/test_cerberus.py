@@ -2,6 +2,7 @@
 initialisation, evaluation API, and the images it refuses (issue 26)."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 
@@ -97,6 +98,8 @@ def test_reconstruct_refuses_images_that_are_not_float32_in_0_1(human_run):
         human_run.model.reconstruct(torch.zeros(1, 3, 64, 64, dtype=torch.uint8), cam)
     with pytest.raises(ValueError, match="float64"):
         human_run.model.reconstruct(torch.zeros(1, 3, 64, 64, dtype=torch.float64), cam)
+    with pytest.raises(TypeError, match=r"images: got ndarray .*; pass a torch.Tensor .* torch.from_numpy"):
+        human_run.model.reconstruct(np.zeros((1, 3, 64, 64), np.float32), cam)  # it said "the images are float32"
     with pytest.raises(ValueError, match="above 1"):
         human_run.model.reconstruct(torch.full((1, 3, 64, 64), 200.0), cam)
     human_run.model.eval()

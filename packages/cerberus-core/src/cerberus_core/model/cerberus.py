@@ -19,7 +19,7 @@ import torch
 from torch import nn
 
 from cerberus_core.errors import ConfigError, ShapeError
-from cerberus_core.fields import Checked, Range, ranged
+from cerberus_core.fields import Checked, Range, check_kind, ranged
 from cerberus_core.model.encoder import ResNet10, UpDecoder
 from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
 from cerberus_core.parts import PartSet
@@ -112,7 +112,8 @@ class Predictions:
 
 def check_image_dtype(images: Tensor, what: str, dtype: torch.dtype) -> None:
     """:class:`ShapeError` unless ``images`` are ``(B, 3, H, W)`` of ``dtype`` (the weights' dtype: a uint8 image
-    names its conversion from 0-255), before any layer sees them."""
+    names its conversion from 0-255; a numpy array names ``torch.from_numpy``), before any layer sees them."""
+    check_kind("images", images, torch.Tensor, "a torch.Tensor (B, 3, H, W); from numpy, torch.from_numpy(images)")
     check_shapes(what, images=(images, "B 3 H W"))
     name = str(dtype).removeprefix("torch.")
     convert = "images.float()" if dtype == torch.float32 else f"images.to(torch.{name})"
