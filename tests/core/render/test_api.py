@@ -85,6 +85,17 @@ def test_bad_input_is_a_clear_error(renderer, scene, mutate, message: str) -> No
         render(renderer, *mutate(verts, packed, cam))
 
 
+def test_a_list_of_vertices_is_named_not_an_attribute_error(renderer, scene) -> None:
+    """The campaign's re-run on the merged main: ``render(ctx, vertices.tolist(), ...)`` was an AttributeError
+    ('list' object has no attribute 'device') before the op could name it."""
+    from cerberus_core.errors import InputTypeError
+
+    parts, faces, cam = scene
+    verts, packed, _ = pack_parts(parts, faces)
+    with pytest.raises(InputTypeError, match="vertices is a list, not a tensor"):
+        render(renderer, verts.tolist(), packed, cam)
+
+
 def test_parts_need_four_dimensions(renderer, scene) -> None:
     parts, faces, cam = scene
     with pytest.raises(ValueError, match=r"part_vertices must be \(B, P, V, 3\)"):

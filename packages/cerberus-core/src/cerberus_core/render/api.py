@@ -79,7 +79,8 @@ def render(renderer: Renderer, vertices: Tensor, faces: Tensor, camera: Camera, 
         :class:`RenderOutput`.
     """
     # The ops check the tensors (the first, vertex_normals: vertices, faces and their indices), render the scene.
-    faces = faces.to(vertices.device)
+    if isinstance(vertices, Tensor) and isinstance(faces, Tensor):  # anything else: the op names what came
+        faces = faces.to(vertices.device)
     normals = ops.vertex_normals(renderer, vertices, faces)
     _check_scene(vertices, camera)
     faces = faces.long()
