@@ -341,3 +341,59 @@ def test_rotation_loss_is_equation_6_for_rotations_and_turns_the_views_toward_ea
     assert angles.grad[0] < 0 < angles.grad[1]  # descending turns a0 and a1 toward each other
     assert angles.grad[2] == 0 and angles.grad[3] == 0
     assert (rotation_loss(torch.eye(3).expand(2, 4, 3, 3, 3)) == 0).all()
+
+
+# ------------------------------------------------------------------ parts that move (issue 38)
+def test_pose_consensus_is_the_mean_of_the_two_viewpoints_and_leaves_the_poses_apart():
+    from cerberus_core.losses import pose_consensus
+
+    t = torch.randn(2, 4, 3, 3)
+    c = pose_consensus(t)
+    torch.testing.assert_close(c[:, 0], 0.5 * (t[:, 0] + t[:, 1]))
+    torch.testing.assert_close(c[:, 2], 0.5 * (t[:, 2] + t[:, 3]))
+    assert torch.equal(c[:, 0], c[:, 1]) and torch.equal(c[:, 2], c[:, 3])
+    with pytest.raises(ValueError, match="pose_consensus"):
+        pose_consensus(t[:, :2])
+
+
+def test_consensus_coverage_pulls_both_views_toward_the_limb_the_two_images_share():
+    """A part that one view puts on the body's limb and the other on the trunk: projected from the pose's
+    agreed point, the pulls of both images move *both* views' translations toward the limb (the per-image
+    k-means would leave the view that sits on the trunk where it is)."""
+    from cerberus_core.losses import pose_consensus, silhouette_coverage
+
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.tensor([0.0, 60.0]), 32)
+    limb = torch.tensor([0.35, 0.0, 0.0])  # a thin limb at x = 0.35, the trunk at the origin
+    masks = []
+    for k in range(2):
+        fg = torch.zeros(1, 32, 32)
+        for point in (limb, torch.zeros(3)):
+            uv, _ = cam.index([k]).project(point.view(1, 1, 3))
+            col, row = int(uv[0, 0, 0]), int(uv[0, 0, 1])
+            fg[0, row - 6:row + 6, col - (1 if point is limb else 4):col + (1 if point is limb else 4)] = 1
+        masks.append(fg)
+    # Part 0 sits on the trunk in both views; part 1 on the limb in view 0 and on the trunk in view 1.
+    t = torch.tensor([[[0.0, 0.0, 0.0], [0.35, 0.0, 0.0]], [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+    t = torch.cat([t, t]).unsqueeze(0).requires_grad_(True)  # (1, 4, 2, 3): poses a and b alike
+    consensus = pose_consensus(t)
+    loss = sum(silhouette_coverage(cam.index([k % 2]).project(consensus[:, k])[0], masks[k % 2]).sum()
+               for k in range(4))
+    loss.backward()
+    assert t.grad[0, 1, 1, 0] < 0  # descending moves view 1's part 1 (on the trunk) toward the limb (+x)
+    assert t.grad[0, 0, 1, 0] < 0  # and view 0's part 1 the same way: one 3D point, pulled by both images
+    torch.testing.assert_close(t.grad[0, 0, 1], t.grad[0, 1, 1])
+
+
+def test_part_separation_pushes_stacked_parts_apart_and_ignores_distant_ones():
+    from cerberus_core.losses import part_separation
+
+    t = torch.tensor([[0.0, 0.0, 0.0], [0.03, 0.0, 0.0], [0.5, 0.0, 0.0]], requires_grad=True)
+    loss = part_separation(t)
+    assert float(loss.detach()) == pytest.approx(2 * (0.01 - 0.03**2) / 6)
+    loss.backward()
+    assert t.grad[0, 0] > 0 > t.grad[1, 0]  # descending: part 0 to the left, part 1 to the right
+    assert float(t.grad[2].abs().sum()) == 0.0  # the distant part feels nothing
+    assert float(part_separation(t.detach()[:1])) == 0.0  # one part
+    assert part_separation(torch.zeros(2, 4, 3, 3)).shape == (2, 4)
+    assert float(part_separation(torch.zeros(3, 3))) == pytest.approx(0.01)  # all stacked: the maximum delta^2

@@ -56,6 +56,26 @@ def test_bounded_shape_head_starts_at_the_template_and_never_leaves_the_box():
         ShapeHead(16, 8, 1, t.vertices, init_scale=0.3, vertex_bound=0.3)
 
 
+def test_recentred_shape_head_keeps_each_part_on_its_translation():
+    """model.recentre (issue 38): a displacement that shifts a whole part is taken back out, so the part's
+    vertex mean stays at its local origin (where its translation puts it), while its shape still deforms."""
+    t = icosphere(2)
+    torch.manual_seed(0)
+    free = ShapeHead(16, 8, 3, t.vertices, init_scale=0.12, displacement_scale=0.05)
+    centred = ShapeHead(16, 8, 3, t.vertices, init_scale=0.12, displacement_scale=0.05, recentre=True)
+    centred.load_state_dict(free.state_dict())
+    with torch.no_grad():
+        free.to_displacement.bias.view(3, -1, 3)[:, :, 0] += 1.0  # every vertex of every part 0.05 to the right
+        centred.to_displacement.bias.copy_(free.to_displacement.bias)
+        s = free.latent(torch.randn(2, 16))
+        v_free, v_centred = free.deform(s), centred.deform(s)
+    assert float(v_free.mean(-2)[..., 0].min()) > 0.04  # the free head shifts the parts
+    assert float(v_centred.mean(-2).abs().max()) < 1e-6  # the recentred one keeps them on their origin
+    torch.testing.assert_close(v_centred, v_free - v_free.mean(-2, keepdim=True))  # same shape, recentred
+    bounded = ShapeHead(16, 8, 3, t.vertices, init_scale=0.12, vertex_bound=0.2, recentre=True)
+    assert float(bounded.deform(s).mean(-2).abs().max()) < 1e-6
+
+
 def test_rotation_head_unit_quaternions_identity_init_and_valid_rotations():
     head = RotationHead(32, 5)
     q, r = head(torch.randn(4, 32))

@@ -21,7 +21,9 @@ smoothness            ``sum_edges (cos theta + 1)^2`` (Kato et al.)        :func
 Beyond the paper (weight 0 in its settings): :func:`silhouette_loss`, :func:`silhouette_chamfer`,
 :func:`hidden_part_pull` and :func:`reprojection_loss`, and the ``own`` cross view of
 :func:`viewpoint_scenes`; toward parts on the limbs (issue 30): :func:`silhouette_coverage` (with the
-weights of :func:`thinness_weights`), :func:`part_overlap` and :func:`rotation_loss`.
+weights of :func:`thinness_weights`), :func:`part_overlap` and :func:`rotation_loss`; toward parts that move
+(issue 38): :func:`pose_consensus` (the keypoint k-means over both views of a pose) and
+:func:`part_separation`.
 
 These are the functions; the objective's one table of terms (name, weight, how each is computed from
 the objective's inputs, symbol, reference) and the weights' config section, ``LossConfig``, are in
@@ -152,6 +154,58 @@ def translation_loss(translations: Tensor) -> Tensor:
     pose_a = (translations[:, 0] - translations[:, 1]).square().sum(-1).mean(-1)
     pose_b = (translations[:, 2] - translations[:, 3]).square().sum(-1).mean(-1)
     return 0.5 * (pose_a + pose_b)
+
+
+def pose_consensus(translations: Tensor) -> Tensor:
+    """Each part's translation as the pose's two viewpoints agree on it (beyond the paper).
+
+    ``T~_i^x = (T_i^x + T_i^x') / 2`` for every image ``x`` and its viewpoint partner ``x'``
+    (:data:`VIEW_PARTNER`): one 3D point per part and pose. Projected into both cameras and pulled onto
+    both images' foregrounds (``losses.consensus_coverage``), it makes the keypoint k-means of
+    :func:`silhouette_coverage` a k-means over the pose's visual hull: a part can no longer take the
+    image's left limb in one view and the other limb in the other, since the pulls of the two views on
+    one point cancel unless both land on the same body limb.
+
+    Args:
+        translations: ``(B, 4, N, 3)`` world-space part translations of ``(a0, a1, b0, b1)``.
+    Returns:
+        ``(B, 4, N, 3)``; rows ``x`` and ``x'`` are equal.
+
+    Example:
+        >>> t = torch.zeros(1, 4, 1, 3); t[0, 1, 0, 0] = 2.0
+        >>> pose_consensus(t)[0, :, 0, 0].tolist()
+        [1.0, 1.0, 0.0, 0.0]
+    """
+    check_shapes("pose_consensus", translations=(translations, "B 4 N 3"))
+    return 0.5 * (translations + translations[:, list(VIEW_PARTNER)])
+
+
+def part_separation(translations: Tensor, min_distance: float = 0.1) -> Tensor:
+    """KeypointNet's separation term in 3D (beyond the paper): parts closer than ``min_distance`` push apart.
+
+    ``L = 1/(N (N - 1)) sum_{i != j} max(0, delta^2 - ||T_i - T_j||^2)`` with ``delta = min_distance``
+    (Suwajanakorn et al., eq. 6; they use 0.05 on unit-size objects). The bodies here are about 1 world
+    unit tall and a part starts 0.12 in radius, so 0.1 separates parts stacked on one centre (the
+    shipped model's translations lie 0.01-0.04 apart) and leaves neighbours along a limb alone.
+
+    Args:
+        translations: ``(..., N, 3)`` part translations (world units).
+        min_distance: ``delta`` (world units).
+    Returns:
+        ``(...)`` in ``[0, delta^2]``; 0 with a single part.
+
+    Example:
+        >>> t = torch.tensor([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [1.0, 0.0, 0.0]])
+        >>> round(float(part_separation(t)), 6)  # one close pair: 2 (0.01 - 0.0025) / 6
+        0.0025
+    """
+    n = translations.shape[-2]
+    if n < 2:
+        return translations.new_zeros(translations.shape[:-2])
+    gap = (translations.unsqueeze(-2) - translations.unsqueeze(-3)).square().sum(-1)  # (..., N, N)
+    push = (min_distance**2 - gap).clamp(min=0)
+    others = 1 - torch.eye(n, dtype=translations.dtype, device=translations.device)
+    return (push * others).sum(dim=(-2, -1)) / (n * (n - 1))
 
 
 def rotation_loss(rotations: Tensor) -> Tensor:

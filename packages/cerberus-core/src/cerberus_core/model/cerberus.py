@@ -47,6 +47,10 @@ class ModelConfig(Checked):
             are) or ``b > init_scale``: every local vertex coordinate is squashed into ``(-b, b)``
             as in Kato et al.'s NMR decoder (see :class:`~cerberus_core.model.heads.ShapeHead`).
             The NMRr preset uses 0.5, the half-size of the normalised object box.
+        recentre: ``false`` (the paper) or ``true``: each part's vertex mean is kept at its local origin, so
+            the part is centred on its translation and a part can reach a limb only by moving its keypoint
+            there, not by shifting its vertices (beyond the paper; see
+            :class:`~cerberus_core.model.heads.ShapeHead`).
         anchor_spread: parts start at keypoints on a grid spanning ``[-spread, spread]`` of the
             normalised image (0: all at the centre); see
             :class:`~cerberus_core.model.heads.TranslationHead`.
@@ -70,6 +74,7 @@ class ModelConfig(Checked):
     init_scale: float = ranged(0.12, gt=0)
     displacement_scale: float = ranged(0.05, gt=0)
     vertex_bound: float | None = ranged(None, gt=0, integer=False)
+    recentre: bool = False
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
     anchor_width: float | None = ranged(None, gt=0, integer=False)
     depth_offset: float | str = "auto"
@@ -159,7 +164,8 @@ class Cerberus(nn.Module):
         self.decoder = UpDecoder(self.encoder.channels)
         latent = self.encoder.out_channels
         self.shape = ShapeHead(latent, config.shape_latent_dim, config.num_parts, self.template.vertices,
-                               config.init_scale, config.displacement_scale, config.vertex_bound)
+                               config.init_scale, config.displacement_scale, config.vertex_bound,
+                               config.recentre)
         self.rotation = RotationHead(latent, config.num_parts)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
                                            config.anchor_spread, config.anchor_width)

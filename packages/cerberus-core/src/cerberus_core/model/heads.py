@@ -44,6 +44,11 @@ class ShapeHead(nn.Module):
     moves by ``lr * ||S||_1`` per step — for a 256-dimensional latent, a sizeable fraction of a
     part's radius — and the meshes turn spiky within a few steps.
 
+    With ``recentre`` (beyond the paper, ``model.recentre``) each part's mean displacement is subtracted, so
+    the mean of its vertices stays at its local origin and the part sits where its translation (its
+    keypoint and depth) puts it: a term that wants a part elsewhere must move the keypoint, since the
+    vertices can no longer shift the part back toward where the keypoint was.
+
     With ``vertex_bound = b`` the coordinates are squashed instead, as in Kato et al.'s NMR decoder
     (which bounds them with a sigmoid): ``v = b * tanh(atanh(t / b) + d / b)`` for template
     coordinate ``t`` and displacement ``d``; ``v = t`` at ``d = 0``, ``v ≈ t + d`` while ``|v| << b``,
@@ -59,11 +64,13 @@ class ShapeHead(nn.Module):
         init_scale: radius of the initial sphere (world units).
         displacement_scale: the output scale of the displacement map.
         vertex_bound: ``None`` or the bound ``b`` (world units, larger than ``init_scale``).
+        recentre: keep each part's vertex mean at its local origin.
     """
 
     def __init__(self, in_dim: int, latent_dim: int, num_parts: int, template: Tensor, init_scale: float,
-                 displacement_scale: float = 1.0, vertex_bound: float | None = None) -> None:
+                 displacement_scale: float = 1.0, vertex_bound: float | None = None, recentre: bool = False) -> None:
         super().__init__()
+        self.recentre = bool(recentre)
         self.num_parts = num_parts
         self.num_vertices = template.shape[0]
         self.displacement_scale = float(displacement_scale)
@@ -88,9 +95,11 @@ class ShapeHead(nn.Module):
         disp = self.displacement_scale * self.to_displacement(shape_latent).view(-1, self.num_parts,
                                                                                   self.num_vertices, 3)
         if self.vertex_bound is None:
-            return self.template + disp
-        b = self.vertex_bound
-        return b * torch.tanh(self.template_logit + disp / b)
+            local = self.template + disp
+        else:
+            b = self.vertex_bound
+            local = b * torch.tanh(self.template_logit + disp / b)
+        return local - local.mean(dim=-2, keepdim=True) if self.recentre else local
 
 
 class RotationHead(nn.Module):

@@ -36,6 +36,8 @@ from cerberus_core.losses import (
     hidden_part_pull,
     mix_shape_latents,
     part_overlap,
+    part_separation,
+    pose_consensus,
     reconstruction_loss,
     reprojection_loss,
     rotation_loss,
@@ -255,6 +257,12 @@ def _keypoint_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): each image's key
     return silhouette_coverage(x.pred.maps.uv, x.foreground.flatten(0, 1), search=x.search)
 
 
+def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed translations over each image
+    consensus = pose_consensus(_quad(x.parts.translations, x)).flatten(0, 1)  # (4B, N, 3)
+    uv, _ = x.batch.camera.project(consensus)
+    return silhouette_coverage(uv, x.foreground.flatten(0, 1), search=x.search)
+
+
 def _hidden_in(render: RenderOutput, uv: Tensor, foreground: Tensor, x: ObjectiveInputs) -> Tensor:
     part_id = render.part_id.flatten(0, 1)  # (4B, H, W), -1 where no part
     n, v = x.parts.num_parts, x.parts.num_vertices
@@ -339,6 +347,12 @@ TERM_TABLE: tuple[Term, ...] = (
     Term("keypoint_coverage", 0.0, _keypoint_coverage, False, "lambda_kc L_kc", BEYOND,
          "every foreground pixel's distance to the nearest part keypoint, thin structures weighted up (k-means)",
          silhouette_coverage),
+    Term("consensus_coverage", 0.0, _consensus_coverage, False, "lambda_kv L_kv", BEYOND,
+         "keypoint k-means over both views of a pose: each part's translation averaged over the pose's two "
+         "viewpoints, projected into each image, against its foreground", pose_consensus),
+    Term("separation", 0.0, lambda x: part_separation(x.parts.translations), False, "lambda_sep L_sep", BEYOND,
+         "KeypointNet's separation in 3D: parts whose translations lie closer than 0.1 push apart",
+         part_separation),
     Term("overlap", 0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), False, "lambda_o L_o", BEYOND,
          "share of each part's volume inside another part (each part the Gaussian of its vertices)", part_overlap),
     Term("rotation", 0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), False, "lambda_R L_R", BEYOND,
