@@ -347,3 +347,29 @@ def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off
         out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
         assert out.terms[name].item() == pytest.approx(expected[name].mean().item(), rel=1e-5), name
         assert out.terms[name].item() > 0 and _grad_norm(model, out.total) > 0, name
+
+
+def test_allocation_pulls_fade_over_allocation_steps_and_the_image_terms_do_not():
+    """losses.allocation_steps (issue 38): the allocation pulls place the parts early, then leave training to the
+    image terms; with 0 every weight is constant; the objective uses the step's weights."""
+    losses = LossConfig(consensus_coverage=3.0, keypoint_coverage=1.0, separation=2.0, chamfer=0.1,
+                        allocation_steps=1000)
+    from cerberus_core.train.objective import TERM_TABLE
+
+    assert {t.name for t in TERM_TABLE if t.allocation} == {"keypoint_coverage", "consensus_coverage", "separation"}
+    assert losses.weights_at(0) == losses.weights
+    half = losses.weights_at(500)
+    assert (half["consensus_coverage"], half["keypoint_coverage"], half["separation"]) == (1.5, 0.5, 1.0)
+    assert half["chamfer"] == 0.1 and half["recon"] == 1.0
+    assert losses.weights_at(5000)["consensus_coverage"] == 0.0 == losses.weights_at(None)["separation"]
+    assert LossConfig(consensus_coverage=3.0).weights_at(10**6)["consensus_coverage"] == 3.0
+    model, scene, batch, _ = _setup()
+    with torch.no_grad():
+        model.translation.coords.weight.zero_()
+    cfg = LossConfig(recon=0, translation=0, background=0, smoothness=0, separation=1.0, allocation_steps=10)
+    early = quadruplet_objective(model, make_renderer("torch"), batch, scene, cfg, torch.Generator().manual_seed(0),
+                                 step=0)
+    late = quadruplet_objective(model, make_renderer("torch"), batch, scene, cfg, torch.Generator().manual_seed(0),
+                                step=10)
+    assert early.terms["separation"] > 0 and float(early.total) > 0
+    assert float(late.total) == 0.0

@@ -300,6 +300,8 @@ class Term:
         source: where it comes from: the paper's equations, or ``beyond the paper``.
         summary: what it measures, in one line (docs, :func:`terms_table`).
         function: the function of :mod:`cerberus_core.losses` that defines it.
+        allocation: a pull that decides where the parts go (issue 38): with ``losses.allocation_steps: S``
+            its weight fades linearly to 0 over the first ``S`` steps (:meth:`LossConfig.weights_at`).
     """
 
     name: str
@@ -310,6 +312,7 @@ class Term:
     source: str
     summary: str
     function: Callable[..., Tensor]
+    allocation: bool = False
 
     @property
     def paper(self) -> bool:
@@ -346,13 +349,13 @@ TERM_TABLE: tuple[Term, ...] = (
          silhouette_coverage),
     Term("keypoint_coverage", 0.0, _keypoint_coverage, False, "lambda_kc L_kc", BEYOND,
          "every foreground pixel's distance to the nearest part keypoint, thin structures weighted up (k-means)",
-         silhouette_coverage),
+         silhouette_coverage, allocation=True),
     Term("consensus_coverage", 0.0, _consensus_coverage, False, "lambda_kv L_kv", BEYOND,
          "keypoint k-means over both views of a pose: each part's translation averaged over the pose's two "
-         "viewpoints, projected into each image, against its foreground", pose_consensus),
+         "viewpoints, projected into each image, against its foreground", pose_consensus, allocation=True),
     Term("separation", 0.0, lambda x: part_separation(x.parts.translations), False, "lambda_sep L_sep", BEYOND,
          "KeypointNet's separation in 3D: parts whose translations lie closer than 0.1 push apart",
-         part_separation),
+         part_separation, allocation=True),
     Term("overlap", 0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), False, "lambda_o L_o", BEYOND,
          "share of each part's volume inside another part (each part the Gaussian of its vertices)", part_overlap),
     Term("rotation", 0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), False, "lambda_R L_R", BEYOND,
@@ -389,6 +392,22 @@ class _LossSettings(Checked):
         """``{term name: weight}`` in :data:`TERMS` order."""
         return {t.name: float(getattr(self, t.name)) for t in TERM_TABLE}
 
+    def weights_at(self, step: int | None) -> dict[str, float]:
+        """:attr:`weights` at training step ``step``: with ``allocation_steps: S > 0`` the allocation pulls
+        (:attr:`Term.allocation`) are scaled by ``max(0, 1 - step / S)``, so they place the parts early and
+        leave the refinement to the image terms (``None``: after training, faded).
+
+        Example:
+            >>> losses = LossConfig(consensus_coverage=3.0, allocation_steps=1000)
+            >>> [losses.weights_at(s)["consensus_coverage"] for s in (0, 500, 1000, None)]
+            [3.0, 1.5, 0.0, 0.0]
+        """
+        weights = self.weights
+        if self.allocation_steps <= 0:
+            return weights
+        scale = 0.0 if step is None else max(0.0, 1.0 - step / self.allocation_steps)
+        return {t.name: weights[t.name] * scale if t.allocation else weights[t.name] for t in TERM_TABLE}
+
 
 SWITCHES: tuple[tuple[str, Any, Any, str], ...] = (
     ("pose_consistency", bool, True, "render with the mixed shape latent of equation 3 (off: each image uses its "
@@ -404,6 +423,9 @@ SWITCHES: tuple[tuple[str, Any, Any, str], ...] = (
      "partner's screen (cross_view_at)"),
     ("cross_pulls", bool, False, "apply the chamfer, coverage and hidden-part pulls to the cross view as well, against the "
      "partner's foreground, averaged with the input view's like equation 4; off: the input view only"),
+    ("allocation_steps", int, ranged(0, ge=0), "the allocation pulls (keypoint_coverage, consensus_coverage, "
+     "separation) fade linearly from their weight at step 0 to nothing at this step, so they place the parts early and "
+     "leave the rest of training to the image terms (LossConfig.weights_at); 0: full weight for the whole run"),
     ("render_background", Literal["black", "dataset"], "black", "the background colour of the reconstruction "
      "loss: 'black' sets the input's background pixels (mask b) to black in the target and composites the "
      "renderings over black (the barycentric renderer has no silhouette gradient, so a part over a white "
@@ -474,7 +496,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                 cross_view=losses.cross_view_at(step))
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
                              smoothness_once and losses.pose_consistency, renderer.nearest_indices, losses.cross_pulls)
-    weights = losses.weights
+    weights = losses.weights_at(step)
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}
     total = sum(weights[k] * values[k] for k in TERMS if weights[k] != 0)
