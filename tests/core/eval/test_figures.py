@@ -7,9 +7,11 @@ import torch
 from PIL import Image
 
 from cerberus_core.eval import figures
+from cerberus_core.eval.allocation import keypoints
 from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera
+from cerberus_core.viz import part_colors
 from tests.support.oracle import body_parts
 
 H = 40
@@ -75,11 +77,16 @@ def test_comparison_figure_columns(renderer, primitive_bodies):
     blob = PartSet.from_posed(torch.as_tensor(bodies[0].vertices)[None].expand(3, -1, -1),
                                          torch.as_tensor(bodies[0].faces))
     titles, rows = figures.comparison_rows(renderer, images, cams, ours, {"NMR": blob, "NMRs": blob})
-    assert titles == ["Input", "NMR", "NMRs", "Ours", "Parts", "Turn"]
-    assert len(rows) == 3 and all(len(r) == 6 for r in rows)
-    torch.testing.assert_close(rows[1][3], images[1])
+    assert titles == ["Input", "Keypoints", "NMR", "NMRs", "Ours", "Parts", "Turn"]
+    assert len(rows) == 3 and all(len(r) == 7 for r in rows)
+    torch.testing.assert_close(rows[1][4], images[1])
+    # the keypoints: the input, with each part's translation marked in its colour where it projects
+    uv = keypoints(ours, cams)
+    col, row = (int(x) for x in uv[1, -1].floor())  # the last part is drawn over the others
+    assert rows[1][1][:, row, col].tolist() == part_colors(ours.num_parts)[-1].tolist()
+    assert (rows[1][1] != images[1]).any(dim=0).sum() <= 5 * ours.num_parts
     img = figures.comparison_figure(renderer, images, cams, ours, {"NMR": blob}, scale=1)
-    assert img.size == (5 * (H + PAD) + PAD, TITLE_HEIGHT + 3 * (H + PAD) + PAD)
+    assert img.size == (6 * (H + PAD) + PAD, TITLE_HEIGHT + 3 * (H + PAD) + PAD)
     with pytest.raises(ValueError, match="reconstructions for 3 images"):
         figures.comparison_rows(renderer, images, cams, ours.index([0, 1]))
 

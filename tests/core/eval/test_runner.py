@@ -68,9 +68,19 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     assert len(rec["deletion_loss"]) == 10
     assert pq["sides_merged"]["consistency"] == 1.0 and "shin" in pq["sides_merged"]["gt_parts"]
 
+    # Allocation: the oracle's translations are its capsules' vertex centroids, so each segment has a keypoint
+    # on its projected centroid and each part's keypoint spreads as its segment's centroid does.
+    alloc = res.allocation
+    assert alloc["images"] == n and list(alloc["segment_to_keypoint"]) == names
+    assert max(alloc["segment_to_keypoint"].values()) < 1e-3
+    assert alloc["keypoint_spread"] == pytest.approx(list(alloc["segment_spread"].values()), abs=1e-3)
+    assert 0 < sum(alloc["unique_coverage"]) <= 1 and len(res.records[0]["unique_coverage"]) == 10
+    assert len(res.records[0]["keypoints"]) == 10
+
     path = write_json(res, tmp_path / "results.json")
     data = json.loads(path.read_text())
     assert data["standard"]["count"] == n and len(data["records"]) == n
+    assert data["allocation"]["keypoint_spread"] == alloc["keypoint_spread"]
     assert data["part_visibility"]["hidden_fraction"] == pytest.approx(vis["hidden_fraction"])
     md = markdown_report(data, "Oracle")
     assert "| all | 1.0000 |" in md and "Hard Human" in md and "| head | 1.000 |" in md
@@ -78,6 +88,7 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     assert "### With left and right merged" in md and "| shin | 1.000 |" in md
     assert "## Body segments" in md and "| lower_arm.L | " in md and "| IoU lost when deleted | Spare |" in md
     assert data["segments"]["recall"] == seg["recall"]
+    assert "## Allocation" in md and "| Keypoint spread (px) | Alone covers |" in md and "keypoints: spread" in md
 
 
 def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
@@ -89,9 +100,10 @@ def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
     md = markdown_report(res)
     assert "## Part visibility" in md and "| Learned part | Hidden in input view | Silhouette share | Visible pixels |" in md
     res = evaluate_dataset(tiny_dataset, model, indices=[3], hard=False, part_quality=False, visibility=False,
-                           segments=False, scorer=VoxelScorer(factory=iou_scorer), progress=False)
+                           segments=False, allocation=False, scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert res.part_visibility is None and "visible_pixels" not in res.records[0]
     assert res.segments is None and "deletion_loss" not in res.records[0]
+    assert res.allocation is None and "keypoints" not in res.records[0] and "Allocation" not in markdown_report(res)
     assert "visibility" not in markdown_report(res) and "Body segments" not in markdown_report(res)
     res = evaluate_dataset(tiny_dataset, model, indices=[3], part_quality=False, visibility=False,
                            scorer=VoxelScorer(factory=iou_scorer), progress=False)

@@ -279,3 +279,17 @@ def test_a_resume_may_not_shorten_the_run(tiny_config, tmp_path):
                        r"cannot end before it \(`train.steps=2` or more"):
         train(tiny_config("train.steps=1", "train.image_every=0"), tmp_path / "run", resume=True)
     assert {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")} == before
+
+
+def test_allocation_is_logged_on_a_fixed_test_batch_and_leaves_the_training_as_it_was(tiny_config, tmp_path):
+    probed = train(tiny_config("train.allocation_every=2"), tmp_path / "probed")
+    plain = train(tiny_config("train.allocation_every=0"), tmp_path / "plain")
+    assert_same_weights(params(probed.model), params(plain.model))  # eval mode, no gradient, no RNG drawn
+    logged = {r["step"]: r for r in rows(tmp_path / "probed")}
+    for step in ("2", "4"):
+        assert 0 <= float(logged[step]["keypoint_spread_max"]) < 32  # pixels of the 32-px images
+        assert float(logged[step]["keypoint_spread_top4"]) <= float(logged[step]["keypoint_spread_max"])
+        assert 0 <= float(logged[step]["segment_to_keypoint_mean"]) <= float(logged[step]["segment_to_keypoint_max"])
+        assert float(logged[step]["low_coverage_parts"]).is_integer()
+    assert logged["1"]["keypoint_spread_max"] == logged["3"]["keypoint_spread_max"] == ""
+    assert all(r["keypoint_spread_max"] == "" for r in rows(tmp_path / "plain"))

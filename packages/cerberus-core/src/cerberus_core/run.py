@@ -31,6 +31,7 @@ from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError
+from cerberus_core.eval.allocation import allocation_line
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, write_reconstructions
@@ -390,6 +391,8 @@ class Evaluation:
             lines.append("depth: " + depth_line(result.depth))
         if result.segments is not None:
             lines.append(segments_line(result.segments))
+        if result.allocation is not None:
+            lines.append(allocation_line(result.allocation))
         if weights.stale_warning():  # said again under the scores, where it is read
             lines.append(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
                          f"{printable(weights.newer)} (step {weights.newer_step})")

@@ -44,6 +44,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-segments", action="store_true",
                    help="skip the body segments (recall, off-body voxels and input-view coverage per ground-truth "
                    "segment; the IoU lost when each learned part is deleted)")
+    p.add_argument("--no-allocation", action="store_true",
+                   help="skip the allocation diagnostics (per learned part its keypoint's spread around the "
+                   "silhouette centroid and the foreground it alone covers; per segment the nearest keypoint)")
     p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
@@ -85,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     # Every argument is checked, and every model and the dataset opened, before anything is written.
     settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
                             hard=not args.no_hard, part_quality=not args.no_part_quality,
-                            segments=not args.no_segments, limit=args.limit,
+                            segments=not args.no_segments, allocation=not args.no_allocation, limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,
                             renderer=args.renderer, overwrite=args.overwrite)
     run_ = Run.load(args.run, args.device)

@@ -10,11 +10,13 @@ image to which each metric adds its own fields). An accumulator follows :class:`
 * :class:`HardHumanIoU`: the subject's canonical part shapes posed by each other image;
 * :class:`PartQuality`: the parts against the ground-truth semantic parts;
 * :class:`BodySegments`: recall and off-body voxels per ground-truth body segment, the IoU each learned
-  part is worth, and each segment's coverage in the input view.
+  part is worth, and each segment's coverage in the input view;
+* :class:`Allocation`: where the parts' keypoints sit against the silhouette and the segments, and the
+  foreground each part alone covers (:mod:`cerberus_core.eval.allocation`).
 
 What several metrics need of one batch is computed once, by the :class:`BatchResult`: the voxels of
 each image (:meth:`BatchResult.voxels`) and the input-view render of the parts
-(:meth:`BatchResult.part_id`).
+(:meth:`BatchResult.part_id`), and the ground truth's own render (:meth:`BatchResult.gt_foreground`).
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ import torch
 
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.errors import DatasetError
+from cerberus_core.eval.allocation import AllocationAccumulator, measure_allocation
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
 from cerberus_core.eval.segments import (
@@ -63,6 +66,7 @@ class BatchResult:
     singles: list[PartSet] = field(init=False)
     _voxels: dict[int, Voxels] = field(init=False, default_factory=dict)
     _part_id: dict[int, torch.Tensor] = field(init=False, default_factory=dict)
+    _foreground: dict[int, torch.Tensor] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.singles = [self.recon.index(b) for b in range(len(self.items))]
@@ -80,6 +84,23 @@ class BatchResult:
         if id(renderer) not in self._part_id:
             self._part_id[id(renderer)] = input_view_part_id(renderer, self.recon, self.camera).cpu()
         return self._part_id[id(renderer)]
+
+    def gt_foreground(self, renderer: Renderer) -> torch.Tensor:
+        """``(B, H, W)`` bool: where each image's ground-truth body covers its input view (the body's own
+        render, one per body for all its views in the batch), rendered once per batch and renderer, on
+        the CPU."""
+        key = id(renderer)
+        if key not in self._foreground:
+            out = torch.zeros(len(self.items), self.camera.height, self.camera.width, dtype=torch.bool)
+            for group in group_by_body(self.bodies):
+                body = self.bodies[group[0]]
+                verts = torch.as_tensor(body.vertices, dtype=torch.float32).expand(len(group), -1, -1)
+                with torch.no_grad():
+                    own = render(renderer, verts.to(self.camera.device).contiguous(), torch.as_tensor(body.faces),
+                                 self.camera.index(group)).part_id.cpu() >= 0
+                out[group] = own
+            self._foreground[key] = out
+        return self._foreground[key]
 
     def scored(self):
         """``(b, item, single reconstruction, ground-truth (vertices, faces), record)`` per image."""
@@ -223,22 +244,52 @@ class BodySegments:
 
     def _coverage(self, batch: BatchResult) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per image, which ground-truth vertices project onto a pixel covered by the predicted parts
-        and by the ground truth's own render (one render per body, for all its views in the batch)."""
+        and by the ground truth's own render (:meth:`BatchResult.gt_foreground`)."""
         predicted = batch.part_id(self.renderer) >= 0
+        own = batch.gt_foreground(self.renderer)
         camera = batch.camera.to("cpu")
         out: list[Any] = [None] * len(batch.items)
         for group in group_by_body(batch.bodies):
             body = batch.bodies[group[0]]
             cams = camera.index(group)
             verts = torch.as_tensor(body.vertices, dtype=torch.float32).expand(len(group), -1, -1)
-            with torch.no_grad():
-                own = render(self.renderer, verts.to(batch.camera.device).contiguous(),
-                             torch.as_tensor(body.faces), batch.camera.index(group)).part_id.cpu() >= 0
             covered = covered_vertices(predicted[group], verts, cams).numpy()
-            gt_covered = covered_vertices(own, verts, cams).numpy()
+            gt_covered = covered_vertices(own[group], verts, cams).numpy()
             for k, b in enumerate(group):
                 out[b] = (covered[k], gt_covered[k])
         return out
+
+    def summary(self) -> dict[str, Any] | None:
+        return None if self.counts is None else self.counts.summary()
+
+
+class Allocation:
+    """Where the learned parts go (:mod:`cerberus_core.eval.allocation`): per part its keypoint's spread
+    around the silhouette centroid and the foreground it alone covers, per ground-truth segment the
+    distance to the nearest keypoint; adds ``keypoints`` (per part, ``[u, v]`` px) and ``unique_coverage``
+    (per part) to each record. Renders each part alone once per batch, and reuses the ground truth's
+    render (:meth:`BatchResult.gt_foreground`)."""
+
+    def __init__(self, renderer: Renderer) -> None:
+        self.renderer = renderer
+        self.counts: AllocationAccumulator | None = None
+
+    def update(self, batch: BatchResult) -> None:
+        first = batch.bodies[0]
+        if self.counts is None:
+            self.counts = AllocationAccumulator(list(first.part_names), batch.recon.num_parts)
+        for item, body in zip(batch.items, batch.bodies, strict=True):
+            if list(body.part_names) != self.counts.segments or len(body.vertices) != len(first.vertices):
+                raise DatasetError(f"item {item.index}: ground-truth body {body.part_names} ({len(body.vertices)} "
+                                   f"vertices) differs from the first item's {self.counts.segments}; allocation needs "
+                                   "one body source: evaluate a dataset of one body source")
+        vertices = torch.stack([torch.as_tensor(b.vertices, dtype=torch.float32) for b in batch.bodies])
+        measured = measure_allocation(self.renderer, batch.recon, batch.camera, batch.gt_foreground(self.renderer),
+                                      (vertices, torch.as_tensor(first.vertex_parts), len(first.part_names)))
+        self.counts.add(measured)
+        for b, rec in enumerate(batch.records):
+            rec["keypoints"] = [[round(float(u), 3), round(float(v), 3)] for u, v in measured.keypoints[b]]
+            rec["unique_coverage"] = [round(float(c), 5) for c in measured.unique[b]]
 
     def summary(self) -> dict[str, Any] | None:
         return None if self.counts is None else self.counts.summary()

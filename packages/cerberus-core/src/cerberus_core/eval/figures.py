@@ -7,7 +7,9 @@ the input camera's elevation, distance and field of view and change the azimuth.
 
 Figure 1 panels: (a) input, (b) 3D output, (c) parts in colours, (d) new lighting, (e) new viewpoint,
 (f) new pose (the parts of this image with the rotations and translations predicted from another).
-Table 2 columns: input, any number of baselines, ours, parts, turn (ours from another azimuth); the
+Table 2 columns: input, keypoints (each part's keypoint on the input, in its part colour: where the
+translation head put it; :mod:`cerberus_core.eval.allocation`), any number of baselines, ours, parts, turn
+(ours from another azimuth); the
 figure ``cerberus eval`` writes adds the voxels the IoU scores, seen from the front and the side
 (:func:`voxel_views`: hits grey, missed voxels red, off-body voxels blue).
 """
@@ -21,6 +23,7 @@ import torch
 from PIL import Image, ImageDraw, ImageFont
 
 from cerberus_core.errors import ConfigError, ShapeError
+from cerberus_core.eval.allocation import keypoints
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import write_reconstruction_viewer
@@ -29,6 +32,7 @@ from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION, Light
+from cerberus_core.shapes import check_shapes
 from cerberus_core.viz import atomic_save_png, draw_text, figure_font, part_colors, text_width, to_uint8, wrap_text
 
 Tensor = torch.Tensor
@@ -246,10 +250,42 @@ def figure_one(panels: Mapping[str, Tensor], scale: int = 2, columns: int = 3, n
 
 
 # ------------------------------------------------------------------ Table 2
+def draw_keypoints(images: Tensor, points: Tensor) -> Tensor:
+    """Mark points on images, point ``k`` in part colour ``k`` (:func:`cerberus_core.viz.part_colors`).
+
+    Args:
+        images: ``(N, 3, H, W)`` in [0, 1]; points: ``(N, P, 2)`` pixel coordinates ``(u, v)`` (centres at
+            ``j + 0.5``, :func:`~cerberus_core.eval.allocation.keypoints`).
+    Returns:
+        ``(N, 3, H, W)`` a copy with a 5-pixel cross at each point that lies in the image (its arms
+        clipped at the border), later parts drawn over earlier ones.
+
+    Example:
+        >>> out = draw_keypoints(torch.zeros(1, 3, 8, 8), torch.tensor([[[2.5, 5.5]]]))
+        >>> out[0, :, 5, 2].tolist() == part_colors(1)[0].tolist(), int(out[0, 0].gt(0).sum())
+        (True, 5)
+    """
+    check_shapes("draw_keypoints", images=(images, "N 3 H W"), points=(points, "N P 2"))
+    out = images.detach().float().cpu().clone()
+    h, w = out.shape[-2:]
+    colours = part_colors(points.shape[1])
+    cells = points.detach().float().cpu().floor()
+    for n in range(out.shape[0]):
+        for k in range(points.shape[1]):
+            col, row = cells[n, k].tolist()
+            if not (0 <= col < w and 0 <= row < h):
+                continue
+            for dc, dr in ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)):
+                c, r = int(col) + dc, int(row) + dr
+                if 0 <= c < w and 0 <= r < h:
+                    out[n, :, r, c] = colours[k]
+    return out
+
+
 def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSet,
                     baselines: Mapping[str, PartSet] | None = None, *, turn_deg: float = 90.0,
                     background: RGB = DEFAULT_BACKGROUND) -> tuple[list[str], list[list[Tensor]]]:
-    """The cells of a Table-2 figure: for each image, input | baselines... | ours | parts | turn.
+    """The cells of a Table-2 figure: for each image, input | keypoints | baselines... | ours | parts | turn.
 
     Args:
         images: ``(N, 3, H, W)`` inputs; camera: their ``N`` cameras.
@@ -267,6 +303,7 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
             raise ShapeError(f"comparison_rows: {name} has {rec.batch_size} reconstructions for {n} images; pass one "
                              "reconstruction per image for every baseline")
     columns = {"Input": images.detach().float().cpu().clamp(0, 1)}
+    columns["Keypoints"] = draw_keypoints(columns["Input"], keypoints(ours, camera))
     for name, rec in baselines.items():
         columns[name] = render_reconstruction(renderer, rec, camera, background=background).cpu()
     columns["Ours"] = render_reconstruction(renderer, ours, camera, background=background).cpu()

@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from cerberus_core.eval.allocation import allocation_line
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.runner import EvaluationResult
 from cerberus_core.eval.segments import segments_line
@@ -148,6 +149,8 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
                 markdown_table(["Learned part", "Majority GT part", "Translation disagreement"], drow, 3), ""]
     if r.get("segments"):
         out += _segments(r["segments"], pq)
+    if r.get("allocation"):
+        out += _allocation(r["allocation"], pq)
     return "\n".join(out)
 
 
@@ -186,6 +189,24 @@ def _segments(seg: Mapping[str, Any], pq: Mapping[str, Any] | None) -> list[str]
     out += [f"IoU lost when a learned part is deleted (mean over images; spare: at most {seg['spare_threshold']:g}):",
             "", markdown_table(["Learned part", "Majority GT part", "IoU lost when deleted", "Spare"], rows, 4), ""]
     return out
+
+
+def _allocation(alloc: Mapping[str, Any], pq: Mapping[str, Any] | None) -> list[str]:
+    """The allocation section: per learned part, then per ground-truth segment."""
+    line = allocation_line(alloc)
+    labels = {p["part"]: p["label"] for p in pq["parts"]} if pq else {}
+    prow = [[p, labels.get(p) or "-", spread, alloc["unique_coverage"][p]]
+            for p, spread in enumerate(alloc["keypoint_spread"])]
+    srow = [[k, alloc["segment_to_keypoint"][k], alloc["segment_spread"][k]] for k in alloc["segment_to_keypoint"]]
+    return ["## Allocation", "",
+            f"Where the parts go, in pixels of the input image, {alloc['images']} images. {line[0].upper() + line[1:]}. "
+            "*Keypoint spread*: the standard deviation over images of (keypoint − the ground-truth silhouette's "
+            "centroid), RMS of the two axes; *alone covers*: the mean share of the ground-truth foreground that "
+            "only this part covers (each part rendered on its own); *to nearest keypoint*: the median distance "
+            "from the segment's projected vertex centroid to the nearest keypoint; *segment spread*: the same "
+            "spread as the keypoints' for the segment's centroid, for scale.", "",
+            markdown_table(["Learned part", "Majority GT part", "Keypoint spread (px)", "Alone covers"], prow, 3), "",
+            markdown_table(["GT segment", "To nearest keypoint (px)", "Segment spread (px)"], srow, 2), ""]
 
 
 def _visibility_sentence(vis: Mapping[str, Any]) -> str:

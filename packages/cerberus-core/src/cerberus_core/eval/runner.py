@@ -28,6 +28,7 @@ from tqdm import tqdm
 
 from cerberus_core.errors import DatasetError, InputTypeError, ShapeError
 from cerberus_core.eval.accumulators import (
+    Allocation,
     BatchResult,
     BodySegments,
     HardHumanIoU,
@@ -136,9 +137,11 @@ class EvaluationResult:
         part_visibility: :meth:`VisibilityAccumulator.summary` (``None`` if not run).
         depth: :meth:`DepthAccumulator.summary` (``None`` if not run or no pose has two views).
         segments: :meth:`~cerberus_core.eval.segments.SegmentAccumulator.summary` (``None`` if not run).
+        allocation: :meth:`~cerberus_core.eval.allocation.AllocationAccumulator.summary` (``None`` if not run).
         records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error,
             visible_pixels (per part, in the input view), voxel_precision, voxel_recall,
-            segment_recall (per ground-truth segment), deletion_loss (per learned part).
+            segment_recall (per ground-truth segment), deletion_loss (per learned part), keypoints and
+            unique_coverage (per learned part).
         seconds: wall time.
     """
 
@@ -151,6 +154,7 @@ class EvaluationResult:
     part_visibility: dict[str, Any] | None = None
     depth: dict[str, Any] | None = None
     segments: dict[str, Any] | None = None
+    allocation: dict[str, Any] | None = None
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -175,6 +179,7 @@ class EvaluationResult:
             "part_visibility": self.part_visibility,
             "depth": self.depth,
             "segments": self.segments,
+            "allocation": self.allocation,
             "seconds": round(self.seconds, 3),
             "records": self.records,
         }
@@ -209,6 +214,9 @@ class EvalConfig(Checked):
         segments: also measure, per ground-truth body segment, voxel recall, off-body voxels and input-view
             coverage, and per learned part the IoU lost when it is deleted (:mod:`cerberus_core.eval.segments`;
             no voxelization beyond the standard IoU's, one render of each ground truth per batch).
+        allocation: also measure where the parts go: per part its keypoint's spread around the silhouette
+            centroid and the foreground it alone covers, per segment the distance to the nearest keypoint
+            (:mod:`cerberus_core.eval.allocation`; each part rendered alone once per batch).
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
         batch_size, num_workers: model batching, data-loading workers.
         weighting: part-quality vertex weights, ``"area"`` or ``"count"``.
@@ -226,6 +234,7 @@ class EvalConfig(Checked):
     visibility: bool = True
     depth: bool = True
     segments: bool = True
+    allocation: bool = True
     canonical_view: int | None = ranged(None, ge=0, integer=True)
     batch_size: int = ranged(16, ge=1)
     num_workers: int = ranged(0, ge=0, le=MAX_WORKERS)
@@ -237,15 +246,18 @@ class EvalConfig(Checked):
 def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalConfig, scorer: VoxelScorer,
                         renderer: Renderer | None, device: torch.device | str) -> list[MetricAccumulator]:
     """The accumulators ``config`` asks for, in the order they fill each record: standard IoU, part
-    visibility, Hard Human (its canonical shapes reconstructed now), part quality, depth, body segments."""
+    visibility, Hard Human (its canonical shapes reconstructed now), part quality, depth, body segments,
+    allocation."""
     hard = None
     if config.hard and (chosen := select_canonical(dataset_metadata(dataset), config.canonical_view)):
         hard = HardHumanIoU(scorer, extract_canonical(dataset, reconstruct, chosen, device, config.batch_size))
-    renderer = renderer or (make_renderer("auto") if config.visibility or config.depth or config.segments else None)
+    renderer = renderer or (make_renderer("auto") if config.visibility or config.depth or config.segments
+                                           or config.allocation else None)
     optional = [PartVisibility(renderer) if config.visibility else None, hard,
                 PartQuality(config.weighting, config.density) if config.part_quality else None,
                 DepthAccumulator(renderer) if config.depth else None,
-                BodySegments(scorer, renderer) if config.segments else None]
+                BodySegments(scorer, renderer) if config.segments else None,
+                Allocation(renderer) if config.allocation else None]
     return [StandardIoU(scorer), *(a for a in optional if a is not None)]
 
 
@@ -315,6 +327,7 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
         part_visibility=None if PartVisibility not in found else found[PartVisibility].summary(),
         depth=None if DepthAccumulator not in found else found[DepthAccumulator].summary(),
         segments=None if BodySegments not in found else found[BodySegments].summary(),
+        allocation=None if Allocation not in found else found[Allocation].summary(),
         records=records,
         seconds=time.perf_counter() - t0,
     )

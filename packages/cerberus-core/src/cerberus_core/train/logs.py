@@ -2,8 +2,10 @@
 
 Files in the run folder::
 
-    RUN/metrics.csv            one row per logged step (step, lr, steps/s, skipped, loss terms)
-    RUN/tensorboard/           TensorBoard event files (if the ``tensorboard`` package is importable)
+    RUN/metrics.csv            one row per logged step (step, lr, steps/s, skipped, loss terms; the
+                               allocation columns at ``train.allocation_every``)
+    RUN/tensorboard/           TensorBoard event files (if the ``tensorboard`` package is importable),
+                               with every part's and segment's allocation number under ``allocation/``
     RUN/images/step_XXXXXXX.png  inputs / reconstructions / parts in colour, at ``train.image_every``
     RUN/loss_curves.png        every loss term against the step (log scale), written at the end
 """
@@ -18,7 +20,11 @@ from pathlib import Path
 import torch
 from PIL import Image, ImageDraw
 
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.eval.accumulators import Allocation
+from cerberus_core.eval.runner import batch_result, collate
+from cerberus_core.eval.standard import GroundTruthMemo
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -29,7 +35,12 @@ from cerberus_core.viz import atomic_save_png, draw_text, figure_font, part_colo
 Tensor = torch.Tensor
 
 LOSS_FIELDS = ("total", *TERMS)
-CSV_FIELDS = ("step", "elapsed_s", "lr", "steps_per_s", "grad_norm", "skipped", *LOSS_FIELDS)
+ALLOCATION_FIELDS = ("keypoint_spread_max", "keypoint_spread_top4", "segment_to_keypoint_max",
+                     "segment_to_keypoint_mean", "low_coverage_parts")
+"""The allocation columns of ``metrics.csv`` (:class:`AllocationProbe`): the largest keypoint spread and the
+mean of the four largest (px), the largest and the mean over segments of the median distance to the nearest
+keypoint (px), and how many parts alone cover at most 2 % of the foreground."""
+CSV_FIELDS = ("step", "elapsed_s", "lr", "steps_per_s", "grad_norm", "skipped", *LOSS_FIELDS, *ALLOCATION_FIELDS)
 
 
 def _read_rows(path: Path) -> list[dict[str, str]]:
@@ -75,13 +86,71 @@ class MetricsLog:
         self._file.flush()
         if self.tb is not None:
             for k, v in values.items():
-                if k != "step":
-                    self.tb.add_scalar(f"{'loss' if k in LOSS_FIELDS else 'train'}/{k}", v, step)
+                if k != "step":  # a name with its own group ("allocation/...") keeps it
+                    self.tb.add_scalar(k if "/" in k else f"{'loss' if k in LOSS_FIELDS else 'train'}/{k}", v, step)
 
     def close(self) -> None:
         self._file.close()
         if self.tb is not None:
             self.tb.close()
+
+
+class AllocationProbe:
+    """The allocation diagnostics of ``cerberus eval`` (:mod:`cerberus_core.eval.allocation`, the same
+    code) on a fixed batch of test views, for the training logs.
+
+    Args:
+        views: a :class:`~cerberus_core.datasets.readers.ViewDataset` with ground truth.
+        renderer: the backend that renders the parts and the ground truth.
+        count: views in the batch, spread evenly over ``views``.
+    """
+
+    def __init__(self, views, renderer: Renderer, count: int = 16) -> None:
+        self.views, self.renderer = views, renderer
+        self.indices = torch.linspace(0, len(views) - 1, min(count, len(views))).round().long().unique().tolist()
+        self.batch = collate([views[i] for i in self.indices])
+        self.camera = views.cameras(self.batch)
+        self.memo = GroundTruthMemo(views.gt_mesh, size=len(self.indices))  # every body kept
+
+    @classmethod
+    def for_data(cls, root: str | Path, renderer: Renderer, split: str = "test", count: int = 16) -> AllocationProbe | None:
+        """The probe on ``split`` of the dataset at ``root``; ``None`` when there is no such dataset or
+        split with views (the diagnostics need each view's ground-truth body)."""
+        if not Dataset.is_dataset(root):
+            return None
+        data = Dataset.open(root)
+        split_info = data.manifest.splits.get(split)
+        if split_info is None or not split_info.shards:
+            return None
+        views = data.views(split, allow_partial=True)
+        return cls(views, renderer, count) if len(views) else None
+
+    @torch.no_grad()
+    def measure(self, model: torch.nn.Module) -> dict[str, float]:
+        """Run ``model`` (its ``reconstruct``, in eval mode, restored after) on the batch: the
+        :data:`ALLOCATION_FIELDS` and, for TensorBoard, every part's and segment's number under
+        ``allocation/``."""
+        device = next(model.parameters()).device
+        was_training = model.training
+        model.eval()
+        try:
+            camera = self.camera.to(device)
+            recon = model.reconstruct(self.batch["images"].to(device), camera).detach().to("cpu")
+        finally:
+            model.train(was_training)
+        allocation = Allocation(self.renderer)
+        allocation.update(batch_result(self.views, self.batch, self.indices, recon, camera, self.memo))
+        s = allocation.summary()
+        spread = sorted(s["keypoint_spread"], reverse=True)
+        far = [v for v in s["segment_to_keypoint"].values() if math.isfinite(v)]
+        out = {"keypoint_spread_max": spread[0], "keypoint_spread_top4": sum(spread[:4]) / len(spread[:4]),
+               "segment_to_keypoint_max": max(far, default=math.nan),
+               "segment_to_keypoint_mean": sum(far) / len(far) if far else math.nan,
+               "low_coverage_parts": float(len(s["low_coverage_parts"]))}
+        out |= {f"allocation/keypoint_spread/part_{p:02d}": v for p, v in enumerate(s["keypoint_spread"])}
+        out |= {f"allocation/unique_coverage/part_{p:02d}": v for p, v in enumerate(s["unique_coverage"])}
+        out |= {f"allocation/segment_to_keypoint/{k}": v for k, v in s["segment_to_keypoint"].items()}
+        return out
 
 
 @torch.no_grad()

@@ -97,6 +97,10 @@ class LoopConfig(Checked):
         keep_every: also keep a copy ``checkpoints/step_XXXXXXX.pt`` every this many steps (0: never).
         log_every: scalar logs (CSV, TensorBoard) every this many steps.
         image_every: PNG grid of inputs, reconstructions and parts every this many steps (0: never).
+        allocation_every: the allocation diagnostics of ``cerberus eval`` (keypoint spread, segment to
+            nearest keypoint, parts that add little alone) on a fixed batch of 16 test views of the
+            training data, logged every this many steps (``metrics.csv``, TensorBoard; 0: never; skipped
+            when the data has no test split).
         on_nonfinite: ``stop`` (raise, keeping the last good checkpoint) or ``skip`` (drop the
             step's update) when the loss or the gradient is NaN or infinite.
         max_consecutive_skips: with ``skip``, stop after this many non-finite steps in a row.
@@ -112,6 +116,7 @@ class LoopConfig(Checked):
     keep_every: int = ranged(0, ge=0)
     log_every: int = ranged(10, ge=1)
     image_every: int = ranged(1000, ge=0)
+    allocation_every: int = ranged(500, ge=0)
     on_nonfinite: Literal["stop", "skip"] = "stop"
     max_consecutive_skips: int = ranged(20, ge=1)
     tensorboard: bool = True

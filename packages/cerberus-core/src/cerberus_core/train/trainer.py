@@ -77,7 +77,7 @@ from cerberus_core.train.distributed import (
     resolve_device,
     shutdown,
 )
-from cerberus_core.train.logs import MetricsLog, plot_loss_curves, save_progress_grid
+from cerberus_core.train.logs import AllocationProbe, MetricsLog, plot_loss_curves, save_progress_grid
 from cerberus_core.train.objective import quadruplet_objective
 from cerberus_core.train.settings import OptimConfig, TrainConfig, config_diff
 from cerberus_core.train.speed import apply_speed, release_speed, resolve_autocast
@@ -361,6 +361,7 @@ class _Trainer:
     def __init__(self, config: TrainConfig, run_dir: Path, info: DistInfo, device: torch.device, dataset: Any) -> None:
         self.config, self.run_dir, self.info, self.device = config, run_dir, info, device
         self.dataset = dataset if dataset is not None else build_dataset(config.data.root, config.data.split)
+        self.dataset_is_own = dataset is None  # the allocation probe reads the test split of config.data.root
         check_dataset(self.dataset)
         if config.train.batch_size > len(self.dataset):
             raise ConfigError.about("train.batch_size", config.train.batch_size,
@@ -453,6 +454,7 @@ class _Trainer:
             self.run_dir.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.run_dir / "config.yaml", self.config_yaml)
             log = MetricsLog(self.run_dir, start, loop.tensorboard)
+        probe = AllocationProbe.for_data(cfg.data.root, self.renderer) if self._probing() else None
         bar = self._progress_bar(start)
         terms: dict[str, float] = {}
         consecutive, done, interrupted, stop_signal = 0, start, False, 0
@@ -477,16 +479,17 @@ class _Trainer:
                         bar.write(f"warning: {message}; update skipped ({consecutive} in a row)")
                     self.scheduler.step()
                     done, window[1] = step + 1, window[1] + 1
+                    row = self._allocation(probe, done, window)  # the step's log row: these, then the losses
                     if self._due(done, loop.log_every):
                         terms = mean_over_ranks(out.terms, info)
                         now = time.perf_counter()
-                        extra = {"lr": self.optimizer.param_groups[0]["lr"], "grad_norm": grad_norm,
-                                 "steps_per_s": window[1] / max(now - window[0], 1e-9), "skipped": self.skipped,
-                                 "elapsed_s": now - t0}
+                        row |= terms | {"lr": self.optimizer.param_groups[0]["lr"], "grad_norm": grad_norm,
+                                        "steps_per_s": window[1] / max(now - window[0], 1e-9),
+                                        "skipped": self.skipped, "elapsed_s": now - t0}
                         window = [now, 0]
-                        if log is not None:
-                            log.log(done, terms | extra)
                         bar.set_postfix({k: f"{v:.3g}" for k, v in terms.items()})
+                    if log is not None and row:
+                        log.log(done, row)
                     if info.is_main and ok and self._due(done, loop.image_every):
                         self._pictures(batch, out, done)
                     bar.update(1)
@@ -509,6 +512,21 @@ class _Trainer:
         barrier(info)
         return TrainResult(self.run_dir, done, release_speed(self.model), terms, self.skipped, interrupted, info.rank,
                            stop_signal)
+
+    def _probing(self) -> bool:
+        """Whether this process logs the allocation diagnostics: the main one, when asked, on the data of
+        ``data.root`` (not a dataset object passed in)."""
+        return self.info.is_main and bool(self.config.train.allocation_every) and self.dataset_is_own
+
+    def _allocation(self, probe: AllocationProbe | None, done: int, window: list) -> dict[str, float]:
+        """The allocation diagnostics when due (every ``train.allocation_every`` steps, else ``{}``); their
+        time is left out of the logging window's steps/s."""
+        if probe is None or done % self.config.train.allocation_every:
+            return {}
+        before = time.perf_counter()
+        values = probe.measure(self.model)
+        window[0] += time.perf_counter() - before
+        return values
 
     def _progress_bar(self, start: int) -> tqdm:
         """The main process's progress bar (when ``train.progress``), opened with a line that says what

@@ -1,0 +1,114 @@
+"""Allocation diagnostics: each on a hand-built case whose answer is known, then the accumulator."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from cerberus_core.eval.allocation import (
+    AllocationAccumulator,
+    ImageAllocation,
+    allocation_line,
+    keypoint_spread,
+    keypoints,
+    nearest_keypoint_distances,
+    part_masks,
+    segment_centroids,
+    silhouette_centroids,
+    unique_coverage,
+)
+from cerberus_core.model import Cerberus
+from cerberus_core.model.cerberus import ModelConfig
+from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import Camera
+from cerberus_core.render.templates import icosphere
+
+
+def spheres(centres, radius: float = 0.12) -> PartSet:
+    """One image of spheres at ``centres`` (world), identity rotations."""
+    sphere = icosphere(2)
+    p = len(centres)
+    return PartSet((radius * sphere.vertices).expand(1, p, -1, -1).clone(), sphere.faces,
+                   torch.eye(3).expand(1, p, 3, 3).clone(), torch.tensor([centres], dtype=torch.float32))
+
+
+def test_keypoint_spread_is_the_rms_of_the_axes_std_around_the_centroid():
+    # Part 0 moves with the centroid (spread 0); part 1 is at +-3 px in u and +-4 px in v around it.
+    centroid = np.array([[10.0, 20.0], [30.0, 5.0], [12.0, 12.0], [40.0, 40.0]])
+    offsets = np.array([[3.0, 4.0], [-3.0, -4.0], [3.0, -4.0], [-3.0, 4.0]])
+    points = np.stack([centroid + [1.0, 2.0], centroid + offsets], axis=1)  # (N, 2, 2)
+    spread = keypoint_spread(points, centroid)
+    assert spread[0] == pytest.approx(0.0, abs=1e-12)
+    assert spread[1] == pytest.approx(np.sqrt((3.0 ** 2 + 4.0 ** 2) / 2))
+
+
+def test_silhouette_centroid_is_the_mean_pixel_centre():
+    mask = torch.zeros(2, 8, 6, dtype=torch.bool)
+    mask[0, 2:4, 1:5] = True  # rows 2-3, columns 1-4
+    mask[1, 7, 5] = True
+    assert silhouette_centroids(mask).tolist() == [[3.0, 3.0], [5.5, 7.5]]
+
+
+def test_nearest_keypoint_distance_takes_the_closest_part():
+    centroids = np.array([[[0.0, 0.0], [10.0, 10.0]]])  # (1 image, 2 segments)
+    points = np.array([[[3.0, 4.0], [10.0, 12.0], [50.0, 50.0]]])  # 3 keypoints
+    assert nearest_keypoint_distances(centroids, points).tolist() == [[5.0, 2.0]]
+
+
+def test_unique_coverage_counts_foreground_pixels_only_one_part_holds():
+    masks = torch.zeros(1, 3, 2, 4, dtype=torch.bool)
+    masks[0, 0, :, 0:2] = True  # part 0: columns 0-1
+    masks[0, 1, :, 1:3] = True  # part 1: columns 1-2 (column 1 shared with part 0)
+    masks[0, 2, :, 1] = True  # part 2: only the shared column: adds nothing alone
+    fg = torch.ones(1, 2, 4, dtype=torch.bool)
+    fg[0, 1, 0] = False  # one of part 0's own pixels is background
+    share = unique_coverage(masks, fg)[0].tolist()
+    assert share == pytest.approx([1 / 7, 2 / 7, 0.0])
+
+
+def test_keypoints_project_the_translations_and_segment_centroids_project_the_vertex_mean(renderer):
+    camera = Camera.look_at(0.0, 0.0, 2.5, fov_y_deg=30.0, image_size=64)
+    recon = spheres([[0.0, 0.0, 0.0], [0.3, 0.2, 0.0]])
+    uv = keypoints(recon, camera)
+    assert uv[0, 0].tolist() == pytest.approx([32.0, 32.0], abs=1e-4)
+    assert uv[0, 1, 0] > 32 and uv[0, 1, 1] < 32  # right of centre and up (v grows downwards)
+    # a segment of two vertices whose mean is the second sphere's centre lands on its keypoint
+    vertices = torch.tensor([[[0.3, 0.1, 0.0], [0.3, 0.3, 0.0], [0.0, 0.0, 0.0]]])
+    centres = segment_centroids(vertices, torch.tensor([1, 1, 0]), 2, camera)
+    assert torch.allclose(centres[0], uv[0], atol=1e-4)
+    # each part alone: two disjoint spheres, each mask is exactly its own silhouette
+    masks = part_masks(renderer, recon, camera)
+    assert masks.shape == (1, 2, 64, 64) and not (masks[:, 0] & masks[:, 1]).any()
+    assert masks[0, 0, 32, 32] and masks[0, 1, int(uv[0, 1, 1]), int(uv[0, 1, 0])]
+
+
+def test_a_cerberus_keypoint_is_its_expected_pixel_coordinate():
+    """What :func:`keypoints` reads back is ``Predictions.maps.uv``, the model's own keypoint."""
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(width=8, shape_latent_dim=16, num_parts=3, depth_offset=2.5)).eval()
+    images = torch.rand(2, 3, 64, 64)
+    camera = Camera.look_at([0.0, 90.0], 10.0, 2.5, fov_y_deg=30.0, image_size=64)
+    with torch.no_grad():
+        pred = model(images)
+        uv = keypoints(model.pose(pred, camera), camera)
+    assert torch.allclose(uv, pred.maps.uv, atol=1e-3)
+
+
+def test_accumulator_summary_and_line():
+    acc = AllocationAccumulator(["head", "shin"], 2)
+    centroid = np.array([[32.0, 32.0], [30.0, 34.0]])
+    acc.add(ImageAllocation(keypoints=np.array([[[32.0, 20.0], [32.0, 50.0]]]), centroid=centroid[:1],
+                            segments=np.array([[[32.0, 18.0], [32.0, 56.0]]]), unique=np.array([[0.3, 0.01]])))
+    acc.add(ImageAllocation(keypoints=np.array([[[30.0, 22.0], [34.0, 50.0]]]), centroid=centroid[1:],
+                            segments=np.array([[[30.0, 20.0], [34.0, 60.0]]]), unique=np.array([[0.5, 0.03]])))
+    s = acc.summary()
+    assert s["images"] == 2
+    assert s["segment_to_keypoint"] == {"head": pytest.approx(2.0), "shin": pytest.approx(8.0)}  # median of 6, 10
+    assert s["unique_coverage"] == pytest.approx([0.4, 0.02])
+    assert s["low_coverage_parts"] == [1]  # 0.02 is at the threshold
+    # part 0 sits 12 px above the centroid in both images; part 1 at (0, 18) then (4, 16)
+    assert s["keypoint_spread"] == [pytest.approx(0.0), pytest.approx(np.sqrt((2.0 ** 2 + 1.0 ** 2) / 2), abs=1e-4)]
+    line = allocation_line(s)
+    assert line.startswith("keypoints: spread ") and "shin 8.0 px" in line and "1 of 2" in line
+    with pytest.raises(ValueError, match="no images were added"):
+        AllocationAccumulator(["head"], 1).summary()
