@@ -342,3 +342,19 @@ def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off
         out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
         assert out.terms[name].item() == pytest.approx(expected[name].mean().item(), rel=1e-5), name
         assert out.terms[name].item() > 0 and _grad_norm(model, out.total) > 0, name
+
+
+def test_the_network_sees_the_inputs_and_the_losses_compare_against_the_images():
+    """``QuadrupletBatch.inputs`` (``data.input_look``) is what the model is given; the reconstruction targets and
+    the background mask stay the stored images."""
+    model, scene, batch, losses = _setup()
+    looked = batch.images.flip(-2)  # another picture: its white background band at the bottom
+    renderer, gen = make_renderer("torch"), lambda: torch.Generator().manual_seed(3)
+    seeing = quadruplet_objective(model, renderer, QuadrupletBatch(batch.images, batch.camera, looked), scene, losses,
+                                  gen())
+    stored = quadruplet_objective(model, renderer, QuadrupletBatch(looked, batch.camera), scene, losses, gen())
+    own = quadruplet_objective(model, renderer, batch, scene, losses, gen())
+    torch.testing.assert_close(seeing.renders, stored.renders)  # the same input: the same parts
+    assert not torch.allclose(seeing.renders, own.renders)
+    assert seeing.terms["recon"] != stored.terms["recon"]  # ... compared against other targets
+    assert seeing.terms["background"] != stored.terms["background"]  # ... and another background mask

@@ -279,3 +279,12 @@ def test_a_resume_may_not_shorten_the_run(tiny_config, tmp_path):
                        r"cannot end before it \(`train.steps=2` or more"):
         train(tiny_config("train.steps=1", "train.image_every=0"), tmp_path / "run", resume=True)
     assert {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")} == before
+
+
+def test_the_input_look_changes_what_the_network_sees_and_is_a_function_of_the_step(tiny_config, tmp_path):
+    shaded = params(train(tiny_config("train.steps=2", "train.image_every=0"), tmp_path / "shaded").model)
+    looks = [params(train(tiny_config("train.steps=2", "train.image_every=0", "data.input_look=random"),
+                          tmp_path / name).model) for name in ("a", "b")]
+    assert_same_weights(*looks)  # the random appearances are drawn from (seed, step, rank)
+    assert any(not torch.equal(shaded[k], looks[0][k]) for k in shaded)
+    assert "input_look: random" in (tmp_path / "a" / "config.yaml").read_text()
