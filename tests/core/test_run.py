@@ -96,6 +96,40 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
 
 
 
+def test_evaluate_in_an_input_look_shows_the_model_the_test_images_so(tiny_run, tiny_root, tmp_path, capsys):
+    """``EvalSettings.input_look`` (``cerberus eval --input-look``): the model reconstructs the images in that look
+    (the figure's input panel shows them too); the ground truth is the same, and results.json records the look."""
+    from cerberus_core.cli import main
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.datasets.looks import flat_look
+    from cerberus_core.eval.runner import evaluate_dataset
+
+    run = Run.load(tiny_run)
+    settings = EvalSettings(limit=3, hard=False, part_quality=False, segments=False, figure_images=1,
+                            viewer_images=0, renderer="torch", input_look="flat")
+    evaluation = run.evaluate(tiny_root, settings, tmp_path / "flat")
+    assert "the test images in the flat input look" in capsys.readouterr().out.splitlines()[0]
+    views = Dataset.open(tiny_root).views("test")
+    flat = evaluate_dataset(views, lambda im, cam: run.model.reconstruct(flat_look(im, views.scene.background), cam),
+                            settings, indices=range(3), renderer=None)
+    assert [r["iou"] for r in evaluation.result.records] == [r["iou"] for r in flat.records]
+    shaded = evaluate_dataset(views, run.model.reconstruct, settings, indices=range(3))
+    assert [r["iou"] for r in flat.records] != [r["iou"] for r in shaded.records]
+    assert json.loads((tmp_path / "flat" / "results.json").read_text())["input_look"] == "flat"
+    assert "(flat input look)" in (tmp_path / "flat" / "results.md").read_text().splitlines()[0]
+    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--input-look", "flat", "--limit", "3", "--no-hard",
+                 "--no-part-quality", "--no-segments", "--figure-images", "1", "--viewer-images", "0",
+                 "--renderer", "torch", "--out", str(tmp_path / "cli")]) == 0
+    assert json.loads((tmp_path / "cli" / "results.json").read_text())["standard"] == \
+        json.loads((tmp_path / "flat" / "results.json").read_text())["standard"]
+    with pytest.raises(ConfigError, match="input_look = 'grey': must be one of 'shaded', 'flat', 'random'"):
+        EvalSettings(input_look="grey")
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["eval", str(tiny_run), "--input-look", "grey"])
+    assert "--input-look: invalid choice: 'grey'" in capsys.readouterr().err
+
+
 def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, monkeypatch) -> None:
     """core + a backend alone: `cerberus eval` / Run.evaluate say to install cerberus-metrics (issue 26),
     not '--protocol ...: unknown plugin' for a flag nobody gave."""

@@ -373,3 +373,19 @@ def test_allocation_pulls_fade_over_allocation_steps_and_the_image_terms_do_not(
                                 step=10)
     assert early.terms["separation"] > 0 and float(early.total) > 0
     assert float(late.total) == 0.0
+
+
+def test_the_network_sees_the_inputs_and_the_losses_compare_against_the_images():
+    """``QuadrupletBatch.inputs`` (``data.input_look``) is what the model is given; the reconstruction targets and
+    the background mask stay the stored images."""
+    model, scene, batch, losses = _setup()
+    looked = batch.images.flip(-2)  # another picture: its white background band at the bottom
+    renderer, gen = make_renderer("torch"), lambda: torch.Generator().manual_seed(3)
+    seeing = quadruplet_objective(model, renderer, QuadrupletBatch(batch.images, batch.camera, looked), scene, losses,
+                                  gen())
+    stored = quadruplet_objective(model, renderer, QuadrupletBatch(looked, batch.camera), scene, losses, gen())
+    own = quadruplet_objective(model, renderer, batch, scene, losses, gen())
+    torch.testing.assert_close(seeing.renders, stored.renders)  # the same input: the same parts
+    assert not torch.allclose(seeing.renders, own.renders)
+    assert seeing.terms["recon"] != stored.terms["recon"]  # ... compared against other targets
+    assert seeing.terms["background"] != stored.terms["background"]  # ... and another background mask

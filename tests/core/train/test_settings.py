@@ -116,6 +116,8 @@ def test_errors_name_the_key_the_choices_and_the_closest_name():
         load_config(overrides=["model.num_part=3"])
     with pytest.raises(ConfigError, match=r"optim.schedule: must be one of 'constant', 'cosine'.*mean 'cosine'"):
         load_config(overrides=["optim.schedule=cosin"])
+    with pytest.raises(ConfigError, match=r"data.input_look: must be one of 'shaded', 'flat', 'random'"):
+        load_config(overrides=["data.input_look=silhouette"])
     with pytest.raises(ConfigError, match=r"unknown preset 'cpx' \(did you mean 'cpu'\?\)"):
         load_config(preset="cpx")
 

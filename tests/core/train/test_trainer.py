@@ -293,3 +293,12 @@ def test_allocation_is_logged_on_a_fixed_test_batch_and_leaves_the_training_as_i
         assert float(logged[step]["low_coverage_parts"]).is_integer()
     assert logged["1"]["keypoint_spread_max"] == logged["3"]["keypoint_spread_max"] == ""
     assert all(r["keypoint_spread_max"] == "" for r in rows(tmp_path / "plain"))
+
+
+def test_the_input_look_changes_what_the_network_sees_and_is_a_function_of_the_step(tiny_config, tmp_path):
+    shaded = params(train(tiny_config("train.steps=2", "train.image_every=0"), tmp_path / "shaded").model)
+    looks = [params(train(tiny_config("train.steps=2", "train.image_every=0", "data.input_look=random"),
+                          tmp_path / name).model) for name in ("a", "b")]
+    assert_same_weights(*looks)  # the random appearances are drawn from (seed, step, rank)
+    assert any(not torch.equal(shaded[k], looks[0][k]) for k in shaded)
+    assert "input_look: random" in (tmp_path / "a" / "config.yaml").read_text()

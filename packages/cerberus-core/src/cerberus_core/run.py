@@ -28,6 +28,7 @@ from safetensors.torch import load_file
 
 from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.datasets.looks import InputLook, LookedViews
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError
@@ -330,6 +331,9 @@ class EvalSettings(EvalConfig):
         figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
         renderer: backend for the figure and the visibility render (``None``: the run's).
         overwrite: replace an output folder that holds files that are not earlier results.
+        input_look: the test images shown to the model in this look (:mod:`cerberus_core.datasets.looks`:
+            ``shaded`` as stored, ``flat`` silhouettes, ``random`` appearances), scores, figures and viewer
+            alike; the ground truth is the same.
     """
 
     split: str = "test"
@@ -338,6 +342,7 @@ class EvalSettings(EvalConfig):
     viewer_images: int = ranged(12, ge=0)
     renderer: str | None = None
     overwrite: bool = False
+    input_look: InputLook = "shaded"
 
     def validate(self) -> None:
         check_eval_packages(self.part_quality, self.segments)
@@ -558,12 +563,15 @@ class Run:
         source = Dataset.open(data or self.data_root)
         dataset = source.views(s.split)
         dataset.scene  # noqa: B018 - read (and checked) now, not midway through the evaluation
+        if s.input_look != "shaded":
+            dataset = LookedViews(dataset, s.input_look)
         for note in self.domain_notes(data or self.data_root):
             warnings.warn(f"{note}: the scores measure the model outside what it learned", UserWarning, stacklevel=2)
         backend = make_renderer(s.renderer or self.config.renderer)
         weights, at_step = self.weights_info, "" if self.step is None else f" at step {self.step}"
         if verbose:
-            print(f"evaluating {printable(self.path)}{at_step}")
+            look = "" if s.input_look == "shaded" else f", the test images in the {s.input_look} input look"
+            print(f"evaluating {printable(self.path)}{at_step}{look}")
         if weights.stale_warning():
             warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
         with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
@@ -571,10 +579,11 @@ class Run:
             scorer = VoxelScorer(s.protocol, s.resolution)  # one ground-truth grid cache for scores and figure
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
                                       device=self.device, scorer=scorer)
-            self._write_report(result, tmp, at_step, backend)
+            self._write_report(result, tmp, at_step, backend, s.input_look)
             evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
                                device=self.device, viewer_images=s.viewer_images, scorer=scorer,
-                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split)",
+                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split"
+                               + ("" if s.input_look == "shaded" else f", {s.input_look} input look") + ")",
                                part_labels=result.part_labels() or self.part_labels(), ious=result.image_ious())
         evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
                                 canonical_hint=_canonical_hint(source))
@@ -614,17 +623,20 @@ class Run:
                                      title=f"cerberus reconstruct: {printable(self.source)}", kind=self.training_kind(),
                                      part_labels=self.part_labels())
 
-    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer) -> None:
-        """``results.json`` (the scores, which weights, and where they were computed: renderer, device, dtype) and
-        ``results.md`` (with the stale warning)."""
+    def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer,
+                      input_look: str = "shaded") -> None:
+        """``results.json`` (the scores, which weights, the input look, and where they were computed: renderer,
+        device, dtype) and ``results.md`` (with the stale warning)."""
         weights = self.weights_info
         record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
                                                   "newer_checkpoint": None if weights.newer is None else
                                                   {"path": str(weights.newer), "step": weights.newer_step}},
                                         "computed_with": {"renderer": backend.name, "device": str(self.device),
-                                                          "dtype": str(next(self.model.parameters()).dtype)}}
+                                                          "dtype": str(next(self.model.parameters()).dtype)},
+                                        "input_look": input_look}
         write_json(record, folder / "results.json")
-        report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}")
+        look = "" if input_look == "shaded" else f" ({input_look} input look)"
+        report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}{look}")
         if weights.stale_warning():
             title, _, rest = report.partition("\n")
             report = f"{title}\n\n> **Warning:** {md_text(weights.stale_warning())}\n{rest}"

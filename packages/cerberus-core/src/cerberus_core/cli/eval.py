@@ -7,6 +7,7 @@ from pathlib import Path
 
 from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
+from cerberus_core.datasets.looks import INPUT_LOOKS
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
 
@@ -56,11 +57,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--renderer", help="renderer backend for the figure and the part-visibility render "
                    "(default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
+    p.add_argument("--input-look", default="shaded", choices=INPUT_LOOKS,
+                   help="show the model the test images in this look: shaded (as stored, the default), flat (each "
+                   "body's mask filled with its mean grey: a silhouette) or random (an albedo colour, a texture and "
+                   "a light balance drawn per image); the ground truth and every score are as without it")
     # The flag of each setting of Run.load and Run.evaluate (its EvalSettings fields included).
     p.set_defaults(func=run, flag_names=FlagNames({
         "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
-        "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device"}))
+        "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device",
+        "input_look": "--input-look"}))
 
 
 def baseline_runs(specs: list[str], device: str) -> dict:
@@ -90,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
                             hard=not args.no_hard, part_quality=not args.no_part_quality,
                             segments=not args.no_segments, allocation=not args.no_allocation, limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,
-                            renderer=args.renderer, overwrite=args.overwrite)
+                            renderer=args.renderer, overwrite=args.overwrite, input_look=args.input_look)
     run_ = Run.load(args.run, args.device)
     run_.evaluate(args.data, settings, args.out, baselines=baseline_runs(args.baseline, args.device))
     return 0

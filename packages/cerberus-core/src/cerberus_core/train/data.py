@@ -29,6 +29,7 @@ import torch
 from torch.utils.data import Sampler
 
 from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.datasets.looks import input_look
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.render.camera import Camera
@@ -122,12 +123,21 @@ class QuadrupletBatch:
     """A collated batch on the training device.
 
     Attributes:
-        images: ``(B, 4, 3, H, W)`` at the training resolution.
+        images: ``(B, 4, 3, H, W)`` at the training resolution, as the dataset stores them: what the
+            losses compare against.
         camera: ``4 B`` cameras in the flattened order ``(b, k) → 4 b + k``.
+        inputs: ``(B, 4, 3, H, W)``: what the network sees, the images in another input look
+            (:func:`with_input_look`); ``None``: the images themselves.
     """
 
     images: Tensor
     camera: Camera
+    inputs: Tensor | None = None
+
+    @property
+    def network_inputs(self) -> Tensor:
+        """``(B, 4, 3, H, W)``: what the network sees (:attr:`inputs`, else :attr:`images`)."""
+        return self.images if self.inputs is None else self.inputs
 
     @property
     def num_quadruplets(self) -> int:
@@ -148,4 +158,21 @@ def quadruplet_batch(batch: dict[str, Any], device: torch.device, scene: SceneSe
         h = w = image_size
 
     return QuadrupletBatch(images, scene.view_cameras(batch, (h, w), device=device))
+
+
+def with_input_look(batch: QuadrupletBatch, look: str, scene: SceneSetup,
+                    generator: torch.Generator | None = None) -> QuadrupletBatch:
+    """``batch`` with :attr:`~QuadrupletBatch.inputs` its images shown in ``look``
+    (:func:`cerberus_core.datasets.looks.input_look`; ``data.input_look``); the images, which the losses
+    compare against, stay as stored. ``shaded`` returns ``batch`` unchanged.
+
+    Args:
+        generator: the random source of the ``random`` look (a CPU generator, e.g.
+            :func:`~cerberus_core.datasets.looks.look_generator` of the seed, step and rank).
+    """
+    if look == "shaded":
+        return batch
+    flat = batch.images.flatten(0, 1)
+    batch.inputs = input_look(flat, look, scene, generator).view_as(batch.images)
+    return batch
 

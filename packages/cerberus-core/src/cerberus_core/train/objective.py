@@ -480,8 +480,9 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
             (:meth:`LossConfig.cross_view_at`; ``None``: after the warm-up).
     """
     core = unwrap(model)
-    images = batch.images.flatten(0, 1)  # (4B, 3, H, W)
-    pred: Predictions = model(images, quadruplet_mixer(generator) if losses.pose_consistency else None)
+    images = batch.images.flatten(0, 1)  # (4B, 3, H, W): the stored renders, what the losses compare against
+    pred: Predictions = model(batch.network_inputs.flatten(0, 1),  # the same in data.input_look
+                              quadruplet_mixer(generator) if losses.pose_consistency else None)
     parts = core.pose(pred, batch.camera)  # world frame, 4B images
     if not all(bool(torch.isfinite(t.detach()).all()) for t in (parts.local_vertices, parts.rotations,
                                                                  parts.translations)):

@@ -23,6 +23,7 @@ from typing import Any, Literal
 import yaml
 
 from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, load_yaml, parse_overrides
+from cerberus_core.datasets.looks import InputLook
 from cerberus_core.devices import is_device_name
 from cerberus_core.errors import ConfigError
 from cerberus_core.fields import Checked, Range, ranged
@@ -47,6 +48,10 @@ class DataConfig(Checked):
             dataset's own size.
         num_workers: DataLoader worker processes (0: load in the training process); more than the
             machine's cores are lowered to them, with a warning, when the training starts.
+        input_look: what the network is shown of each image (:mod:`cerberus_core.datasets.looks`):
+            ``shaded`` (the stored render), ``flat`` (the body's mask filled with its mean grey) or
+            ``random`` (an albedo colour, a texture and a light balance drawn per image). The losses
+            compare against the stored shaded render whatever the look.
     """
 
     SECTION = "data"
@@ -55,6 +60,7 @@ class DataConfig(Checked):
     split: str = "train"
     image_size: int | None = ranged(None, ge=32, le=MAX_IMAGE_SIZE, integer=True)
     num_workers: int = ranged(0, ge=0, le=MAX_WORKERS)
+    input_look: InputLook = "shaded"
 
 
 @dataclass

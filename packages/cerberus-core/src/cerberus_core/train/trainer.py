@@ -45,6 +45,7 @@ from tqdm import tqdm
 
 from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.datasets.looks import look_generator
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.atomic import atomic_write_text
@@ -66,6 +67,7 @@ from cerberus_core.train.data import (
     build_dataset,
     check_dataset,
     quadruplet_batch,
+    with_input_look,
 )
 from cerberus_core.train.distributed import (
     DistInfo,
@@ -467,6 +469,9 @@ class _Trainer:
                     batch = quadruplet_batch(raw, self.device, self.scene, self.image_size)
                     if step in poison:
                         batch.images = torch.full_like(batch.images, float("nan"))
+                    look = cfg.data.input_look  # the network sees it; the losses keep the stored renders
+                    batch = with_input_look(batch, look, self.scene, look_generator(cfg.seed, step, self.info.rank)
+                                            if look == "random" else None)
                     stop.in_step = True
                     ok, out, grad_norm = self._step(batch, step)
                     stop.step_done()
@@ -578,7 +583,7 @@ class _Trainer:
     @torch.no_grad()
     def _pictures(self, batch, out, step: int) -> None:
         k = min(8, batch.images.shape[0] * 4)
-        images = batch.images.flatten(0, 1)[:k]
+        images = batch.network_inputs.flatten(0, 1)[:k]  # what the network saw
         save_progress_grid(self.run_dir / "images" / f"step_{step:07d}.png", self.renderer, images,
                            out.renders.flatten(0, 1)[:k], out.parts.flatten(0, 1)[:k], self.model.faces,
                            batch.camera.index(slice(0, k)), self.scene)
