@@ -9,13 +9,12 @@ import pytest
 import torch
 
 from cerberus_core import Run
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import CheckpointError, ConfigError
 from cerberus_core.plugins import (
     METRIC_GROUP,
 )
 from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
 from cerberus_core.train import train
-from cerberus_core.train.checkpoint import CheckpointError
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
 

@@ -28,7 +28,8 @@ def test_unknown_renderer_and_choice_name_the_close_match(capsys, tmp_path):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "did you mean 'tiny'?" in err[0]
-    from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError, get_plugin
+    from cerberus_core.errors import UnknownPluginError
+    from cerberus_core.plugins import RENDERER_GROUP, get_plugin
     with pytest.raises(UnknownPluginError, match="did you mean 'warp'"):
         get_plugin(RENDERER_GROUP, "Warp")
 

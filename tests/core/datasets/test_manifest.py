@@ -20,7 +20,7 @@ from cerberus_core.datasets.manifest import (
     SplitRecord,
 )
 from cerberus_core.datasets.readers import ViewDataset
-from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.datasets.settings import GenerationConfig
 
 OLD_MANIFEST = Path(__file__).with_name("old_manifest.json")
@@ -34,7 +34,7 @@ def test_read_gives_typed_records(pairs_dataset):
     assert m.root == pairs_dataset and m.path == pairs_dataset / MANIFEST and m.complete
     assert (m.dataset, m.preset, m.image_size) == (raw["dataset"], raw["preset"], raw["image_size"])
     assert m.part_names == tuple(raw["part_names"]) and m.subject_names == [s["name"] for s in raw["subjects"]]
-    assert isinstance(m.scene, SceneSetup) and m.scene == SceneSetup.from_dict(raw["scene"])
+    assert isinstance(m.scene, SceneSetup) and m.scene == read_scene(raw["scene"])
     train = m.split("train")
     assert isinstance(train, SplitRecord) and train.complete and train.layout == "pairs"
     assert all(isinstance(s, ShardRecord) for s in train.shards)

@@ -5,8 +5,9 @@ import pytest
 import torch
 
 from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.errors import NonFiniteError
 from cerberus_core.run import Run
-from cerberus_core.train import NonFiniteError, load_checkpoint, train
+from cerberus_core.train import load_checkpoint, train
 from cerberus_core.train.checkpoint import checkpoint_dir
 
 

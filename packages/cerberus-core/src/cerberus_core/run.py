@@ -28,9 +28,9 @@ from safetensors.torch import load_file
 
 from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
-from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.devices import check_device
-from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError
+from cerberus_core.errors import CerberusError, CheckpointError, ConfigError, MissingPackageError, UnknownPluginError
 from cerberus_core.eval.depth import depth_line
 from cerberus_core.eval.figures import evaluation_figures
 from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, write_reconstructions
@@ -41,13 +41,13 @@ from cerberus_core.eval.standard import SCORER_ENTRY_POINT, VoxelScorer
 from cerberus_core.eval.visibility import visibility_line
 from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plugins import UnknownPluginError, get_metric
+from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import result_folder, writing_results
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.interface import Renderer
-from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
+from cerberus_core.train.checkpoint import LAST, USE_RUN, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.settings import TrainConfig
 from cerberus_core.zoo import available, model_path
 
@@ -275,10 +275,10 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
         return open_data(data).scene  # a damaged scene record is a DatasetError naming the manifest
     if saved is not None:
         try:
-            return SceneSetup.from_dict(saved)
+            return read_scene(saved)
         except (ValueError, TypeError, AttributeError, KeyError) as exc:  # ConfigError is a ValueError
             raise ConfigError(f"the model's recorded scene: invalid scene set-up ({exc}); pass `data=DATASET` (the "
-                              "dataset it was trained on)") from None
+                              "dataset it was trained on)", key="data") from None
     root = Path(config.data.root)
     if Dataset.is_dataset(root):
         return Dataset.open(root).scene
@@ -498,7 +498,7 @@ class Run:
         if kind and theirs and kind != theirs:  # None: a source of any kind of body (a folder of meshes)
             notes.append(f"the model was trained on {kind} bodies and {printable(data)} holds {theirs} bodies")
         if self.recorded_scene is not None:
-            mine, other = SceneSetup.from_dict(self.recorded_scene).to_dict(), self.scene_for(data).to_dict()
+            mine, other = read_scene(self.recorded_scene).to_dict(), self.scene_for(data).to_dict()
             keys = ("distance", "elevation", "fov_y", "background", "albedo")
             diff = [f"{k} {other[k]} (trained: {mine[k]})" for k in keys if mine.get(k) != other.get(k)]
             if diff:

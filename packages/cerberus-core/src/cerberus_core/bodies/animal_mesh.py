@@ -18,8 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.errors import BodyError, MeshError, MissingPackageError
 
 _CORNERS = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
 """``(8, 3)`` corner offsets of a cube; corner index ``c = x + 2 y + 4 z``."""
@@ -46,7 +45,7 @@ def _edge_index(a: int, b: int) -> int:
     for i, (p, q, _) in enumerate(_EDGES):
         if {int(p), int(q)} == {a, b}:
             return i
-    raise KeyError((a, b))
+    raise MeshError(f"the marching-cubes table has no edge between corners {a} and {b}")
 
 
 def _case_triangles(case: int, faces: list[list[int]], edge_faces: list[set[int]]) -> list[tuple[int, int, int]]:

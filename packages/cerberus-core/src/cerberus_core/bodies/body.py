@@ -26,17 +26,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cerberus_core.config import Presets, build
-from cerberus_core.errors import CerberusError, ConfigError, DatasetError, MissingPackageError
+from cerberus_core.errors import BodyError, ConfigError, DatasetError, MissingPackageError
 from cerberus_core.fields import Checked
 from cerberus_core.plugins import BODY_GROUP, get_plugin
 from cerberus_core.shapes import check_shapes
-
-
-class BodyError(CerberusError, ValueError):
-    """A body source was asked for, or produced, what no dataset can hold: a count or pose id out of its
-    range, a degenerate body, one outside the unit cube; the message names the subject, the pose and the fix
-    (a ``ValueError`` too, for callers that caught one)."""
-
 
 FILL: float = 0.9
 """Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""

@@ -62,9 +62,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cerberus_core.bodies import human_motion
-from cerberus_core.bodies.body import FILL, BodyError, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.errors import BodyError, MissingPackageError
 from cerberus_core.plumbing.stdio import announce, call_dropping_stderr
 
 if TYPE_CHECKING:

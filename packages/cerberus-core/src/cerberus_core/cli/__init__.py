@@ -176,7 +176,7 @@ def _os_error_line(exc: OSError) -> str:
 def _said(exc: CerberusError, names: FlagNames) -> str:
     """The message of ``exc`` in this command's flags (:meth:`FlagNames.error`); an incomplete dataset's names the
     ``cerberus data generate`` command that finishes it."""
-    from cerberus_core.datasets.manifest import IncompleteDatasetError
+    from cerberus_core.errors import IncompleteDatasetError
 
     if isinstance(exc, IncompleteDatasetError):
         from cerberus_core.cli.data import incomplete_message

@@ -69,13 +69,13 @@ def baseline_runs(specs: list[str], device: str) -> dict:
     for spec in specs:
         name, _, path = spec.partition("=")
         if not name or not path:
-            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}")
+            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}", key="baselines", value=spec)
         if name in out:
-            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
+            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name", key="baselines", value=name)
         try:
             out[name] = Run.load(path, device)
         except CerberusError as exc:
-            raise ConfigError(f"--baseline {name}={path}: {exc}") from None
+            raise ConfigError(f"--baseline {name}={path}: {exc}", key="baselines", value=name) from None
     return out
 
 

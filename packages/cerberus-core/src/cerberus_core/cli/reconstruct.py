@@ -68,12 +68,12 @@ def run(args: argparse.Namespace) -> int:
     if args.model is not None:
         if looks_like_path(args.model):
             raise ConfigError(f"--model {printable(args.model)}: takes a shipped model's name (see `cerberus "
-                              "models`); give a run folder or model file as the first argument instead")
+                              "models`); give a run folder or model file as the first argument instead", key="model", value=args.model)
         model_path(args.model)  # a shipped model's name (ZooError naming the known ones otherwise)
         source, images = args.model, args.inputs  # by name: the shipped model, titled by its name
     elif len(args.inputs) < 2:
         raise ConfigError("give a run folder (or --model NAME) and at least one image, e.g. "
-                          "`cerberus reconstruct --model human photo.png`")
+                          "`cerberus reconstruct --model human photo.png`", key="inputs")
     else:
         source, images = args.inputs[0], args.inputs[1:]
     check_device(args.device)

@@ -182,7 +182,7 @@ class TrainConfig(Checked):
         nothing is checked twice)."""
         if self.losses.silhouette > 0 and not self.render.antialias:
             raise ConfigError("losses.silhouette needs render.antialias: true (the paper's renderer gives the coverage "
-                              "no gradient); add `render.antialias=true`, or `losses.silhouette=0`")
+                              "no gradient); add `render.antialias=true`, or `losses.silhouette=0`", key="losses.silhouette", value=self.losses.silhouette)
         if not is_device_name(self.device):
             raise ConfigError.about("device", self.device, "must be 'auto', 'cpu', 'cuda' or 'cuda:N', e.g. `device=cpu`")
         if self.losses.cross_view == "own" and self.losses.cross_view_warmup >= self.train.steps:
@@ -269,7 +269,7 @@ def resume_config(run_dir: str | Path, overrides: list[str] | None = None) -> Tr
     root = Path(config.data.root)
     if not root.is_absolute() and not root.exists():
         raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and does not "
-                          f"exist from {Path.cwd()}; set data.root to the dataset's absolute path")
+                          f"exist from {Path.cwd()}; set data.root to the dataset's absolute path", key="data.root", value=str(root))
     return config
 
 

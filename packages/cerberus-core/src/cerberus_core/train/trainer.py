@@ -45,10 +45,16 @@ from tqdm import tqdm
 
 from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import (
+    ConfigError,
+    LockedError,
+    NoCheckpointError,
+    NonFiniteError,
+    RunExistsError,
+)
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.atomic import atomic_write_text
-from cerberus_core.plumbing.lock import LockedError, acquire, check_unlocked, is_lock_file
+from cerberus_core.plumbing.lock import acquire, check_unlocked, is_lock_file
 from cerberus_core.plumbing.machine import capped_to_cores
 from cerberus_core.plumbing.outputs import resolved
 from cerberus_core.plumbing.signals import interrupt_for
@@ -89,20 +95,6 @@ RESUMABLE_CHANGES = frozenset({
     "speed.smoothness_once",
 })
 """Config keys a resumed run may change; any other difference is refused (it would not be the same run)."""
-
-
-class NonFiniteError(CerberusError, RuntimeError):
-    """The loss or gradient became NaN or infinite and the run was stopped (``cerberus train``: exit 3)."""
-
-    exit_code = 3
-
-
-class RunExistsError(CerberusError, FileExistsError):
-    """A fresh training was pointed at a folder that already holds files."""
-
-
-class NoCheckpointError(CerberusError, FileNotFoundError):
-    """``resume=True`` but the run folder has no checkpoint."""
 
 
 @dataclass
