@@ -528,7 +528,7 @@ def test_a_shipped_name_is_never_a_local_folder(place, tmp_path, monkeypatch):
     import shutil
     import warnings
 
-    from cerberus_core.run import resolve_weights
+    from cerberus_core.weights import resolve_weights
     from cerberus_core.zoo import ZOO_DIR
 
     monkeypatch.chdir(tmp_path)

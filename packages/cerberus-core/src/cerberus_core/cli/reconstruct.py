@@ -62,7 +62,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.run import Run, looks_like_path
+    from cerberus_core.run import Run
+    from cerberus_core.weights import looks_like_path
     from cerberus_core.zoo import model_path
 
     if args.model is not None:

@@ -43,7 +43,6 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
-from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.errors import (
     ConfigError,
@@ -299,7 +298,7 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: 
         return None
     last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
-    saved = TrainConfig.from_dict(load_yaml(payload["config"], last, "the checkpoint is damaged"))
+    saved = TrainConfig.from_yaml(payload["config"], last)
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
         raise ConfigError.about("resume", True, f"the config differs from the run's saved config in {changed}; only "
