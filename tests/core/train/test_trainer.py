@@ -1,5 +1,6 @@
 """The training loop: learning on a fixed batch, exact resumption, non-finite handling, outputs."""
 import csv
+from pathlib import Path
 
 import pytest
 import torch
@@ -280,3 +281,28 @@ def test_a_resume_may_not_shorten_the_run(tiny_config, tmp_path):
                        r"cannot end before it \(`train.steps=2` or more"):
         train(tiny_config("train.steps=1", "train.image_every=0"), tmp_path / "run", resume=True)
     assert {p: p.stat().st_mtime_ns for p in (tmp_path / "run").rglob("*")} == before
+
+
+def test_a_checkpoint_written_before_issue_40_loads_and_resumes_with_the_same_config(tmp_path):
+    """tests/core/train/data/checkpoint_57eefd7.pt was written by commit 57eefd7 (before LossConfig was a written
+    class and the saved config had one reader): a 2-part, width-4 model at step 3, losses.coverage=0.5. Its config
+    reads back to the same YAML (so a resume sees no changed key), the resume check accepts it, and it loads as a
+    run with its weights."""
+    import shutil
+
+    from cerberus_core.train.settings import TrainConfig, config_diff
+    from cerberus_core.train.trainer import prepare_run_dir
+
+    run_dir = tmp_path / "run"
+    checkpoint_dir(run_dir).mkdir(parents=True)
+    last = checkpoint_dir(run_dir) / "last.pt"
+    shutil.copyfile(Path(__file__).parent / "data" / "checkpoint_57eefd7.pt", last)
+    payload = load_checkpoint(last)
+    config = TrainConfig.from_yaml(payload["config"], last)
+    assert config.to_yaml() == payload["config"] and config.losses.coverage == 0.5
+    assert config_diff(config, TrainConfig.from_yaml(config.to_yaml(), "again")) == []
+    assert prepare_run_dir(run_dir, True, config)["step"] == 3
+    run = Run.load(last)
+    assert run.step == 3 and run.model.config.num_parts == 2
+    for name, tensor in run.model.state_dict().items():
+        assert torch.equal(tensor, payload["model"][name]), name
