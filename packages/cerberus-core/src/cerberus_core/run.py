@@ -205,6 +205,15 @@ class Evaluation:
 class Run:
     """A trained run: its model, config and weights, loaded once (:meth:`load`).
 
+    >>> import torch
+    >>> from cerberus_core.run import Run
+    >>> run = Run.load("human")  # a shipped model, by name
+    >>> run.step, run.shipped, run.model.config.num_parts, run.training_kind()
+    (20000, True, 9, 'human')
+    >>> parts = run.model.reconstruct(torch.ones(1, 3, 64, 64), run.scene.cameras([0.0], 64))
+    >>> tuple(parts.posed().shape)  # (B, parts, vertices, 3), world space
+    (1, 9, 162, 3)
+
     Attributes:
         model: the :class:`~cerberus_core.model.Cerberus` model, in eval mode on :attr:`device`.
         config: its :class:`~cerberus_core.train.settings.TrainConfig`.
@@ -230,6 +239,9 @@ class Run:
         """Load a run folder (its ``model.safetensors``, else ``checkpoints/last.pt``), a ``.safetensors``
         export, a ``.pt`` checkpoint or a shipped model by name (``cerberus models``; a bare name a
         shipped model has is that model: see :func:`resolve_weights`).
+
+        >>> Run.load("human").path.name
+        'human.safetensors'
 
         Raises:
             ConfigError: an unknown device.

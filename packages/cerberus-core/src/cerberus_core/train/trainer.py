@@ -52,7 +52,7 @@ from cerberus_core.errors import (
     RunExistsError,
 )
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plumbing.atomic import atomic_write_text
+from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
 from cerberus_core.plumbing.lock import acquire, check_unlocked, is_lock_file
 from cerberus_core.plumbing.machine import capped_to_cores
 from cerberus_core.plumbing.outputs import resolved
@@ -400,7 +400,8 @@ class _Trainer:
                                    extra={"skipped": self.skipped, "scene": json.dumps(self.scene.to_dict())})
             keep = self.config.train.keep_every
             if keep and step % keep == 0:
-                shutil.copyfile(path, ckdir / f"step_{step:07d}.pt")
+                with open(path, "rb") as kept:  # atomic: a kept step is whole or absent, like last.pt
+                    atomic_write(ckdir / f"step_{step:07d}.pt", lambda fh, src=kept: shutil.copyfileobj(src, fh))
         barrier(self.info)
 
     # ------------------------------------------------------------------ loop
