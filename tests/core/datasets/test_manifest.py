@@ -19,7 +19,6 @@ from cerberus_core.datasets.manifest import (
     ShardRecord,
     SplitRecord,
 )
-from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.datasets.settings import GenerationConfig
 
@@ -43,7 +42,7 @@ def test_read_gives_typed_records(pairs_dataset):
     assert train.totals()["images"] == train.planned_images
     assert m.subjects[0].subject.name == m.subjects[0].name and "train" in m.subjects[0].splits
     assert isinstance(m.config, GenerationConfig) and m.config.to_dict() == raw["config"]
-    assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
+    assert isinstance(Dataset.open(pairs_dataset).views("test").manifest, Manifest)  # what the readers hold
     with pytest.raises(DatasetError, match="no split 'val'; this dataset has \\['test', 'train'\\]"):
         m.split("val")
     with pytest.raises(FrozenInstanceError):

@@ -112,7 +112,7 @@ def _step_of(path: Path) -> int | None:
         try:
             with safe_open(str(path), framework="pt") as f:
                 step = (f.metadata() or {}).get("step")
-        except Exception:  # noqa: BLE001 - _load_weights reports a damaged file properly
+        except Exception:  # noqa: BLE001 - load_weights reports a damaged file properly
             return None
     else:
         step = load_checkpoint(path).get("step")

@@ -5,8 +5,8 @@ import argparse
 import time
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.outputs import output_folder
 from cerberus_core.render.api import render_parts

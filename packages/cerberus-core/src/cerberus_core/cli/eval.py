@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
 

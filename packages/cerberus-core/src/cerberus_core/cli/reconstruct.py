@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import printable

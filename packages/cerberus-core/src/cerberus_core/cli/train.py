@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cerberus_core.cli import FlagNames
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.config import load_yaml
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError

@@ -42,6 +42,7 @@ from cerberus_core.devices import check_device
 from cerberus_core.errors import BodyError, ConfigError
 from cerberus_core.plumbing.lock import is_lock_file
 from cerberus_core.plumbing.machine import memory_bytes
+from cerberus_core.plumbing.outputs import check_apart
 from cerberus_core.release import VERSION
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
@@ -153,6 +154,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               + f"), more than it has ({total / 2**30:.1f} GiB); lower `image_size`, `batch_size` "
                               "or `shard_images`", key="image_size", value=config.image_size)
     if out is not None:
+        check_apart(Path(out), source.reads(), what="a dataset is written there")  # the meshes read stay apart
         check_folder(Path(out), jsonable(config.to_dict()), overwrite)
     return GenerationJob(config, source, jsonable(stored), plan, images + buffers)
 
