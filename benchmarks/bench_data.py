@@ -24,7 +24,6 @@ from cerberus_core.bodies.body import source_class
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.generate import render_views
 from cerberus_core.datasets.plan import make_plan, preset_config
-from cerberus_core.datasets.readers import QuadrupletDataset
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.render.backends import available_renderers, make_renderer
 
@@ -95,7 +94,7 @@ def main() -> None:
             t = _time(lambda c=c, tmp=tmp: Dataset.generate(c, Path(tmp) / "ds", source=source, progress=False, log=lambda s: None,
                                        batch_size=args.batch))
             if name == backends[0]:
-                ds = QuadrupletDataset(Path(tmp) / "ds")
+                ds = Dataset.open(Path(tmp) / "ds").quadruplets()
                 t_read = _time(lambda ds=ds: [ds[i] for i in range(len(ds))])
                 read_rate = len(ds) / t_read
         e2e[name] = 4 * args.pairs / t

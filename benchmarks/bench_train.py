@@ -51,6 +51,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from cerberus_core.datasets.dataset import Dataset
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -82,7 +84,6 @@ def trainer_step(spec: dict):
 
     import torch
 
-    from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core.train.data import quadruplet_batch
     from cerberus_core.train.distributed import init_distributed
     from cerberus_core.train.settings import load_config
@@ -98,7 +99,7 @@ def trainer_step(spec: dict):
     if spec.get("losses"):
         cfg.losses = dataclasses.replace(cfg.losses, **spec["losses"])
     device = torch.device(spec["device"])
-    data = QuadrupletDataset(spec["data"])
+    data = Dataset.open(spec["data"]).quadruplets()
     trainer = _Trainer(cfg, Path(spec["run_dir"]), init_distributed(device), device, data)
     trainer._build(None)
     raw = torch.utils.data.default_collate([data[i % len(data)] for i in range(cfg.train.batch_size)])

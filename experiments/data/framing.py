@@ -14,12 +14,12 @@ import argparse
 import numpy as np
 from scipy import ndimage
 
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.losses import background_mask
 
 
 def stats(root: str, split: str, tol: float) -> dict[str, float]:
-    ds = ViewDataset(root, split=split)
+    ds = Dataset.open(root).views(split=split)
     heights, cover, clipped, pieces = [], [], [], []
     for i in range(len(ds)):
         item = ds[i]

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.readers import ViewDataset
 from cerberus_core.eval import input_domain as D
 
@@ -154,9 +155,9 @@ def main() -> None:
     ap.add_argument("root", help="a generated dataset folder")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
-    test = ViewDataset(args.root, split="test")
+    test = Dataset.open(args.root).views(split="test")
     scene, bg = test.scene, np.asarray(test.scene.background, dtype=np.float64)
-    gen = images(test, 10_000) + images(ViewDataset(args.root, split="train"), 200)
+    gen = images(test, 10_000) + images(Dataset.open(args.root).views(split="train"), 200)
     tmp = Path(tempfile.mkdtemp())
     print("| images | n | border on the background, min | median | border spread, max | one side off, max | in domain "
           "| cut off (no silhouette) | body not told from the border |")

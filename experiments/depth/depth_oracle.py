@@ -34,7 +34,7 @@ from collections import defaultdict
 import numpy as np
 import torch
 
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.parts import PartSet
@@ -70,7 +70,7 @@ def main(argv: list[str]) -> int:
     warnings.simplefilter("ignore")  # mesh-quality warnings on predicted parts, as in cerberus eval
     run = Run.load(args.run)
     model = run.model.eval()
-    dataset = ViewDataset(args.data, "test")
+    dataset = Dataset.open(args.data).views("test")
     rec = dataset.records
     by_pose: dict[tuple[int, int], list[int]] = defaultdict(list)
     for i in range(len(dataset)):

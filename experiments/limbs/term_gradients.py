@@ -13,12 +13,13 @@ from dataclasses import replace
 
 import torch
 
+from cerberus_core.datasets.dataset import Dataset
+
 TERMS_SHOWN = ["coverage", "keypoint_coverage", "overlap", "rotation", "chamfer", "hidden", "silhouette", "recon"]
 
 
 def main(argv: list[str]) -> int:
     from cerberus_core import make_renderer
-    from cerberus_core.datasets.readers import QuadrupletDataset
     from cerberus_core.model import Cerberus
     from cerberus_core.run import Run
     from cerberus_core.train.data import quadruplet_batch
@@ -29,7 +30,7 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 2
     torch.set_num_threads(1)
-    data = QuadrupletDataset(argv[0])
+    data = Dataset.open(argv[0]).quadruplets()
     scene = data.scene
     cfg = load_config(preset="cpu")
     cfg.model.depth_offset = scene.distance

@@ -8,7 +8,7 @@ sharing the template's ``(320, 3)`` faces.
 
 For every distinct test body of DATA (the 4 views of a pose share one body: it is fitted once and its
 IoU given to each of its images), N parts are fitted directly in 3D, in the world frame, to the
-ground-truth mesh (``ViewDataset(DATA, "test").gt_mesh(i)``). Each part is the paper's representation:
+ground-truth mesh (``Dataset.open(DATA).views("test").gt_mesh(i)``). Each part is the paper's representation:
 an icosphere of level 2 (162 vertices, 320 faces) whose vertices move freely (template + per-vertex
 offsets, what the shape head can express; rotation, scale and translation are redundant with free
 vertices).
@@ -61,7 +61,7 @@ import torch
 from scipy.ndimage import distance_transform_edt
 
 from cerberus_core import Camera, make_renderer, render_parts
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.losses import dihedral_cosines, smoothness_loss
 from cerberus_core.render import render
@@ -319,7 +319,7 @@ def main(argv: list[str]) -> int:
     torch.set_num_threads(1)
     t0, c0 = time.perf_counter(), time.process_time()
 
-    ds = ViewDataset(args.data, "test")
+    ds = Dataset.open(args.data).views("test")
     rec = ds.records
     bodies: dict[tuple[int, int], list[int]] = {}
     for i, r in enumerate(rec):

@@ -14,7 +14,7 @@ import sys
 
 import torch
 
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.runner import collate
 from cerberus_core.losses import background_mask
 from cerberus_core.render.api import render_parts
@@ -32,7 +32,7 @@ def main(argv: list[str]) -> int:
     run, data = argv
     torch.set_num_threads(1)
     model = Run.load(run).model
-    ds = ViewDataset(data, "test")
+    ds = Dataset.open(data).views("test")
     renderer = make_renderer()
     ratios: list[float] = []
     ious: list[float] = []

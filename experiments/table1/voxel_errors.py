@@ -25,7 +25,7 @@ import warnings
 import numpy as np
 import torch
 
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.runner import iterate_batches, reconstruct_batch
 from cerberus_core.run import Run
 from cerberus_metrics.api import voxelize
@@ -65,7 +65,7 @@ def main(argv: list[str]) -> int:
     torch.set_num_threads(1)
     warnings.simplefilter("ignore")  # mesh-quality warnings on predicted parts, as in cerberus eval
     model = Run.load(args.run).model
-    dataset = ViewDataset(args.data, "test")
+    dataset = Dataset.open(args.data).views("test")
     indices = list(range(0, len(dataset), max(1, len(dataset) // args.images)))[:args.images]
     rows = []
     for batch_idx, batch, camera in iterate_batches(dataset, indices, 16):

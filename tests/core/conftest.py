@@ -20,7 +20,8 @@ from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
-from cerberus_core.plugins import PluginError, get_metric
+from cerberus_core.errors import PluginError
+from cerberus_core.plugins import get_metric
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.train.settings import load_config
 from tests.support.oracle import TinyViewDataset

@@ -18,10 +18,10 @@ def test_a_missing_optional_package_is_a_toolkit_error_naming_the_extra(monkeypa
 
 def test_a_typed_error_is_still_the_builtin_it_replaced() -> None:
     """The sweep of issue 32 kept ``except ValueError`` / ``except TypeError`` callers working."""
-    from cerberus_core.errors import CerberusError, MeshError, RenderInputError
+    from cerberus_core.errors import CerberusError, MeshError, RenderInputError, TrainingDatasetError
     from cerberus_core.render.camera import Camera
     from cerberus_core.render.templates import MeshTemplate
-    from cerberus_core.train.data import TrainingDatasetError, check_dataset
+    from cerberus_core.train.data import check_dataset
 
     with pytest.raises(RenderInputError, match="distance must be positive; place the camera") as err:
         Camera.look_at(0.0, 0.0, -1.0)

@@ -23,7 +23,7 @@ class Example(Checked):
 
     def validate(self) -> None:
         if self.mode == "b" and self.steps < 5:
-            raise ConfigError("example.mode = 'b' needs example.steps >= 5")
+            raise ConfigError.about("example.mode", self.mode, "needs example.steps >= 5")
 
 
 @pytest.mark.parametrize(("rng", "text"), [

@@ -5,18 +5,8 @@ import sys
 
 import pytest
 
-from cerberus_core.errors import CerberusError
-from cerberus_core.plugins import (
-    METRIC_GROUP,
-    RENDERER_GROUP,
-    DuplicatePluginError,
-    PluginError,
-    PluginLoadError,
-    UnknownPluginError,
-    discover,
-    get_plugin,
-    plugin_table,
-)
+from cerberus_core.errors import CerberusError, DuplicatePluginError, PluginError, PluginLoadError, UnknownPluginError
+from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, discover, get_plugin, plugin_table
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.interface import Renderer
 from tests.support.dists import BROKEN, WORKING

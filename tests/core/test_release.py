@@ -10,7 +10,8 @@ import pytest
 import tomllib
 
 from cerberus_core import __version__
-from cerberus_core.release import DISTRIBUTIONS, VERSION, ReleaseMismatchError, require_lockstep
+from cerberus_core.errors import ReleaseMismatchError
+from cerberus_core.release import DISTRIBUTIONS, VERSION, require_lockstep
 from tests.support.paths import REPO
 
 

@@ -9,13 +9,13 @@ import pytest
 import torch
 
 from cerberus_core import Run
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import CheckpointError, ConfigError
 from cerberus_core.plugins import (
     METRIC_GROUP,
 )
-from cerberus_core.run import EvalSettings, _load_weights, resolve_weights
+from cerberus_core.run import EvalSettings
 from cerberus_core.train import train
-from cerberus_core.train.checkpoint import CheckpointError
+from cerberus_core.weights import load_weights, resolve_weights
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
 
@@ -38,7 +38,8 @@ def tiny_run(tiny_root, tmp_path_factory):
 
 def test_a_run_folder_loads_as_one_object(tiny_run, tiny_root):
     run = Run.load(tiny_run)
-    model, config, scene = _load_weights(resolve_weights(tiny_run))
+    loaded = load_weights(resolve_weights(tiny_run))
+    model, config, scene = loaded.model, loaded.config, loaded.scene
     assert run.path == tiny_run / "model.safetensors" and run.step == 2 and run.weights_info.newer is None
     assert run.data_root == tiny_root and run.config.to_dict() == config.to_dict()
     for (k, a), (_, b) in zip(run.model.state_dict().items(), model.state_dict().items(), strict=True):

@@ -333,7 +333,6 @@ def test_a_run_is_usable_from_another_directory(place, tmp_path, monkeypatch, ca
 def test_an_unfinished_dataset_names_the_command_that_finishes_it(tmp_path, monkeypatch, capsys):
     """A reader's refusal (train, eval) gives the exact `cerberus data generate` command, and it resumes."""
     import cerberus_core.datasets.dataset as dataset_module
-    from cerberus_core.datasets.readers import QuadrupletDataset
 
     data = tmp_path / "partial"
     original = dataset_module.write_dataset
@@ -359,7 +358,7 @@ def test_an_unfinished_dataset_names_the_command_that_finishes_it(tmp_path, monk
     assert "splits.train.pairs=4" in words and "scene.albedo=[0.5, 0.6, 0.7]" in words and "--image-size" in words
     assert main([*words[1:], "--quiet"]) == 0
     assert re.search(r"resuming .*: 1 of 4 shards already done", capsys.readouterr().out)
-    assert len(QuadrupletDataset(data)) == 4
+    assert len(Dataset.open(data).quadruplets()) == 4
     assert main(["data", "check", str(data)]) == 0
 
 
@@ -528,7 +527,7 @@ def test_a_shipped_name_is_never_a_local_folder(place, tmp_path, monkeypatch):
     import shutil
     import warnings
 
-    from cerberus_core.run import resolve_weights
+    from cerberus_core.weights import resolve_weights
     from cerberus_core.zoo import ZOO_DIR
 
     monkeypatch.chdir(tmp_path)

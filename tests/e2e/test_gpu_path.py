@@ -15,6 +15,8 @@ from pathlib import Path
 import pytest
 import torch
 
+from cerberus_core.datasets.dataset import Dataset
+
 CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 NO_CUDA = pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA is available here")
 
@@ -90,9 +92,8 @@ def test_train_on_cuda(data: Path, tmp_path: Path, renderer: str) -> None:
 def test_reconstruct_on_cuda(data: Path, cuda_run: Path, tmp_path: Path) -> None:
     from PIL import Image
 
-    from cerberus_core.datasets.readers import ViewDataset
 
-    view = ViewDataset(data, "test")[0]["images"]  # (3, H, W) in [0, 1]
+    view = Dataset.open(data).views("test")[0]["images"]  # (3, H, W) in [0, 1]
     Image.fromarray((view.permute(1, 2, 0).numpy() * 255).round().astype("uint8")).save(tmp_path / "view.png")
     res = cerberus("reconstruct", str(cuda_run), str(tmp_path / "view.png"), "--device", "cuda", "--out",
                    str(tmp_path / "rec"), cwd=tmp_path)

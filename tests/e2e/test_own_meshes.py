@@ -12,7 +12,8 @@ import trimesh
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.cli import main
 from cerberus_core.datasets.manifest import Manifest
-from cerberus_core.plugins import PluginError, get_metric
+from cerberus_core.errors import PluginError
+from cerberus_core.plugins import get_metric
 
 
 def _mesh_folder(root):

@@ -10,6 +10,7 @@ import trimesh
 from PIL import Image
 
 from cerberus_core.cli import main
+from cerberus_core.datasets.dataset import Dataset
 
 pytestmark = pytest.mark.slow
 
@@ -61,9 +62,8 @@ def test_eval_viewer_shows_reconstruction_and_ground_truth(evaluated, chromium) 
 
 
 def test_reconstruct_exports_parts_and_pictures(trained) -> None:
-    from cerberus_core.datasets.readers import ViewDataset
 
-    ds = ViewDataset(trained["data"], "test")
+    ds = Dataset.open(trained["data"]).views("test")
     paths = []
     for i in (0, 1):
         img = np.asarray(ds[i]["images"], dtype=np.float32) * 255  # the reader's contract: float in [0, 1]

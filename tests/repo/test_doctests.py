@@ -25,7 +25,8 @@ MODULES = _modules_with_examples()
 
 
 def test_the_docstring_examples_are_found():
-    assert {"cerberus_core.render.ops", "cerberus_core.render.api", "cerberus_core.shapes"} <= set(MODULES)
+    assert {"cerberus_core.render.ops", "cerberus_core.render.api", "cerberus_core.shapes", "cerberus_core.run",
+            "cerberus_core.weights", "cerberus_metrics.api"} <= set(MODULES)
 
 
 @pytest.mark.parametrize("name", MODULES)

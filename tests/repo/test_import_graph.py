@@ -131,7 +131,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("cerberus_core.bodies",),
     ("cerberus_core.datasets", "cerberus_core.parts", "cerberus_core.model", "cerberus_core.losses"),
     ("cerberus_core.train", "cerberus_core.eval"),
-    ("cerberus_core.run", "cerberus_core.zoo", "cerberus_core.testing"),
+    ("cerberus_core.run", "cerberus_core.weights", "cerberus_core.zoo", "cerberus_core.testing"),
     ("cerberus_core.cli", "cerberus_core.__main__", "cerberus_core"),
 ]
 
@@ -161,3 +161,39 @@ def test_the_direction_check_sees_an_upward_import():
     assert _layer("cerberus_core.render.api") < _layer("cerberus_core.datasets.readers") < _layer("cerberus_core.run")
     assert _layer("cerberus_core.errors") == 0 < _layer("cerberus_core.plumbing.names")  # plumbing raises errors
     assert _layer("cerberus_core.plumbing.outputs") == 1 and _layer("cerberus_core.cli.data") == len(LAYERS) - 1
+
+
+#: The layers inside cli/, lowest first: what the commands share (flags, argument checks, tables, a dataset request
+#: said in flags), the sub-commands, then the package that assembles them and owns the error boundary. The commands
+#: import lazily, so here function-local imports count too.
+CLI_LAYERS: list[tuple[str, ...]] = [
+    ("cerberus_core.cli.flags", "cerberus_core.cli.checks", "cerberus_core.cli.tables", "cerberus_core.cli.datasets"),
+    ("cerberus_core.cli.data", "cerberus_core.cli.demo", "cerberus_core.cli.eval", "cerberus_core.cli.models",
+     "cerberus_core.cli.reconstruct", "cerberus_core.cli.renderers", "cerberus_core.cli.train"),
+    ("cerberus_core.cli", "cerberus_core.cli.__main__"),
+]
+
+
+def _cli_layer(module: str) -> int | None:
+    return next((rank for rank, names in enumerate(CLI_LAYERS) if module in names), None)
+
+
+def _all_imports(module: str) -> set[str]:
+    """Every toolkit module ``module`` imports, at the top or inside a function."""
+    top, local = _imports(module)
+    node = ast.parse("\n".join(text for _, text in local)) if local else None
+    inner = {t for stmt in (node.body if node else []) for t in _targets(module, stmt)}
+    return top | inner
+
+
+def test_cli_imports_point_one_way_without_cycles():
+    """A sub-command never imports the package that assembles the commands (``cli/__init__``), nor another
+    sub-command; the error boundary never reaches into one sub-command."""
+    cli = [m for m in MODULES if m == "cerberus_core.cli" or m.startswith("cerberus_core.cli.")]
+    unplaced = [m for m in cli if _cli_layer(m) is None]
+    assert not unplaced, f"give these modules a layer in CLI_LAYERS: {unplaced}"
+    graph = {m: {t for t in _all_imports(m) if t in cli and t != m} for m in cli}
+    wrong = [f"{m} imports {t}" for m, targets in graph.items() for t in sorted(targets)
+             if _cli_layer(t) > _cli_layer(m) or (_cli_layer(t) == _cli_layer(m) == 1)]
+    assert not wrong, "imports inside cli/ that point up (or across sub-commands):\n" + "\n".join(wrong)
+    assert _cycles(graph) == []

@@ -1,6 +1,6 @@
 """No library message names a command-line flag (docs/architecture.md, "Errors"): the library says a setting
 in Python terms (its config key, parameter or field) and only ``cerberus_core.cli`` says flags
-(:class:`cerberus_core.cli.FlagNames`). Read from the sources with ``ast``, nothing imported: every string of a
+(:class:`cerberus_core.cli.flags.FlagNames`). Read from the sources with ``ast``, nothing imported: every string of a
 library module but its docstrings (documentation may name the command line), so a message built in pieces, returned or appended is checked too.
 """
 from __future__ import annotations

@@ -11,8 +11,7 @@ from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError
 from cerberus_core.datasets.manifest import Manifest, SourceRecord
-from cerberus_core.datasets.plan import preset_config
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
+from cerberus_core.datasets.plan import GenerationRequest, preset_config
 
 
 def _export(path, vertices, faces):
@@ -68,13 +67,13 @@ def test_folder_source_normalises_each_subject_once(mesh_folder):
 @pytest.mark.parametrize("preset", ["pairs", "grid"])
 def test_folder_dataset_end_to_end(mesh_folder, tmp_path, preset):
     options = {"root": str(mesh_folder), "test_subjects": ["carol"]}
-    cfg = preset_config("folder", preset, image_size=32)
-    Dataset.generate(cfg, tmp_path / "ds", source_options=options, progress=False, log=lambda s: None)
+    request = GenerationRequest("folder", preset, {"image_size": 32}, options)
+    Dataset.generate(request, tmp_path / "ds", progress=False, log=lambda s: None)
     assert Dataset.open(tmp_path / "ds").verify() == []
-    quads = QuadrupletDataset(tmp_path / "ds")
+    quads = Dataset.open(tmp_path / "ds").quadruplets()
     names = {quads.subject_names[int(quads[i]["subject"])] for i in range(len(quads))}
     assert names == {"alice", "bob"}
-    test = ViewDataset(tmp_path / "ds")
+    test = Dataset.open(tmp_path / "ds").views()
     assert {test.subject_names[s] for s in test.subjects()} == {"carol"}
     canon = test.canonical_indices()
     if preset == "pairs":
@@ -186,7 +185,7 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
     manifest = Manifest.read(tmp_path / "dz")
     assert manifest.source.options["up_axis"] == "+z"
     assert manifest.config.source["up_axis"] == "+z"
-    z_test, y_test = ViewDataset(tmp_path / "dz"), ViewDataset(tmp_path / "dy")
+    z_test, y_test = Dataset.open(tmp_path / "dz").views(), Dataset.open(tmp_path / "dy").views()
     np.testing.assert_allclose(z_test.gt_mesh(0).vertices, y_test.gt_mesh(0).vertices, atol=1e-6)
     capsys.readouterr()
     assert main([*base[:3], "primitives", "--out", str(tmp_path / "p"), "--up-axis", "+z", "--dry-run"]) == 2
@@ -196,16 +195,15 @@ def test_generate_warns_about_the_up_axis_and_records_the_choice(tmp_path, capsy
 @pytest.mark.parametrize("scale", [1e6, 1e-6])
 def test_meshes_in_huge_or_tiny_units_render_like_metres(tmp_path, scale):
     options = {"test_fraction": 0.5}
-    cfg = preset_config("folder", "pairs", image_size=32)
     metres = _figures(tmp_path / "m")
     scaled = _figures(tmp_path / "s", transform=lambda v: v * scale + 3.0 * scale)
     for b, ref in zip(_all_bodies(FolderSource(scaled, **options)), _all_bodies(FolderSource(metres, **options)),
                       strict=True):
         np.testing.assert_allclose(b.vertices, ref.vertices, atol=1e-6)
     for root, out in ((metres, "dm"), (scaled, "ds")):
-        Dataset.generate(cfg, tmp_path / out, source_options={"root": str(root), **options}, progress=False,
-                 log=lambda s: None)
-    a, b = ViewDataset(tmp_path / "dm"), ViewDataset(tmp_path / "ds")
+        Dataset.generate(GenerationRequest("folder", "pairs", {"image_size": 32}, {"root": str(root), **options}),
+                         tmp_path / out, progress=False, log=lambda s: None)
+    a, b = Dataset.open(tmp_path / "dm").views(), Dataset.open(tmp_path / "ds").views()
     for i in range(len(a)):
         body_pixels = float((a[i]["images"] < 0.99).float().mean())
         assert body_pixels > 0.03  # not blank
@@ -255,18 +253,19 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
     assert source.subjects("train", None, 0) == [] and len(source.subjects("test", None, 0)) == 2
     assert source.describe()["canonical"] == "rest"
     logs = []
-    manifest = Dataset.generate(preset_config("folder", "pairs", image_size=32), tmp_path / "ds",
-                                source_options={"root": str(root), "test_fraction": 1.0, "canonical": "rest"},
+    manifest = Dataset.generate(GenerationRequest("folder", "pairs", {"image_size": 32},
+                                                  {"root": str(root), "test_fraction": 1.0, "canonical": "rest"}),
+                                tmp_path / "ds",
                                 progress=False, log=logs.append).manifest
     assert logs == ["split 'train' has no subject and is left empty"]
     assert manifest.split("train").planned_shards == 0 and Dataset.open(tmp_path / "ds").verify() == []
-    test = ViewDataset(tmp_path / "ds")
+    test = Dataset.open(tmp_path / "ds").views()
     assert len(test) == 2 * 3 * 4  # 2 poses + the canonical one, 4 views each
     canon = test.canonical_indices()
     assert sorted(len(v) for v in canon.values()) == [4, 4]
     assert all(int(test.records["pose"][i]) == 2 for v in canon.values() for i in v)  # 'rest' sorts last
     with pytest.raises(DatasetError, match=r"split 'train' is empty: the dataset has no train subjects.*cerberus eval"):
-        QuadrupletDataset(tmp_path / "ds")
+        Dataset.open(tmp_path / "ds").quadruplets()
     capsys.readouterr()
     run = tmp_path / "run"
     assert main(["train", "--preset", "tiny", "--set", f"data.root={tmp_path / 'ds'}", "--out", str(run)]) == 2
@@ -276,7 +275,7 @@ def test_a_test_only_folder_dataset_is_generated_and_read_but_not_trained_on(tmp
     with pytest.raises(ValueError, match="no split has a subject"):
         Dataset.generate(preset_config("folder", "pairs", image_size=32, splits={"train": preset_config(
             "folder", "pairs").splits["train"]}), tmp_path / "ds2",
-            source_options={"root": str(root), "test_fraction": 1.0}, progress=False, log=lambda s: None)
+            source=FolderSource(root, test_fraction=1.0), progress=False, log=lambda s: None)
 
 
 @pytest.mark.parametrize("factor, unit", [(1000.0, "millimetres among metres"), (1e-2, "centimetres among metres")])
@@ -308,10 +307,10 @@ def test_the_empty_test_split_hint_gives_the_right_count(tmp_path):
     used to blame test_fraction 1, which empties the *train* split instead."""
     root = _figures(tmp_path / "m", poses=(1, 2), subjects=1)
     out = tmp_path / "ds"
-    Dataset.generate(preset_config("folder", "pairs", image_size=32), out,
-             source_options={"root": str(root), "test_fraction": 0.3}, progress=False, log=lambda s: None)
+    Dataset.generate(GenerationRequest("folder", "pairs", {"image_size": 32}, {"root": str(root), "test_fraction": 0.3}),
+                     out, progress=False, log=lambda s: None)
     with pytest.raises(DatasetError) as info:
-        ViewDataset(out)
+        Dataset.open(out).views()
     msg = str(info.value)
     assert "split 'test' is empty" in msg and "`test_fraction=0.3` of its 1 subject gives round(0.3 x 1) = 0 test" in msg
     assert "`test_fraction=1` (every subject a test subject" in msg and "made with" not in msg

@@ -8,6 +8,7 @@ import pytest
 from PIL import Image
 
 from cerberus_core.cli import main
+from cerberus_core.datasets.dataset import Dataset
 
 
 def test_generate_check_show_primitives(tmp_path, capsys):
@@ -76,12 +77,11 @@ def test_generate_takes_set_overrides_with_the_training_configs_validation(tmp_p
 @pytest.mark.parametrize("dataset", ["human", "animal"])
 def test_generate_tiny_real_sources(tmp_path, dataset):
     """The anny humans and the procedural animals through the whole pipeline (tens of seconds)."""
-    from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 
     out = tmp_path / dataset
     assert main(["data", "generate", "--dataset", dataset, "--size", "tiny", "--out", str(out), "--quiet"]) == 0
     assert main(["data", "check", str(out)]) == 0
-    quads, views = QuadrupletDataset(out), ViewDataset(out)
+    quads, views = Dataset.open(out).quadruplets(), Dataset.open(out).views()
     item = quads[0]
     assert item["images"].shape == (4, 3, 64, 64)
     body = views.gt_mesh(0)
@@ -108,14 +108,14 @@ def test_a_second_writer_of_a_dataset_folder_is_refused_with_the_holders_pid(tmp
 
 
 def test_the_resume_command_of_a_folder_dataset_rebuilds_its_config(tmp_path, capsys):
-    """cli.data.generate_command names the mesh folder and its test split: rerunning it resumes (here:
+    """cli.datasets.generate_command names the mesh folder and its test split: rerunning it resumes (here:
     nothing left to do) instead of refusing a different dataset."""
     import shlex
 
     import trimesh
 
     from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
-    from cerberus_core.cli.data import generate_command
+    from cerberus_core.cli.datasets import generate_command
     from cerberus_core.datasets.dataset import Dataset
 
     meshes = tmp_path / "meshes"

@@ -28,7 +28,8 @@ def test_unknown_renderer_and_choice_name_the_close_match(capsys, tmp_path):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "did you mean 'tiny'?" in err[0]
-    from cerberus_core.plugins import RENDERER_GROUP, UnknownPluginError, get_plugin
+    from cerberus_core.errors import UnknownPluginError
+    from cerberus_core.plugins import RENDERER_GROUP, get_plugin
     with pytest.raises(UnknownPluginError, match="did you mean 'warp'"):
         get_plugin(RENDERER_GROUP, "Warp")
 
@@ -94,39 +95,13 @@ def test_a_warning_prints_as_one_line_without_a_source_line() -> None:
     assert proc.stderr == "cerberus renderers: warning: a first line; and a second\n"
 
 
-def test_flag_names_say_the_library_settings_as_the_command_flags():
-    """The library names settings in Python terms; the CLI's one translation says each as the flag of the
-    command that was run (typed, or the command's only way to set it), else ``--set KEY=VALUE``."""
-    from cerberus_core.cli import FlagNames, typed_flags
-    from cerberus_core.errors import ConfigError
-    from cerberus_core.train.settings import TrainConfig
-
-    names = FlagNames({"run_dir": "--out", "resume": "--resume", "device": "--device", "masks": "--mask"}, TrainConfig,
-                      typed_flags(["train", "--out=runs/a", "--set", "device=cuda"]))
-    assert names.text("pass `resume=True`, or another `run_dir`; or `resume=False`") == \
-        "pass --resume, or another --out; or without --resume"
-    assert names.text("e.g. `masks=DIR` or `train.steps=10`; see `train.steps`") == \
-        "e.g. --mask DIR or --set train.steps=10; see train.steps"
-    assert names.text("`canonical` and `cerberus data generate` stay") == "`canonical` and `cerberus data generate` stay"
-    # a config key with a flag of its own: the flag where it was typed, else --set
-    cuda = ConfigError.about("device", "cuda", "CUDA is not available on this machine; use `device=cpu`")
-    assert names.error(cuda) == "device = 'cuda': CUDA is not available on this machine; use --set device=cpu"
-    typed = FlagNames(names.flags, TrainConfig, typed_flags(["train", "--device", "cuda"]))
-    assert typed.error(cuda) == "--device cuda: CUDA is not available on this machine; use --device cpu"
-    steps = ConfigError.about("train.steps", 0, "must be an integer >= 1", "`train.steps=VALUE`")
-    assert str(steps) == "train.steps = 0: must be an integer >= 1 (`train.steps=VALUE`)"
-    assert names.error(steps) == "train.steps = 0: must be an integer >= 1 (--set train.steps=VALUE)"
-    assert FlagNames().error(steps) == str(steps)  # a command without --set or flags leaves the library's words
-    bad = ConfigError.about("overrides", "a.b=[1", "not valid YAML")
-    assert FlagNames({"overrides": "--set"}).error(bad) == "--set 'a.b=[1': not valid YAML"
-
-
 def test_a_warning_is_said_in_the_command_flags():
     """A library warning names `up_axis=+z` (the folder source's hint); `cerberus data generate` prints it with
     its flag, on one line."""
     import warnings
 
-    from cerberus_core.cli import FlagNames, _cli_environment
+    from cerberus_core.cli import _cli_environment
+    from cerberus_core.cli.flags import FlagNames
 
     with _cli_environment("data", FlagNames({"up_axis": "--up-axis"})):
         line = warnings.formatwarning("they are z-up:\npass `up_axis=+z`", UserWarning, "folder.py", 1)

@@ -110,10 +110,9 @@ def test_path_escape_in_manifest_is_reported(pairs_dataset, tmp_path):
     (ds / MANIFEST).write_text(json.dumps(m))
     problems = Dataset.open(ds).verify()
     assert any("escapes the dataset folder" in p for p in problems)
-    from cerberus_core.datasets.readers import QuadrupletDataset
 
     with pytest.raises(DatasetError, match="escapes the dataset folder"):
-        QuadrupletDataset(ds)
+        Dataset.open(ds).quadruplets()
 
 
 def test_corruption_is_detected(pairs_dataset, tmp_path):
@@ -223,7 +222,6 @@ def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_datas
     manifest's numbers is a problem of `cerberus data check` (exit 1) and a DatasetError of every reader; no
     pickle is ever run (the object array is refused unread)."""
     from cerberus_core.cli import main
-    from cerberus_core.datasets.readers import QuadrupletDataset
 
     root, path = _rewritten(pairs_dataset, tmp_path, role, change)
     before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
@@ -233,7 +231,7 @@ def test_data_check_verifies_the_manifest_numbers_against_the_arrays(pairs_datas
     out = capsys.readouterr()
     assert expected in out.err and out.out.endswith("1 problem(s)\n")
     with pytest.raises(DatasetError, match="regenerate"):
-        QuadrupletDataset(root)
+        Dataset.open(root).quadruplets()
     assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before
 
 

@@ -50,12 +50,11 @@ def test_interrupted_run_resumes_to_the_identical_dataset(pairs_dataset, pairs_c
         Dataset.generate(pairs_config(), out, on_shard=crash_after_two, **QUIET)
     manifest = Manifest.read(out)
     assert not manifest.complete and len(manifest.split("train").shards) == 2
-    from cerberus_core.datasets.readers import QuadrupletDataset
 
     with pytest.raises(DatasetError, match="incomplete"):
-        QuadrupletDataset(out)
+        Dataset.open(out).quadruplets()
     finished = manifest.split("train").totals()["quadruplets"]
-    assert len(QuadrupletDataset(out, allow_partial=True)) == finished > 0
+    assert len(Dataset.open(out).quadruplets(allow_partial=True)) == finished > 0
     rebuilt = []
     Dataset.generate(pairs_config(), out, on_shard=lambda split, rec: rebuilt.append((split, rec.name)), **QUIET)
     final = Manifest.read(out)
@@ -149,11 +148,10 @@ def test_stored_images_match_a_fresh_render_of_the_stored_mesh(pairs_dataset):
     """Cameras, light, albedo and meshes in the files are exactly what produced the images."""
     import torch
 
-    from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.render.api import render
     from cerberus_core.render.backends import make_renderer
 
-    views = ViewDataset(pairs_dataset, "train")
+    views = Dataset.open(pairs_dataset).views("train")
     renderer = make_renderer("torch")
     for i in (0, 5, len(views) - 1):
         item, body = views[i], views.gt_mesh(i)

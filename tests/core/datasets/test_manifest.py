@@ -19,8 +19,7 @@ from cerberus_core.datasets.manifest import (
     ShardRecord,
     SplitRecord,
 )
-from cerberus_core.datasets.readers import ViewDataset
-from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.datasets.settings import GenerationConfig
 
 OLD_MANIFEST = Path(__file__).with_name("old_manifest.json")
@@ -34,7 +33,7 @@ def test_read_gives_typed_records(pairs_dataset):
     assert m.root == pairs_dataset and m.path == pairs_dataset / MANIFEST and m.complete
     assert (m.dataset, m.preset, m.image_size) == (raw["dataset"], raw["preset"], raw["image_size"])
     assert m.part_names == tuple(raw["part_names"]) and m.subject_names == [s["name"] for s in raw["subjects"]]
-    assert isinstance(m.scene, SceneSetup) and m.scene == SceneSetup.from_dict(raw["scene"])
+    assert isinstance(m.scene, SceneSetup) and m.scene == read_scene(raw["scene"])
     train = m.split("train")
     assert isinstance(train, SplitRecord) and train.complete and train.layout == "pairs"
     assert all(isinstance(s, ShardRecord) for s in train.shards)
@@ -43,7 +42,7 @@ def test_read_gives_typed_records(pairs_dataset):
     assert train.totals()["images"] == train.planned_images
     assert m.subjects[0].subject.name == m.subjects[0].name and "train" in m.subjects[0].splits
     assert isinstance(m.config, GenerationConfig) and m.config.to_dict() == raw["config"]
-    assert isinstance(ViewDataset(pairs_dataset, "test").manifest, Manifest)  # what the readers hold
+    assert isinstance(Dataset.open(pairs_dataset).views("test").manifest, Manifest)  # what the readers hold
     with pytest.raises(DatasetError, match="no split 'val'; this dataset has \\['test', 'train'\\]"):
         m.split("val")
     with pytest.raises(FrozenInstanceError):

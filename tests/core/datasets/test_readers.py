@@ -8,14 +8,14 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.format import DatasetError
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 from cerberus_core.losses import background_mask
 from cerberus_core.render.camera import Camera
 
 
 def test_quadruplet_item_contract(pairs_dataset):
-    ds = QuadrupletDataset(pairs_dataset)
+    ds = Dataset.open(pairs_dataset).quadruplets()
     assert len(ds) == 6 and ds.image_size == 32
     for i in range(len(ds)):
         item = ds[i]
@@ -42,7 +42,7 @@ def test_quadruplet_item_contract(pairs_dataset):
 
 
 def test_scene_and_cameras_helper(pairs_dataset):
-    ds = QuadrupletDataset(pairs_dataset)
+    ds = Dataset.open(pairs_dataset).quadruplets()
     assert {"elevation", "distance", "fov_y", "ambient", "diffuse", "albedo", "background"} <= set(ds.scene.to_dict())
     batch = next(iter(DataLoader(ds, batch_size=3)))
     assert batch["images"].shape == (3, 4, 3, 32, 32)
@@ -60,7 +60,7 @@ def test_scene_and_cameras_helper(pairs_dataset):
 
 
 def test_datasets_are_picklable_and_work_in_workers(pairs_dataset):
-    ds = QuadrupletDataset(pairs_dataset)
+    ds = Dataset.open(pairs_dataset).quadruplets()
     _ = ds[0]  # opens memory maps, which must not travel
     clone = pickle.loads(pickle.dumps(ds))
     assert torch.equal(clone[2]["images"], ds[2]["images"])
@@ -70,7 +70,7 @@ def test_datasets_are_picklable_and_work_in_workers(pairs_dataset):
 
 
 def test_view_dataset_contract_gt_mesh_and_canonical(pairs_dataset):
-    ds = ViewDataset(pairs_dataset)  # test split
+    ds = Dataset.open(pairs_dataset).views()  # test split
     assert len(ds) == 12
     item = ds[3]
     assert item["images"].shape == (3, 32, 32)
@@ -102,7 +102,7 @@ def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
     cfg = pairs_config()
     cfg = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], meshes=False)})
     Dataset.generate(cfg, tmp_path / "ds", progress=False, log=lambda s: None)
-    ds = ViewDataset(tmp_path / "ds", "train")
+    ds = Dataset.open(tmp_path / "ds").views("train")
     assert "vertices" not in ds.manifest.split("train").shards[0].files
     body = ds.gt_mesh(6)
     src = source_class("primitives")()
@@ -112,7 +112,7 @@ def test_gt_mesh_is_regenerated_when_not_stored(tmp_path, pairs_config):
 
 
 def test_grid_quadruplets_share_viewpoints(grid_dataset):
-    ds = QuadrupletDataset(grid_dataset)
+    ds = Dataset.open(grid_dataset).quadruplets()
     assert len(ds) == 2 * 6  # 2 subjects x min(3 pose pairs x 3 view pairs, 2 per pose x 3 poses)
     for i in range(len(ds)):
         it = ds[i]
@@ -123,13 +123,13 @@ def test_grid_quadruplets_share_viewpoints(grid_dataset):
 
 def test_wrong_split_or_kind_is_a_clear_error(pairs_dataset):
     with pytest.raises(DatasetError, match="no split 'val'.*test.*train"):
-        QuadrupletDataset(pairs_dataset, "val")
+        Dataset.open(pairs_dataset).quadruplets("val")
     with pytest.raises(DatasetError, match="no quadruplets.*ViewDataset"):
-        QuadrupletDataset(pairs_dataset, "test")
+        Dataset.open(pairs_dataset).quadruplets("test")
 
 
 def test_background_mask_is_exact(pairs_dataset):
-    ds = ViewDataset(pairs_dataset)
+    ds = Dataset.open(pairs_dataset).views()
     img = ds[0]["images"]
     mask = background_mask(img, ds.scene.background)
     assert mask.shape == (1, 32, 32)
@@ -141,7 +141,7 @@ def test_an_index_that_is_not_an_integer_is_named(pairs_dataset):
     """Issue 34 campaign: ``views["a"]`` was "'<' not supported between instances of 'str' and 'int'"."""
     from cerberus_core.errors import InputTypeError
 
-    views = ViewDataset(pairs_dataset, "test")
+    views = Dataset.open(pairs_dataset).views("test")
     with pytest.raises(InputTypeError, match=r"indexed by an integer 0..\d+, got str 'a'"):
         views["a"]
     assert views[np.int64(0)].keys() == views[0].keys()

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from cerberus_core.bodies.body import FILL
-from cerberus_core.datasets.scene import SceneSetup, evenly_spaced, fit_distance
+from cerberus_core.datasets.scene import SceneSetup, evenly_spaced, fit_distance, read_scene
 from cerberus_core.errors import DatasetError
 
 
@@ -30,13 +30,13 @@ def test_fitted_distance_keeps_the_body_cube_in_frame(elevation):
 def test_scene_dict_round_trip_and_light_follows_camera():
     scene = SceneSetup(elevation=12.0, fov_y=35.0)
     assert scene.distance == fit_distance(35.0, 12.0)
-    back = SceneSetup.from_dict(scene.to_dict())
+    back = read_scene(scene.to_dict())
     assert back == scene
     assert back.to_dict() == scene.to_dict()  # one stored form, both ways
-    with pytest.raises(ValueError, match="unknown key.*'elevaton'"):
-        SceneSetup.from_dict({**scene.to_dict(), "elevaton": 10.0})
+    with pytest.raises(ValueError, match="unknown config key.*'scene.elevaton'.*did you mean 'scene.elevation'"):
+        read_scene({**scene.to_dict(), "elevaton": 10.0})
     with pytest.raises(ValueError, match="scene.light"):
-        SceneSetup.from_dict({**scene.to_dict(), "light": {"type": "point"}})
+        read_scene({**scene.to_dict(), "light": {"type": "point"}})
     cam = scene.cameras([0.0, 90.0], 64)
     light = scene.light(cam)
     torch.testing.assert_close(light.direction, torch.nn.functional.normalize(cam.center, dim=-1))
@@ -74,7 +74,7 @@ def test_framed_distance_fits_a_vertical_cylinder_tightly(radius):
     closer = replace(scene, distance=0.95 * scene.distance).cameras(az, 64)
     uv2, _ = closer.project(pts.expand(len(az), -1, -1))
     assert float(uv2.min()) < 0 or float(uv2.max()) > 64
-    assert SceneSetup.from_dict(scene.to_dict()) == scene and scene.to_dict()["fitted_radius"] == radius
+    assert read_scene(scene.to_dict()) == scene and scene.to_dict()["fitted_radius"] == radius
     assert "fitted_radius" not in SceneSetup().to_dict()  # the paper's set-up keeps its stored form
     with pytest.raises(ValueError, match=r"scene.fitted_radius = 0.0: must be a number > 0"):
         SceneSetup(fitted_radius=0.0)

@@ -6,7 +6,8 @@ import pytest
 import torch
 from PIL import Image
 
-from cerberus_core.eval.images import ImageInputError, ImageInputWarning, load_image, load_images
+from cerberus_core.errors import ImageInputError
+from cerberus_core.eval.images import ImageInputWarning, load_image, load_images
 
 S = 32
 

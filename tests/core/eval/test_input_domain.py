@@ -15,7 +15,7 @@ import torch
 from PIL import Image
 
 from cerberus_core.cli import main
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval import input_domain as D
 from cerberus_core.eval.images import load_image
 
@@ -26,7 +26,7 @@ def generated(tmp_path_factory):
     root = tmp_path_factory.mktemp("input_domain")
     assert main(["data", "generate", "--dataset", "human", "--size", "tiny", "--set", "splits.train.pairs=1",
                  "--out", str(root / "data"), "--quiet"]) == 0
-    ds = ViewDataset(root / "data", split="test")
+    ds = Dataset.open(root / "data").views(split="test")
     images = [ds[i]["images"].numpy().transpose(1, 2, 0) for i in range(len(ds))]
     paths = []
     for i, a in enumerate(images):

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from cerberus_core.cli import main as cerberus_main
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.report import markdown_report
 from cerberus_core.eval.runner import evaluate_dataset
 from cerberus_core.eval.standard import VoxelScorer
@@ -14,13 +15,12 @@ from cerberus_core.eval.standard import VoxelScorer
 
 @pytest.mark.slow
 def test_untrained_model_on_generated_primitives(tmp_path, iou_scorer):
-    from cerberus_core.datasets.readers import ViewDataset
     from cerberus_core.model import Cerberus, ModelConfig
 
     root = tmp_path / "prim"
     assert cerberus_main(["data", "generate", "--dataset", "primitives", "--size", "tiny", "--out", str(root),
                           "--quiet"]) == 0
-    ds = ViewDataset(root)
+    ds = Dataset.open(root).views()
     torch.manual_seed(0)
     model = Cerberus(ModelConfig(depth_offset=ds.scene.distance)).eval()
     res = evaluate_dataset(ds, model.reconstruct, batch_size=6, scorer=VoxelScorer(factory=iou_scorer), progress=False)

@@ -9,7 +9,8 @@ import sys
 
 import pytest
 
-from cerberus_core.plumbing.lock import LOCK_NAME, LockedError, acquire, folder_lock, read_lock
+from cerberus_core.errors import LockedError
+from cerberus_core.plumbing.lock import LOCK_NAME, acquire, folder_lock, read_lock
 
 
 def dead_pid() -> int:

@@ -6,10 +6,8 @@ import sys
 
 import pytest
 
-from cerberus_core.plugins import (
-    RENDERER_GROUP,
-    UnknownPluginError,
-)
+from cerberus_core.errors import UnknownPluginError
+from cerberus_core.plugins import RENDERER_GROUP
 from cerberus_core.render.backends import available_renderers, make_renderer
 from tests.support.dists import BROKEN, WORKING
 

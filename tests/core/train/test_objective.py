@@ -212,11 +212,21 @@ def test_loss_config_rejects_nan_weights():
         LossConfig(silhouette=float("nan")).validate()
 
 
-def test_the_term_table_makes_the_config_weights_and_the_docs_show_it():
-    """Each term is declared once (TERM_TABLE): LossConfig's weight fields are made from it, with the
-    paper's weights as defaults and the range >= 0; docs/training.md shows terms_table()."""
+def test_each_term_is_a_written_weight_field_of_the_loss_config_and_the_docs_show_the_table():
+    """Each term is declared once, as a weight field of LossConfig (a class written out, so that a type checker
+    and an IDE follow `losses.coverage`): TERM_TABLE is read from those fields, with the paper's weights as
+    defaults and the range >= 0; docs/training.md shows terms_table()."""
+    import ast
+    import inspect
+    import typing
 
+    from cerberus_core.train import objective
     from cerberus_core.train.objective import TERM_TABLE, terms_table
+
+    written = {node.name: node for node in ast.parse(inspect.getsource(objective)).body if isinstance(node, ast.ClassDef)}
+    annotated = [n.target.id for n in written["LossConfig"].body if isinstance(n, ast.AnnAssign)]
+    assert annotated[:len(TERM_TABLE)] == [t.name for t in TERM_TABLE]  # the terms, in logging order, then the switches
+    assert typing.get_type_hints(LossConfig)["coverage"] is float and "make_dataclass" not in inspect.getsource(objective)
 
     assert LossConfig().weights == {t.name: t.weight for t in TERM_TABLE}
     assert [t.name for t in TERM_TABLE if t.paper] == ["recon", "translation", "background", "smoothness"]

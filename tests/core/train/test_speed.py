@@ -4,10 +4,11 @@ import pytest
 import torch
 
 from cerberus_core.devices import native_bf16
+from cerberus_core.errors import NonFiniteError
 from cerberus_core.model import Cerberus
 from cerberus_core.model.cerberus import ModelConfig
 from cerberus_core.render.templates import icosphere
-from cerberus_core.train import NonFiniteError, load_checkpoint, load_config, train
+from cerberus_core.train import load_checkpoint, load_config, train
 from cerberus_core.train.checkpoint import checkpoint_dir
 from cerberus_core.train.objective import smoothness_term
 from cerberus_core.train.speed import SpeedConfig, apply_speed, release_speed, resolve_autocast

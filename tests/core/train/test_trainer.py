@@ -1,12 +1,14 @@
 """The training loop: learning on a fixed batch, exact resumption, non-finite handling, outputs."""
 import csv
+from pathlib import Path
 
 import pytest
 import torch
 
-from cerberus_core.datasets.readers import QuadrupletDataset
+from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.errors import NonFiniteError
 from cerberus_core.run import Run
-from cerberus_core.train import NonFiniteError, load_checkpoint, train
+from cerberus_core.train import load_checkpoint, train
 from cerberus_core.train.checkpoint import checkpoint_dir
 
 
@@ -41,7 +43,7 @@ class FirstItems(torch.utils.data.Dataset):
 
 def test_a_few_steps_reduce_the_loss_on_a_fixed_batch(tiny_config, tiny_root, tmp_path):
     # batch_size 2 = the whole 2-quadruplet dataset: every step sees the same quadruplets.
-    data = FirstItems(QuadrupletDataset(tiny_root), 2)
+    data = FirstItems(Dataset.open(tiny_root).quadruplets(), 2)
     cfg = tiny_config("train.steps=20", "train.batch_size=2", "train.image_every=0", "train.checkpoint_every=100",
                       "optim.lr=0.002")
     result = train(cfg, tmp_path / "run", dataset=data)
@@ -135,7 +137,7 @@ def test_interrupt_finishes_the_step_checkpoints_and_resumes(tiny_config, tiny_r
     # batch_size 1 over a 4-item dataset: step s of epoch 0 reads permutation[s]; interrupt at step 1.
     from cerberus_core.train.data import step_indices
 
-    data = QuadrupletDataset(tiny_root)
+    data = Dataset.open(tiny_root).quadruplets()
     cfg = tiny_config("train.batch_size=1", "train.checkpoint_every=10", "train.image_every=0")
     at = step_indices(4, cfg.seed, 1, 1)[0]
     result = train(cfg, tmp_path / "run", dataset=InterruptAt(data, 4, at))
@@ -171,7 +173,7 @@ def test_a_step_still_running_after_sigterm_is_abandoned_within_its_grace(tiny_c
     cfg = tiny_config("train.batch_size=1", "train.checkpoint_every=1", "train.image_every=0")
     start = time.monotonic()
     with pytest.raises(Terminated):
-        train(cfg, tmp_path / "run", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+        train(cfg, tmp_path / "run", dataset=FirstItems(Dataset.open(tiny_root).quadruplets(), 4))
     assert time.monotonic() - start < 20
     assert load_checkpoint(checkpoint_dir(tmp_path / "run") / "last.pt")["step"] == 1
     assert signal.getsignal(signal.SIGTERM) is not trainer_module._StopRequest._handle  # handlers restored
@@ -188,12 +190,12 @@ def test_resources_a_setting_cannot_have_are_capped_or_refused(tiny_config, tiny
     try:
         cfg = tiny_config("threads=10000", "train.steps=1", "train.image_every=0")
         with pytest.warns(UserWarning, match=rf"threads=10000 is more than this machine's {os.cpu_count()} cores"):
-            train(cfg, tmp_path / "run", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+            train(cfg, tmp_path / "run", dataset=FirstItems(Dataset.open(tiny_root).quadruplets(), 4))
         assert torch.get_num_threads() <= (os.cpu_count() or 1)
     finally:
         torch.set_num_threads(before)
     with pytest.raises(ConfigError, match=r"train.batch_size = 1000000000: more than the 4 quadruplets"):
-        train(tiny_config("train.batch_size=1000000000"), tmp_path / "big", dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+        train(tiny_config("train.batch_size=1000000000"), tmp_path / "big", dataset=FirstItems(Dataset.open(tiny_root).quadruplets(), 4))
 
 
 def test_adam_is_fused_and_loads_the_state_of_the_foreach_adam_before_it():
@@ -245,7 +247,7 @@ def test_settings_the_machine_cannot_honour_are_refused_before_anything_is_alloc
     from cerberus_core.errors import ConfigError
     from cerberus_core.plumbing.machine import memory_bytes, size_text
 
-    many = FirstItems(QuadrupletDataset(tiny_root), 100_000)  # no item is read: the refusal comes first
+    many = FirstItems(Dataset.open(tiny_root).quadruplets(), 100_000)  # no item is read: the refusal comes first
     cfg = tiny_config("data.image_size=4096", "model.width=1024", "train.batch_size=1000", "train.steps=1")
     with pytest.raises(ConfigError, match=rf"data.image_size = 4096: needs at least .* of memory \(4000 images of "
                        rf"4096x4096 pixels per step at train.batch_size = 1000\), more than the "
@@ -264,7 +266,7 @@ def test_settings_the_machine_cannot_honour_are_refused_before_anything_is_alloc
     cores = len(os.sched_getaffinity(0))
     with pytest.warns(UserWarning, match=rf"data.num_workers=200 is more than this machine's {cores} cores"):
         result = train(tiny_config("data.num_workers=200", "train.steps=1", "train.image_every=0"), tmp_path / "w",
-                       dataset=FirstItems(QuadrupletDataset(tiny_root), 4))
+                       dataset=FirstItems(Dataset.open(tiny_root).quadruplets(), 4))
     assert Run.load(result.run_dir).config.data.num_workers == cores
 
 
@@ -302,3 +304,32 @@ def test_the_input_look_changes_what_the_network_sees_and_is_a_function_of_the_s
     assert_same_weights(*looks)  # the random appearances are drawn from (seed, step, rank)
     assert any(not torch.equal(shaded[k], looks[0][k]) for k in shaded)
     assert "input_look: random" in (tmp_path / "a" / "config.yaml").read_text()
+
+
+def test_a_checkpoint_written_before_issue_40_loads_and_resumes_with_the_same_config(tmp_path):
+    """tests/core/train/data/checkpoint_57eefd7.pt was written by commit 57eefd7 (before LossConfig was a written
+    class and the saved config had one reader): a 2-part, width-4 model at step 3, losses.coverage=0.5. Its config
+    reads back to the same YAML (so a resume sees no changed key), the resume check accepts it, and it loads as a
+    run with its weights."""
+    import shutil
+
+    from cerberus_core.train.settings import TrainConfig, config_diff
+    from cerberus_core.train.trainer import prepare_run_dir
+
+    run_dir = tmp_path / "run"
+    checkpoint_dir(run_dir).mkdir(parents=True)
+    last = checkpoint_dir(run_dir) / "last.pt"
+    shutil.copyfile(Path(__file__).parent / "data" / "checkpoint_57eefd7.pt", last)
+    payload = load_checkpoint(last)
+    config = TrainConfig.from_yaml(payload["config"], last)
+    import yaml
+
+    def holds(new, old):  # every setting the old config had, with its value (later settings may be added)
+        return all(holds(new[k], v) if isinstance(v, dict) else new.get(k) == v for k, v in old.items())
+    assert holds(yaml.safe_load(config.to_yaml()), yaml.safe_load(payload["config"])) and config.losses.coverage == 0.5
+    assert config_diff(config, TrainConfig.from_yaml(config.to_yaml(), "again")) == []
+    assert prepare_run_dir(run_dir, True, config)["step"] == 3
+    run = Run.load(last)
+    assert run.step == 3 and run.model.config.num_parts == 2
+    for name, tensor in run.model.state_dict().items():
+        assert torch.equal(tensor, payload["model"][name]), name

@@ -6,6 +6,7 @@ import torch
 import yaml
 
 from cerberus_core import zoo
+from cerberus_core.errors import ZooError
 from cerberus_core.model import Cerberus, ModelConfig
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
@@ -44,9 +45,9 @@ def test_a_shipped_name_loads_verified_weights_and_its_scene(tmp_path, monkeypat
 
 def test_unknown_names_and_damaged_files_are_refused_with_the_fix(tmp_path, monkeypatch):
     _fake_zoo(tmp_path, monkeypatch, tamper=True)
-    with pytest.raises(zoo.ZooError, match="fails its checksum.*reinstall"):
+    with pytest.raises(ZooError, match="fails its checksum.*reinstall"):
         Run.load("tiny")
-    with pytest.raises(zoo.ZooError, match="no pretrained model named 'dog'.*shipped: tiny"):
+    with pytest.raises(ZooError, match="no pretrained model named 'dog'.*shipped: tiny"):
         Run.load("dog")
 
 
@@ -65,7 +66,7 @@ def test_part_labels_of_the_wrong_type_are_one_clear_error(tmp_path, monkeypatch
     data = json.loads((tmp_path / "tiny.json").read_text())
     for bad in ("head", [1, 2], {"0": "head"}):
         (tmp_path / "tiny.json").write_text(json.dumps(data | {"part_labels": bad}))
-        with pytest.raises(zoo.ZooError, match="'part_labels' must be a JSON list of strings"):
+        with pytest.raises(ZooError, match="'part_labels' must be a JSON list of strings"):
             zoo.available()
 
 
@@ -85,7 +86,7 @@ def test_a_damaged_registry_entry_is_one_clear_error(tmp_path, monkeypatch, caps
         data = json.loads((tmp_path / "tiny.json").read_text())
         entry = json.dumps(data | {"weights": "../../elsewhere/tiny.safetensors"})
     (tmp_path / "tiny.json").write_text(entry)
-    with pytest.raises(zoo.ZooError, match=expected):
+    with pytest.raises(ZooError, match=expected):
         zoo.available()
     assert main(["models"]) == 2
     err = capsys.readouterr().err

@@ -120,7 +120,7 @@ def load_yaml(text: str, source: object = "config", fix: str = "fix the file") -
         where, problem = f"{source}", f"nested deeper than {MAX_DEPTH} levels"
     except ValueError:  # PyYAML's int() of a number longer than Python reads (sys.get_int_max_str_digits)
         where, problem = f"{source}", f"a number of more than {sys.get_int_max_str_digits()} digits"
-    raise ConfigError(f"{where}: not valid YAML ({problem}); {fix}", problem=problem)
+    raise ConfigError(f"{where}: not valid YAML ({problem}); {fix}", problem=problem, key="config")
 
 
 def parse_overrides(items: Iterable[str], example: str = "optim.lr=0.0001") -> dict[str, Any]:
@@ -171,7 +171,7 @@ class Presets:
         res = self._dir().joinpath(f"{name}.yaml")
         if not res.is_file():
             raise ConfigError(f"unknown {self.kind} {name!r}{did_you_mean(name, self.names())}; bundled "
-                              f"{self.kind}s: {', '.join(self.names())}")
+                              f"{self.kind}s: {', '.join(self.names())}", key=self.kind, value=name)
         return res.read_text()
 
 
@@ -181,15 +181,15 @@ def read_file(path: str | Path) -> str:
     path = Path(path)
     try:
         if path.exists() and not path.is_file():
-            raise ConfigError(f"config file {path} is not a regular file (a folder, FIFO or device); pass a YAML file")
+            raise ConfigError(f"config file {path} is not a regular file (a folder, FIFO or device); pass a YAML file", key="config", value=path)
         return path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ConfigError(f"config file {path} does not exist") from None
+        raise ConfigError(f"config file {path} does not exist", key="config", value=path) from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"config file {path} is not UTF-8 text ({exc.reason} at byte {exc.start}); save it as "
-                          "UTF-8") from None
+                          "UTF-8", key="config", value=path) from None
     except OSError as exc:
-        raise ConfigError(f"config file {path} cannot be read ({exc.strerror or exc}); check its permissions") from None
+        raise ConfigError(f"config file {path} cannot be read ({exc.strerror or exc}); check its permissions", key="config", value=path) from None
 
 
 def load_raw(presets: Presets, path: str | Path | None = None, *, preset: str | list[str] | None = None,
@@ -200,7 +200,7 @@ def load_raw(presets: Presets, path: str | Path | None = None, *, preset: str | 
     nor ``preset`` only the overrides are returned.
     """
     if path is not None and preset is not None:
-        raise ConfigError("give either a config file or a preset, not both (a file can say 'extends: PRESET')")
+        raise ConfigError("give either a config file or a preset, not both (a file can say 'extends: PRESET')", key="preset", value=preset)
     layers: list[tuple[str, dict[str, Any]]] = []
     if path is not None:
         layers = _layers(read_file(path), str(path), Path(path).parent, presets)
@@ -222,10 +222,10 @@ def _layers(text: str, source: str, base_dir: Path | None, presets: Presets,
     schedule instead of bringing the paper's settings back.
     """
     if depth > 8:
-        raise ConfigError(f"{source}: 'extends' chain deeper than 8 (a cycle?)")
+        raise ConfigError(f"{source}: 'extends' chain deeper than 8 (a cycle?)", key="extends")
     raw = load_yaml(text, source) or {}
     if not isinstance(raw, dict):
-        raise ConfigError(f"{source} must hold a YAML mapping of config sections")
+        raise ConfigError(f"{source} must hold a YAML mapping of config sections", key="config")
     parents = raw.pop("extends", None)
     parents = [] if parents is None else parents if isinstance(parents, list) else [parents]
     layers: list[tuple[str, dict[str, Any]]] = []
@@ -261,14 +261,14 @@ def _coerce_union(value: Any, options: tuple, key: str) -> Any:
             return coerce(value, option, key)
         except ConfigError:
             pass
-    raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {value!r}")
+    raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {value!r}", key=key, value=value)
 
 
 def _coerce_literal(value: Any, allowed: tuple, key: str) -> Any:
     if any(value == a and type(value) is type(a) for a in allowed):
         return value
     raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
-                      f"{did_you_mean(value, allowed)}")
+                      f"{did_you_mean(value, allowed)}", key=key, value=value)
 
 
 def _coerce_int(value: Any, key: str) -> int:
@@ -276,7 +276,7 @@ def _coerce_int(value: Any, key: str) -> int:
         return value
     if isinstance(value, float) and value.is_integer():
         return int(value)
-    raise ConfigError(f"{key}: expected an integer, got {value!r}")
+    raise ConfigError(f"{key}: expected an integer, got {value!r}", key=key, value=value)
 
 
 def _coerce_float(value: Any, key: str) -> float:
@@ -287,7 +287,7 @@ def _coerce_float(value: Any, key: str) -> float:
         with contextlib.suppress(ValueError):
             number = float(value)  # YAML reads "5e-4" as a string
     if number is None:
-        raise ConfigError(f"{key}: expected a number, got {value!r}")
+        raise ConfigError(f"{key}: expected a number, got {value!r}", key=key, value=value)
     if not math.isfinite(number):  # .nan / .inf are YAML numbers, never sensible settings
         raise ConfigError.about(key, number, "must be a finite number")
     return number
@@ -295,10 +295,10 @@ def _coerce_float(value: Any, key: str) -> float:
 
 def _coerce_sequence(value: Any, origin: type, args: tuple, key: str) -> list | tuple:
     if not isinstance(value, (list, tuple)):
-        raise ConfigError(f"{key}: expected a list, got {value!r}")
+        raise ConfigError(f"{key}: expected a list, got {value!r}", key=key, value=value)
     if origin is tuple and args and args[-1] is not Ellipsis:
         if len(value) != len(args):
-            raise ConfigError(f"{key}: expected a list of {len(args)} values, got {value!r}")
+            raise ConfigError(f"{key}: expected a list of {len(args)} values, got {value!r}", key=key, value=value)
         return tuple(coerce(v, a, f"{key}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True)))
     item = args[0] if args else Any
     out = [coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
@@ -307,7 +307,7 @@ def _coerce_sequence(value: Any, origin: type, args: tuple, key: str) -> list | 
 
 def _coerce_mapping(value: Any, args: tuple, key: str) -> dict:
     if not isinstance(value, Mapping):
-        raise ConfigError(f"{key}: expected a mapping, got {value!r}")
+        raise ConfigError(f"{key}: expected a mapping, got {value!r}", key=key, value=value)
     _, item = args or (str, Any)
     return {str(k): coerce(v, item, f"{key}.{k}") for k, v in value.items()}
 
@@ -324,7 +324,7 @@ def coerce(value: Any, hint: Any, key: str) -> Any:
     if hint in _EXACT:
         if isinstance(value, hint):
             return value
-        raise ConfigError(f"{key}: expected {_EXACT[hint]}, got {value!r}")
+        raise ConfigError(f"{key}: expected {_EXACT[hint]}, got {value!r}", key=key, value=value)
     if hint is int:
         return _coerce_int(value, key)
     if hint is float:
@@ -348,18 +348,18 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     """
     section = prefix[:-1] if prefix else "config"
     if not isinstance(d, Mapping):
-        raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {d!r}")
+        raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {d!r}", key=section, value=d)
     hints = typing.get_type_hints(cls)
     known = [f.name for f in fields(cls) if f.init]
     unknown = sorted(set(d) - set(known), key=str)  # a YAML key may be a number
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
                           f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
-                          f"valid keys here: {sorted(prefix + k for k in known)}")
+                          f"valid keys here: {sorted(prefix + k for k in known)}", key=prefix + str(unknown[0]))
     missing = [f.name for f in fields(cls)
                if f.init and f.name not in d and f.default is MISSING and f.default_factory is MISSING]
     if missing:
-        raise ConfigError(f"{prefix}{missing[0]}: required, no default")
+        raise ConfigError(f"{prefix}{missing[0]}: required, no default", key=prefix + missing[0])
     kwargs = {k: coerce(v, hints[k], prefix + k) for k, v in d.items()}
     try:
         return cls(**kwargs)

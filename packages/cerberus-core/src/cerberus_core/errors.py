@@ -22,8 +22,15 @@ of them the same way, and one module, so that no layer imports another just for 
 * :class:`InputTypeError` — an argument of the wrong kind (not the model, renderer or reconstruction the function
   takes) or an option the callee does not know.
 
-Errors that belong to one module derive from :class:`CerberusError` there (the plugin errors in
-:mod:`cerberus_core.plugins`, the lock, checkpoint, zoo and image-input errors).
+and the errors of one concept each: :class:`PluginError` (:class:`UnknownPluginError`,
+:class:`DuplicatePluginError`, :class:`PluginLoadError`), :class:`ZooError`, :class:`IncompleteDatasetError`,
+:class:`ManifestFormatError`, :class:`TrainingDatasetError`, :class:`NonFiniteError`, :class:`RunExistsError`,
+:class:`NoCheckpointError`, :class:`CheckpointError`, :class:`LockedError`, :class:`ImageInputError`,
+:class:`BodyError` and :class:`ReleaseMismatchError`.
+
+Every error class of ``cerberus_core`` is defined here, and nowhere else (``tests/repo/test_raises.py``), so
+that no module imports another just for an exception. The one exception class that is not an error is
+:class:`cerberus_core.plumbing.signals.Terminated`, SIGTERM as a ``KeyboardInterrupt``.
 
 Each is also the builtin error it replaced, so ``except ValueError`` keeps catching them: ``DatasetError``,
 ``ConfigError``, ``ShapeError``, ``DeviceError``, ``RenderInputError`` and ``MeshError`` are ``ValueError``\\ s,
@@ -38,6 +45,7 @@ config key, parameter or field, in backticks where the fix sets it (`` `train.st
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 
 class CerberusError(Exception):
@@ -52,13 +60,14 @@ class DatasetError(CerberusError, ValueError):
 class ConfigError(CerberusError, ValueError):
     """An invalid setting: the message names the key, the value and what is allowed.
 
-    An error about one setting (:meth:`about`; every check of :mod:`cerberus_core.fields`) also carries
-    ``key`` (the dotted config key, parameter or field name), ``value`` and ``problem`` (what is wrong or
-    allowed), so that a front end can say it in its own terms (the ``cerberus`` command names its flag);
-    they are ``None`` otherwise.
+    Every one carries ``key`` (the dotted config key, parameter or field name: a front end says it in its own
+    terms, the ``cerberus`` command as its flag or ``--set``) and ``value``; made with :meth:`about` (every check of
+    :mod:`cerberus_core.fields`) it also carries ``problem`` (what is wrong or allowed, without the key), and its
+    message is ``key = value: problem (fix)``. A message that does not read so passes ``key=`` itself (``problem``
+    then ``None``); ``tests/repo/test_raises.py`` finds any made without a key.
     """
 
-    def __init__(self, message: str, *, key: str | None = None, value: object = None, problem: str | None = None):
+    def __init__(self, message: str, *, key: str, value: object = None, problem: str | None = None):
         super().__init__(message)
         self.key, self.value, self.problem = key, value, problem
 
@@ -76,10 +85,11 @@ class ConfigError(CerberusError, ValueError):
 
     def within(self, prefix: str) -> ConfigError:
         """This error with its key under the section ``prefix`` (``"splits.train."``: ``views`` becomes
-        ``splits.train.views``, in the message and its fix too); itself when it names no key or already
-        names it so."""
-        if not prefix or self.key is None or self.key.startswith(prefix):
+        ``splits.train.views``, in the message and its fix too); itself when it already names it so."""
+        if not prefix or self.key.startswith(prefix):
             return self
+        if self.problem is None:  # a message of its own: the key moves under the section, the words stay
+            return type(self)(str(self), key=prefix + self.key, value=self.value)
         message = prefix + str(self).replace(f"`{self.key}=", f"`{prefix}{self.key}=")
         return type(self)(message, key=prefix + self.key, value=self.value, problem=self.problem)
 
@@ -129,6 +139,95 @@ class InputTypeError(CerberusError, TypeError):
     takes) or an option the callee does not know: the message names what came and what is taken."""
 
 
-__all__ = ["BackendError", "CerberusError", "ConfigError", "DatasetError", "DeviceError", "InputTypeError",
-           "MeshError", "MissingPackageError", "OutputError", "RenderInputError", "ShapeError",
-           "TextFormatError"]
+
+# ------------------------------------------------------------------ the errors of one concept each
+class PluginError(CerberusError, RuntimeError):
+    """Base class of plugin discovery errors (:mod:`cerberus_core.plugins`): a :class:`CerberusError` (the
+    ``cerberus`` command reports it in one line like the others), still a ``RuntimeError`` for callers
+    that caught it as one."""
+
+
+class UnknownPluginError(PluginError, KeyError):
+    """No plugin of that name is installed."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0])
+
+
+class DuplicatePluginError(PluginError):
+    """Two installed distributions register the same plugin name."""
+
+
+class PluginLoadError(PluginError):
+    """A plugin is registered but importing it failed."""
+
+
+class ZooError(CerberusError, ValueError):
+    """A pretrained model is unknown, missing or fails its checksum."""
+
+
+class IncompleteDatasetError(DatasetError):
+    """A split whose generation has not finished. ``root`` is the dataset folder and ``problem`` the message
+    without its fix, so that a front end can name its own way to finish it (the ``cerberus`` command: the
+    ``cerberus data generate`` command that resumes it)."""
+
+    def __init__(self, root: Path, problem: str) -> None:
+        self.root, self.problem = Path(root), problem
+        super().__init__(f"{problem}; finish generating it (it resumes) with `Dataset.open(root).resume()` "
+                         "(cerberus_core.datasets.dataset)")
+
+
+class TrainingDatasetError(DatasetError, TypeError):
+    """An object given as the training dataset breaks the contract of :mod:`cerberus_core.train.data` (a missing attribute, a ``scene`` that
+    is not a :class:`SceneSetup`, no quadruplets); a ``TypeError`` (and a ``ValueError``) too, for callers that
+    caught one."""
+
+
+class NonFiniteError(CerberusError, RuntimeError):
+    """The loss or gradient became NaN or infinite and the run was stopped (``cerberus train``: exit 3)."""
+
+    exit_code = 3
+
+
+class RunExistsError(CerberusError, FileExistsError):
+    """A fresh training was pointed at a folder that already holds files."""
+
+
+class NoCheckpointError(CerberusError, FileNotFoundError):
+    """``resume=True`` but the run folder has no checkpoint."""
+
+
+class CheckpointError(CerberusError, ValueError):
+    """A model file or run folder cannot be loaded; the message names the file and what to pass instead."""
+
+
+class LockedError(CerberusError):
+    """Another live process holds the folder's lock."""
+
+
+class ImageInputError(CerberusError, ValueError):
+    """An input image cannot be used; the message names the file and what to do."""
+
+
+class BodyError(CerberusError, ValueError):
+    """A body source was asked for, or produced, what no dataset can hold: a count or pose id out of its
+    range, a degenerate body, one outside the unit cube; the message names the subject, the pose and the fix
+    (a ``ValueError`` too, for callers that caught one)."""
+
+
+class ReleaseMismatchError(CerberusError, ImportError):
+    """A toolkit distribution found a sibling of another release (or none installed) (:mod:`cerberus_core.release`;
+    an ``ImportError`` too, as a backend raises it while it is imported)."""
+
+
+class ManifestFormatError(DatasetError):
+    """A record of a dataset's manifest that does not have the form of its type (a key missing or of another
+    type); the reader that catches it names the manifest and the fix (:mod:`cerberus_core.datasets.manifest`)."""
+
+
+__all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "ConfigError", "DatasetError", "DeviceError",
+           "DuplicatePluginError", "ImageInputError", "IncompleteDatasetError", "InputTypeError",
+           "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError",
+           "NonFiniteError", "OutputError", "PluginError", "PluginLoadError", "ReleaseMismatchError",
+           "RenderInputError", "RunExistsError", "ShapeError", "TextFormatError", "TrainingDatasetError",
+           "UnknownPluginError", "ZooError"]

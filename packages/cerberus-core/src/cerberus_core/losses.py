@@ -4,30 +4,18 @@ A training example is a *quadruplet* of images of one body: two poses ``a, b`` s
 viewpoints ``0, 1``, stacked in the order ``(a0, a1, b0, b1)`` along a
 dimension of size 4. Per-image tensors are shaped ``(B, 4, ...)`` here.
 
-====================  ==================================================  =========================
-term                  definition                                          function
-====================  ==================================================  =========================
-reconstruction        ``1/|G| sum_xy ||I_xy - R_xy||^2`` (eq. 2)            :func:`reconstruction_loss`
-pose consistency      ``S~ = sum_x 1_Z(x) S^x`` (eq. 3)                    :func:`mix_shape_latents`
-viewpoint, render     ``L^a0 = (L^{a0->a0} + L^{a0->a1}) / 2`` (eq. 4)     :func:`viewpoint_scenes`,
-                                                                          :func:`viewpoint_reconstruction`
-viewpoint, transl.    ``1/N sum_i ||T_i^0 - T_i^1||^2``, mean of a, b      :func:`translation_loss`
-                      (eqs. 5, 6)
-total reconstruction  mean of the four ``L^x`` (eq. 7)                     :func:`viewpoint_reconstruction`
-background            ``1/N sum_k sum_xy p^k_xy b_xy``                     :func:`background_loss`
-smoothness            ``sum_edges (cos theta + 1)^2`` (Kato et al.)        :func:`smoothness_loss`
-====================  ==================================================  =========================
+The paper's pieces, each a function here: the reconstruction error (eq. 2,
+:func:`reconstruction_loss`), pose consistency (eq. 3, :func:`mix_shape_latents`), viewpoint
+consistency's renderings (eq. 4, :func:`viewpoint_scenes`, :func:`viewpoint_reconstruction`) and
+translations (eqs. 5, 6, :func:`translation_loss`), the total reconstruction (eq. 7), the background
+loss and the smoothness loss (section 5, :func:`background_loss`, :func:`smoothness_loss`).
 
-Beyond the paper (weight 0 in its settings): :func:`silhouette_loss`, :func:`silhouette_chamfer`,
-:func:`hidden_part_pull` and :func:`reprojection_loss`, and the ``own`` cross view of
-:func:`viewpoint_scenes`; toward parts on the limbs (issue 30): :func:`silhouette_coverage` (with the
-weights of :func:`thinness_weights`), :func:`part_overlap` and :func:`rotation_loss`; toward parts that move
-(issue 38): :func:`pose_consensus` (the keypoint k-means over both views of a pose) and
-:func:`part_separation`.
+Beyond the paper (weight 0 in its settings): the other functions here, and the ``own`` cross view of
+:func:`viewpoint_scenes`.
 
-These are the functions; the objective's one table of terms (name, weight, how each is computed from
-the objective's inputs, symbol, reference) and the weights' config section, ``LossConfig``, are in
-:mod:`cerberus_core.train.objective`.
+These are the functions; the objective's terms are declared once, as the weight fields of
+:class:`cerberus_core.train.objective.LossConfig` (name, paper weight, how each is computed from the objective's
+inputs, symbol, reference; ``terms_table()`` prints them).
 """
 from __future__ import annotations
 

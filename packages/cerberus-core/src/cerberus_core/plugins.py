@@ -22,7 +22,7 @@ from typing import Any
 
 import entrypoints
 
-from cerberus_core.errors import CerberusError
+from cerberus_core.errors import DuplicatePluginError, PluginLoadError, UnknownPluginError
 from cerberus_core.plumbing.names import did_you_mean
 
 RENDERER_GROUP = "cerberus.renderers"
@@ -38,27 +38,6 @@ KNOWN_PACKAGES: dict[str, dict[str, str]] = {
     METRIC_GROUP: {"voxel_iou": "cerberus-metrics", "chamfer_l2": "cerberus-metrics", "fscore": "cerberus-metrics",
                    "voxel_iou_scorer": "cerberus-metrics"},
 }
-
-
-class PluginError(CerberusError, RuntimeError):
-    """Base class of plugin discovery errors: a :class:`~cerberus_core.errors.CerberusError` (the
-    ``cerberus`` command reports it in one line like the others), still a ``RuntimeError`` for callers
-    that caught it as one."""
-
-
-class UnknownPluginError(PluginError, KeyError):
-    """No plugin of that name is installed."""
-
-    def __str__(self) -> str:  # KeyError would repr() the message
-        return str(self.args[0])
-
-
-class DuplicatePluginError(PluginError):
-    """Two installed distributions register the same plugin name."""
-
-
-class PluginLoadError(PluginError):
-    """A plugin is registered but importing it failed."""
 
 
 @dataclass

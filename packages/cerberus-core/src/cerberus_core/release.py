@@ -13,6 +13,8 @@ A backend checks, when it is imported, that the ``cerberus-core`` it finds is th
 """
 from __future__ import annotations
 
+from cerberus_core.errors import ReleaseMismatchError
+
 VERSION = "0.2.0+toolkit"
 """The version of every distribution of this release (``pyproject.toml`` of each package)."""
 
@@ -22,10 +24,6 @@ DISTRIBUTIONS: tuple[str, ...] = ("cerberus-core", "cerberus-render-torch", "cer
 INSTALL_HINT = ("install the toolkit's packages together from one wheelhouse: bash scripts/wheelhouse.sh, then "
                 "pip install --find-links dist/wheelhouse -c dist/wheelhouse/constraints.txt cerberus-core ... "
                 "(README, 'Installing with pip')")
-
-
-class ReleaseMismatchError(ImportError):
-    """A toolkit distribution found a sibling of another release (or none installed)."""
 
 
 def installed_version(distribution: str) -> str | None:

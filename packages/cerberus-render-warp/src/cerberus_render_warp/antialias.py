@@ -300,7 +300,7 @@ def _inputs(b0: int, b1: int, clip, faces, nbrs, face_id, px, py, fused: int, co
             as_warp(px), as_warp(py), fused, cols]
 
 
-class WarpAntialias(torch.autograd.Function):
+class _WarpAntialias(torch.autograd.Function):
     """``(color, clip, faces, neighbors, face_id) -> color_aa``.
 
     Shapes as in :func:`cerberus_core.render.antialias.antialias`; ``color`` contiguous in ``clip``'s
@@ -362,5 +362,5 @@ def antialias(color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Te
         ``(B, H, W, C)`` blended colours, differentiable w.r.t. ``color`` and ``clip``.
     """
     nbrs = edge_neighbors(faces).to(torch.int32).contiguous()
-    return WarpAntialias.apply(color.to(clip.dtype).contiguous(), clip, faces.to(torch.int32).contiguous(), nbrs,
+    return _WarpAntialias.apply(color.to(clip.dtype).contiguous(), clip, faces.to(torch.int32).contiguous(), nbrs,
                                face_id.to(torch.int64).contiguous())

@@ -93,7 +93,7 @@ _NORMALIZE_BWD = _vec3_overloads(_normalize_backward_kernel, ("acc", "grad_out",
 _ACCUMULATE_BWD = _vec3_overloads(_accumulate_backward_kernel, ("vertices", "grad_acc", "grad_vertices"))
 
 
-class WarpVertexNormals(torch.autograd.Function):
+class _WarpVertexNormals(torch.autograd.Function):
     """``(vertices (B, V, 3), faces (F, 3) int32 contiguous) -> (B, V, 3)`` unit normals; once
     differentiable w.r.t. ``vertices``."""
 
@@ -146,4 +146,4 @@ def vertex_normals(vertices: Tensor, faces: Tensor) -> Tensor:
     Returns:
         ``(B, V, 3)``; a vertex with no area gets ``(0, 0, 0)``.
     """
-    return WarpVertexNormals.apply(vertices, faces.to(device=vertices.device, dtype=torch.int32).contiguous())
+    return _WarpVertexNormals.apply(vertices, faces.to(device=vertices.device, dtype=torch.int32).contiguous())

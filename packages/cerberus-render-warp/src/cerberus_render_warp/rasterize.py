@@ -223,7 +223,7 @@ def rasterize(clip: Tensor, faces: Tensor, height: int, width: int, near: float 
     if serial is None:
         serial = device.is_cpu
     elif serial and not device.is_cpu:
-        raise ConfigError("warp renderer: serial rasterization is only exact on the CPU; use `serial=False` on CUDA")
+        raise ConfigError("warp renderer: serial rasterization is only exact on the CPU; use `serial=False` on CUDA", key="serial", value=serial)
     # Each vertex's pixel bounds once, instead of re-projecting it for every triangle it is in.
     nverts = clip.shape[1]
     bounds = torch.empty((bsz, nverts, 4), dtype=torch.int32, device=clip.device)

@@ -219,7 +219,7 @@ def _sliced(t: Tensor | None, b0: int, b1: int, vec: bool = False):
     return vec_view(t[b0:b1]) if vec else as_warp(t[b0:b1])
 
 
-class WarpShade(torch.autograd.Function):
+class _WarpShade(torch.autograd.Function):
     """``(clip, faces, face_id, normals, albedo, direction, ambient, diffuse) -> (rgb, depth)``.
 
     Shapes as in :meth:`cerberus_core.render.interface.Renderer.shade`; ``faces`` must be int32 and
@@ -291,5 +291,5 @@ def shade(clip: Tensor, faces: Tensor, face_id: Tensor, normals: Tensor, albedo:
     """
     tensors = [normals, albedo, light.direction, light.ambient, light.diffuse]  # checked by the op (render.ops.shade)
     normals, albedo, direction, ambient, diffuse = (t.to(clip.dtype) for t in tensors)
-    return WarpShade.apply(clip, faces.to(torch.int32).contiguous(), face_id.to(torch.int64), normals, albedo,
+    return _WarpShade.apply(clip, faces.to(torch.int32).contiguous(), face_id.to(torch.int64), normals, albedo,
                            direction, ambient, diffuse)

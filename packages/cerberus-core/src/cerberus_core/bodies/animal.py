@@ -38,8 +38,8 @@ from cerberus_core.bodies.animal_pose import (
 from cerberus_core.bodies.animal_sdf import group_distances, primitives_bounds, sample_field
 from cerberus_core.bodies.animal_shape import AnimalSpecies, sample_species
 from cerberus_core.bodies.animal_skeleton import PART_GROUPS, animal_primitives
-from cerberus_core.bodies.body import FILL, BodyError, PosedBody
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.bodies.body import FILL, PosedBody
+from cerberus_core.errors import BodyError, MissingPackageError
 
 __all__ = [
     "ANIMAL_PART_NAMES",

@@ -18,8 +18,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.errors import BodyError, MeshError, MissingPackageError
+from cerberus_core.shapes import check_shapes
 
 _CORNERS = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
 """``(8, 3)`` corner offsets of a cube; corner index ``c = x + 2 y + 4 z``."""
@@ -46,7 +46,7 @@ def _edge_index(a: int, b: int) -> int:
     for i, (p, q, _) in enumerate(_EDGES):
         if {int(p), int(q)} == {a, b}:
             return i
-    raise KeyError((a, b))
+    raise MeshError(f"the marching-cubes table has no edge between corners {a} and {b}")
 
 
 def _case_triangles(case: int, faces: list[list[int]], edge_faces: list[set[int]]) -> list[tuple[int, int, int]]:
@@ -128,8 +128,9 @@ def marching_cubes(values: np.ndarray, origin: np.ndarray, spacing: float) -> tu
         vertices coincide).
     """
     vals = np.asarray(values, np.float64)
-    if vals.ndim != 3 or min(vals.shape) < 2:
-        raise BodyError(f"marching_cubes needs a 3-D grid with >= 2 samples per axis, got {vals.shape}")
+    check_shapes("marching_cubes", values=(vals, "X Y Z"))
+    if min(vals.shape) < 2:
+        raise BodyError(f"marching_cubes needs >= 2 samples per axis, got {vals.shape}")
     table, ntri = _mc_table()
     nx, ny, nz = vals.shape
     inside = vals < 0

@@ -19,7 +19,7 @@ import numpy as np
 from cerberus_core.bodies.animal_sdf import primitives_bounds
 from cerberus_core.bodies.animal_shape import AnimalSpecies
 from cerberus_core.bodies.animal_skeleton import LEG_GROUPS, TORSO, AnimalPose, animal_primitives
-from cerberus_core.bodies.body import BodyError
+from cerberus_core.errors import BodyError
 
 POSE_KINDS: dict[str, float] = {
     "stand": 0.16,

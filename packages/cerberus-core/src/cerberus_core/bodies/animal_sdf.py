@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError
+from cerberus_core.errors import BodyError
 
 FAR: float = 1.0e3
 """Field value used where no primitive reaches (far outside)."""

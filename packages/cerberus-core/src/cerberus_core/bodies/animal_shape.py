@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError
+from cerberus_core.errors import BodyError
 
 SHAPE_PARAMS: dict[str, str] = {
     "torso_length": "torso length, rump to chest (body units)",

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cerberus_core.bodies.animal_sdf import Ellipsoid, Primitive, RoundCone
-from cerberus_core.bodies.body import BodyError
+from cerberus_core.errors import BodyError
 
 
 @dataclass(frozen=True)

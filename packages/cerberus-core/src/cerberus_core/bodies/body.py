@@ -16,9 +16,10 @@ keeps part shapes identical across poses, which pose consistency relies on.
 """
 from __future__ import annotations
 
+import typing
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, ClassVar
@@ -26,17 +27,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cerberus_core.config import Presets, build
-from cerberus_core.errors import CerberusError, ConfigError, DatasetError, MissingPackageError
-from cerberus_core.fields import Checked
+from cerberus_core.errors import BodyError, ConfigError, DatasetError, MissingPackageError
+from cerberus_core.fields import RANGE, Checked, Range
 from cerberus_core.plugins import BODY_GROUP, get_plugin
 from cerberus_core.shapes import check_shapes
-
-
-class BodyError(CerberusError, ValueError):
-    """A body source was asked for, or produced, what no dataset can hold: a count or pose id out of its
-    range, a degenerate body, one outside the unit cube; the message names the subject, the pose and the fix
-    (a ``ValueError`` too, for callers that caught one)."""
-
 
 FILL: float = 0.9
 """Largest bounding-box extent of a subject, in normalised units (inside the unit cube)."""
@@ -138,6 +132,37 @@ class NoOptions(Checked):
     """The options of a body source that takes none."""
 
 
+FLAG = "cerberus.flag"
+"""The ``dataclasses.field`` metadata key of a source option that has a command-line flag of its own."""
+
+
+@dataclass(frozen=True)
+class OptionFlag:
+    """How ``cerberus data generate`` takes one option of a body source as a flag of its own (any option is
+    also given as ``KEY=VALUE``); a list option is given comma-separated.
+
+    Attributes:
+        flag: the flag's name, a word (``source``, ``test_fraction``): the command writes it as its flag.
+        help: the flag's help line (settings in backticks, as in any library message: `` `test_fraction` ``).
+        metavar: what ``--help`` shows as its value (``None``: argparse's default).
+    """
+
+    flag: str
+    help: str
+    metavar: str | None = None
+    listed: bool = False
+    """Whether the option is a list (given comma-separated; :meth:`BodySource.option_flags` says so)."""
+
+
+def flagged(default: Any, flag: str, help: str, *, metavar: str | None = None, allowed: Range | None = None) -> Any:
+    """A field of a source's ``Options`` with a flag of its own (:class:`OptionFlag`) and, optionally, its range
+    (``allowed``, as :func:`~cerberus_core.fields.ranged` declares one)."""
+    metadata: dict[str, Any] = {FLAG: OptionFlag(flag, help, metavar)}
+    if allowed is not None:
+        metadata[RANGE] = allowed
+    return field(default=default, metadata=metadata)
+
+
 class BodySource(ABC):
     """Geometry provider of a dataset (:mod:`cerberus_core.bodies.sources` describes the calls).
 
@@ -198,6 +223,18 @@ class BodySource(ABC):
                 raise ConfigError.about(key, value, f"not an option of the {cls.name} body source ({takes}); "
                                         "drop it, or choose the source that takes it")
         return build(cls.Options, given)
+
+    @classmethod
+    def option_flags(cls) -> dict[str, OptionFlag]:
+        """``{option: its flag}`` of the options of :attr:`Options` that have a flag of their own (:func:`flagged`)."""
+        hints = typing.get_type_hints(cls.Options)
+        return {f.name: replace(f.metadata[FLAG], listed="list" in str(hints[f.name]))
+                for f in fields(cls.Options) if FLAG in f.metadata}
+
+    def reads(self) -> list[Path]:
+        """The folders this source reads its bodies from, which a dataset is never written into (default: none;
+        the folder source: its folder of meshes)."""
+        return []
 
     @classmethod
     def stored_options(cls, options: Any) -> dict[str, Any]:

@@ -53,11 +53,12 @@ from cerberus_core.bodies.body import (
     BodySource,
     PosedBody,
     Subject,
+    flagged,
     no_subjects_hint,
     normalise_subject,
 )
 from cerberus_core.errors import ConfigError, DatasetError
-from cerberus_core.fields import Checked, ranged
+from cerberus_core.fields import Checked, Range
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import resolved
 
@@ -117,11 +118,19 @@ class FolderOptions(Checked):
             Default: the stem ``canonical``, where a subject has one.
     """
 
-    root: str | None = None
-    test_subjects: list[str] | None = None
-    test_fraction: float = ranged(0.3, ge=0, le=1)
-    up_axis: Literal["+y", "-y", "+z", "-z", "+x", "-x"] | None = None
-    canonical: str | None = None
+    root: str | None = flagged(None, "source", "folder source: the folder of meshes, "
+                               "SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl>")
+    test_subjects: list[str] | None = flagged(None, "test_subjects", "folder source: comma-separated test subject "
+                                              "names (default: `test_fraction` decides)")
+    test_fraction: float = flagged(0.3, "test_fraction", "folder source: fraction of subjects (last in sorted order) "
+                                   "held out for testing (default 0.3; 1: a test-only dataset, to evaluate a trained "
+                                   "model on your meshes)", allowed=Range(ge=0, le=1))
+    up_axis: Literal["+y", "-y", "+z", "-z", "+x", "-x"] | None = flagged(
+        None, "up_axis", "folder source: the meshes' up axis, +y -y +z -z +x -x, turned into +Y (default +y, the "
+        "toolkit's world; Blender, anny and many scans are +z); recorded in the manifest")
+    canonical: str | None = flagged(None, "canonical", "folder source: the pose file stem that is each subject's "
+                                    "canonical pose, rendered and flagged in the test split for the Hard Human test of "
+                                    "cerberus eval (default: a pose named 'canonical')", metavar="POSE")
 
     def validate(self) -> None:
         if self.root is None:
@@ -312,6 +321,11 @@ class FolderSource(BodySource):
                                        f"`canonical`); its poses are {stems}; add it or name another pose")
         self.part_names = self._read_part_names()
         self._scan()  # opens every file: errors surface before anything is written
+
+
+    def reads(self) -> list[Path]:
+        """The folder of meshes: a dataset is never written into it."""
+        return [Path(self.options.root)]
 
     def _read_part_names(self) -> list[str]:
         path = self.root / "part_names.txt"

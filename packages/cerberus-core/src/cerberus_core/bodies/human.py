@@ -62,10 +62,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cerberus_core.bodies import human_motion
-from cerberus_core.bodies.body import FILL, BodyError, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
-from cerberus_core.errors import MissingPackageError
+from cerberus_core.errors import BodyError, MissingPackageError
 from cerberus_core.plumbing.stdio import announce, call_dropping_stderr
+from cerberus_core.shapes import check_shapes
 
 if TYPE_CHECKING:
     import torch
@@ -472,8 +473,7 @@ class HumanBodySource:
 
         faces_all = self.model.faces.detach().cpu().numpy().astype(np.int64)
         n_all = int(self.model.template_vertices.shape[0])
-        if faces_all.ndim != 2 or faces_all.shape[1] != 3:
-            raise BodyError(f"expected a triangulated anny mesh, got faces of shape {faces_all.shape}")
+        check_shapes("HumanBodySource: the anny mesh", faces=(faces_all, "F 3"))
         keep_faces = _largest_component(faces_all, n_all)
         keep_vertices = np.unique(faces_all[keep_faces])
         remap = np.full(n_all, -1, dtype=np.int64)
@@ -542,8 +542,7 @@ class HumanBodySource:
     def _delta_transforms(self, poses: np.ndarray) -> torch.Tensor:
         """``(B, D)`` degrees → ``(B, n_bones, 4, 4)`` anny local-ref delta transforms."""
         poses = np.asarray(poses, dtype=np.float64)
-        if poses.ndim != 2 or poses.shape[1] != len(DOFS):
-            raise BodyError(f"poses must be (B, {len(DOFS)}) joint angles in degrees, got {poses.shape}")
+        check_shapes("HumanBodySource: joint angles in degrees", poses=(poses, f"B {len(DOFS)}"))
         if not np.isfinite(poses).all():
             raise BodyError("poses contain NaN or inf")
         batch = poses.shape[0]
@@ -635,8 +634,7 @@ class HumanBodySource:
             ValueError: on malformed input, or if a pose leaves ``[-0.5, 0.5]^3`` after scaling.
         """
         poses = np.asarray(poses, dtype=np.float64)
-        if poses.ndim != 2 or len(poses) != len(pose_ids):
-            raise BodyError(f"need one pose id per pose: poses {poses.shape}, {len(pose_ids)} ids")
+        check_shapes("HumanBodySource.pose: one pose id per pose", poses=(poses, f"{len(pose_ids)} _"))
         scale = self.subject_scale(subject)
         verts, joints = self.posed_vertices(subject, poses)
         for i, pid in enumerate(pose_ids):

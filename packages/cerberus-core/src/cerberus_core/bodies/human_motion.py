@@ -45,8 +45,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES
+from cerberus_core.errors import BodyError
 
 MOTION_POSE_BASE: int = 1_000_000_000
 """Pose ids ``>=`` this are motion-clip frames (module docstring); fits the int32 ``pose`` field."""

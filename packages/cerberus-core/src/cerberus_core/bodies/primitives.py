@@ -22,7 +22,8 @@ from functools import lru_cache
 import numpy as np
 import trimesh
 
-from cerberus_core.bodies.body import FILL, BodyError, PosedBody, normalise_subject
+from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
+from cerberus_core.errors import BodyError
 
 PART_NAMES: list[str] = ["head", "torso", "upper_arm.L", "lower_arm.L", "upper_arm.R", "lower_arm.R",
                          "thigh.L", "shin.L", "thigh.R", "shin.R"]

@@ -26,6 +26,7 @@ cerberus-core's ``pyproject.toml``, the way a third party registers its own (doc
 """
 from __future__ import annotations
 
+from abc import abstractmethod
 from collections.abc import Sequence
 from typing import Any
 
@@ -48,11 +49,13 @@ class _SeededSubjects(BodySource):
                                     f"`splits.{split}.subjects=N`")
         return [Subject(s.subject_id, self._info(s)) for s in self._sample(n, seed, split)]
 
+    @abstractmethod
     def _sample(self, n: int, seed: int, split: str) -> list[Any]:
-        raise NotImplementedError
+        """``n`` subjects of ``split`` drawn from ``seed``, in the source's own form."""
 
+    @abstractmethod
     def _info(self, subject: Any) -> dict[str, Any]:
-        raise NotImplementedError
+        """A subject's JSON-ready record (the manifest's ``subjects[i].info``)."""
 
     def pose_pool(self, subject: Subject, split: str, n: int | None) -> list[int]:
         if n is None:
@@ -94,7 +97,7 @@ class HumanSource(_SeededSubjects):
         """Motion clips ``0..n-1``: pose ids ``(10^9 + 2c, 10^9 + 2c + 1)``
         (:mod:`cerberus_core.bodies.human_motion`)."""
         if n is None:
-            raise ConfigError(f"splits.{split}.pairs: the human source has unlimited motion pairs; give a pair count")
+            raise ConfigError(f"splits.{split}.pairs: the human source has unlimited motion pairs; give a pair count", key=f"splits.{split}.pairs")
         return [(motion_pose_id(c, 0), motion_pose_id(c, 1)) for c in range(n)]
 
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:

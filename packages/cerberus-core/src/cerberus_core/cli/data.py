@@ -1,23 +1,15 @@
 """``cerberus data``: generate, check and look at datasets (docs/data_format.md): each sub-command is
-its arguments and one call of :class:`~cerberus_core.datasets.dataset.Dataset`. This module alone says
-what is left to generate as a command line (:func:`generate_command`)."""
+its arguments and one call of :class:`~cerberus_core.datasets.dataset.Dataset`; what is left to generate is said
+as a command line by :mod:`cerberus_core.cli.datasets`."""
 from __future__ import annotations
 
 import argparse
-import json
-import shlex
 import sys
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
-
-#: Config keys that ``generate`` also takes as a flag of their own (same as ``--set KEY=...``).
-CONFIG_FLAGS = {"seed": "--seed", "image_size": "--image-size", "renderer": "--renderer", "shard_images": "--shard-images"}
-
-#: Body-source options that have a flag of their own (the folder source's); any option is ``--option KEY=VALUE``.
-SOURCE_FLAGS = {"root": "--source", "test_subjects": "--test-subjects", "test_fraction": "--test-fraction",
-                "up_axis": "--up-axis", "canonical": "--canonical"}
+from cerberus_core.cli.datasets import CONFIG_FLAGS, finish, source_flags
+from cerberus_core.cli.flags import FlagNames
 
 GENERATE_HELP = """Generate a dataset into --out. Rerunning the same command resumes an interrupted run without
 redoing finished shards; a folder holding anything else is refused unless --overwrite.
@@ -50,8 +42,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_generate(dsub: argparse._SubParsersAction) -> None:
+    """``cerberus data generate``: what to generate, the config keys with flags of their own, the body source's
+    options, then how to run it."""
+    from cerberus_core.datasets.settings import GenerationConfig
+
     g = dsub.add_parser("generate", help="generate (or resume) a dataset", description=GENERATE_HELP,
                         formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_what(g)
+    options = _add_source_options(g.add_argument_group("body source options", "a source's own flags (the folder "
+                                                      "source's); any source's option is --option KEY=VALUE"))
+    _add_config_flags(g)
+    _add_how(g)
+    g.set_defaults(func=run_generate, source_flags=options, flag_names=FlagNames({
+        **CONFIG_FLAGS, **{key: flag.flag for key, flag in options.items()}, "dataset": "--dataset", "size": "--size",
+        "overrides": "--set", "out": "--out", "overwrite": "--overwrite", "batch_size": "--batch-size",
+        "device": "--device"}, GenerationConfig))
+
+
+def _add_what(g: argparse.ArgumentParser) -> None:
     g.add_argument("--dataset", required=True, metavar="SOURCE", help="body source: human, animal, primitives, "
                    "folder or an installed plugin's")
     g.add_argument("--size", default=None, metavar="NAME",
@@ -62,39 +70,40 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
     g.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
-    _add_source_options(g.add_argument_group("body source options", "the folder source's have flags of their own; "
-                                              "any source's option is --option KEY=VALUE"))
+
+
+def _add_source_options(g: argparse._ArgumentGroup) -> dict:
+    """The flags the installed body sources declare for their options (:func:`~cerberus_core.cli.datasets.source_flags`),
+    each stored as ``option:KEY``, and ``--option KEY=VALUE``; returns ``{option: its OptionFlag}``."""
+    options = source_flags()
+    said = FlagNames({key: flag.flag for key, flag in options.items()})  # `test_fraction` in a help: --test-fraction
+    for key, flag in options.items():
+        g.add_argument(flag.flag, dest=f"option:{key}", metavar=flag.metavar, help=said.text(flag.help),
+                       type=_comma_list if flag.listed else None)
+    g.add_argument("--option", dest="options", action="append", default=[], metavar="KEY=VALUE",
+                   help="any option of the body source (repeatable; values are YAML)")
+    return options
+
+
+def _comma_list(text: str) -> list[str]:
+    return [item.strip() for item in text.split(",") if item.strip()]
+
+
+def _add_config_flags(g: argparse.ArgumentParser) -> None:
     g.add_argument("--renderer", help="renderer backend: warp, torch or auto (default: auto, warp if it works, else "
                    "torch); same as --set renderer=...")
     g.add_argument("--image-size", type=int, help="image size in pixels (default 64); same as --set image_size=...")
     g.add_argument("--seed", type=int, help="seed of every random choice (default 0); same as --set seed=...")
     g.add_argument("--shard-images", type=int, help="images per shard (default 1024); same as --set shard_images=...")
+
+
+def _add_how(g: argparse.ArgumentParser) -> None:
     g.add_argument("--batch-size", type=positive_int, default=64, help="views per render call (default 64; no effect on output)")
     g.add_argument("--device", default="cpu", help="torch device for posing and rendering (default cpu)")
     g.add_argument("--overwrite", action="store_true", help="replace a different dataset in --out")
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
     g.add_argument("--print-config", action="store_true", help="print the resolved config (YAML) and exit")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
-    from cerberus_core.datasets.settings import GenerationConfig
-
-    g.set_defaults(func=run_generate, flag_names=FlagNames({
-        **CONFIG_FLAGS, **SOURCE_FLAGS, "dataset": "--dataset", "size": "--size", "overrides": "--set", "out": "--out",
-        "overwrite": "--overwrite", "batch_size": "--batch-size", "device": "--device"}, GenerationConfig))
-
-
-def _add_source_options(g: argparse._ArgumentGroup) -> None:
-    g.add_argument("--source", dest="root", help="folder source: the folder of meshes, "
-                   "SOURCE/<subject>/<pose>.<obj|ply|glb|off|stl>")
-    g.add_argument("--test-subjects", help="folder source: comma-separated test subject names (default: --test-fraction)")
-    g.add_argument("--test-fraction", type=float, help="folder source: fraction of subjects (last in sorted order) "
-                   "held out for testing (default 0.3; 1: a test-only dataset, to evaluate a trained model on your meshes)")
-    g.add_argument("--up-axis", help="folder source: the meshes' up axis, +y -y +z -z +x -x, turned into +Y (default "
-                   "+y, the toolkit's world; Blender, anny and many scans are +z); recorded in the manifest")
-    g.add_argument("--canonical", metavar="POSE", help="folder source: the pose file stem that is each subject's "
-                   "canonical pose, rendered and flagged in the test split for the Hard Human test of cerberus eval "
-                   "(default: a pose named 'canonical')")
-    g.add_argument("--option", dest="options", action="append", default=[], metavar="KEY=VALUE",
-                   help="any option of the body source (repeatable; values are YAML)")
 
 
 def _add_check(dsub: argparse._SubParsersAction) -> None:
@@ -129,9 +138,7 @@ def generation_request(args: argparse.Namespace):  # noqa: ANN201 - a Generation
     from cerberus_core.datasets.plan import SET_EXAMPLE, GenerationRequest
 
     config = {key: value for key in CONFIG_FLAGS if (value := getattr(args, key)) is not None}
-    options = {key: value for key in SOURCE_FLAGS if (value := getattr(args, key)) is not None}
-    if "test_subjects" in options:
-        options["test_subjects"] = [s.strip() for s in options["test_subjects"].split(",") if s.strip()]
+    options = {key: value for key in args.source_flags if (value := getattr(args, f"option:{key}")) is not None}
     size = args.size if args.size is not None else args.size_alias  # --size "" is refused, not the default size
     return GenerationRequest(args.dataset, size,
                              {**config, **flatten(parse_overrides(args.overrides, example=SET_EXAMPLE))},
@@ -182,40 +189,3 @@ def run_show(args: argparse.Namespace) -> int:
                                                 renderer=args.renderer, scale=args.scale)
     print(f"contact sheet written to {out}")
     return 0
-
-
-# ------------------------------------------------------------------------------------ what is left to generate
-def generate_command(dataset) -> str:  # noqa: ANN001 - a Dataset (imported lazily)
-    """The ``cerberus data generate`` command that resumes ``dataset`` (a
-    :class:`~cerberus_core.datasets.dataset.Dataset`): its :meth:`~Dataset.request` said in flags. It rebuilds
-    exactly the stored config, so ``generate`` resumes instead of refusing a different dataset."""
-    import yaml
-
-    request = dataset.request()
-    words = ["cerberus", "data", "generate", "--dataset", request.dataset, "--size", request.size,
-             "--out", str(dataset.root)]
-    for key, value in request.source_options.items():
-        if key in SOURCE_FLAGS:
-            words += [SOURCE_FLAGS[key], ",".join(value) if isinstance(value, list) else str(value)]
-        else:
-            words += ["--option", f"{key}={json.dumps(value)}"]
-    for key, value in request.overrides.items():
-        text = value if isinstance(value, str) and yaml.safe_load(value) == value else json.dumps(value)
-        words += [CONFIG_FLAGS[key], text] if key in CONFIG_FLAGS else ["--set", f"{key}={text}"]
-    return shlex.join(words)
-
-
-def finish(dataset) -> str:  # noqa: ANN001 - a Dataset
-    """``finish generating it (it resumes) with `COMMAND```: the fix of an incomplete dataset, in flags."""
-    return f"finish generating it (it resumes) with `{generate_command(dataset)}`"
-
-
-def incomplete_message(exc) -> str:  # noqa: ANN001 - an IncompleteDatasetError
-    """An incomplete dataset's error said with the command that finishes it (the CLI's error boundary)."""
-    from cerberus_core.datasets.dataset import Dataset
-    from cerberus_core.errors import CerberusError
-
-    try:
-        return f"{exc.problem}; {finish(Dataset.open(exc.root))}"
-    except CerberusError:  # the library's own message, when the command cannot be built
-        return str(exc)

@@ -5,8 +5,8 @@ import argparse
 import time
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.outputs import output_folder
 from cerberus_core.render.api import render_parts
@@ -32,14 +32,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.image_size > MAX_IMAGE_SIZE:
-        raise ConfigError(f"--image-size {args.image_size}: at most {MAX_IMAGE_SIZE}")
+        raise ConfigError(f"--image-size {args.image_size}: at most {MAX_IMAGE_SIZE}", key="image_size", value=args.image_size)
     from cerberus_core.datasets.dataset import Dataset
 
     out = output_folder(args.out, refuse=Dataset.not_an_output)
     names = args.renderer or available_renderers()
     if not names:
         raise ConfigError("no renderer backend is installed: pip install cerberus-render-torch "
-                          "(or cerberus-render-warp)")
+                          "(or cerberus-render-warp)", key="renderer")
     renderers = {name: make_renderer(name) for name in names}  # every backend found before anything is written
     parts, faces, camera = demo_scene(image_size=args.image_size)
     light = Light.following(camera)

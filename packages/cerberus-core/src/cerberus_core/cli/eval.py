@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.datasets.looks import INPUT_LOOKS
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
@@ -78,13 +78,13 @@ def baseline_runs(specs: list[str], device: str) -> dict:
     for spec in specs:
         name, _, path = spec.partition("=")
         if not name or not path:
-            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}")
+            raise ConfigError(f"--baseline takes NAME=RUN (e.g. NMRr=runs/nmrr), got {spec!r}", key="baselines", value=spec)
         if name in out:
-            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name")
+            raise ConfigError(f"--baseline {name!r} is given twice; give each baseline its own name", key="baselines", value=name)
         try:
             out[name] = Run.load(path, device)
         except CerberusError as exc:
-            raise ConfigError(f"--baseline {name}={path}: {exc}") from None
+            raise ConfigError(f"--baseline {name}={path}: {exc}", key="baselines", value=name) from None
     return out
 
 

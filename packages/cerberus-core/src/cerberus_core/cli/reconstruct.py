@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli import FlagNames
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import printable
@@ -62,18 +62,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cerberus_core.run import Run, looks_like_path
+    from cerberus_core.run import Run
+    from cerberus_core.weights import looks_like_path
     from cerberus_core.zoo import model_path
 
     if args.model is not None:
         if looks_like_path(args.model):
             raise ConfigError(f"--model {printable(args.model)}: takes a shipped model's name (see `cerberus "
-                              "models`); give a run folder or model file as the first argument instead")
+                              "models`); give a run folder or model file as the first argument instead", key="model", value=args.model)
         model_path(args.model)  # a shipped model's name (ZooError naming the known ones otherwise)
         source, images = args.model, args.inputs  # by name: the shipped model, titled by its name
     elif len(args.inputs) < 2:
         raise ConfigError("give a run folder (or --model NAME) and at least one image, e.g. "
-                          "`cerberus reconstruct --model human photo.png`")
+                          "`cerberus reconstruct --model human photo.png`", key="inputs")
     else:
         source, images = args.inputs[0], args.inputs[1:]
     check_device(args.device)

@@ -5,7 +5,8 @@ import argparse
 import json
 
 from cerberus_core.cli.tables import table
-from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, PluginError, plugin_table
+from cerberus_core.errors import PluginError
+from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, plugin_table
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

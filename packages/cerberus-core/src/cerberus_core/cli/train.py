@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cerberus_core.cli import FlagNames
+from cerberus_core.cli.flags import FlagNames
 from cerberus_core.config import load_yaml
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
@@ -77,14 +77,14 @@ def _check_config_file(path: Path) -> None:
     if not path.is_file():
         what = ("is a folder" if path.is_dir() else "is not a regular file (a FIFO or device?)" if path.exists()
                 else "no such file")
-        raise ConfigError(f"--config {path}: {what}; pass a YAML config, or --preset NAME")
+        raise ConfigError(f"--config {path}: {what}; pass a YAML config, or --preset NAME", key="config", value=path)
     try:
         raw = load_yaml(path.read_text(), path)
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"--config {path}: cannot be read ({exc})") from None
+        raise ConfigError(f"--config {path}: cannot be read ({exc})", key="config", value=path) from None
     if not raw:
         raise ConfigError(f"--config {path} is empty; write at least 'extends: tiny' (or another preset) "
-                          "in it, or pass --preset paper to train with the paper's settings")
+                          "in it, or pass --preset paper to train with the paper's settings", key="config", value=path)
 
 
 def resolve(args: argparse.Namespace) -> tuple[Path, TrainConfig]:

@@ -15,9 +15,8 @@ The manifest's file name is known to :mod:`cerberus_core.datasets.manifest` alon
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from tqdm import tqdm
 
@@ -35,7 +34,7 @@ from cerberus_core.fields import check_kind, check_path
 from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.plumbing.lock import check_unlocked, folder_lock
 from cerberus_core.plumbing.names import printable
-from cerberus_core.plumbing.outputs import check_apart, output_file, output_folder, resolved
+from cerberus_core.plumbing.outputs import output_file, output_folder
 from cerberus_core.render.backends import AUTO_RENDERER
 
 MAX_SHEET_ROWS, MAX_SHEET_SCALE = 256, 16
@@ -174,14 +173,16 @@ class Dataset:
         out = output_file(check_path("out", out) if out is not None else self.root / f"contact_{split}.png")
         if renderer != AUTO_RENDERER:
             get_plugin(RENDERER_GROUP, renderer)  # a known backend, even without parts
-        return save_contact_sheet(self.root, out, split=split, count=count, parts=parts, renderer=renderer,
-                                  scale=scale)
+        has_quads = any(shard.quadruplets for shard in self.manifest.split(split).shards)
+        return save_contact_sheet(self.views(split, allow_partial=True), out, self.manifest,
+                                  quads=self.quadruplets(split, allow_partial=True) if has_quads else None,
+                                  count=count, parts=parts, renderer=renderer, scale=scale)
 
     # ---------------------------------------------------------------------------- making
     @classmethod
     def plan(cls, config: GenerationConfig | GenerationRequest, out: str | Path | None = None, *,
-             source_options: Mapping[str, Any] | None = None, source: BodySource | None = None,
-             overwrite: bool = False, device: str = "cpu", batch_size: int = 64) -> GenerationJob:
+             source: BodySource | None = None, overwrite: bool = False, device: str = "cpu",
+             batch_size: int = 64) -> GenerationJob:
         """Check a whole generation and plan it, writing nothing (a dry run): the config, the body source
         registered as ``config.dataset`` and its options, the renderer, the shard plan, the memory a shard
         needs and, with ``out``, the folder (:func:`~cerberus_core.datasets.generate.validate_generation`);
@@ -190,16 +191,12 @@ class Dataset:
         Returns:
             The job: :meth:`GenerationJob.plan_lines` says the counts of each split.
         """
+        source_options = None  # a config's source takes its default options; a request carries its own
         if isinstance(config, GenerationRequest):
-            if source_options is not None:
-                raise ConfigError.about("source_options", dict(source_options), "a GenerationRequest carries its own",
-                                        "pass them as its `source_options`")
             config, source_options = config.config(), config.source_options
         check_kind("config", config, GenerationConfig, "a GenerationRequest or a GenerationConfig (from load_generation_config)")
         if out is not None:
             output_folder(check_path("out", out))
-            if source_options and source_options.get("root"):  # the meshes read are not in the folder written
-                check_apart(Path(out), [resolved(source_options["root"], "root")], what="a dataset is written there")
         job = validate_generation(config, source=source, source_options=source_options, device=device,
                                   batch_size=batch_size, out=out, overwrite=overwrite)
         for advice in job.source.warnings():
@@ -208,7 +205,6 @@ class Dataset:
 
     @classmethod
     def generate(cls, config: GenerationConfig | GenerationRequest, out: str | Path, *,
-                 source_options: Mapping[str, Any] | None = None,
                  source: BodySource | None = None, overwrite: bool = False, device: str = "cpu", batch_size: int = 64,
                  progress: bool = True, log: Callable[[str], None] = print,
                  on_shard: ShardCallback | None = None) -> Dataset:
@@ -219,13 +215,13 @@ class Dataset:
         holds anything else is refused unless ``overwrite``.
 
         Args:
-            config: what to generate: a config (:func:`~cerberus_core.datasets.plan.load_generation_config`), or
-                a :class:`~cerberus_core.datasets.plan.GenerationRequest` (source, size preset, overrides and the
-                source's options: what ``cerberus data generate`` asks for, and :meth:`request` of a dataset).
+            config: what to generate: a :class:`~cerberus_core.datasets.plan.GenerationRequest` (source, size
+                preset, overrides and the source's options, checked by its ``Options`` and stored in the manifest:
+                what ``cerberus data generate`` asks for, and :meth:`request` of a dataset), the one way to give a
+                source options; or a config (:func:`~cerberus_core.datasets.plan.load_generation_config`), whose
+                source takes its default options.
             out: the dataset folder (created if needed).
-            source_options: the body source's options with a config (checked by its ``Options``; stored in the
-                manifest); a request carries its own.
-            source: a body source built by the caller instead (``source_options`` are then stored as given).
+            source: a body source built by the caller instead (a request's options are then stored as given).
             overwrite: replace a different dataset, or write into a folder holding other files.
             device: torch device for posing and rendering (no effect on the dataset).
             batch_size: views per render call (no effect on the dataset).
@@ -238,8 +234,7 @@ class Dataset:
             LockedError: another live process writes into ``out``.
         """
         out = check_path("out", out)
-        job = cls.plan(config, out, source_options=source_options, source=source, overwrite=overwrite, device=device,
-                       batch_size=batch_size)
+        job = cls.plan(config, out, source=source, overwrite=overwrite, device=device, batch_size=batch_size)
         if out.is_dir():
             check_unlocked(out)  # a live writer: refused before the lock file is even attempted
         with folder_lock(out):

@@ -26,6 +26,7 @@ from cerberus_core.datasets.manifest import MANIFEST, FileRecord, Manifest, Shar
 from cerberus_core.errors import DatasetError, ShapeError  # DatasetError re-exported: the format's readers raise it
 from cerberus_core.plumbing.atomic import atomic_write
 from cerberus_core.plumbing.outputs import resolved
+from cerberus_core.shapes import check_shapes
 
 VIEW_DTYPE = np.dtype([
     ("subject", "<i4"),     # index into Manifest.subjects
@@ -334,8 +335,7 @@ def write_shard(root: Path, split: str, index: int, images: np.ndarray, views: n
         subjects: the manifest indices of the subjects whose bodies the shard holds.
     """
     root = Path(root)
-    if images.dtype != np.uint8 or images.ndim != 4 or images.shape[1] != 3:
-        raise ShapeError(f"write_shard: images must be (N, 3, H, W) uint8, got {images.dtype} {images.shape}")
+    check_shapes("write_shard", images=(images, "N 3 H W", (np.dtype(np.uint8),)))
     if views.dtype != VIEW_DTYPE or views.shape != (len(images),):
         raise ShapeError("write_shard: views must be one VIEW_DTYPE record per image")
     quads = np.asarray(quads, dtype=np.int32).reshape(-1, 4)

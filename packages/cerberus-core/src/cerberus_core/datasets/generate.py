@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.bodies.body import BodyError, BodySource, PosedBody, source_class
+from cerberus_core.bodies.body import BodySource, PosedBody, source_class
 from cerberus_core.datasets.format import (
     DatasetError,
     check_shard_files,
@@ -39,9 +39,10 @@ from cerberus_core.datasets.plan import DatasetPlan, ShardPlan, make_plan
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.devices import check_device
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import BodyError, ConfigError
 from cerberus_core.plumbing.lock import is_lock_file
 from cerberus_core.plumbing.machine import memory_bytes
+from cerberus_core.plumbing.outputs import check_apart
 from cerberus_core.release import VERSION
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
@@ -138,7 +139,7 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
         config = replace(config, source=jsonable(source.describe()), renderer=renderer)
         plan = make_plan(config, source)
     except ImportError as exc:  # a source's optional package missing (the sources' and the plan's checks are typed)
-        raise ConfigError(str(exc)) from exc
+        raise ConfigError(str(exc), key="dataset", value=config.dataset) from exc
     views = max(len(s.views) for shards in plan.shards.values() for s in shards)
     pixels = config.image_size ** 2
     rendered = (config.image_size * config.supersample) ** 2  # each image is rendered supersampled
@@ -151,8 +152,9 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               + (f", {buffers / 2**30:.1f} GiB to render {min(batch_size, views)} views at once"
                                  if renders else "")
                               + f"), more than it has ({total / 2**30:.1f} GiB); lower `image_size`, `batch_size` "
-                              "or `shard_images`")
+                              "or `shard_images`", key="image_size", value=config.image_size)
     if out is not None:
+        check_apart(Path(out), source.reads(), what="a dataset is written there")  # the meshes read stay apart
         check_folder(Path(out), jsonable(config.to_dict()), overwrite)
     return GenerationJob(config, source, jsonable(stored), plan, images + buffers)
 

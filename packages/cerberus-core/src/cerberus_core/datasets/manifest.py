@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 
 from cerberus_core.bodies.body import BodySource, Subject, no_subjects_hint, source_class
-from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.datasets.settings import GenerationConfig
-from cerberus_core.errors import CerberusError, ConfigError, DatasetError
+from cerberus_core.errors import CerberusError, ConfigError, DatasetError, IncompleteDatasetError, ManifestFormatError
 from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.atomic import atomic_write
 
@@ -58,27 +58,12 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
-class IncompleteDatasetError(DatasetError):
-    """A split whose generation has not finished. ``root`` is the dataset folder and ``problem`` the message
-    without its fix, so that a front end can name its own way to finish it (the ``cerberus`` command: the
-    ``cerberus data generate`` command that resumes it)."""
-
-    def __init__(self, root: Path, problem: str) -> None:
-        self.root, self.problem = Path(root), problem
-        super().__init__(f"{problem}; finish generating it (it resumes) with `Dataset.open(root).resume()` "
-                         "(cerberus_core.datasets.dataset)")
-
-
-class _Damaged(Exception):
-    """A record that does not have the form of its type (a key missing or of another type)."""
-
-
 def _need(record: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
     if not isinstance(record, Mapping) or key not in record:
-        raise _Damaged(f"{where} lacks {key!r}")
+        raise ManifestFormatError(f"{where} lacks {key!r}")
     value = record[key]
     if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        raise _Damaged(f"{where}.{key} is {value!r}, not {getattr(kind, '__name__', kind)}")
+        raise ManifestFormatError(f"{where}.{key} is {value!r}, not {getattr(kind, '__name__', kind)}")
     return value
 
 
@@ -92,24 +77,24 @@ def _count(record: Mapping[str, Any], key: str, where: str, default: int | None 
         return default
     value = _need(record, key, int, where)
     if not 0 <= value <= MAX_COUNT:
-        raise _Damaged(f"{where}.{key} is {value!r}, not a count in [0, {MAX_COUNT}]")
+        raise ManifestFormatError(f"{where}.{key} is {value!r}, not a count in [0, {MAX_COUNT}]")
     return value
 
 
 def _counts(values: Any, where: str) -> tuple[int, ...]:
     """A list of counts (an array shape, subject indices) as a tuple."""
     if not isinstance(values, list):
-        raise _Damaged(f"{where} is {values!r}, not a list of counts")
+        raise ManifestFormatError(f"{where} is {values!r}, not a list of counts")
     for i, v in enumerate(values):
         if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_COUNT:
-            raise _Damaged(f"{where}[{i}] is {v!r}, not a count in [0, {MAX_COUNT}]")
+            raise ManifestFormatError(f"{where}[{i}] is {v!r}, not a count in [0, {MAX_COUNT}]")
     return tuple(values)
 
 
 def _strings(values: Any, where: str) -> tuple[str, ...]:
     """A list of strings (part names, split names) as a tuple."""
     if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
-        raise _Damaged(f"{where} is {values!r}, not a list of strings")
+        raise ManifestFormatError(f"{where} is {values!r}, not a list of strings")
     return tuple(values)
 
 
@@ -120,7 +105,7 @@ def _optional(record: Mapping[str, Any], key: str, kind: type, where: str) -> An
 
 def _mapping(record: Any, where: str) -> Mapping[str, Any]:
     if not isinstance(record, Mapping):
-        raise _Damaged(f"{where} is {type(record).__name__}, not an object")
+        raise ManifestFormatError(f"{where} is {type(record).__name__}, not an object")
     return record
 
 
@@ -230,9 +215,9 @@ class SplitRecord:
     def from_json(cls, record: Any, where: str = "split") -> SplitRecord:
         shards = record.get("shards", []) if isinstance(record, Mapping) else None
         if not isinstance(shards, list):
-            raise _Damaged(f"{where}.shards is not a list")
+            raise ManifestFormatError(f"{where}.shards is not a list")
         if _need(record, "layout", str, where) not in ("pairs", "grid"):
-            raise _Damaged(f"{where}.layout is {record['layout']!r}, not 'pairs' or 'grid'")
+            raise ManifestFormatError(f"{where}.layout is {record['layout']!r}, not 'pairs' or 'grid'")
         return cls(_need(record, "layout", str, where), bool(_need(record, "meshes", bool, where) if "meshes" in record
                                                             else False),
                    _count(record, "planned_shards", where), _count(record, "planned_images", where, 0),
@@ -422,7 +407,7 @@ class Manifest:
                 splits={name: SplitRecord.from_json(rec, f"splits.{name}") for name, rec in splits.items()},
                 complete=bool(record.get("complete", False)),
                 generator=dict(_mapping(record.get("generator") or {}, "manifest.generator")), root=Path(root))._checked()
-        except _Damaged as exc:
+        except ManifestFormatError as exc:
             raise DatasetError(f"{path}: {exc}; the dataset is corrupt — regenerate it") from None
         except DatasetError:
             raise
@@ -434,16 +419,16 @@ class Manifest:
         """This manifest, after the checks between its records: the splits recorded are the splits its config
         plans, and a shard's subject index is within the subjects."""
         if set(self.splits) != set(self.config.splits):
-            raise _Damaged(f"splits records {sorted(self.splits)}, but its config plans {sorted(self.config.splits)}")
+            raise ManifestFormatError(f"splits records {sorted(self.splits)}, but its config plans {sorted(self.config.splits)}")
         for name, split in self.splits.items():
             indices = [shard.index for shard in split.shards]
             if len(set(indices)) < len(indices) or any(not 0 <= i < split.planned_shards for i in indices):
-                raise _Damaged(f"splits.{name}.shards records shards {sorted(indices)}, not distinct shards of the "
+                raise ManifestFormatError(f"splits.{name}.shards records shards {sorted(indices)}, not distinct shards of the "
                                f"{split.planned_shards} planned")
             for shard in split.shards:
                 bad = [i for i in shard.subjects if i >= len(self.subjects)]
                 if bad:
-                    raise _Damaged(f"splits.{name}.shards {shard.index}.subjects names subject {bad[0]}, but the "
+                    raise ManifestFormatError(f"splits.{name}.shards {shard.index}.subjects names subject {bad[0]}, but the "
                                    f"manifest has {len(self.subjects)} subjects")
         return self
 
@@ -539,13 +524,13 @@ MAX_IMAGE_SIZE = 4096
 def _image_size(record: Mapping[str, Any]) -> int:
     size = _need(record, "image_size", int, "manifest")
     if not 1 <= size <= MAX_IMAGE_SIZE:
-        raise _Damaged(f"manifest.image_size is {size!r}, not a size in [1, {MAX_IMAGE_SIZE}] pixels")
+        raise ManifestFormatError(f"manifest.image_size is {size!r}, not a size in [1, {MAX_IMAGE_SIZE}] pixels")
     return size
 
 
 def _scene(record: Any, path: Path) -> SceneSetup:
     try:
-        return SceneSetup.from_dict(record)
+        return read_scene(record)
     except ConfigError as exc:
         raise DatasetError(f"{path}: invalid scene set-up ({exc}); the manifest is damaged: regenerate the "
                            "dataset") from None

@@ -29,13 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class
+from cerberus_core.bodies.body import BodySource, Subject, source_class
 from cerberus_core.config import build, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import BodyError, CerberusError, ConfigError
 from cerberus_core.plumbing.names import did_you_mean
 
 # ------------------------------------------------------------------------------------ presets
@@ -65,7 +65,7 @@ def load_generation_config(dataset: str, size: str | None = None, overrides: Ite
     raw = load_raw(cls.presets, preset=f"{dataset}_{size}", overrides=overrides, example=SET_EXAMPLE)
     for key, why in (("dataset", "`dataset`"), ("preset", "`size`"), ("source", "the body source")):
         if key in raw:
-            raise ConfigError(f"{key}: set by {why}, not by a preset file or `overrides`")
+            raise ConfigError(f"{key}: set by {why}, not by a preset file or `overrides`", key=key)
     return build(GenerationConfig, {**raw, "dataset": dataset, "preset": size})
 
 
@@ -316,7 +316,7 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 entry = table[index[s.name]]
                 if not source.shared_subjects:
                     raise ConfigError(f"subject {s.name!r} is in splits {list(entry.splits)} and {split!r}; "
-                                      "splits must hold disjoint subjects: give each split its own")
+                                      "splits must hold disjoint subjects: give each split its own", key=f"splits.{split}.subjects")
                 table[index[s.name]] = entry.in_split(split)
             else:
                 index[s.name] = len(table)
@@ -336,8 +336,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
         shards[split] = _pack(units, split, cfg, config.scene, config.shard_images)
         if not shards[split]:
             raise ConfigError(f"split {split!r} would be empty (no image); raise its counts: `splits.{split}.pairs`, "
-                              f"`splits.{split}.poses` or `splits.{split}.views`")
+                              f"`splits.{split}.poses` or `splits.{split}.views`", key=f"splits.{split}")
     if not table:
         raise ConfigError(f"no split has a subject ({', '.join(config.splits)}); adjust the preset's `subjects` or "
-                          "the body source's split options")
+                          "the body source's split options", key="splits")
     return DatasetPlan(table, shards)

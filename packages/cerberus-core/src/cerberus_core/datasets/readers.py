@@ -185,7 +185,7 @@ class QuadrupletDataset(_Base):
         super().__init__(root, split, allow_partial=allow_partial, verify=verify)
         if self._reader.quad_offsets[-1] == 0:
             raise DatasetError(f"{self._reader.root}: split {split!r} has no quadruplets (a "
-                               f"{self._reader.info.layout} test split?); use ViewDataset for single images")
+                               f"{self._reader.info.layout} test split?); read its single images with `Dataset.views(split)`")
 
     def __len__(self) -> int:
         return int(self._reader.quad_offsets[-1])
@@ -207,6 +207,12 @@ class QuadrupletDataset(_Base):
 
     def __getitem__(self, i: int) -> dict[str, Tensor]:
         return self.item(*self._reader.locate(self._reader.quad_offsets, i))
+
+    def view_indices(self, i: int) -> np.ndarray:
+        """``(4,)`` int64: the indices of quadruplet ``i``'s images ``a0 a1 b0 b1`` among the split's views (the
+        :class:`ViewDataset` of the same split)."""
+        shard, local = self._reader.locate(self._reader.quad_offsets, i)
+        return np.asarray(self._reader.array(shard, "quads")[local], dtype=np.int64) + int(self._reader.image_offsets[shard])
 
 
 class ViewDataset(_Base):

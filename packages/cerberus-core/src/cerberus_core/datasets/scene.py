@@ -11,23 +11,24 @@ azimuth at the fixed elevation. Bodies thus fill most of the frame and are never
 
 :class:`SceneSetup` is the one owner of a dataset's scene: cameras (from azimuths when rendering,
 from stored view records when reading: :meth:`SceneSetup.view_cameras`), the light and the
-background. The manifest stores it as :meth:`SceneSetup.to_dict`, which :meth:`SceneSetup.from_dict`
-reads back exactly (``from_dict(d).to_dict() == d``); the readers' ``.scene`` and the trainer use
-the object.
+background. The manifest stores it as :meth:`SceneSetup.to_dict`, which :func:`read_scene` reads back
+exactly (``read_scene(d).to_dict() == d``) with :func:`cerberus_core.config.build`, like every settings
+section; the readers' ``.scene`` and the trainer use the object.
 """
 from __future__ import annotations
 
 import itertools
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import torch
 
 from cerberus_core.bodies.body import FILL
-from cerberus_core.config import omit_defaults
+from cerberus_core.config import build, omit_defaults
 from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.render.camera import Camera
@@ -141,15 +142,15 @@ class SceneSetup(Checked):
             object.__setattr__(self, "distance", fit_distance(self.fov_y, self.elevation, self.fitted_extent,
                                                                radius=self.fitted_radius))
         if self.distance <= self.near:
-            raise ConfigError(f"scene.distance {self.distance} must exceed the near plane {self.near}")
+            raise ConfigError(f"scene.distance {self.distance} must exceed the near plane {self.near}", key="scene.distance", value=self.distance)
         if self.far <= self.distance:
             raise ConfigError(f"scene.far {self.far} must exceed the distance {self.distance} (the body sits "
-                              "at the origin)")
+                              "at the origin)", key="scene.far", value=self.far)
         object.__setattr__(self, "albedo", tuple(float(a) for a in self.albedo))
         object.__setattr__(self, "background", tuple(float(b) for b in self.background))
         for name in ("albedo", "background"):
             if not all(0.0 <= c <= 1.0 for c in getattr(self, name)):
-                raise ConfigError(f"scene.{name} {list(getattr(self, name))}: RGB values must lie in [0, 1]")
+                raise ConfigError(f"scene.{name} {list(getattr(self, name))}: RGB values must lie in [0, 1]", key=f"scene.{name}", value=getattr(self, name))
 
     LIGHT = {"type": "directional+ambient", "follows_camera": True, "colour": "white"}
     """The only light there is (stored in the manifest for readers of the JSON): white directional
@@ -162,37 +163,6 @@ class SceneSetup(Checked):
         d = omit_defaults(d, {"fitted_radius": None})
         d["light"] = dict(self.LIGHT)
         return d
-
-    @classmethod
-    def from_dict(cls, d: Mapping) -> SceneSetup:
-        """The set-up of a :meth:`to_dict` dict (missing keys take the defaults).
-
-        Raises:
-            ConfigError: not a mapping, an unknown key, a value of the wrong type (a number that is a
-                string, NaN, an RGB that is not 3 numbers), a value out of range, or a light other than
-                :attr:`LIGHT`.
-        """
-        import numbers
-
-        if not isinstance(d, Mapping):
-            raise ConfigError(f"scene: expected a mapping of set-up keys, got {type(d).__name__}")
-        keys = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - keys - {"light"})
-        if unknown:
-            raise ConfigError(f"scene: unknown key(s) {unknown}; valid keys: {sorted(keys)}")
-        if "light" in d and d["light"] != cls.LIGHT:
-            raise ConfigError(f"scene.light: only {cls.LIGHT} is supported, got {d['light']!r}")
-
-        def number(x) -> bool:
-            return isinstance(x, numbers.Real) and not isinstance(x, bool) and math.isfinite(x)
-
-        for k, v in d.items():
-            if k in ("albedo", "background"):
-                if not (isinstance(v, (list, tuple)) and len(v) == 3 and all(number(c) for c in v)):
-                    raise ConfigError(f"scene.{k} = {v!r}: expected 3 finite numbers (RGB in [0, 1])")
-            elif k in keys and not (number(v) or (v is None and k in ("distance", "fitted_radius"))):
-                raise ConfigError(f"scene.{k} = {v!r}: expected a finite number")
-        return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k in keys})
 
     def cameras(self, azimuth_deg: Tensor | np.ndarray | list[float], image_size: int,
                 device: torch.device | str | None = None) -> Camera:
@@ -250,3 +220,20 @@ class SceneSetup(Checked):
 def evenly_spaced(offset_deg: float, n: int) -> np.ndarray:
     """``n`` azimuths ``offset + k * 360 / n`` wrapped to ``[0, 360)`` degrees, float32."""
     return np.mod(offset_deg + np.arange(n) * (360.0 / n), 360.0).astype(np.float32)
+
+
+def read_scene(record: Any, key: str = "scene") -> SceneSetup:
+    """The set-up of a :meth:`SceneSetup.to_dict` record (a manifest's ``scene``, a model file's recorded one;
+    missing keys take the defaults), read by :func:`cerberus_core.config.build` like any settings section.
+
+    Args:
+        key: where the record sits, for messages (``scene``, ``config.scene``).
+    Raises:
+        ConfigError: not a mapping, an unknown key, a value of the wrong type (a number that is a string, NaN,
+            an RGB that is not 3 numbers), a value out of range, or a light other than :attr:`SceneSetup.LIGHT`.
+    """
+    if isinstance(record, Mapping) and "light" in record:  # written for readers of the JSON; only one is known
+        if record["light"] != SceneSetup.LIGHT:
+            raise ConfigError.about(f"{key}.light", record["light"], f"only {SceneSetup.LIGHT} is supported")
+        record = {k: v for k, v in record.items() if k != "light"}
+    return build(SceneSetup, record, f"{key}.")

@@ -10,7 +10,7 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
 
 from cerberus_core.config import build, omit_defaults
-from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.errors import ConfigError
 from cerberus_core.fields import Checked, ranged
 
@@ -80,8 +80,8 @@ class SplitConfig(Checked):
                                     "quadruplets are drawn")
         images = self.planned_images_bound()
         if images is not None and images > MAX_SPLIT_IMAGES:
-            raise ConfigError(f"this split would hold {images:,} images, more than {MAX_SPLIT_IMAGES:,}; lower its "
-                              "`pairs`, `subjects`, `poses` or `views`")
+            raise ConfigError.about("views", self.views, f"this split would hold {images:,} images, more than "
+                                    f"{MAX_SPLIT_IMAGES:,}; lower its `pairs`, `subjects`, `poses` or `views`")
 
     def planned_images_bound(self) -> int | None:
         """The most images the split can hold, from its counts alone (``None``: the source decides)."""
@@ -128,7 +128,7 @@ class GenerationConfig(Checked):
 
     def validate(self) -> None:
         if not self.splits:
-            raise ConfigError("a dataset needs at least one split; add a splits: section (e.g. train: and test:)")
+            raise ConfigError("a dataset needs at least one split; add a splits: section (e.g. train: and test:)", key="splits")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (stored as the manifest's ``config``; keys added after format v1 only when
@@ -148,7 +148,7 @@ class GenerationConfig(Checked):
         Raises:
             ConfigError: a key this version does not know, or a value out of range.
         """
-        return replace(build(cls, {k: v for k, v in d.items() if k != "scene"}), scene=SceneSetup.from_dict(d.get("scene")))
+        return replace(build(cls, {k: v for k, v in d.items() if k != "scene"}), scene=read_scene(d.get("scene")))
 
 
 __all__ = ["MAX_IMAGE_SIZE", "GenerationConfig", "SplitConfig"]

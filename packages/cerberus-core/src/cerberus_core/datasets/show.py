@@ -9,7 +9,7 @@ import torch
 from PIL import Image
 
 from cerberus_core.datasets.manifest import Manifest
-from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset, _SplitReader
+from cerberus_core.datasets.readers import QuadrupletDataset, ViewDataset
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import DatasetError
 from cerberus_core.plumbing.outputs import output_file
@@ -41,37 +41,32 @@ TITLE_CHARS = 14
 """The longest row title that fits a row of 64 px tiles at the default scale."""
 
 
-def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, parts: bool = False,
-                  renderer: str = "auto", scale: int = 2) -> Image.Image:
-    """A picture of ``count`` rows of a split.
+def contact_sheet(views: ViewDataset, quads: QuadrupletDataset | None = None, *, count: int = 8,
+                  parts: bool = False, renderer: str = "auto", scale: int = 2) -> Image.Image:
+    """A picture of ``count`` rows of a split (its readers, from
+    :meth:`Dataset.views <cerberus_core.datasets.dataset.Dataset.views>` and :meth:`~Dataset.quadruplets`).
 
-    Rows are quadruplets ``a0 a1 b0 b1`` when the split has quadruplets, else the views of one pose
+    Rows are quadruplets ``a0 a1 b0 b1`` when the split has quadruplets (``quads``), else the views of one pose
     (canonical poses first). With ``parts``, each row ends with the ground-truth parts of its first
     pose (and, for quadruplets, of its second pose) rendered in colour from the same camera.
 
     Args:
-        root, split: the dataset split.
+        views, quads: the split's views, and its quadruplets (``None``: a split of single views).
         count: number of rows (spread evenly over the split).
         parts: add ground-truth part renderings (needs the split's meshes, or its body source).
         renderer: backend for the part renderings.
         scale: nearest-neighbour upscaling of every tile.
     """
-    reader = _SplitReader(root, split, allow_partial=True)
-    views = ViewDataset(root, split, allow_partial=True)
     scene = views.scene
     rend = make_renderer(renderer) if parts else None
     rows, titles = [], []
-    if reader.quad_offsets[-1] > 0:
-        quads = QuadrupletDataset(root, split, allow_partial=True)
+    if quads is not None:
         for i in _evenly(len(quads), count):
             item = quads[i]
             row = [item["images"]]
             if parts:
-                shard, local = reader.locate(reader.quad_offsets, i)
-                quad = reader.array(shard, "quads")[local]
-                first = int(reader.image_offsets[shard])
-                row += [_parts_image(views, first + int(quad[0]), scene, rend),
-                        _parts_image(views, first + int(quad[2]), scene, rend)]
+                quad = quads.view_indices(i)
+                row += [_parts_image(views, int(quad[0]), scene, rend), _parts_image(views, int(quad[2]), scene, rend)]
             rows.append(torch.cat(row))
             p = item["pose"]
             title = f"s{int(item['subject'])} {int(p[0])}/{int(p[2])}"
@@ -91,15 +86,15 @@ def contact_sheet(root: str | Path, split: str = "train", *, count: int = 8, par
             prefix = "c " if rec["canonical"][start] else ""
             titles.append(f"{prefix}s{int(rec['subject'][start])} p{int(rec['pose'][start])}")
     if not rows:
-        raise DatasetError(f"{root}: split {split!r} has no finished shard to show yet; let its generation "
-                           "finish a shard first")
+        raise DatasetError(f"{views.root}: split {views.split!r} has no finished shard to show yet; let its "
+                           "generation finish a shard first")
     return image_grid(rows, titles, scale=scale)
 
 
-def save_contact_sheet(root: str | Path, out: str | Path, **options) -> Path:
-    """:func:`contact_sheet` written atomically as a PNG (``out`` may not be a file of the dataset)."""
-    manifest = Manifest.read(root)
+def save_contact_sheet(views: ViewDataset, out: str | Path, manifest: Manifest, **options) -> Path:
+    """:func:`contact_sheet` written atomically as a PNG (``out`` may not be a file of the dataset, which
+    ``manifest`` lists)."""
     output_file(Path(out), "out", [manifest.path, *(manifest.root / f.path for split in manifest.splits.values()
                                                      for shard in split.shards for f in shard.files.values())])
-    atomic_save_png(contact_sheet(root, **options), out)
+    atomic_save_png(contact_sheet(views, **options), out)
     return Path(out)

@@ -138,7 +138,7 @@ def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequen
     """
     cells = [c for row in rows for c in row if c is not None]
     if not cells:
-        raise ConfigError("labelled_grid: no images; pass at least one row with one image")
+        raise ConfigError("labelled_grid: no images; pass at least one row with one image", key="rows")
     h, w = cells[0].shape[-2:]
     if any(c.shape[-2:] != (h, w) for c in cells):
         raise ShapeError("labelled_grid: all images must share one size; resize them to one (H, W)")

@@ -60,7 +60,7 @@ class CanonicalParts:
         missing = set(indices) - set(shapes)
         if missing:
             raise ConfigError(f"CanonicalParts: no shapes for subjects {sorted(missing)}; pass a canonical "
-                              "reconstruction in `shapes` for every subject in `indices`")
+                              "reconstruction in `shapes` for every subject in `indices`", key="shapes")
         for s, r in shapes.items():
             if r.batch_size != 1:
                 raise ShapeError(f"CanonicalParts: subject {s!r} needs a batch-1 reconstruction, got {r.batch_size}; "
@@ -76,5 +76,5 @@ class CanonicalParts:
     def pose(self, subject: str, poses: PartSet) -> PartSet:
         """The canonical parts of ``subject`` with the transforms of ``poses`` (any batch size)."""
         if subject not in self.shapes:
-            raise KeyError(f"no canonical image for subject {subject!r}; known: {sorted(self.shapes)}")
+            raise ConfigError.about("subject", subject, f"no canonical image for it; known: {sorted(self.shapes)}")
         return transfer_pose(self.shapes[subject], poses)

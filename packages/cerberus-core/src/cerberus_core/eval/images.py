@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageOps, UnidentifiedImageError
 
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import ConfigError, ImageInputError
 from cerberus_core.plumbing.names import printable
 
 Tensor = torch.Tensor
@@ -40,10 +40,6 @@ Tensor = torch.Tensor
 
 #: Largest input accepted, in pixels (8000 x 5000): the header is checked before anything is decoded.
 MAX_INPUT_PIXELS = 40_000_000
-
-
-class ImageInputError(CerberusError, ValueError):
-    """An input image cannot be used; the message names the file and what to do."""
 
 
 class ImageInputWarning(UserWarning):

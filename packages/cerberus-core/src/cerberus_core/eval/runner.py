@@ -80,7 +80,7 @@ def dataset_metadata(dataset: Any) -> list[ItemMeta]:
             out.append(ItemMeta(i, subject_label(dataset, item["subject"]), int(item["pose"]), int(item["view"]),
                                 bool(item.get("is_canonical", False))))
         except KeyError as exc:
-            raise KeyError(f"dataset item {i} lacks the field {exc}; the evaluation needs subject, pose, view "
+            raise DatasetError(f"dataset item {i} lacks the field {exc}; the evaluation needs subject, pose, view "
                            "(and is_canonical for the Hard Human test)") from None
     return out
 

@@ -212,7 +212,7 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
     total = len(entries) if total is None else total
     shown = entries[:limit]
     if not shown:
-        raise ConfigError("write_viewer: no entries; pass at least one `ViewerEntry` in `entries`")
+        raise ConfigError("write_viewer: no entries; pass at least one `ViewerEntry` in `entries`", key="entries")
     data_entries, cards = [], []
     for i, e in enumerate(shown):
         models = [(k, getattr(e, k)) for k in ("reconstruction", "ground_truth", "new_pose") if getattr(e, k)]

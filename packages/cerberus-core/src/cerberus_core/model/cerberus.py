@@ -84,12 +84,12 @@ class ModelConfig(Checked):
         """The checks between fields (the ranges are declared above)."""
         if self.vertex_bound is not None and not self.vertex_bound > self.init_scale:
             raise ConfigError(f"model.vertex_bound must be null or larger than model.init_scale "
-                              f"({self.init_scale}), got {self.vertex_bound!r}")
+                              f"({self.init_scale}), got {self.vertex_bound!r}", key="model.vertex_bound", value=self.vertex_bound)
         if isinstance(self.depth_offset, str):
             if self.depth_offset != "auto":
-                raise ConfigError(f"model.depth_offset must be a number or 'auto', got {self.depth_offset!r}")
+                raise ConfigError(f"model.depth_offset must be a number or 'auto', got {self.depth_offset!r}", key="model.depth_offset", value=self.depth_offset)
         elif not Range(gt=0).admits(self.depth_offset):
-            raise ConfigError(f"model.depth_offset must be positive or 'auto', got {self.depth_offset!r}")
+            raise ConfigError(f"model.depth_offset must be positive or 'auto', got {self.depth_offset!r}", key="model.depth_offset", value=self.depth_offset)
 
 @dataclass
 class Predictions:

@@ -84,7 +84,7 @@ class ResNet10(nn.Module):
         super().__init__()
         if in_channels < 1 or width < 1:
             raise ConfigError(f"ResNet10 needs positive in_channels and width, got {in_channels}, {width}; pass "
-                              "`in_channels` >= 1 and `width` >= 1")
+                              "`in_channels` >= 1 and `width` >= 1", key="width", value=width)
         self.channels = (width, 2 * width, 4 * width, 8 * width)
         self.stem = nn.Sequential(
             nn.Conv2d(in_channels, width, 7, 2, 3, bias=False),

@@ -29,7 +29,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from cerberus_core.errors import CerberusError
+from cerberus_core.errors import LockedError
 from cerberus_core.plumbing import jsontext
 
 try:
@@ -38,10 +38,6 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None  # type: ignore[assignment]
 
 LOCK_NAME = ".cerberus.lock"
-
-
-class LockedError(CerberusError):
-    """Another live process holds the folder's lock."""
 
 
 def _pid_alive(pid: int) -> bool:

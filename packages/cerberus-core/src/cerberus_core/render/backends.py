@@ -8,14 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from cerberus_core.plugins import (
-    KNOWN_PACKAGES,
-    RENDERER_GROUP,
-    PluginLoadError,
-    UnknownPluginError,
-    get_plugin,
-    plugin_table,
-)
+from cerberus_core.errors import PluginLoadError, UnknownPluginError
+from cerberus_core.plugins import KNOWN_PACKAGES, RENDERER_GROUP, get_plugin, plugin_table
 from cerberus_core.render.interface import Renderer
 
 __all__ = ["AUTO_RENDERER", "RENDERER_PREFERENCE", "available_renderers", "make_renderer", "resolve_renderer"]

@@ -79,6 +79,16 @@ def rasterize(ctx: Renderer, clip: Tensor, faces: Tensor, resolution: tuple[int,
         resolution: ``(H, W)`` pixels. near: triangles with a vertex at ``w <= near`` are not drawn.
     Returns:
         ``(B, H, W)`` int64 face ids, -1 on background.
+
+    >>> import torch
+    >>> from cerberus_core import Camera, Light, icosphere, make_renderer
+    >>> from cerberus_core.render import ops
+    >>> ctx, cam, sphere = make_renderer("torch"), Camera.look_at(30.0, 10.0, 2.5, image_size=32), icosphere(2)
+    >>> v = 0.4 * sphere.vertices[None]  # (1, V, 3)
+    >>> clip = cam.world_to_clip(v)
+    >>> face_id = ops.rasterize(ctx, clip, sphere.faces, (32, 32), cam.near)
+    >>> face_id.shape, face_id.dtype, bool((face_id >= 0).any())
+    (torch.Size([1, 32, 32]), torch.int64, True)
     """
     _check_backend("rasterize", ctx)
     check_shapes("rasterize", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS))
@@ -108,6 +118,17 @@ def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> T
         attr: ``(B, V, C)`` per-vertex attributes.
     Returns:
         ``(B, H, W, C)``, 0 on background.
+
+    >>> import torch
+    >>> from cerberus_core import Camera, Light, icosphere, make_renderer
+    >>> from cerberus_core.render import ops
+    >>> ctx, cam, sphere = make_renderer("torch"), Camera.look_at(30.0, 10.0, 2.5, image_size=32), icosphere(2)
+    >>> v = 0.4 * sphere.vertices[None]  # (1, V, 3)
+    >>> clip = cam.world_to_clip(v)
+    >>> face_id = ops.rasterize(ctx, clip, sphere.faces, (32, 32), cam.near)
+    >>> xyz = ops.interpolate(v, clip, sphere.faces, face_id)  # the surface point under each pixel
+    >>> xyz.shape, bool(xyz[face_id >= 0].norm(dim=-1).le(0.4 + 1e-4).all())
+    (torch.Size([1, 32, 32, 3]), True)
     """
     check_shapes("interpolate", same_device=True, attr=(attr, "B V C", FLOATS), clip=(clip, "B V 4", FLOATS),
                  faces=(faces, "F 3", INTS), face_id=(face_id, "B H W", (torch.int64,)))
@@ -123,7 +144,18 @@ def interpolate(attr: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> T
 
 def vertex_normals(ctx: Renderer, vertices: Tensor, faces: Tensor) -> Tensor:
     """``(B, V, 3)`` area-weighted unit vertex normals of ``(B, V, 3)`` world vertices (differentiable;
-    the backend's kernel or the shared torch code)."""
+    the backend's kernel or the shared torch code).
+
+    >>> import torch
+    >>> from cerberus_core import Camera, Light, icosphere, make_renderer
+    >>> from cerberus_core.render import ops
+    >>> ctx, cam, sphere = make_renderer("torch"), Camera.look_at(30.0, 10.0, 2.5, image_size=32), icosphere(2)
+    >>> v = 0.4 * sphere.vertices[None]  # (1, V, 3)
+    >>> clip = cam.world_to_clip(v)
+    >>> normals = ops.vertex_normals(ctx, v, sphere.faces)
+    >>> normals.shape, torch.allclose(normals, v / v.norm(dim=-1, keepdim=True), atol=0.1)  # a sphere's point outward
+    (torch.Size([1, 162, 3]), True)
+    """
     _check_backend("vertex_normals", ctx)
     check_shapes("vertex_normals", same_device=True, vertices=(vertices, "B V 3", FLOATS), faces=(faces, "F 3", INTS))
     _check_faces("vertex_normals", faces, vertices.shape[1])
@@ -139,6 +171,18 @@ def shade(ctx: Renderer, clip: Tensor, faces: Tensor, face_id: Tensor, normals: 
     Returns:
         ``rgb`` ``(B, H, W, 3)`` and ``depth`` ``(B, H, W)`` (distance along the view axis), both 0 on
         background.
+
+    >>> import torch
+    >>> from cerberus_core import Camera, Light, icosphere, make_renderer
+    >>> from cerberus_core.render import ops
+    >>> ctx, cam, sphere = make_renderer("torch"), Camera.look_at(30.0, 10.0, 2.5, image_size=32), icosphere(2)
+    >>> v = 0.4 * sphere.vertices[None]  # (1, V, 3)
+    >>> clip = cam.world_to_clip(v)
+    >>> face_id = ops.rasterize(ctx, clip, sphere.faces, (32, 32), cam.near)
+    >>> normals = ops.vertex_normals(ctx, v, sphere.faces)
+    >>> rgb, depth = ops.shade(ctx, clip, sphere.faces, face_id, normals, torch.full_like(v, 0.8), Light.following(cam))
+    >>> rgb.shape, depth.shape, bool(rgb.max() <= 0.8 + 1e-6)  # albedo 0.8 under ambient + diffuse = 1
+    (torch.Size([1, 32, 32, 3]), torch.Size([1, 32, 32]), True)
     """
     _check_backend("shade", ctx)
     check_shapes("shade", same_device=True, clip=(clip, "B V 4", FLOATS), faces=(faces, "F 3", INTS),
@@ -152,7 +196,20 @@ def shade(ctx: Renderer, clip: Tensor, faces: Tensor, face_id: Tensor, normals: 
 def antialias(ctx: Renderer, color: Tensor, clip: Tensor, faces: Tensor, face_id: Tensor) -> Tensor:
     """Analytic anti-aliasing of silhouette and occlusion edges (visibility gradients): ``(B, H, W, C)``
     colours blended across the edges, differentiable w.r.t. ``color`` and ``clip``
-    (:mod:`cerberus_core.render.antialias`)."""
+    (:mod:`cerberus_core.render.antialias`).
+
+    >>> import torch
+    >>> from cerberus_core import Camera, Light, icosphere, make_renderer
+    >>> from cerberus_core.render import ops
+    >>> ctx, cam, sphere = make_renderer("torch"), Camera.look_at(30.0, 10.0, 2.5, image_size=32), icosphere(2)
+    >>> v = 0.4 * sphere.vertices[None]  # (1, V, 3)
+    >>> clip = cam.world_to_clip(v)
+    >>> face_id = ops.rasterize(ctx, clip, sphere.faces, (32, 32), cam.near)
+    >>> alpha = (face_id >= 0).float()[..., None]  # (1, 32, 32, 1): hard coverage
+    >>> soft = ops.antialias(ctx, alpha, clip, sphere.faces, face_id)
+    >>> soft.shape, bool(((soft > 0) & (soft < 1)).any())  # fractional coverage on the silhouette's edge
+    (torch.Size([1, 32, 32, 1]), True)
+    """
     _check_backend("antialias", ctx)
     check_shapes("antialias", same_device=True, color=(color, "B H W C", FLOATS), clip=(clip, "B V 4", FLOATS),
                  faces=(faces, "F 3", INTS), face_id=(face_id, "B H W", (torch.int64,)))

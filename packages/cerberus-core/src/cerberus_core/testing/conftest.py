@@ -17,7 +17,8 @@ import os
 import pytest
 import torch
 
-from cerberus_core.plugins import RENDERER_GROUP, PluginError, get_plugin
+from cerberus_core.errors import PluginError
+from cerberus_core.plugins import RENDERER_GROUP, get_plugin
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 

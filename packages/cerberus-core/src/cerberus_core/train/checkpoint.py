@@ -23,7 +23,7 @@ import numpy as np
 import torch
 from safetensors.torch import save
 
-from cerberus_core.errors import CerberusError
+from cerberus_core.errors import CheckpointError
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plumbing.atomic import atomic_write
 
@@ -31,10 +31,6 @@ FORMAT_VERSION = 1
 LAST = "last.pt"
 USE_RUN = "point at a run folder, its model.safetensors or checkpoints/last.pt"
 """The fix a message about a wrong model path names."""
-
-
-class CheckpointError(CerberusError, ValueError):
-    """A model file or run folder cannot be loaded; the message names the file and what to pass instead."""
 
 
 def error_reason(exc: BaseException) -> str:

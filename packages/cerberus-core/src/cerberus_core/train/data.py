@@ -31,17 +31,11 @@ from torch.utils.data import Sampler
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.looks import input_look
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.errors import ConfigError, TrainingDatasetError
 from cerberus_core.render.camera import Camera
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
-
-
-class TrainingDatasetError(DatasetError, TypeError):
-    """An object given as the training dataset breaks the contract above (a missing attribute, a ``scene`` that
-    is not a :class:`SceneSetup`, no quadruplets); a ``TypeError`` (and a ``ValueError``) too, for callers that
-    caught one."""
 
 
 def check_dataset(dataset: Any) -> None:
@@ -53,7 +47,7 @@ def check_dataset(dataset: Any) -> None:
                                    "(see cerberus_core.train.data)")
     if not isinstance(dataset.scene, SceneSetup):
         raise TrainingDatasetError(f"training dataset {type(dataset).__name__}: .scene must be a SceneSetup, got "
-                                   f"{type(dataset.scene).__name__} (SceneSetup.from_dict reads a manifest's "
+                                   f"{type(dataset.scene).__name__} (datasets.scene.read_scene reads a manifest's "
                                    "scene dict)")
     if len(dataset) == 0:
         raise TrainingDatasetError("the training dataset is empty; generate its split or point `data.root` and "

@@ -51,7 +51,7 @@ def launch_environment() -> DistInfo:
             shown = "unset" if text is None else repr(text)
             upper = "" if high is None else f" below {high}"
             raise ConfigError(f"the environment variable {name} is {shown}, not a whole number {low} or more{upper}; "
-                              "launch with torchrun (which sets WORLD_SIZE, RANK and LOCAL_RANK) or unset them")
+                              "launch with torchrun (which sets WORLD_SIZE, RANK and LOCAL_RANK) or unset them", key=name)
         return value
 
     world = number("WORLD_SIZE", 1, 1, None)

@@ -8,10 +8,10 @@ its own viewpoint, and with its viewpoint partner's translation from the partner
 ``lambda_r L_r' + lambda_t L_t' + lambda_b L_b + lambda_s L_s``
 
 averaged over the batch, plus the terms beyond the paper (weight 0 in its settings). Each term is
-declared once, in :data:`TERM_TABLE` (its name, its weight in the paper's settings, how its value is
-computed from the objective's inputs, whether it is always logged, its symbol and where it comes
-from); the weights of :class:`LossConfig` (the ``losses:`` config section), the columns of
-``metrics.csv`` and the docs' table (:func:`terms_table`) are made from it. The functions behind the
+declared once, as a weight field of :class:`LossConfig` (the ``losses:`` config section: its name,
+its weight in the paper's settings, how its value is computed from the objective's inputs, whether
+it is always logged, its symbol and where it comes from); :data:`TERM_TABLE`, the columns of
+``metrics.csv`` and the docs' table (:func:`terms_table`) are read from those fields. The functions behind the
 terms are :mod:`cerberus_core.losses`. Beyond the paper too: ``antialias`` renders with the analytic
 anti-aliasing op, which gives the image and the coverage visibility gradients, and ``losses.cross_view:
 own`` renders the cross view with each image's own 3D model.
@@ -19,7 +19,7 @@ own`` renders the cross view with each image's own 3D model.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields, make_dataclass
+from dataclasses import dataclass, field, fields
 from typing import Any, Literal
 
 import torch
@@ -27,7 +27,7 @@ from torch import nn
 
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import InputTypeError
-from cerberus_core.fields import Checked, ranged
+from cerberus_core.fields import RANGE, Checked, Range, ranged
 from cerberus_core.losses import (
     VIEW_PARTNER,
     NearestSearch,
@@ -253,14 +253,14 @@ _chamfer = _vertex_pull(silhouette_chamfer)
 _coverage = _vertex_pull(silhouette_coverage)
 
 
-def _keypoint_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): each image's keypoints over its own foreground
-    return silhouette_coverage(x.pred.maps.uv, x.foreground.flatten(0, 1), search=x.search)
-
-
 def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed translations over each image
     consensus = pose_consensus(_quad(x.parts.translations, x)).flatten(0, 1)  # (4B, N, 3)
     uv, _ = x.batch.camera.project(consensus)
     return silhouette_coverage(uv, x.foreground.flatten(0, 1), search=x.search)
+
+
+def _keypoint_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): each image's keypoints over its own foreground
+    return silhouette_coverage(x.pred.maps.uv, x.foreground.flatten(0, 1), search=x.search)
 
 
 def _hidden_in(render: RenderOutput, uv: Tensor, foreground: Tensor, x: ObjectiveInputs) -> Tensor:
@@ -284,15 +284,20 @@ def _reprojection(x: ObjectiveInputs) -> Tensor:
     return reprojection_loss(projected.view(bsz, 4, n, 2), keypoints, x.batch.camera.height)
 
 
+BEYOND = "beyond the paper"
+TERM = "cerberus.term"
+"""The ``dataclasses.field`` metadata key of a weight field of :class:`LossConfig` that holds its :class:`Term`."""
+
+
 @dataclass(frozen=True)
 class Term:
-    """One term of the training objective, declared once (:data:`TERM_TABLE`).
+    """One term of the training objective, declared once: as a weight field of :class:`LossConfig`
+    (:func:`term`); :data:`TERM_TABLE` lists them.
 
     Attributes:
-        name: its name everywhere: the weight ``losses.<name>`` of :class:`LossConfig`, the column of
+        name: its name everywhere: the weight ``losses.<name>`` (the field's name), the column of
             ``metrics.csv``, the key of :attr:`ObjectiveOutput.terms`.
-        weight: its weight in the paper's settings, :class:`LossConfig`'s default (0: beyond the paper,
-            off there).
+        weight: its weight in the paper's settings, the field's default (0: beyond the paper, off there).
         value: how the objective computes it from its inputs: ``ObjectiveInputs -> (B,)`` per
             quadruplet or ``(4 B,)`` per image, averaged over the batch.
         always_logged: computed and logged even at weight 0 (cheap); the others only when weighted.
@@ -320,66 +325,107 @@ class Term:
         return self.source != BEYOND
 
 
-BEYOND = "beyond the paper"
-
-TERM_TABLE: tuple[Term, ...] = (
-    Term("recon", 1.0, _recon, True, "lambda_r L_r'", "eqs. 2, 4, 7",
-         "squared RGB error of each image's rendering, own and partner viewpoint", reconstruction_loss),
-    Term("translation", 1.0, lambda x: translation_loss(_quad(x.parts.translations, x)),
-         True, "lambda_t L_t'", "eqs. 5, 6", "disagreement of the translations predicted from the two viewpoints",
-         translation_loss),
-    Term("background", 1.0, lambda x: background_loss(x.pred.maps.prob, x.mask), True, "lambda_b L_b", "section 5",
-         "keypoint probability mass on the input's background", background_loss),
-    Term("smoothness", 0.0001, lambda x: smoothness_term(x.pred.local_vertices, x.dihedral, x.batch.num_quadruplets,
-                                                         x.smoothness_once),
-         True, "lambda_s L_s", "section 5 (Kato et al.)", "sum over mesh edges of (cos theta + 1)^2",
-         smoothness_loss),
-    Term("silhouette", 0.0, _silhouette, True, "lambda_sil L_sil", BEYOND,
-         "squared error of the rendered coverage against the input's foreground (needs render.antialias)",
-         silhouette_loss),
-    Term("chamfer", 0.0, _chamfer, False, "lambda_c L_c", BEYOND,
-         "2-D chamfer distance between the projected part vertices and the foreground pixels", silhouette_chamfer),
-    Term("hidden", 0.0, _hidden, False, "lambda_h L_h", BEYOND,
-         "pull of the parts an image does not show toward the foreground no part covers", hidden_part_pull),
-    Term("reprojection", 0.0, _reprojection, False, "lambda_p L_p", BEYOND,
-         "each part's translation projected into the partner camera against the partner's keypoint",
-         reprojection_loss),
-    Term("coverage", 0.0, _coverage, False, "lambda_cov L_cov", BEYOND,
-         "every foreground pixel's distance to the nearest projected part vertex, thin structures weighted up",
-         silhouette_coverage),
-    Term("keypoint_coverage", 0.0, _keypoint_coverage, False, "lambda_kc L_kc", BEYOND,
-         "every foreground pixel's distance to the nearest part keypoint, thin structures weighted up (k-means)",
-         silhouette_coverage, allocation=True),
-    Term("consensus_coverage", 0.0, _consensus_coverage, False, "lambda_kv L_kv", BEYOND,
-         "keypoint k-means over both views of a pose: each part's translation averaged over the pose's two "
-         "viewpoints, projected into each image, against its foreground", pose_consensus, allocation=True),
-    Term("separation", 0.0, lambda x: part_separation(x.parts.translations), False, "lambda_sep L_sep", BEYOND,
-         "KeypointNet's separation in 3D: parts whose translations lie closer than 0.1 push apart",
-         part_separation, allocation=True),
-    Term("overlap", 0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), False, "lambda_o L_o", BEYOND,
-         "share of each part's volume inside another part (each part the Gaussian of its vertices)", part_overlap),
-    Term("rotation", 0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), False, "lambda_R L_R", BEYOND,
-         "disagreement of the world rotations predicted from the two viewpoints (eq. 6 for rotations)",
-         rotation_loss),
-)
-"""Every term of the training objective, in logging order."""
-
-TERMS: tuple[str, ...] = tuple(t.name for t in TERM_TABLE)
-"""The terms' names, in logging order (the ``metrics.csv`` columns after ``total``)."""
+def term(weight: float, value: Callable[[ObjectiveInputs], Tensor], symbol: str, source: str, summary: str,
+         function: Callable[..., Tensor], *, always_logged: bool = False, allocation: bool = False) -> Any:
+    """A weight field of :class:`LossConfig` that declares its term: the paper's ``weight`` as the default (checked
+    >= 0), and the rest of its :class:`Term` (its ``name`` is the field's)."""
+    spec = dict(value=value, always_logged=always_logged, symbol=symbol, source=source, summary=summary,
+                function=function, allocation=allocation)
+    return field(default=weight, metadata={RANGE: Range(ge=0), TERM: spec})
 
 
-def terms_table() -> str:
-    """The Markdown table of :data:`TERM_TABLE` that docs/training.md shows."""
-    rows = ["| weight | symbol | paper | paper weight | what it measures | function |", "| --- | --- | --- | ---: | --- | --- |"]
-    rows += [f"| `losses.{t.name}` | `{t.symbol}` | {t.source} | {t.weight:g} | {t.summary} | `{t.function.__name__}` |"
-             for t in TERM_TABLE]
-    return "\n".join(rows)
+@dataclass
+class LossConfig(Checked):
+    """Loss weights and consistency switches: the ``losses:`` section of a training config.
 
+    **The terms.** Each weight field is one term of the objective, declared once with :func:`term`: its weight in
+    the paper's settings (the default; 0 switches the term off, though the always-logged ones are still computed,
+    and a weight must be >= 0), how the objective computes it, its symbol, where it comes from and the function
+    of :mod:`cerberus_core.losses` behind it. To add a term, write its function in :mod:`cerberus_core.losses`
+    and one field here, with weight 0 when the paper does not have it (docs/training.md, "Adding a loss term");
+    :data:`TERM_TABLE`, the ``metrics.csv`` columns and the docs' table follow. The paper's total is
+    ``lambda_r L_r' + lambda_t L_t' + lambda_b L_b + lambda_s L_s``.
 
-class _LossSettings(Checked):
-    """The methods of :class:`LossConfig` (its fields are made from :data:`TERM_TABLE` and :data:`SWITCHES`)."""
+    **The switches.**
+
+    Attributes:
+        pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses its own shape
+            latent, 'Free Cerberus').
+        viewpoint_consistency: also render each image's rotated mesh from the other viewpoint (equation 4); off:
+            only the image's own viewpoint.
+        cross_view: which translations that second rendering uses (:func:`cerberus_core.losses.viewpoint_scenes`):
+            ``partner`` (the paper's equation 4: the partner viewpoint's translations, so a part's own depth never
+            meets the partner's image) or ``own`` (the image's whole 3D model seen from the partner camera: a part
+            at the wrong depth lands in the wrong place of the partner's image); beyond the paper.
+        cross_view_warmup: with ``cross_view: own``, the first this many steps still use ``partner``, so that early
+            training, whose depths are still arbitrary, cannot lose the body off the partner's screen
+            (:meth:`cross_view_at`).
+        cross_pulls: apply the chamfer, coverage and hidden-part pulls to the cross view as well, against the
+            partner's foreground, averaged with the input view's like equation 4; off: the input view only.
+        render_background: the background colour of the reconstruction loss: ``black`` sets the input's background
+            pixels (mask ``b``) to black in the target and composites the renderings over black (the barycentric
+            renderer has no silhouette gradient, so a part over a white background would be pushed to face the
+            light, which flattens and inflates it; towards black it is not); ``dataset`` keeps the dataset's colour.
+        allocation_steps: the allocation pulls (:attr:`Term.allocation`: ``keypoint_coverage``,
+            ``consensus_coverage``, ``separation``) fade linearly from their weight at step 0 to nothing at this step,
+            so they place the parts early and leave the rest of training to the image terms (:meth:`weights_at`);
+            0: full weight for the whole run (beyond the paper, issue 38).
+        background_tolerance: a pixel is background (``b = 1``) when every channel is within this of the dataset's
+            background colour (:func:`cerberus_core.losses.background_mask`).
+    """
 
     SECTION = "losses"
+
+    # the paper's terms (eqs. 2-7, section 5)
+    recon: float = term(1.0, _recon, "lambda_r L_r'", "eqs. 2, 4, 7",
+                        "squared RGB error of each image's rendering, own and partner viewpoint", reconstruction_loss,
+                        always_logged=True)
+    translation: float = term(1.0, lambda x: translation_loss(_quad(x.parts.translations, x)), "lambda_t L_t'",
+                              "eqs. 5, 6", "disagreement of the translations predicted from the two viewpoints",
+                              translation_loss, always_logged=True)
+    background: float = term(1.0, lambda x: background_loss(x.pred.maps.prob, x.mask), "lambda_b L_b", "section 5",
+                             "keypoint probability mass on the input's background", background_loss, always_logged=True)
+    smoothness: float = term(0.0001, lambda x: smoothness_term(x.pred.local_vertices, x.dihedral,
+                                                               x.batch.num_quadruplets, x.smoothness_once),
+                             "lambda_s L_s", "section 5 (Kato et al.)", "sum over mesh edges of (cos theta + 1)^2",
+                             smoothness_loss, always_logged=True)
+    # beyond the paper: weight 0 in its settings
+    silhouette: float = term(0.0, _silhouette, "lambda_sil L_sil", BEYOND, "squared error of the rendered coverage "
+                             "against the input's foreground (needs render.antialias)", silhouette_loss,
+                             always_logged=True)
+    chamfer: float = term(0.0, _chamfer, "lambda_c L_c", BEYOND, "2-D chamfer distance between the projected part "
+                          "vertices and the foreground pixels", silhouette_chamfer)
+    hidden: float = term(0.0, _hidden, "lambda_h L_h", BEYOND, "pull of the parts an image does not show toward the "
+                         "foreground no part covers", hidden_part_pull)
+    reprojection: float = term(0.0, _reprojection, "lambda_p L_p", BEYOND, "each part's translation projected into "
+                               "the partner camera against the partner's keypoint", reprojection_loss)
+    coverage: float = term(0.0, _coverage, "lambda_cov L_cov", BEYOND, "every foreground pixel's distance to the "
+                           "nearest projected part vertex, thin structures weighted up", silhouette_coverage)
+    keypoint_coverage: float = term(0.0, _keypoint_coverage, "lambda_kc L_kc", BEYOND, "every foreground pixel's "
+                                    "distance to the nearest part keypoint, thin structures weighted up (k-means)",
+                                    silhouette_coverage, allocation=True)
+    consensus_coverage: float = term(0.0, _consensus_coverage, "lambda_kv L_kv", BEYOND, "keypoint k-means over both "
+                                     "views of a pose: each part's translation averaged over the pose's two viewpoints, "
+                                     "projected into each image, against its foreground", pose_consensus, allocation=True)
+    separation: float = term(0.0, lambda x: part_separation(x.parts.translations), "lambda_sep L_sep", BEYOND,
+                             "KeypointNet's separation in 3D: parts whose translations lie closer than 0.1 push apart",
+                             part_separation, allocation=True)
+    overlap: float = term(0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), "lambda_o L_o", BEYOND,
+                          "share of each part's volume inside another part (each part the Gaussian of its vertices)",
+                          part_overlap)
+    rotation: float = term(0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), "lambda_R L_R", BEYOND,
+                           "disagreement of the world rotations predicted from the two viewpoints (eq. 6 for "
+                           "rotations)", rotation_loss)
+
+    # the switches
+    pose_consistency: bool = True
+    viewpoint_consistency: bool = True
+    cross_view: Literal["partner", "own"] = "partner"
+    cross_view_warmup: int = ranged(0, ge=0)
+    cross_pulls: bool = False
+    allocation_steps: int = ranged(0, ge=0)
+    render_background: Literal["black", "dataset"] = "black"
+    background_tolerance: float = ranged(0.02, ge=0, lt=1)
 
     def cross_view_at(self, step: int | None) -> Literal["partner", "own"]:
         """The cross view's translations at training step ``step`` (``None``: after any warm-up)."""
@@ -409,52 +455,20 @@ class _LossSettings(Checked):
         return {t.name: weights[t.name] * scale if t.allocation else weights[t.name] for t in TERM_TABLE}
 
 
-SWITCHES: tuple[tuple[str, Any, Any, str], ...] = (
-    ("pose_consistency", bool, True, "render with the mixed shape latent of equation 3 (off: each image uses its "
-     "own shape latent, 'Free Cerberus')"),
-    ("viewpoint_consistency", bool, True, "also render each image's rotated mesh from the other viewpoint "
-     "(equation 4); off: only the image's own viewpoint"),
-    ("cross_view", Literal["partner", "own"], "partner", "which translations that second rendering uses "
-     "(losses.viewpoint_scenes): 'partner' (the paper's equation 4: the partner viewpoint's translations, so a "
-     "part's own depth never meets the partner's image) or 'own' (the image's whole 3D model seen from the "
-     "partner camera: a part at the wrong depth lands in the wrong place of the partner's image); beyond the paper"),
-    ("cross_view_warmup", int, ranged(0, ge=0), "with cross_view: own, the first this many steps still use "
-     "'partner', so that early training, whose depths are still arbitrary, cannot lose the body off the "
-     "partner's screen (cross_view_at)"),
-    ("cross_pulls", bool, False, "apply the chamfer, coverage and hidden-part pulls to the cross view as well, against the "
-     "partner's foreground, averaged with the input view's like equation 4; off: the input view only"),
-    ("allocation_steps", int, ranged(0, ge=0), "the allocation pulls (keypoint_coverage, consensus_coverage, "
-     "separation) fade linearly from their weight at step 0 to nothing at this step, so they place the parts early and "
-     "leave the rest of training to the image terms (LossConfig.weights_at); 0: full weight for the whole run"),
-    ("render_background", Literal["black", "dataset"], "black", "the background colour of the reconstruction "
-     "loss: 'black' sets the input's background pixels (mask b) to black in the target and composites the "
-     "renderings over black (the barycentric renderer has no silhouette gradient, so a part over a white "
-     "background would be pushed to face the light, which flattens and inflates it; towards black it is not); "
-     "'dataset' keeps the dataset's colour"),
-    ("background_tolerance", float, ranged(0.02, ge=0, lt=1), "a pixel is background (b = 1) when every "
-     "channel is within this of the dataset's background colour (losses.background_mask)"),
-)
-"""The ``losses:`` section's settings besides the weights: ``(name, type, default or field, meaning)``."""
+TERM_TABLE: tuple[Term, ...] = tuple(Term(f.name, f.default, **f.metadata[TERM]) for f in fields(LossConfig)
+                                     if TERM in f.metadata)
+"""Every term of the training objective, in logging order: :class:`LossConfig`'s weight fields."""
+
+TERMS: tuple[str, ...] = tuple(t.name for t in TERM_TABLE)
+"""The terms' names, in logging order (the ``metrics.csv`` columns after ``total``)."""
 
 
-def _loss_config() -> type:
-    def spec(default: Any) -> Any:
-        return default if isinstance(default, type(field())) else field(default=default)
-
-    doc = ("Loss weights and consistency switches: the ``losses:`` section of a training config.\n\n"
-           "Its weight fields are made from :data:`TERM_TABLE`, one per term, each defaulting to the paper's "
-           "weight (a weight of 0 switches the term off; the always-logged terms are still computed), and "
-           "checked >= 0. The switches:\n\n"
-           + "\n".join(f"* ``{name}`` (default ``{d.default if isinstance(d, type(field())) else d!r}``): {text}."
-                       for name, _, d, text in SWITCHES))
-    cls = make_dataclass("LossConfig", [*((t.name, float, ranged(t.weight, ge=0)) for t in TERM_TABLE),
-                                        *((name, hint, spec(d)) for name, hint, d, _ in SWITCHES)],
-                         bases=(_LossSettings,), namespace={"__doc__": doc})
-    cls.__module__ = __name__
-    return cls
-
-
-LossConfig = _loss_config()
+def terms_table() -> str:
+    """The Markdown table of :data:`TERM_TABLE` that docs/training.md shows."""
+    rows = ["| weight | symbol | paper | paper weight | what it measures | function |", "| --- | --- | --- | ---: | --- | --- |"]
+    rows += [f"| `losses.{t.name}` | `{t.symbol}` | {t.source} | {t.weight:g} | {t.summary} | `{t.function.__name__}` |"
+             for t in TERM_TABLE]
+    return "\n".join(rows)
 
 
 def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: QuadrupletBatch, scene: SceneSetup,

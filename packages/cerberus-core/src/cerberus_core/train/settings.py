@@ -16,6 +16,7 @@ Bundled presets (``cerberus_core/configs/*.yaml``, listed by :func:`preset_names
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -193,7 +194,7 @@ class TrainConfig(Checked):
         nothing is checked twice)."""
         if self.losses.silhouette > 0 and not self.render.antialias:
             raise ConfigError("losses.silhouette needs render.antialias: true (the paper's renderer gives the coverage "
-                              "no gradient); add `render.antialias=true`, or `losses.silhouette=0`")
+                              "no gradient); add `render.antialias=true`, or `losses.silhouette=0`", key="losses.silhouette", value=self.losses.silhouette)
         if not is_device_name(self.device):
             raise ConfigError.about("device", self.device, "must be 'auto', 'cpu', 'cuda' or 'cuda:N', e.g. `device=cpu`")
         if self.losses.cross_view == "own" and self.losses.cross_view_warmup >= self.train.steps:
@@ -245,6 +246,21 @@ class TrainConfig(Checked):
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
         return build(cls, d)  # constructing it checks it (fields.Checked)
 
+    @classmethod
+    def from_yaml(cls, text: str, source: object, overrides: Sequence[str] = ()) -> TrainConfig:
+        """The config a run saved (its ``config.yaml``, a checkpoint's or a model file's ``config``), plus
+        ``overrides`` (``section.key=value`` strings): the one reader of a saved config (resuming a run, loading
+        weights).
+
+        Args:
+            source: the file it came from, named in messages.
+        Raises:
+            ConfigError: the text is not valid YAML (``SOURCE:LINE``), or holds a key or value this version does
+                not take.
+        """
+        raw = load_yaml(text, source, "the saved config is damaged")
+        return cls.from_dict(deep_merge(raw or {}, parse_overrides(overrides)) if overrides else raw)
+
 
 # ------------------------------------------------------------------ presets, files, overrides
 PRESETS = Presets("configs", kind="preset")
@@ -275,12 +291,11 @@ def resume_config(run_dir: str | Path, overrides: list[str] | None = None) -> Tr
         saved, text = last, str(load_checkpoint(last)["config"])
     else:
         return None
-    raw = load_yaml(text, saved, "the run's saved config is damaged")
-    config = TrainConfig.from_dict(deep_merge(raw or {}, parse_overrides(overrides or [])))
+    config = TrainConfig.from_yaml(text, saved, overrides or ())
     root = Path(config.data.root)
     if not root.is_absolute() and not root.exists():
         raise ConfigError(f"the run's data.root {str(root)!r} is relative (saved by an older version) and does not "
-                          f"exist from {Path.cwd()}; set data.root to the dataset's absolute path")
+                          f"exist from {Path.cwd()}; set data.root to the dataset's absolute path", key="data.root", value=str(root))
     return config
 
 

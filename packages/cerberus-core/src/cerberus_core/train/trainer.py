@@ -43,13 +43,18 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
-from cerberus_core.config import load_yaml
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.looks import look_generator
-from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.errors import (
+    ConfigError,
+    LockedError,
+    NoCheckpointError,
+    NonFiniteError,
+    RunExistsError,
+)
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plumbing.atomic import atomic_write_text
-from cerberus_core.plumbing.lock import LockedError, acquire, check_unlocked, is_lock_file
+from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
+from cerberus_core.plumbing.lock import acquire, check_unlocked, is_lock_file
 from cerberus_core.plumbing.machine import capped_to_cores
 from cerberus_core.plumbing.outputs import resolved
 from cerberus_core.plumbing.signals import interrupt_for
@@ -91,20 +96,6 @@ RESUMABLE_CHANGES = frozenset({
     "speed.smoothness_once",
 })
 """Config keys a resumed run may change; any other difference is refused (it would not be the same run)."""
-
-
-class NonFiniteError(CerberusError, RuntimeError):
-    """The loss or gradient became NaN or infinite and the run was stopped (``cerberus train``: exit 3)."""
-
-    exit_code = 3
-
-
-class RunExistsError(CerberusError, FileExistsError):
-    """A fresh training was pointed at a folder that already holds files."""
-
-
-class NoCheckpointError(CerberusError, FileNotFoundError):
-    """``resume=True`` but the run folder has no checkpoint."""
 
 
 @dataclass
@@ -309,7 +300,7 @@ def prepare_run_dir(run_dir: Path, resume: bool, config: TrainConfig, *, clear: 
         return None
     last = checkpoint_dir(run_dir) / LAST
     payload = load_checkpoint(last)
-    saved = TrainConfig.from_dict(load_yaml(payload["config"], last, "the checkpoint is damaged"))
+    saved = TrainConfig.from_yaml(payload["config"], last)
     changed = [k for k in config_diff(saved, config) if k not in RESUMABLE_CHANGES]
     if changed:
         raise ConfigError.about("resume", True, f"the config differs from the run's saved config in {changed}; only "
@@ -412,7 +403,8 @@ class _Trainer:
                                    extra={"skipped": self.skipped, "scene": json.dumps(self.scene.to_dict())})
             keep = self.config.train.keep_every
             if keep and step % keep == 0:
-                shutil.copyfile(path, ckdir / f"step_{step:07d}.pt")
+                with open(path, "rb") as kept:  # atomic: a kept step is whole or absent, like last.pt
+                    atomic_write(ckdir / f"step_{step:07d}.pt", lambda fh, src=kept: shutil.copyfileobj(src, fh))
         barrier(self.info)
 
     # ------------------------------------------------------------------ loop

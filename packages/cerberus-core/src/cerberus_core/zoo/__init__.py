@@ -20,15 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from cerberus_core.datasets.format import sha256_file  # the project's one file checksum
-from cerberus_core.errors import CerberusError
+from cerberus_core.errors import ZooError
 from cerberus_core.plumbing.names import printable
 
 ZOO_DIR = Path(__file__).resolve().parent
 """Where the shipped models live."""
-
-
-class ZooError(CerberusError, ValueError):
-    """A pretrained model is unknown, missing or fails its checksum."""
 
 
 @dataclass(frozen=True)
