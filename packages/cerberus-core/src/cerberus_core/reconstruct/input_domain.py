@@ -37,7 +37,8 @@ from PIL import Image
 
 from cerberus_core.bodies.body import FILL, BodySource, source_class
 from cerberus_core.errors import CerberusError
-from cerberus_core.eval.images import (
+from cerberus_core.plumbing.names import printable
+from cerberus_core.reconstruct.images import (
     ImageInputError,
     LoadedImage,
     RawImage,
@@ -47,7 +48,6 @@ from cerberus_core.eval.images import (
     read_image,
     square_resize,
 )
-from cerberus_core.plumbing.names import printable
 
 #: Width in pixels of the model-size image's outer ring that :func:`background_check` looks at.
 BORDER_WIDTH = 2
