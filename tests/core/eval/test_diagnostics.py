@@ -7,6 +7,7 @@ import re
 
 import pytest
 
+from cerberus_core.cli.eval import skip_flag
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.diagnostics import DIAGNOSTICS, Diagnostic, diagnostic_names
 from cerberus_core.eval.runner import EvalConfig
@@ -45,7 +46,7 @@ def test_the_table_names_every_switch_once():
     names = diagnostic_names()
     assert names == ["visibility", "hard", "part_quality", "depth", "segments", "allocation"]
     assert len({d.key for d in DIAGNOSTICS}) == len(DIAGNOSTICS)
-    assert [d.flag for d in DIAGNOSTICS][:3] == ["--no-visibility", "--no-hard", "--no-part-quality"]
+    assert [skip_flag(d.name) for d in DIAGNOSTICS][:3] == ["--no-visibility", "--no-hard", "--no-part-quality"]
     with pytest.raises(ConfigError, match=r"skip = 'segment': is not a diagnostic \(did you mean 'segments'\?\)"):
         EvalConfig(skip=("segment",))
     with pytest.raises(ConfigError, match="not one string"):

@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resolution", type=positive_int, default=32,
                    help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
     for row in DIAGNOSTICS:  # --no-hard, --no-part-quality, ...: one per diagnostic, from its row
-        p.add_argument(row.flag, action="store_true", dest=f"no_{row.name}", help=f"skip {row.about}")
+        p.add_argument(skip_flag(row.name), action="store_true", dest=f"no_{row.name}", help=f"skip {row.about}")
     p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
@@ -56,6 +56,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
         "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device"}))
+
+
+def skip_flag(name: str) -> str:
+    """The flag that skips the diagnostic ``name`` (a row of ``DIAGNOSTICS``): ``part_quality`` → ``--no-part-quality``."""
+    return "--no-" + name.replace("_", "-")
 
 
 def baseline_runs(specs: list[str], device: str) -> dict:

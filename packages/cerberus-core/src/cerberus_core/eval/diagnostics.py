@@ -4,8 +4,8 @@ Beside the standard voxel IoU (always scored: the paper's Table 1), :func:`~cerb
 runs every row of :data:`DIAGNOSTICS` that :attr:`EvalConfig.skip <cerberus_core.eval.runner.EvalConfig>` does not
 name, in table order (each image's record gets their fields in that order). From the row come:
 
-* the switch: its :attr:`Diagnostic.name` in ``EvalConfig(skip=(...))`` and the flag ``cerberus eval --no-NAME``
-  (underscores as dashes; :attr:`Diagnostic.flag`), with :attr:`Diagnostic.about` as the flag's help;
+* the switch: its :attr:`Diagnostic.name` in ``EvalConfig(skip=(...))``, which ``cerberus eval`` offers as a flag
+  of its own (``cerberus_core.cli.eval``), with :attr:`Diagnostic.about` as the flag's help;
 * the accumulator: :attr:`Diagnostic.accumulator`, a class following
   :class:`~cerberus_core.eval.accumulators.MetricAccumulator` (made by ``for_evaluation(context)``, fed every
   batch, then ``summary()``);
@@ -56,10 +56,10 @@ class Diagnostic:
     """One row of :data:`DIAGNOSTICS`.
 
     Attributes:
-        name: the switch (``EvalConfig(skip=(name,))``, ``cerberus eval --no-NAME``) and, unless ``key`` says
+        name: the switch (``EvalConfig(skip=(name,))``, a flag of ``cerberus eval``) and, unless ``key`` says
             otherwise, the ``results.json`` key of its summary.
         accumulator: its accumulator class (:class:`~cerberus_core.eval.accumulators.MetricAccumulator`).
-        about: what it measures, one phrase: the flag's help says "skip " + this.
+        about: what it measures, one phrase (the flag's help is "skip " and this).
         needs: keys of :data:`NEEDS`.
         key: the ``results.json`` key of its summary (default ``name``).
         line: its one line of the printed summary, from its summary's JSON form (``None``: no line).
@@ -83,11 +83,6 @@ class Diagnostic:
         unknown = set(self.needs) - set(NEEDS)
         if unknown:
             raise ConfigError.about("needs", sorted(unknown), f"diagnostic {self.name!r}: not one of {sorted(NEEDS)}")
-
-    @property
-    def flag(self) -> str:
-        """Its ``cerberus eval`` flag, e.g. ``--no-part-quality``."""
-        return "--no-" + self.name.replace("_", "-")
 
     def results(self, accumulator: MetricAccumulator | None) -> dict[str, Any]:
         """Its entries of a result (``accumulator``: ``None`` when it was skipped)."""

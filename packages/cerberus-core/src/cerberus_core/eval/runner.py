@@ -220,6 +220,8 @@ def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalCo
 
     def canonical() -> CanonicalParts:
         chosen = select_canonical(dataset_metadata(dataset), config.canonical_view)
+        if not chosen:  # no canonical image: the test scores nothing
+            return CanonicalParts({}, {})
         return extract_canonical(dataset, reconstruct, chosen, device, config.batch_size)
 
     context = EvalContext(config, scorer, renderer, canonical)
