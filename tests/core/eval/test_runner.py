@@ -88,7 +88,7 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     assert "### With left and right merged" in md and "| shin | 1.000 |" in md
     assert "## Body segments" in md and "| lower_arm.L | " in md and "| IoU lost when deleted | Spare |" in md
     assert data["segments"]["recall"] == seg["recall"]
-    assert "## Allocation" in md and "| Keypoint spread (px) | Alone covers |" in md and "keypoints: spread" in md
+    assert "## Allocation" in md and "| Keypoint spread (px) | Alone covers |" in md and "Keypoints: spread" in md
 
 
 def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
