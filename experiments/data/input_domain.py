@@ -1,4 +1,4 @@
-"""Thresholds of :mod:`cerberus_core.eval.input_domain`, measured (docs/evaluation.md, "Input outside the
+"""Thresholds of :mod:`cerberus_core.reconstruct.input_domain`, measured (docs/evaluation.md, "Input outside the
 training domain").
 
 Generated images (a dataset's test split and its first 200 training images, saved as PNG, as JPEG
@@ -25,7 +25,7 @@ from PIL import Image
 
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.readers import ViewDataset
-from cerberus_core.eval import input_domain as D
+from cerberus_core.reconstruct import input_domain as D
 
 RNG = np.random.default_rng(0)
 

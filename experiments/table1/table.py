@@ -15,7 +15,8 @@ import statistics
 import sys
 from pathlib import Path
 
-from cerberus_core.eval.report import comparison_table, markdown_table
+from cerberus_core.eval.markdown import markdown_table
+from cerberus_core.eval.report import comparison_table
 
 VARIANTS = {"nmrr": "NMRr", "free_cerberus": "Free Cerberus", "cerberus": "Cerberus"}
 PAPER = {  # Deng, Kornblith & Hinton, Table 1: voxel IoU on Human, Hard Human, Animal

@@ -2,8 +2,8 @@
 
 * datasets: small datasets of capsule figures (the ``primitives`` source), generated with the real renderer
   into temporary folders;
-* training: the tiny on-disk dataset (6 training quadruplets at 32 pixels, made in a few seconds) and the
-  ``tiny`` training config on it, and ``one_thread``;
+* training: the tiny on-disk dataset (6 training quadruplets at 32 pixels, made in a few seconds), the
+  ``tiny`` training config on it, a run trained 2 steps on it (``tiny_run``), and ``one_thread``;
 * evaluation: the torch renderer, capsule-figure bodies and the tiny rendered test set of
   ``tests/support/oracle.py``, and the voxel IoU scorer of cerberus-metrics;
 * the shipped ``human`` run.
@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import torch
 
 from cerberus_core.bodies.primitives import PrimitiveBodySource, sample_subjects
 from cerberus_core.datasets.dataset import Dataset
@@ -23,6 +24,7 @@ from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.errors import PluginError
 from cerberus_core.plugins import get_metric
 from cerberus_core.render.backends import make_renderer
+from cerberus_core.train import train
 from cerberus_core.train.settings import load_config
 from tests.support.oracle import TinyViewDataset
 
@@ -108,6 +110,21 @@ def one_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tiny_root, tmp_path_factory):
+    """A run of the ``tiny`` preset trained 2 steps on the tiny dataset (one thread), for ``Run`` and ``cerberus eval``."""
+    config = load_config(preset="tiny", overrides=[f"data.root={tiny_root}", "train.tensorboard=false",
+                                                    "train.steps=2", "train.progress=false"])
+    run = tmp_path_factory.mktemp("run") / "run"
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        train(config, run)
+    finally:
+        torch.set_num_threads(threads)
+    return run
 
 
 # ------------------------------------------------------------------ evaluation

@@ -20,22 +20,6 @@ from cerberus_core.weights import load_weights, resolve_weights
 pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
 
 
-@pytest.fixture(scope="module")
-def tiny_run(tiny_root, tmp_path_factory):
-    from cerberus_core.train.settings import load_config
-
-    config = load_config(preset="tiny", overrides=[f"data.root={tiny_root}", "train.tensorboard=false",
-                                                    "train.steps=2", "train.progress=false"])
-    run = tmp_path_factory.mktemp("run") / "run"
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        train(config, run)
-    finally:
-        torch.set_num_threads(threads)
-    return run
-
-
 def test_a_run_folder_loads_as_one_object(tiny_run, tiny_root):
     run = Run.load(tiny_run)
     loaded = load_weights(resolve_weights(tiny_run))
@@ -75,7 +59,7 @@ def test_the_shipped_human_model_loads_by_name():
 def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, capsys):
     from cerberus_core.cli import main
 
-    settings = EvalSettings(limit=3, part_quality=False, figure_images=1, viewer_images=0, renderer="torch")
+    settings = EvalSettings(limit=3, skip=("part_quality",), figure_images=1, viewer_images=0, renderer="torch")
     evaluation = Run.load(tiny_run).evaluate(tiny_root, settings, tmp_path / "lib")
     printed = capsys.readouterr().out
     assert printed.startswith(f"evaluating {tiny_run / 'model.safetensors'} at step 2\n")
@@ -151,9 +135,9 @@ def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, mo
         run_module.EvalSettings()
     # the body segments need scipy too: checked up front, not after the evaluation's bar has started
     with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics and scipy, "):
-        run_module.EvalSettings(part_quality=False)
+        run_module.EvalSettings(skip=("part_quality",))
     with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics, which is not installed: .* brings it "):
-        run_module.EvalSettings(part_quality=False, segments=False)
+        run_module.EvalSettings(skip=("part_quality", "segments"))
 
 
 

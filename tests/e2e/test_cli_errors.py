@@ -24,7 +24,7 @@ from cerberus_core.plumbing.outputs import RESULT_MARKER
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are
-# in tests/core/eval/test_input_domain.py).
+# in tests/core/reconstruct/test_input_domain.py).
 pytestmark = pytest.mark.filterwarnings("ignore:.*out of the training domain:UserWarning")
 
 
@@ -432,7 +432,7 @@ def _tree(folder: Path) -> dict[str, bytes]:
 def test_outputs_of_one_input_never_take_another_inputs_name(place, tmp_path, capsys):
     """x.png writes x_new_pose.glb (the viewer's new pose), which is also the GLB of x_new_pose.png:
     each input keeps every one of its outputs, under names that share nothing."""
-    from cerberus_core.eval.reconstruct import OUTPUT_PATTERNS, output_names
+    from cerberus_core.reconstruct.write import OUTPUT_PATTERNS, output_names
 
     inputs = [_image(tmp_path / "x.png"), _image(tmp_path / "x_new_pose.png", (10, 10, 200)),
               _image(tmp_path / "X_parts.png", (10, 200, 10))]

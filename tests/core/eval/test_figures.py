@@ -57,8 +57,8 @@ def test_save_image_pictures_writes_pngs_of_expected_size(tmp_path, renderer, pr
     recon, donor = body_parts(primitive_bodies[0]), body_parts(primitive_bodies[1])
     cam = _camera()
     image = figures.render_reconstruction(renderer, recon, cam)[0]
-    paths = figures.save_image_pictures(renderer, image, recon, cam, tmp_path, "x", n_views=8, pose_donor=donor,
-                                        scale=2)
+    paths = figures.save_image_pictures(figures.PictureStyle(renderer, n_views=8, scale=2), image, recon, cam,
+                                        tmp_path, "x", pose_donor=donor)
     sizes = {p.name: Image.open(p).size for p in paths}
     for name in ("input", "reconstruction", "parts", "new_lighting", "new_pose"):
         assert sizes[f"x_{name}.png"] == (H, H)

@@ -21,28 +21,28 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     assert res.standard.count == n and res.standard.mean == pytest.approx(1.0)
     assert set(res.standard.per_group) == {it["subject"] for it in tiny_dataset.items}
     # Canonical image of each subject: pose 0, view 0; every other image is scored in the hard test.
-    assert res.canonical == {s: min(i for i, it in enumerate(tiny_dataset.items) if it["subject"] == s)
+    assert res["canonical"] == {s: min(i for i, it in enumerate(tiny_dataset.items) if it["subject"] == s)
                              for s in res.standard.per_group}
-    assert res.hard.count == n - 2
+    assert res["hard"].count == n - 2
     for rec in res.records:
-        if rec["index"] in res.canonical.values():
+        if rec["index"] in res["canonical"].values():
             assert "hard_iou" not in rec
         elif rec["pose"] == 0:  # another view of the canonical pose: same transforms, exact
             assert rec["hard_iou"] == pytest.approx(1.0)
         else:  # canonical capsules moved to the new pose's centres but not turned
             assert 0.05 < rec["hard_iou"] < 0.95
-    assert res.hard.mean < res.standard.mean
+    assert res["hard"].mean < res.standard.mean
     # Work done once: one forward per image (+ the canonical ones), one GT mesh and grid per pose.
     poses = len({(it["subject"], it["pose"]) for it in tiny_dataset.items})
     assert model.calls == n + 2
     assert tiny_dataset.gt_calls == poses
     assert scorer.cache.misses == poses
-    pq = res.part_quality
+    pq = res["part_quality"]
     assert pq["consistency"] == 1.0 and pq["mean_segmentation_iou"] == pytest.approx(1.0)
 
     # Visibility: the oracle's parts are the body's capsules, so every image's counts partition the
     # silhouette of the input image itself (rendered over white by the dataset).
-    vis = res.part_visibility
+    vis = res["part_visibility"]
     assert vis["images"] == n and vis["image_size"] == [IMAGE_SIZE, IMAGE_SIZE] and len(vis["hidden_fraction"]) == 10
     for rec in res.records:
         image = tiny_dataset.images[rec["index"]]
@@ -54,7 +54,7 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
 
     # Body segments: the oracle covers every segment, adds nothing off the body, needs every capsule, and
     # covers in the input view what the ground truth's own render covers.
-    seg = res.segments
+    seg = res["segments"]
     names = list(pq["gt_parts"])
     assert seg["images"] == n and seg["segments"] == names and seg["segment_labels"] is True
     assert seg["voxel_precision"] == 1.0 and seg["voxel_recall"] == 1.0
@@ -70,7 +70,7 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
 
     # Allocation: the oracle's translations are its capsules' vertex centroids, so each segment has a keypoint
     # on its projected centroid and each part's keypoint spreads as its segment's centroid does.
-    alloc = res.allocation
+    alloc = res["allocation"]
     assert alloc["images"] == n and list(alloc["segment_to_keypoint"]) == names
     assert max(alloc["segment_to_keypoint"].values()) < 1e-3
     assert alloc["keypoint_spread"] == pytest.approx(list(alloc["segment_spread"].values()), abs=1e-3)
@@ -88,31 +88,32 @@ def test_oracle_scores_one_and_hard_human_uses_canonical_shapes(tiny_dataset, io
     assert "### With left and right merged" in md and "| shin | 1.000 |" in md
     assert "## Body segments" in md and "| lower_arm.L | " in md and "| IoU lost when deleted | Spare |" in md
     assert data["segments"]["recall"] == seg["recall"]
-    assert "## Allocation" in md and "| Keypoint spread (px) | Alone covers |" in md and "keypoints: spread" in md
+    assert "## Allocation" in md and "| Keypoint spread (px) | Alone covers |" in md and "Keypoints: spread" in md
 
 
 def test_subset_and_switches(tiny_dataset, iou_scorer, renderer):
     model = OracleModel(tiny_dataset)
-    res = evaluate_dataset(tiny_dataset, model, indices=[3, 4], hard=False, part_quality=False,
+    res = evaluate_dataset(tiny_dataset, model, indices=[3, 4], skip=("hard", "part_quality"),
                            scorer=VoxelScorer(factory=iou_scorer), renderer=renderer, progress=False)
-    assert res.standard.count == 2 and res.hard is None and res.part_quality is None and res.canonical == {}
-    assert res.part_visibility["images"] == 2 and res.segments["images"] == 2
+    assert res.standard.count == 2 and res["hard"] is None and res["part_quality"] is None and res["canonical"] == {}
+    assert res["part_visibility"]["images"] == 2 and res["segments"]["images"] == 2
     md = markdown_report(res)
     assert "## Part visibility" in md and "| Learned part | Hidden in input view | Silhouette share | Visible pixels |" in md
-    res = evaluate_dataset(tiny_dataset, model, indices=[3], hard=False, part_quality=False, visibility=False,
-                           segments=False, allocation=False, scorer=VoxelScorer(factory=iou_scorer), progress=False)
-    assert res.part_visibility is None and "visible_pixels" not in res.records[0]
-    assert res.segments is None and "deletion_loss" not in res.records[0]
-    assert res.allocation is None and "keypoints" not in res.records[0] and "Allocation" not in markdown_report(res)
-    assert "visibility" not in markdown_report(res) and "Body segments" not in markdown_report(res)
-    res = evaluate_dataset(tiny_dataset, model, indices=[3], part_quality=False, visibility=False,
+    res = evaluate_dataset(tiny_dataset, model, indices=[3], skip=("hard", "part_quality", "visibility", "segments",
+                                                                "allocation"),
                            scorer=VoxelScorer(factory=iou_scorer), progress=False)
-    assert res.hard.count == 1  # the canonical image is found outside the subset
+    assert res["part_visibility"] is None and "visible_pixels" not in res.records[0]
+    assert res["segments"] is None and "deletion_loss" not in res.records[0]
+    assert res["allocation"] is None and "keypoints" not in res.records[0] and "Allocation" not in markdown_report(res)
+    assert "visibility" not in markdown_report(res) and "Body segments" not in markdown_report(res)
+    res = evaluate_dataset(tiny_dataset, model, indices=[3], skip=("part_quality", "visibility"),
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    assert res["hard"].count == 1  # the canonical image is found outside the subset
     with pytest.raises(ValueError, match="no images"):
         evaluate_dataset(tiny_dataset, model, indices=[], progress=False)
 
 
 def test_model_output_is_checked(tiny_dataset, iou_scorer):
     with pytest.raises(TypeError, match="PartSet"):
-        evaluate_dataset(tiny_dataset, lambda images, camera: images, hard=False,
+        evaluate_dataset(tiny_dataset, lambda images, camera: images, skip=("hard",),
                          scorer=VoxelScorer(factory=iou_scorer), progress=False)

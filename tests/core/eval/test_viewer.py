@@ -43,7 +43,8 @@ def batch():
 def page(batch, tmp_path_factory):
     out = tmp_path_factory.mktemp("viewer")
     written = viewer.write_reconstruction_viewer(out, batch["images"], batch["recon"], batch["camera"], STEMS,
-                                                 bodies=batch["bodies"], limit=2, limit_hint="--viewer-images")
+                                                 viewer.ViewerPage(limit=2, limit_hint="--viewer-images"),
+                                                 viewer.CardDetails(bodies=batch["bodies"]))
     return out, written
 
 
@@ -104,25 +105,28 @@ def test_part_labels_and_ious_reach_the_page(batch, tmp_path) -> None:
     head, and showed no image's IoU."""
     labels = ["head", None, *[f"segment {k}" for k in range(2, 10)]]
     viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS,
-                                       bodies=batch["bodies"], part_labels=labels, ious=[0.5, None, 0.25])
+                                       viewer.ViewerPage(part_labels=labels),
+                                       viewer.CardDetails(bodies=batch["bodies"], ious=[0.5, None, 0.25]))
     data = page_data(tmp_path / "index.html")
     assert data["part_labels"] == {"part_00": "head", **{f"part_{k:02d}": f"segment {k}" for k in range(2, 10)}}
     assert [e["iou"] for e in data["entries"]] == [0.5, None, 0.25]
     text = (tmp_path / "index.html").read_text()
     assert "Input · voxel IoU 0.500" in text and "Input · voxel IoU 0.250" in text and text.count("voxel IoU") == 2
-    for bad, match in (({"part_labels": ["head"]}, "10 parts but 1 part labels"), ({"ious": [0.5]}, "3 reconstructions but 1 IoUs"),
-                       ({"part_labels": ["head"] * 9 + ["x\x1b[2J"]}, None)):
+    for page, details, match in ((viewer.ViewerPage(part_labels=["head"]), None, "10 parts but 1 part labels"),
+                                 (None, viewer.CardDetails(ious=[0.5]), "3 reconstructions but 1 IoUs"),
+                                 (viewer.ViewerPage(part_labels=["head"] * 9 + ["x\x1b[2J"]), None, None)):
+        args = (tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS, page, details)
         if match is None:  # a hostile label is escaped, not refused
-            viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS, **bad)
+            viewer.write_reconstruction_viewer(*args)
             assert "\x1b" not in (tmp_path / "index.html").read_text()
             continue
         with pytest.raises(ValueError, match=match):
-            viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS, **bad)
+            viewer.write_reconstruction_viewer(*args)
 
 
 def test_limit_zero_writes_nothing(batch, tmp_path) -> None:
     assert viewer.write_reconstruction_viewer(tmp_path, batch["images"], batch["recon"], batch["camera"], STEMS,
-                                              limit=0) == []
+                                              viewer.ViewerPage(limit=0)) == []
     assert not any(tmp_path.iterdir())
 
 
@@ -140,7 +144,7 @@ def test_write_viewer_takes_picture_files(tmp_path, batch) -> None:
     viewer.write_reconstruction_viewer(tmp_path, batch["images"][:1], batch["recon"].index([0]),
                                        batch["camera"].index([0]), ["x"])
     path = viewer.write_viewer(tmp_path, [viewer.ViewerEntry("x", tmp_path / "in.png", tmp_path / "x.glb")],
-                               title="a <title>", filename="other.html")
+                               viewer.ViewerPage(title="a <title>"), filename="other.html")
     text = path.read_text()
     assert "All 1 image(s)." in text and "a &lt;title&gt;" in text
     with pytest.raises(ValueError, match="no entries"):
@@ -167,8 +171,8 @@ def test_page_loads_from_file_url_with_every_part(page, chromium) -> None:
 def test_part_toggles_say_the_labels_of_learned_parts_only(batch, chromium, tmp_path) -> None:
     labels = ["head", None, *[f"segment {k}" for k in range(2, 10)]]
     viewer.write_reconstruction_viewer(tmp_path, batch["images"][:2], batch["recon"].index([0, 1]),
-                                       batch["camera"].index([0, 1]), STEMS[:2], bodies=batch["bodies"][:2],
-                                       part_labels=labels, ious=[0.5, None])
+                                       batch["camera"].index([0, 1]), STEMS[:2], viewer.ViewerPage(part_labels=labels),
+                                       viewer.CardDetails(bodies=batch["bodies"][:2], ious=[0.5, None]))
     want = ["head (part_00)", "part_01", *[f"segment {k} (part_{k:02d})" for k in range(2, 10)]]
     for model, names in (("reconstruction", [want] * 2), ("new_pose", [want] * 2),
                          ("ground_truth", [sorted(b.part_names) for b in batch["bodies"][:2]])):
@@ -230,11 +234,12 @@ HOSTILE = ["<!--<script>.png", "\"'><img src=x onerror=\"document.title='pwned'\
 def hostile_page(batch, tmp_path_factory):
     """Three cards named with HTML and script syntax (one 300 characters long), and such a title."""
     out = tmp_path_factory.mktemp("hostile")
-    glbs = viewer.write_reconstruction_viewer(out, batch["images"], batch["recon"], batch["camera"], STEMS, limit=3)
+    glbs = viewer.write_reconstruction_viewer(out, batch["images"], batch["recon"], batch["camera"], STEMS,
+                                              viewer.ViewerPage(limit=3))
     entries = [viewer.ViewerEntry(name, batch["images"][i], out / f"{STEMS[i]}.glb", note=f"from {name}",
                                   camera=viewer.camera_view(batch["camera"].index([i])))
                for i, name in enumerate(HOSTILE)]
-    path = viewer.write_viewer(out, entries, title="<!--</title><script>document.title='pwned'</script>",
+    path = viewer.write_viewer(out, entries, viewer.ViewerPage(title="<!--</title><script>document.title='pwned'</script>"),
                                filename="hostile.html")
     assert glbs
     return path

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from cerberus_core.eval.report import md_text
+from cerberus_core.eval.markdown import md_text
 from cerberus_core.plumbing.names import MAX_STEM_BYTES, did_you_mean, printable, safe_stem
 
 

@@ -27,20 +27,19 @@ from cerberus_core.datasets.looks import InputLook, LookedViews
 from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError, UnknownPluginError
-from cerberus_core.eval.allocation import allocation_line
-from cerberus_core.eval.depth import depth_line
-from cerberus_core.eval.figures import evaluation_figures
-from cerberus_core.eval.reconstruct import Reconstruction, mask_paths, write_reconstructions
-from cerberus_core.eval.report import markdown_report, md_text, to_jsonable, write_json, write_text
+from cerberus_core.eval.diagnostics import DIAGNOSTICS, needed
+from cerberus_core.eval.figures import FigureModels, evaluation_figures
+from cerberus_core.eval.markdown import md_text
+from cerberus_core.eval.report import markdown_report, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
-from cerberus_core.eval.segments import segments_line
 from cerberus_core.eval.standard import SCORER_ENTRY_POINT, VoxelScorer
-from cerberus_core.eval.visibility import visibility_line
+from cerberus_core.eval.viewer import ViewerPage
 from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import result_folder, writing_results
+from cerberus_core.reconstruct.write import ImageInputs, Reconstruction, TrainedModel, mask_paths, write_reconstructions
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.settings import TrainConfig
@@ -92,16 +91,16 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
 
 
 # ------------------------------------------------------------------ evaluation settings
-def check_eval_packages(part_quality: bool = True, segments: bool = True) -> None:
+def check_eval_packages(skip: Sequence[str] = ()) -> None:
     """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
-    metric entry point; scipy, for the part quality and the body segments), else one
+    metric entry point; scipy, for the diagnostics that need it and ``skip`` does not name), else one
     :class:`MissingPackageError` naming them all and the extra that brings them, ``cerberus-core[eval]``."""
     missing = []
     try:
         get_metric(SCORER_ENTRY_POINT)
     except UnknownPluginError:
         missing.append("cerberus-metrics")
-    if (part_quality or segments) and find_spec("scipy") is None:
+    if needed(skip, "scipy") and find_spec("scipy") is None:
         missing.append("scipy")
     if missing:
         many = len(missing) > 1
@@ -147,7 +146,8 @@ class EvalSettings(EvalConfig):
     input_look: InputLook = "shaded"
 
     def validate(self) -> None:
-        check_eval_packages(self.part_quality, self.segments)
+        super().validate()
+        check_eval_packages(self.skip)
         check_protocol(self.protocol)
 
 
@@ -184,22 +184,15 @@ class Evaluation:
         result, weights, out = self.result, self.weights, self.out
         line = (f"voxel IoU ({result.protocol}, {result.resolution}^3) over {result.standard.count} images: "
                 f"{result.standard.mean:.4f}")
-        if result.hard is not None:
-            line += f"; Hard Human: {result.hard.mean:.4f}"
+        if result["hard"] is not None:
+            line += f"; Hard Human: {result['hard'].mean:.4f}"
         elif self.hard_requested:
             line += "; Hard Human: not run (no canonical-pose images in this split"
             if self.canonical_hint:
                 line += f"; {self.canonical_hint}"
             line += ")"
         lines = [line]
-        if result.part_visibility is not None:
-            lines.append(visibility_line(result.part_visibility))
-        if result.depth is not None:
-            lines.append("depth: " + depth_line(result.depth))
-        if result.segments is not None:
-            lines.append(segments_line(result.segments))
-        if result.allocation is not None:
-            lines.append(allocation_line(result.allocation))
+        lines += [row.line(result[row.key]) for row in DIAGNOSTICS if row.line is not None and result[row.key] is not None]
         if weights.stale_warning():  # said again under the scores, where it is read
             lines.append(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
                          f"{printable(weights.newer)} (step {weights.newer_step})")
@@ -394,12 +387,13 @@ class Run:
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
                                       device=self.device, scorer=scorer)
             self._write_report(result, tmp, at_step, backend, s.input_look)
-            evaluation_figures(backend, dataset, self.model, tmp, n_images=s.figure_images, baselines=baseline_models,
-                               device=self.device, viewer_images=s.viewer_images, scorer=scorer,
-                               title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split"
-                               + ("" if s.input_look == "shaded" else f", {s.input_look} input look") + ")",
-                               part_labels=result.part_labels() or self.part_labels(), ious=result.image_ious())
-        evaluation = Evaluation(result, out, weights, hard_requested=s.hard, viewer=s.viewer_images > 0,
+            look = "" if s.input_look == "shaded" else f", {s.input_look} input look"
+            page = ViewerPage(title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split{look})",
+                              limit=s.viewer_images, limit_hint="viewer_images",
+                              part_labels=result.part_labels() or self.part_labels())
+            evaluation_figures(backend, dataset, FigureModels(self.model, baseline_models, self.device), tmp,
+                               n_images=s.figure_images, scorer=scorer, page=page, ious=result.image_ious())
+        evaluation = Evaluation(result, out, weights, hard_requested="hard" not in s.skip, viewer=s.viewer_images > 0,
                                 canonical_hint=_canonical_hint(source))
         if verbose:
             print("\n".join(evaluation.lines()))
@@ -410,7 +404,7 @@ class Run:
                            data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
                            viewer_images: int = 12) -> Reconstruction:
         """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
-        the 3D viewer; :func:`cerberus_core.eval.reconstruct.write_reconstructions`).
+        the 3D viewer; :func:`cerberus_core.reconstruct.write.write_reconstructions`).
 
         Args:
             images: the input files.
@@ -431,11 +425,11 @@ class Run:
         mask_list = mask_paths(check_paths("masks", masks) if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(check_path("out", out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
-        return write_reconstructions(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
-                                     renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
-                                     viewer_images=viewer_images, device=self.device,
-                                     title=f"cerberus reconstruct: {printable(self.source)}", kind=self.training_kind(),
-                                     part_labels=self.part_labels())
+        trained = TrainedModel(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
+                               renderer or self.config.renderer, self.device, self.training_kind())
+        page = ViewerPage(title=f"cerberus reconstruct: {printable(self.source)}", limit=viewer_images,
+                          limit_hint="viewer_images", part_labels=self.part_labels())
+        return write_reconstructions(trained, ImageInputs(images, mask_list, azimuth), out, page)
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer,
                       input_look: str = "shaded") -> None:

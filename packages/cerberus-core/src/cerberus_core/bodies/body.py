@@ -188,7 +188,7 @@ class BodySource(ABC):
             (``{"anny": "cerberus-core[human]"}``), checked before a generation starts (:meth:`check_packages`).
         photo_subject: what a photograph of its kind of body shows that the untextured grey renders do
             not, as a noun phrase (``"a clothed or coloured person"``): said when a model trained on it is
-            given such a photo (:func:`cerberus_core.eval.input_domain.appearance_check`).
+            given such a photo (:func:`cerberus_core.reconstruct.input_domain.appearance_check`).
     """
 
     name: ClassVar[str] = "abstract"

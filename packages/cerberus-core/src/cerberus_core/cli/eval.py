@@ -9,6 +9,7 @@ from cerberus_core.cli.checks import positive_int
 from cerberus_core.cli.flags import FlagNames
 from cerberus_core.datasets.looks import INPUT_LOOKS
 from cerberus_core.errors import ConfigError
+from cerberus_core.eval.diagnostics import DIAGNOSTICS
 from cerberus_core.eval.standard import MAX_RESOLUTION
 
 
@@ -40,14 +41,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--protocol", default="kato", help="voxel-IoU protocol (default: kato, the paper's)")
     p.add_argument("--resolution", type=positive_int, default=32,
                    help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
-    p.add_argument("--no-hard", action="store_true", help="skip the Hard Human test")
-    p.add_argument("--no-part-quality", action="store_true", help="skip part quality (the slowest part)")
-    p.add_argument("--no-segments", action="store_true",
-                   help="skip the body segments (recall, off-body voxels and input-view coverage per ground-truth "
-                   "segment; the IoU lost when each learned part is deleted)")
-    p.add_argument("--no-allocation", action="store_true",
-                   help="skip the allocation diagnostics (per learned part its keypoint's spread around the "
-                   "silhouette centroid and the foreground it alone covers; per segment the nearest keypoint)")
+    for row in DIAGNOSTICS:  # --no-hard, --no-part-quality, ...: one per diagnostic, from its row
+        p.add_argument(skip_flag(row.name), action="store_true", dest=f"no_{row.name}", help=f"skip {row.about}")
     p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
@@ -67,6 +62,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
         "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device",
         "input_look": "--input-look"}))
+
+
+def skip_flag(name: str) -> str:
+    """The flag that skips the diagnostic ``name`` (a row of ``DIAGNOSTICS``): ``part_quality`` → ``--no-part-quality``."""
+    return "--no-" + name.replace("_", "-")
 
 
 def baseline_runs(specs: list[str], device: str) -> dict:
@@ -93,8 +93,8 @@ def run(args: argparse.Namespace) -> int:
 
     # Every argument is checked, and every model and the dataset opened, before anything is written.
     settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
-                            hard=not args.no_hard, part_quality=not args.no_part_quality,
-                            segments=not args.no_segments, allocation=not args.no_allocation, limit=args.limit,
+                            skip=tuple(row.name for row in DIAGNOSTICS if getattr(args, f"no_{row.name}")),
+                            limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,
                             renderer=args.renderer, overwrite=args.overwrite, input_look=args.input_look)
     run_ = Run.load(args.run, args.device)

@@ -3,7 +3,9 @@
 The loop runs the model once per batch and hands every accumulator the same :class:`BatchResult`
 (the reconstructions, the cameras, each image's identity and ground-truth mesh, and one record per
 image to which each metric adds its own fields). An accumulator follows :class:`MetricAccumulator`:
-``update(batch)`` then ``summary()``. One per metric:
+``for_evaluation(context)`` makes it from what the evaluation has (:class:`EvalContext`), then
+``update(batch)`` per batch and ``summary()``. Each diagnostic's row of
+:data:`cerberus_core.eval.diagnostics.DIAGNOSTICS` names its class. One per metric:
 
 * :class:`StandardIoU`: voxel IoU of each reconstruction against its ground truth;
 * :class:`PartVisibility`: how often each part is wholly hidden in its input view (one render per batch);
@@ -20,6 +22,7 @@ each image (:meth:`BatchResult.voxels`) and the input-view render of the parts
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -109,8 +112,29 @@ class BatchResult:
             yield b, item, one, (body.vertices, body.faces), rec
 
 
+@dataclass(frozen=True)
+class EvalContext:
+    """What an evaluation gives its accumulators when it makes them (:meth:`MetricAccumulator.for_evaluation`).
+
+    Attributes:
+        config: the :class:`~cerberus_core.eval.runner.EvalConfig` (its fields: batch size, weighting...).
+        scorer: the standard IoU's :class:`VoxelScorer` (its voxels are shared).
+        renderer: the backend of every input-view render (``None`` when no diagnostic asked for one).
+        canonical: ``() -> CanonicalParts``: each subject's canonical part shapes, reconstructed when called.
+    """
+
+    config: Any
+    scorer: VoxelScorer
+    renderer: Renderer | None
+    canonical: Callable[[], CanonicalParts]
+
+
 class MetricAccumulator(Protocol):
-    """What the evaluation loop feeds: every batch in order, then one summary."""
+    """What the evaluation loop feeds: made from the evaluation's context, every batch in order, then one
+    summary (the value its :class:`~cerberus_core.eval.diagnostics.Diagnostic` writes)."""
+
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> MetricAccumulator: ...
 
     def update(self, batch: BatchResult) -> None: ...
 
@@ -125,6 +149,10 @@ class StandardIoU:
         self.scorer = scorer
         self.scores: list[Score] = []
         self.groups: list[str] = []
+
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> StandardIoU:
+        return cls(context.scorer)
 
     def update(self, batch: BatchResult) -> None:
         for b, item, _, _, rec in batch.scored():
@@ -152,6 +180,10 @@ class HardHumanIoU:
         self.scores: list[Score] = []
         self.groups: list[str] = []
 
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> HardHumanIoU:
+        return cls(context.scorer, context.canonical())
+
     def update(self, batch: BatchResult) -> None:
         for _, item, one, gt, rec in batch.scored():
             if self.canonical.applies_to(item):
@@ -163,6 +195,13 @@ class HardHumanIoU:
     def summary(self) -> IoUSummary | None:
         return summarize(self.scores, self.groups) if self.scores else None
 
+    @staticmethod
+    def outputs(hard: HardHumanIoU | None) -> dict[str, Any]:
+        """Its entries of a result: ``hard`` (the summary, ``None``: not run or nothing scored) and
+        ``canonical`` (``{subject: dataset index}`` of the images the shapes came from)."""
+        return {"hard": None if hard is None else hard.summary(),
+                "canonical": {} if hard is None else dict(hard.canonical.indices)}
+
 
 class PartVisibility:
     """How often each learned part is wholly hidden in its input view (one render per batch, see
@@ -171,6 +210,10 @@ class PartVisibility:
     def __init__(self, renderer: Renderer) -> None:
         self.renderer = renderer
         self.counts: VisibilityAccumulator | None = None
+
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> PartVisibility:
+        return cls(context.renderer)
 
     def update(self, batch: BatchResult) -> None:
         shown = part_pixel_counts(batch.part_id(self.renderer), batch.recon.num_parts)
@@ -192,6 +235,10 @@ class PartQuality:
         self.weighting = weighting
         self.density = density
         self.overlaps: PartQualityAccumulator | None = None
+
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> PartQuality:
+        return cls(context.config.weighting, context.config.density)
 
     def update(self, batch: BatchResult) -> None:
         faces = batch.recon.faces.numpy()
@@ -226,6 +273,10 @@ class BodySegments:
         self.scorer = scorer
         self.renderer = renderer
         self.counts: SegmentAccumulator | None = None
+
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> BodySegments:
+        return cls(context.scorer, context.renderer)
 
     def update(self, batch: BatchResult) -> None:
         coverage = self._coverage(batch) if self.renderer is not None else [None] * len(batch.items)
@@ -273,6 +324,10 @@ class Allocation:
     def __init__(self, renderer: Renderer) -> None:
         self.renderer = renderer
         self.counts: AllocationAccumulator | None = None
+
+    @classmethod
+    def for_evaluation(cls, context: EvalContext) -> Allocation:
+        return cls(context.renderer)
 
     def update(self, batch: BatchResult) -> None:
         first = batch.bodies[0]

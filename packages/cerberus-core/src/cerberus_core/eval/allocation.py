@@ -26,6 +26,7 @@ These are the columns of the limb screen (``docs/results.md``; the lead's table 
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +34,7 @@ import numpy as np
 import torch
 
 from cerberus_core.errors import ShapeError
+from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -286,3 +288,23 @@ def allocation_line(summary: dict[str, Any], top: int = 4) -> str:
         line += "; farthest from a keypoint " + ", ".join(f"{k} {v:.1f} px" for v, k in far)
     return (line + f"; parts covering <= {100 * summary['spare_coverage']:g}% of the foreground alone: "
             f"{len(summary['low_coverage_parts'])} of {len(summary['unique_coverage'])}")
+
+
+def allocation_section(result: Mapping[str, Any]) -> list[str]:
+    """The report's allocation section from a result's JSON form: per learned part, then per ground-truth
+    segment."""
+    alloc = result["allocation"]
+    line = allocation_line(alloc)
+    labels = part_labels(result)
+    prow = [[p, labels.get(p) or "-", spread, alloc["unique_coverage"][p]]
+            for p, spread in enumerate(alloc["keypoint_spread"])]
+    srow = [[k, alloc["segment_to_keypoint"][k], alloc["segment_spread"][k]] for k in alloc["segment_to_keypoint"]]
+    return ["## Allocation", "",
+            f"Where the parts go, in pixels of the input image, {alloc['images']} images. {sentence(line)}. "
+            "*Keypoint spread*: the standard deviation over images of (keypoint − the ground-truth silhouette's "
+            "centroid), RMS of the two axes; *alone covers*: the mean share of the ground-truth foreground that "
+            "only this part covers (each part rendered on its own); *to nearest keypoint*: the median distance "
+            "from the segment's projected vertex centroid to the nearest keypoint; *segment spread*: the same "
+            "spread as the keypoints' for the segment's centroid, for scale.", "",
+            markdown_table(["Learned part", "Majority GT part", "Keypoint spread (px)", "Alone covers"], prow, 3), "",
+            markdown_table(["GT segment", "To nearest keypoint (px)", "Segment spread (px)"], srow, 2), ""]

@@ -18,6 +18,7 @@ the depth its keypoints triangulate to, which bounds what better depth alone wou
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Any
@@ -25,6 +26,7 @@ from typing import Any
 import torch
 
 from cerberus_core.errors import ShapeError
+from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -109,6 +111,11 @@ class DepthAccumulator:
         self.renderer = renderer
         self.poses: dict[tuple[str, int], _PoseViews] = {}
 
+    @classmethod
+    def for_evaluation(cls, context: Any) -> DepthAccumulator:
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its renderer."""
+        return cls(context.renderer)
+
     def update(self, batch: Any) -> None:
         cameras = batch.camera.to("cpu")
         for b, item, one, gt, _ in batch.scored():
@@ -146,3 +153,12 @@ def depth_line(depth: dict[str, Any]) -> str:
             f"units); the reconstruction covers the body's silhouette with IoU "
             f"{depth['input_view_silhouette_iou']:.3f} in its input view and "
             f"{depth['turned_view_silhouette_iou']:.3f} turned to the pose's other views")
+
+
+def depth_section(result: Mapping[str, Any]) -> list[str]:
+    """The report's depth section from a result's JSON form: the sentence, then each part's translation
+    disagreement beside its majority ground-truth part."""
+    depth, labels = result["depth"], part_labels(result)
+    drow = [[p, labels.get(p) or "-", d] for p, d in enumerate(depth["translation_disagreement"])]
+    return ["## Depth across views", "", sentence(depth_line(depth)) + ".", "",
+            markdown_table(["Learned part", "Majority GT part", "Translation disagreement"], drow, 3), ""]

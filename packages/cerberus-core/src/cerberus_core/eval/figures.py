@@ -16,6 +16,7 @@ figure ``cerberus eval`` writes adds the voxels the IoU scores, seen from the fr
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.allocation import keypoints
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
-from cerberus_core.eval.viewer import write_reconstruction_viewer
+from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
 from cerberus_core.parts import PartSet, pose_donors, transfer_pose
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -376,17 +377,33 @@ def voxel_legend(width: int) -> Image.Image:
 
 
 # ------------------------------------------------------------------ one image, every picture
-def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camera: Camera,
-                        out_dir: str | Path, stem: str, *, n_views: int = 8,
-                        pose_donor: PartSet | None = None, scale: int = 2,
-                        background: RGB = DEFAULT_BACKGROUND, note: str = "") -> list[Path]:
+@dataclass(frozen=True)
+class PictureStyle:
+    """How the pictures of a reconstruction are drawn (:func:`save_image_pictures`).
+
+    Attributes:
+        renderer: the backend.
+        background: RGB in [0, 1] behind the renders.
+        scale: the upscaling of the turntable and Figure 1 (single panels are ``H x W`` pixels).
+        n_views: azimuths of the turntable.
+    """
+
+    renderer: Renderer
+    background: RGB = DEFAULT_BACKGROUND
+    scale: int = 2
+    n_views: int = 8
+
+
+def save_image_pictures(style: PictureStyle, image: Tensor, recon: PartSet, camera: Camera, out_dir: str | Path,
+                        stem: str, *, pose_donor: PartSet | None = None, note: str = "") -> list[Path]:
     """Every picture of one reconstruction, as PNGs named ``<stem>_<what>.png`` in ``out_dir``.
 
     Writes ``input``, ``reconstruction``, ``parts``, ``new_lighting``, ``turntable`` (two rows of
-    ``n_views`` azimuths: shaded and parts), ``new_pose`` (if ``pose_donor`` is given) and ``figure1``
+    ``style.n_views`` azimuths: shaded and parts), ``new_pose`` (if ``pose_donor`` is given) and ``figure1``
     (all panels together, ``note`` in red above them). Single panels are ``H x W`` pixels; the others
-    are upscaled by ``scale``.
+    are upscaled by ``style.scale``.
     """
+    renderer, background, scale, n_views = style.renderer, style.background, style.scale, style.n_views
     panels = figure_one_panels(renderer, image, recon, camera, pose_donor=pose_donor, background=background)
     out_dir = Path(out_dir)
     names = {"input": "input", "output": "reconstruction", "parts": "parts", "new_lighting": "new_lighting",
@@ -402,20 +419,35 @@ def save_image_pictures(renderer: Renderer, image: Tensor, recon: PartSet, camer
 
 
 
-def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_images: int = 5,
-                       baselines: Mapping[str, object] | None = None, device: str = "cpu", viewer_images: int = 12,
-                       title: str = "cerberus eval", scorer: VoxelScorer | None = None,
-                       part_labels: Sequence[str | None] | None = None, ious: Mapping[int, float] | None = None) -> Path:
+@dataclass(frozen=True)
+class FigureModels:
+    """The models a figure shows (:func:`evaluation_figures`).
+
+    Attributes:
+        ours: an object with ``reconstruct(images, camera) -> PartSet`` (a :class:`~cerberus_core.model.Cerberus`).
+        baselines: more such objects by name, drawn beside ours.
+        device: where they run.
+    """
+
+    ours: object
+    baselines: Mapping[str, object] = field(default_factory=dict)
+    device: str | torch.device = "cpu"
+
+
+def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: Path, *, n_images: int = 5,
+                       scorer: VoxelScorer | None = None, page: ViewerPage | None = None,
+                       ious: Mapping[int, float] | None = None) -> Path:
     """The pictures ``cerberus eval`` writes for ``n_images`` test images spread over ``dataset``: the
     Table-2 figure ``out/table2.png`` (with two more columns: our voxels seen from the front and the
     side, :func:`voxel_views`, under a key), Figure 1's panels per image in ``out/pictures/``, and the
     interactive viewer ``out/pictures/index.html`` with the reconstruction, ground-truth and new-pose
-    meshes of the first ``viewer_images`` (0: none).
+    meshes of the first ``page.limit`` (0: none).
 
     Args:
-        model, baselines: objects with ``reconstruct(images, camera) -> PartSet`` (baselines by name).
+        models: ours, the baselines and their device (:class:`FigureModels`).
         scorer: the voxels' scorer (default ``VoxelScorer()``: the paper's protocol).
-        part_labels: each learned part's label, for the viewer's part toggles (``None``: ``part_NN`` alone).
+        page: the viewer's title, number of images (``limit``, 0: none) and part labels (:class:`ViewerPage`;
+            its background is the dataset's).
         ious: ``{dataset index: voxel IoU}`` the evaluation computed
             (:meth:`~cerberus_core.eval.runner.EvaluationResult.image_ious`), shown on the viewer's cards.
     Returns:
@@ -427,10 +459,10 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     batch = collate([dataset[i] for i in idx])
     camera = dataset.cameras(batch)
     images = batch["images"]
-    dev_images, dev_camera = images.to(device), camera.to(device)
+    dev_images, dev_camera = images.to(models.device), camera.to(models.device)
     with torch.no_grad():
-        ours = model.reconstruct(dev_images, dev_camera).to("cpu")
-        others = {name: other.reconstruct(dev_images, dev_camera).to("cpu") for name, other in (baselines or {}).items()}
+        ours = models.ours.reconstruct(dev_images, dev_camera).to("cpu")
+        others = {name: other.reconstruct(dev_images, dev_camera).to("cpu") for name, other in models.baselines.items()}
     background = tuple(dataset.scene.background)
     titles, rows = comparison_rows(renderer, images, camera, ours, others, background=background)
     bodies = [dataset.gt_mesh(i) for i in idx]
@@ -447,9 +479,9 @@ def evaluation_figures(renderer: Renderer, dataset, model, out: Path, *, n_image
     donors = pose_donors(len(stems))  # test images are in the training domain: each borrows the next one's pose
     for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image
         donor = None if donors[k] is None else ours.index([donors[k]])
-        save_image_pictures(renderer, images[k], ours.index([k]), camera.index([k]), out / "pictures",
-                            stem, pose_donor=donor, background=background)
-    write_reconstruction_viewer(out / "pictures", images, ours, camera, stems,
-                                bodies=bodies, limit=viewer_images, limit_hint="viewer_images", background=background,
-                                title=title, part_labels=part_labels, ious=[(ious or {}).get(i) for i in idx])
+        save_image_pictures(PictureStyle(renderer, background), images[k], ours.index([k]), camera.index([k]),
+                            out / "pictures", stem, pose_donor=donor)
+    page = replace(page or ViewerPage(title="cerberus eval"), background=background)
+    write_reconstruction_viewer(out / "pictures", images, ours, camera, stems, page,
+                                CardDetails(bodies=bodies, ious=[(ious or {}).get(i) for i in idx]))
     return save_png(fig, out / "table2.png")

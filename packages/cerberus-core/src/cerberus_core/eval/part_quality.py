@@ -41,7 +41,7 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,6 +49,8 @@ import numpy as np
 import trimesh
 
 from cerberus_core.errors import ConfigError, MeshError, MissingPackageError, ShapeError
+from cerberus_core.eval.markdown import fmt, markdown_table
+from cerberus_core.eval.visibility import visibility_cells, visibility_header, visibility_sentence
 from cerberus_core.shapes import check_shapes
 
 
@@ -100,7 +102,7 @@ def assign_to_parts(points: np.ndarray, part_vertices: np.ndarray, faces: np.nda
         from scipy.spatial import cKDTree
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise MissingPackageError("part-quality evaluation needs scipy: pip install 'cerberus-core[eval]', "
-                          "or pass part_quality=False") from exc
+                          "or pass `skip=('part_quality',)`") from exc
 
     samples, part = surface_samples(part_vertices, faces, density)
     _, idx = cKDTree(samples).query(_np(points, np.float64), k=1)
@@ -293,3 +295,37 @@ class PartQualityAccumulator:
             "mean_segmentation_iou": float(np.mean(valid)) if valid else float("nan"),
             "sides_merged": None if (merged := self.merged_sides()) is None else merged.summary(),
         }
+
+
+def part_quality_section(result: Mapping[str, Any]) -> list[str]:
+    """The report's part-quality section from a result's JSON form: consistency per learned part (with its
+    visibility in the input view when that ran) and segmentation IoU per ground-truth part, per side and
+    with left and right merged; one line when the data has no part labels."""
+    pq, vis = result["part_quality"], result.get("part_visibility")
+    if pq.get("part_labels") is False:  # data without part labels: say so, score nothing
+        return ["## Part quality", "", f"Not scored: {pq['note']}.", ""]
+    out = ["## Part quality (ground-truth semantic parts, never seen in training)", "",
+           f"Consistency (mean agreement) {fmt(pq['consistency'])}, mean entropy "
+           f"{fmt(pq['mean_entropy_bits'], 3)} bits, mean segmentation IoU {fmt(pq['mean_segmentation_iou'])} "
+           f"over {pq['images']} images.", ""]
+    out += [visibility_sentence(vis), ""] if vis else []
+    prow = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity"),
+             p["images"], *visibility_cells(vis, p["part"])] for p in pq["parts"]]
+    out += [markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity", "Images",
+                            *visibility_header(vis)], prow, 3), ""]
+    out += [markdown_table(["GT part", "Segmentation IoU"], list(pq["segmentation_iou"].items()), 3), ""]
+    merged = pq.get("sides_merged")
+    return out + (_merged_sides(merged) if merged else [])
+
+
+def _merged_sides(merged: Mapping[str, Any]) -> list[str]:
+    """The part-quality tables again, with left and right merged."""
+    rows = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity")]
+            for p in merged["parts"]]
+    return ["### With left and right merged", "",
+            "A grey, untextured body seen from the front or the back looks the same, so no image says which "
+            "limb is the body's left: per-side agreement is capped near 0.5 by the data, not the model. "
+            f"Merged: consistency {fmt(merged['consistency'])}, mean entropy {fmt(merged['mean_entropy_bits'], 3)} "
+            f"bits, mean segmentation IoU {fmt(merged['mean_segmentation_iou'])}.", "",
+            markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity"], rows, 3), "",
+            markdown_table(["GT part", "Segmentation IoU"], list(merged["segmentation_iou"].items()), 3), ""]

@@ -1,5 +1,6 @@
-"""One pass over a test set: standard voxel IoU, Hard Human, part quality, part visibility, depth across
-views and body segments together.
+"""One pass over a test set: standard voxel IoU and every diagnostic of
+:data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` (Hard Human, part quality, part visibility, depth across
+views, body segments, allocation) together.
 
 The model is any callable ``reconstruct(images (B, 3, H, W) in [0, 1], camera) -> PartSet``
 (world-frame output; the camera is the one the image was rendered with, which the model needs to
@@ -27,17 +28,8 @@ import torch
 from tqdm import tqdm
 
 from cerberus_core.errors import DatasetError, InputTypeError, ShapeError
-from cerberus_core.eval.accumulators import (
-    Allocation,
-    BatchResult,
-    BodySegments,
-    HardHumanIoU,
-    MetricAccumulator,
-    PartQuality,
-    PartVisibility,
-    StandardIoU,
-)
-from cerberus_core.eval.depth import DepthAccumulator
+from cerberus_core.eval.accumulators import BatchResult, EvalContext, StandardIoU
+from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_skip, needed, running
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.standard import MAX_RESOLUTION, GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.fields import Checked, ranged
@@ -131,37 +123,34 @@ class EvaluationResult:
     Attributes:
         protocol, resolution: the voxel-IoU protocol and grid size.
         standard: per-image voxel IoU, averaged overall and per subject/species.
-        hard: the Hard Human IoU (``None`` if not run or no subject has a canonical image).
-        canonical: ``{subject: dataset index}`` of the images the Hard Human shapes came from.
-        part_quality: :meth:`PartQualityAccumulator.summary` (``None`` if not run).
-        part_visibility: :meth:`VisibilityAccumulator.summary` (``None`` if not run).
-        depth: :meth:`DepthAccumulator.summary` (``None`` if not run or no pose has two views).
-        segments: :meth:`~cerberus_core.eval.segments.SegmentAccumulator.summary` (``None`` if not run).
-        allocation: :meth:`~cerberus_core.eval.allocation.AllocationAccumulator.summary` (``None`` if not run).
-        records: one dict per image: index, subject, pose, view, iou, hard_iou, clipped, error,
-            visible_pixels (per part, in the input view), voxel_precision, voxel_recall,
-            segment_recall (per ground-truth segment), deletion_loss (per learned part), keypoints and
-            unique_coverage (per learned part).
+        diagnostics: each diagnostic's entries (:meth:`Diagnostic.results
+            <cerberus_core.eval.diagnostics.Diagnostic.results>`), in
+            :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` order, ``None`` for one skipped: ``hard``
+            (an :class:`IoUSummary`) and ``canonical`` (``{subject: dataset index}`` of the images the Hard
+            Human shapes came from), ``part_quality``, ``part_visibility``, ``depth``, ``segments``,
+            ``allocation`` (dicts; see each module). ``result["hard"]`` reads one.
+        records: one dict per image: index, subject, pose, view, iou, clipped, error, then each
+            diagnostic's fields (visible_pixels, hard_iou, ..., deletion_loss, keypoints, unique_coverage).
         seconds: wall time.
     """
 
     protocol: str
     resolution: int
     standard: IoUSummary
-    hard: IoUSummary | None
-    canonical: dict[str, int]
-    part_quality: dict[str, Any] | None
-    part_visibility: dict[str, Any] | None = None
-    depth: dict[str, Any] | None = None
-    segments: dict[str, Any] | None = None
-    allocation: dict[str, Any] | None = None
+    diagnostics: dict[str, Any] = field(default_factory=dict)
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
+
+    def __getitem__(self, key: str) -> Any:
+        """A diagnostic's entry (``result["hard"]``, ``result["segments"]``), ``None`` when it was skipped."""
+        if key not in self.diagnostics:
+            raise DatasetError(f"EvaluationResult has no entry {key!r}; its entries: {', '.join(self.diagnostics)}")
+        return self.diagnostics[key]
 
     def part_labels(self) -> list[str | None] | None:
         """Each learned part's label (the ground-truth part it covers most over the images scored; ``None`` where
         it covers none), in part order; ``None`` when part quality was not scored (not run, or no part labels)."""
-        parts = (self.part_quality or {}).get("parts") or []
+        parts = (self.diagnostics.get("part_quality") or {}).get("parts") or []
         return [p["label"] for p in sorted(parts, key=lambda p: p["part"])] or None
 
     def image_ious(self) -> dict[int, float]:
@@ -169,20 +158,9 @@ class EvaluationResult:
         return {int(r["index"]): float(r["iou"]) for r in self.records if r.get("iou") is not None}
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "protocol": self.protocol,
-            "resolution": self.resolution,
-            "standard": self.standard.to_dict(),
-            "hard": None if self.hard is None else self.hard.to_dict(),
-            "canonical": self.canonical,
-            "part_quality": self.part_quality,
-            "part_visibility": self.part_visibility,
-            "depth": self.depth,
-            "segments": self.segments,
-            "allocation": self.allocation,
-            "seconds": round(self.seconds, 3),
-            "records": self.records,
-        }
+        entries = {k: v.to_dict() if isinstance(v, IoUSummary) else v for k, v in self.diagnostics.items()}
+        return {"protocol": self.protocol, "resolution": self.resolution, "standard": self.standard.to_dict(),
+                **entries, "seconds": round(self.seconds, 3), "records": self.records}
 
 
 # ------------------------------------------------------------------ the pass
@@ -205,18 +183,9 @@ class EvalConfig(Checked):
     Attributes:
         protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the resolution is at most
             :data:`~cerberus_core.eval.standard.MAX_RESOLUTION` (memory grows with its cube).
-        hard: also run the Hard Human test (needs ``is_canonical`` images).
-        part_quality: also score the parts against the ground-truth semantic parts.
-        visibility: also measure how often each part is wholly hidden in its input view (one
-            render per batch, see :mod:`cerberus_core.eval.visibility`).
-        depth: also measure depth across the views of each test pose (per-part translation
-            disagreement, turned-view silhouette IoU; :mod:`cerberus_core.eval.depth`).
-        segments: also measure, per ground-truth body segment, voxel recall, off-body voxels and input-view
-            coverage, and per learned part the IoU lost when it is deleted (:mod:`cerberus_core.eval.segments`;
-            no voxelization beyond the standard IoU's, one render of each ground truth per batch).
-        allocation: also measure where the parts go: per part its keypoint's spread around the silhouette
-            centroid and the foreground it alone covers, per segment the distance to the nearest keypoint
-            (:mod:`cerberus_core.eval.allocation`; each part rendered alone once per batch).
+        skip: the diagnostics not to run, by name (:data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`:
+            ``visibility``, ``hard``, ``part_quality``, ``depth``, ``segments``, ``allocation``; default: none
+            skipped, every diagnostic runs). The standard IoU always runs.
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
         batch_size, num_workers: model batching, data-loading workers.
         weighting: part-quality vertex weights, ``"area"`` or ``"count"``.
@@ -229,12 +198,7 @@ class EvalConfig(Checked):
 
     protocol: str = "kato"
     resolution: int = ranged(32, ge=1, le=MAX_RESOLUTION)
-    hard: bool = True
-    part_quality: bool = True
-    visibility: bool = True
-    depth: bool = True
-    segments: bool = True
-    allocation: bool = True
+    skip: tuple[str, ...] = ()
     canonical_view: int | None = ranged(None, ge=0, integer=True)
     batch_size: int = ranged(16, ge=1)
     num_workers: int = ranged(0, ge=0, le=MAX_WORKERS)
@@ -242,23 +206,26 @@ class EvalConfig(Checked):
     density: int = ranged(4, ge=1)
     progress: bool = True
 
+    def validate(self) -> None:
+        object.__setattr__(self, "skip", check_skip(self.skip))
+
 
 def metric_accumulators(dataset: Any, reconstruct: Reconstructor, config: EvalConfig, scorer: VoxelScorer,
-                        renderer: Renderer | None, device: torch.device | str) -> list[MetricAccumulator]:
-    """The accumulators ``config`` asks for, in the order they fill each record: standard IoU, part
-    visibility, Hard Human (its canonical shapes reconstructed now), part quality, depth, body segments,
-    allocation."""
-    hard = None
-    if config.hard and (chosen := select_canonical(dataset_metadata(dataset), config.canonical_view)):
-        hard = HardHumanIoU(scorer, extract_canonical(dataset, reconstruct, chosen, device, config.batch_size))
-    renderer = renderer or (make_renderer("auto") if config.visibility or config.depth or config.segments
-                                           or config.allocation else None)
-    optional = [PartVisibility(renderer) if config.visibility else None, hard,
-                PartQuality(config.weighting, config.density) if config.part_quality else None,
-                DepthAccumulator(renderer) if config.depth else None,
-                BodySegments(scorer, renderer) if config.segments else None,
-                Allocation(renderer) if config.allocation else None]
-    return [StandardIoU(scorer), *(a for a in optional if a is not None)]
+                        renderer: Renderer | None, device: torch.device | str) -> dict[str, Any]:
+    """``{name: accumulator}`` of every diagnostic ``config`` does not skip, in table order (the order they
+    fill each record), made from one :class:`EvalContext`; the renderer is made only when one of them
+    needs it, the canonical shapes reconstructed only when the Hard Human test runs."""
+    if renderer is None and needed(config.skip, "renderer"):
+        renderer = make_renderer("auto")
+
+    def canonical() -> CanonicalParts:
+        chosen = select_canonical(dataset_metadata(dataset), config.canonical_view)
+        if not chosen:  # no canonical image: the test scores nothing
+            return CanonicalParts({}, {})
+        return extract_canonical(dataset, reconstruct, chosen, device, config.batch_size)
+
+    context = EvalContext(config, scorer, renderer, canonical)
+    return {d.name: d.accumulator.for_evaluation(context) for d in running(config.skip)}
 
 
 def batch_result(dataset: Any, batch: dict[str, Any], batch_idx: list[int], recon: PartSet, camera: Camera,
@@ -288,7 +255,7 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
             up in the whole dataset.
         device: the model's device.
         scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
-        options: :class:`EvalConfig` fields that replace ``config``'s (``hard=False``, ``batch_size=6``...).
+        options: :class:`EvalConfig` fields that replace ``config``'s (``skip=("hard",)``, ``batch_size=6``...).
     """
     t0 = time.perf_counter()
     config = replace(config or EvalConfig(), **options)
@@ -300,8 +267,8 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
     if not callable(getattr(dataset, "gt_mesh", None)):
         raise InputTypeError(f"{type(dataset).__name__} has no gt_mesh(i) method; evaluation needs the ground-truth "
                              "meshes (pass a ViewDataset)")
+    standard = StandardIoU(scorer)
     accumulators = metric_accumulators(dataset, reconstruct, config, scorer, renderer, device)
-    standard = accumulators[0]  # StandardIoU, always first
     gt_memo = GroundTruthMemo(dataset.gt_mesh)
     records: list[dict[str, Any]] = []
     bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not config.progress)
@@ -309,25 +276,20 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
                                                                capped_to_cores("num_workers", config.num_workers)):
         recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
         result = batch_result(dataset, batch, batch_idx, recon, camera.to(device), gt_memo)
-        for accumulator in accumulators:
+        for accumulator in (standard, *accumulators.values()):
             accumulator.update(result)
         records.extend(result.records)
         bar.update(len(batch_idx))
         bar.set_postfix(iou=f"{standard.running_mean():.4f}")
     bar.close()
-    found = {type(a): a for a in accumulators}
-    hard = found.get(HardHumanIoU)
+    entries: dict[str, Any] = {}
+    for row in DIAGNOSTICS:
+        entries |= row.results(accumulators.get(row.name))
     return EvaluationResult(
         protocol=scorer.protocol,
         resolution=scorer.resolution,
         standard=standard.summary(),
-        hard=None if hard is None else hard.summary(),
-        canonical={} if hard is None else dict(hard.canonical.indices),
-        part_quality=None if PartQuality not in found else found[PartQuality].summary(),
-        part_visibility=None if PartVisibility not in found else found[PartVisibility].summary(),
-        depth=None if DepthAccumulator not in found else found[DepthAccumulator].summary(),
-        segments=None if BodySegments not in found else found[BodySegments].summary(),
-        allocation=None if Allocation not in found else found[Allocation].summary(),
+        diagnostics=entries,
         records=records,
         seconds=time.perf_counter() - t0,
     )

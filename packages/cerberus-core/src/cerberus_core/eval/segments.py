@@ -30,7 +30,7 @@ while the overall voxel precision and recall, the deletion losses and the spare 
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from cerberus_core.errors import MissingPackageError, ShapeError
+from cerberus_core.eval.markdown import fmt, markdown_table, part_labels, sentence
 from cerberus_core.eval.standard import Voxels
 from cerberus_core.render.camera import Camera
 from cerberus_core.shapes import check_shapes
@@ -55,7 +56,7 @@ def nearest_labels(points: np.ndarray, vertices: np.ndarray, labels: np.ndarray)
         from scipy.spatial import cKDTree
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise MissingPackageError("body-segment evaluation needs scipy: pip install 'cerberus-core[eval]', "
-                                  "or pass segments=False") from exc
+                                  "or pass `skip=('segments',)`") from exc
     if len(points) == 0:
         return np.zeros(0, np.int64)
     _, idx = cKDTree(np.asarray(vertices, np.float64)).query(np.asarray(points, np.float64), k=1)
@@ -258,3 +259,28 @@ def group_by_body(bodies: Sequence[Any]) -> list[list[int]]:
     for b, body in enumerate(bodies):
         groups.setdefault(id(body), []).append(b)
     return list(groups.values())
+
+
+def segments_section(result: Mapping[str, Any]) -> list[str]:
+    """The report's body-segment section from a result's JSON form: per segment, then per learned part."""
+    seg = result["segments"]
+    out = ["## Body segments", "",
+           f"Voxels as the standard IoU scores them, {seg['images']} images: precision {fmt(seg['voxel_precision'])}, "
+           f"recall {fmt(seg['voxel_recall'])}. {sentence(segments_line(seg))}.", ""]
+    if seg["segment_labels"]:
+        out += ["Each voxel belongs to the segment of the nearest ground-truth vertex. *Recall*: the share of the "
+                "segment's voxels the prediction covers; *missed* and *off-body*: its share of the voxels only "
+                "the ground truth has, and of those only the prediction has; *input view*: the share of its "
+                "ground-truth vertices that project onto a pixel the predicted parts cover, beside the same for "
+                "the ground truth's own render.", ""]
+        cov = seg["input_view_coverage"]
+        rows = [[k, seg["body_share"][k], seg["recall"][k], seg["missed_share"][k], seg["off_body_share"][k],
+                 *([cov[k], seg["gt_render_coverage"][k]] if cov else [])] for k in seg["segments"]]
+        out += [markdown_table(["GT segment", "Share of body", "Recall", "Share of missed", "Share of off-body",
+                                *(["Input view: predicted", "Input view: ground truth"] if cov else [])], rows, 3), ""]
+    labels = part_labels(result)
+    rows = [[p, labels.get(p) or "-", loss, "spare" if p in seg["spare_parts"] else ""]
+            for p, loss in enumerate(seg["deletion_loss"])]
+    out += [f"IoU lost when a learned part is deleted (mean over images; spare: at most {seg['spare_threshold']:g}):",
+            "", markdown_table(["Learned part", "Majority GT part", "IoU lost when deleted", "Spare"], rows, 4), ""]
+    return out

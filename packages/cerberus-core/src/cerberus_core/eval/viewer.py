@@ -187,25 +187,41 @@ def _b64(path: Path | str) -> str:
 
 
 # ------------------------------------------------------------------ the page
-def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: str = "Cerberus reconstructions",
-                 limit: int = DEFAULT_LIMIT, total: int | None = None, limit_hint: str = "",
-                 background: Sequence[float] = (1.0, 1.0, 1.0), filename: str = "index.html",
-                 part_labels: Sequence[str | None] | None = None) -> Path:
-    """Write the viewer page ``out_dir/filename`` for the first ``limit`` entries.
+@dataclass(frozen=True)
+class ViewerPage:
+    """How a viewer page is made (:func:`write_viewer`, :func:`write_reconstruction_viewer`).
 
-    Args:
-        entries: the cards, in order; their files are read and inlined now.
+    Attributes:
         title: the page's heading.
         limit: at most this many cards (the page says how many it left out).
-        total: how many images there were in all (default ``len(entries)``), for that sentence.
         limit_hint: the setting that shows more, e.g. ``"viewer_images"``.
         background: the 3D views' background colour, RGB in [0, 1].
         part_labels: the label of learned part ``k`` (the node ``part_NN`` of the reconstruction and new-pose
             GLBs, :func:`~cerberus_core.eval.export.part_name`), ``None`` where unknown; the part toggles say
             ``LABEL (part_NN)``. Default: the node names alone.
+    """
+
+    title: str = "Cerberus reconstructions"
+    limit: int = DEFAULT_LIMIT
+    limit_hint: str = ""
+    background: Sequence[float] = (1.0, 1.0, 1.0)
+    part_labels: Sequence[str | None] | None = None
+
+
+def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], page: ViewerPage | None = None, *,
+                 total: int | None = None, filename: str = "index.html") -> Path:
+    """Write the viewer page ``out_dir/filename`` for the first ``page.limit`` entries.
+
+    Args:
+        entries: the cards, in order; their files are read and inlined now.
+        page: title, limit, background and part labels (:class:`ViewerPage`; default its defaults).
+        total: how many images there were in all (default ``len(entries)``), for that sentence.
     Returns:
         The page's path.
     """
+    page = page or ViewerPage()
+    title, limit, limit_hint, background, part_labels = (page.title, page.limit, page.limit_hint, page.background,
+                                                         page.part_labels)
     if limit < 1:
         raise ConfigError.about("limit", limit, "write_viewer: must be >= 1", "`limit=1` or more")
     entries = list(entries)
@@ -231,13 +247,13 @@ def write_viewer(out_dir: str | Path, entries: Sequence[ViewerEntry], *, title: 
             "labelled_models": ["reconstruction", "new_pose"]}
     count = (f"All {total} image(s)." if len(shown) == total else
              f"The first {len(shown)} of {total} images" + (f" ({limit_hint} sets how many)." if limit_hint else "."))
-    page = _PAGE.format(
+    html = _PAGE.format(
         title=_html(title), count=_html(count), version=THREE_VERSION,
         css=(ASSETS / "viewer.css").read_text(encoding="utf-8"),
         importmap=_script_json(import_map()), data=_script_json(data), cards="\n".join(cards),
         js=(ASSETS / "viewer.js").read_text(encoding="utf-8"))
     path = Path(out_dir) / filename
-    atomic_write_text(path, page)
+    atomic_write_text(path, html)
     return path
 
 
@@ -290,15 +306,27 @@ window.addEventListener('unhandledrejection', (e) => window.cerberusViewer.error
 
 
 # ------------------------------------------------------------------ one call for the commands
-def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon: PartSet,
-                                camera: Camera, stems: Sequence[str], *, bodies: Sequence | None = None,
-                                limit: int = DEFAULT_LIMIT, limit_hint: str = "",
-                                title: str = "Cerberus reconstructions",
-                                background: Sequence[float] = (1.0, 1.0, 1.0),
-                                notes: Sequence[str] | None = None,
-                                part_labels: Sequence[str | None] | None = None,
-                                ious: Sequence[float | None] | None = None) -> list[Path]:
-    """Export the meshes of the first ``limit`` images and write ``out_dir/index.html``.
+@dataclass(frozen=True)
+class CardDetails:
+    """What each image's card shows beside its reconstruction (:func:`write_reconstruction_viewer`), one entry per
+    image, or ``None`` for nothing.
+
+    Attributes:
+        bodies: the ground-truth :class:`PosedBody` of each image (its mesh beside the reconstruction).
+        notes: a line per image: why the input is out of the training domain, ``""`` for none (an image
+            with a note lends its pose only where no other can).
+        ious: each image's voxel IoU where the evaluation scored it (``None`` where not).
+    """
+
+    bodies: Sequence | None = None
+    notes: Sequence[str] | None = None
+    ious: Sequence[float | None] | None = None
+
+
+def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon: PartSet, camera: Camera,
+                                stems: Sequence[str], page: ViewerPage | None = None,
+                                details: CardDetails | None = None) -> list[Path]:
+    """Export the meshes of the first ``page.limit`` images and write ``out_dir/index.html``.
 
     For image ``i`` named ``stems[i]`` writes ``<stem>.glb`` (the reconstruction), ``<stem>_new_pose.glb``
     (its parts with the rotations and translations predicted from another image, as the ``new_pose``
@@ -308,14 +336,15 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
 
     Args:
         images: ``(N, 3, H, W)`` the inputs in [0, 1]; camera: their ``N`` cameras; recon: batch ``N``.
-        limit: cards on the page (``0``: write nothing).
-        notes: a line per image for its card: why the input is out of the training domain, ``""`` for none
-            (an image with a note lends its pose only where no other can).
-        part_labels: each learned part's label (:func:`write_viewer`).
-        ious: each image's voxel IoU where the evaluation scored it (``None`` where not).
+        stems: each image's name.
+        page: the page (:class:`ViewerPage`; its ``limit`` of cards, ``0``: write nothing).
+        details: what the cards show besides (:class:`CardDetails`: ground truth, notes, IoUs).
     Returns:
         The files written, the page last.
     """
+    page, details = page or ViewerPage(), details or CardDetails()
+    bodies, notes, ious, limit, part_labels = (details.bodies, details.notes, details.ious, page.limit,
+                                               page.part_labels)
     n = recon.batch_size
     if notes is not None and len(notes) != n:
         raise ShapeError(f"write_reconstruction_viewer: {n} reconstructions but {len(notes)} notes; pass one note "
@@ -356,6 +385,5 @@ def write_reconstruction_viewer(out_dir: str | Path, images: torch.Tensor, recon
         if notes is not None and notes[i]:
             entry.note = f"{notes[i][:1].upper()}{notes[i][1:]}. {entry.note}".strip()
         entries.append(entry)
-    written.append(write_viewer(out_dir, entries, title=title, limit=limit, total=n, limit_hint=limit_hint,
-                                background=background, part_labels=part_labels))
+    written.append(write_viewer(out_dir, entries, page, total=n))
     return written

@@ -17,6 +17,7 @@ baseline) is hidden only where it leaves the picture.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,6 +25,7 @@ import numpy as np
 import torch
 
 from cerberus_core.errors import ShapeError
+from cerberus_core.eval.markdown import markdown_table, scored_part_quality
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera
@@ -115,3 +117,33 @@ def visibility_line(summary: dict[str, Any]) -> str:
         worst = int(np.argmax(hidden))
         line += f" (most often hidden: part {worst}, in {100 * hidden[worst]:.0f}% of images)"
     return line
+
+
+def visibility_sentence(vis: Mapping[str, Any]) -> str:
+    h, w = vis["image_size"]
+    """The report's sentence on part visibility (its JSON form)."""
+    return (f"Part visibility in the input view ({h}x{w} renders of the reconstruction, {vis['images']} images): "
+            f"{visibility_line(vis)}. *Hidden*: the fraction of images where no pixel shows the part (it gets no "
+            "gradient from the paper's renderer there); *silhouette share*: its mean share of the rendered "
+            "silhouette.")
+
+
+def visibility_header(vis: Mapping[str, Any] | None) -> list[str]:
+    """The report's visibility columns (none when visibility did not run)."""
+    return ["Hidden in input view", "Silhouette share"] if vis else []
+
+
+def visibility_cells(vis: Mapping[str, Any] | None, part: int) -> list[Any]:
+    """A learned part's cells under :func:`visibility_header`."""
+    return [vis["hidden_fraction"][part], vis["mean_silhouette_share"][part]] if vis else []
+
+
+def visibility_section(result: Mapping[str, Any]) -> list[str]:
+    """The report's part-visibility section from a result's JSON form; empty when part quality was scored
+    (its table has the visibility columns)."""
+    vis = result["part_visibility"]
+    if scored_part_quality(result):
+        return []
+    vrow = [[p, *visibility_cells(vis, p), px] for p, px in enumerate(vis["mean_visible_pixels"])]
+    return ["## Part visibility", "", visibility_sentence(vis), "",
+            markdown_table(["Learned part", *visibility_header(vis), "Visible pixels"], vrow, 3), ""]

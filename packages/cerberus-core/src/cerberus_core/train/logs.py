@@ -119,8 +119,8 @@ class AllocationProbe:
         if not Dataset.is_dataset(root):
             return None
         data = Dataset.open(root)
-        split_info = data.manifest.splits.get(split)
-        if split_info is None or not split_info.shards:
+        record = data.manifest.splits.get(split)
+        if record is None or not record.shards:
             return None
         views = data.views(split, allow_partial=True)
         return cls(views, renderer, count) if len(views) else None

@@ -37,8 +37,16 @@ from PIL import Image
 
 from cerberus_core.bodies.body import FILL, BodySource, source_class
 from cerberus_core.errors import CerberusError, ImageInputError
-from cerberus_core.eval.images import LoadedImage, RawImage, composite, finish, open_oriented, read_image, square_resize
 from cerberus_core.plumbing.names import printable
+from cerberus_core.reconstruct.images import (
+    LoadedImage,
+    RawImage,
+    composite,
+    finish,
+    open_oriented,
+    read_image,
+    square_resize,
+)
 
 #: Width in pixels of the model-size image's outer ring that :func:`background_check` looks at.
 BORDER_WIDTH = 2

@@ -4,14 +4,14 @@
 For each image: the posed part meshes (GLB, OBJ), the pictures of the paper's Figure 1 and a card of the
 offline 3D viewer, all written into one result folder that replaces ``out`` only once everything is
 written (:func:`cerberus_core.plumbing.outputs.writing_results`). Inputs out of the training domain are named
-(:mod:`cerberus_core.eval.input_domain`), and every input keeps its own output names
+(:mod:`cerberus_core.reconstruct.input_domain`), and every input keeps its own output names
 (:func:`output_names`).
 """
 from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import torch
@@ -19,13 +19,13 @@ import torch
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.export import export_reconstruction
-from cerberus_core.eval.figures import save_image_pictures
-from cerberus_core.eval.input_domain import domain_note, prepare_input
-from cerberus_core.eval.viewer import write_reconstruction_viewer
+from cerberus_core.eval.figures import PictureStyle, save_image_pictures
+from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.parts import pose_donors
 from cerberus_core.plumbing.names import printable, safe_stem
 from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
+from cerberus_core.reconstruct.input_domain import domain_note, prepare_input
 from cerberus_core.render.backends import make_renderer
 
 #: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
@@ -86,7 +86,7 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
                 kind: str | None = None) -> tuple[torch.Tensor, list[str]]:
     """The model's input images and, per image, its out-of-domain note (``""`` when in domain); one warning
     names the images out of the training domain and the fix. ``kind``: the bodies the model learned
-    (:func:`~cerberus_core.eval.input_domain.prepare_input`)."""
+    (:func:`~cerberus_core.reconstruct.input_domain.prepare_input`)."""
     loaded = [prepare_input(p, size, scene, m, kind=kind) for p, m in zip(paths, masks, strict=True)]
     out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
     if out:
@@ -141,30 +141,59 @@ class Reconstruction:
         return lines + ([f"3D viewer: {printable(self.out / 'index.html')}"] if viewer else [])
 
 
-def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, renderer: str, images: Sequence[Path],
-                       out: Path, *, masks: Sequence[Path | None] | None = None, azimuth: float = 0.0,
-                       viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "",
-                       kind: str | None = None, part_labels: Sequence[str | None] | None = None) -> Reconstruction:
+@dataclass(frozen=True)
+class TrainedModel:
+    """A trained model as :func:`write_reconstructions` uses it (:meth:`Run.reconstruct_images
+    <cerberus_core.run.Run.reconstruct_images>` makes it from the run).
+
+    Attributes:
+        model: the model (on ``device``, in eval mode).
+        scene: the scene set-up the images follow (camera elevation, distance, fov; background).
+        image_size: the model's input size in pixels.
+        renderer: the backend for the pictures (a name, :func:`~cerberus_core.render.backends.make_renderer`).
+        device: where the model is.
+        kind: the kind of bodies the model learned (a body source's name, :meth:`Run.training_kind
+            <cerberus_core.run.Run.training_kind>`; ``None``: unknown), for the out-of-domain notes.
+    """
+
+    model: Cerberus
+    scene: SceneSetup
+    image_size: int
+    renderer: str
+    device: str | torch.device = "cpu"
+    kind: str | None = None
+
+
+@dataclass(frozen=True)
+class ImageInputs:
+    """Image files to reconstruct (:func:`write_reconstructions`).
+
+    Attributes:
+        images: the input files; masks: each one's mask (``None``: none; default none for every image).
+        azimuth: the camera azimuth assumed for every input, degrees.
+    """
+
+    images: Sequence[Path]
+    masks: Sequence[Path | None] | None = None
+    azimuth: float = 0.0
+
+
+def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
+                          page: ViewerPage | None = None) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
     :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
 
     Args:
-        model: the trained model (on ``device``, in eval mode).
-        scene: the scene set-up the images follow (camera elevation, distance, fov; background).
-        image_size: the model's input size in pixels.
-        renderer: the backend for the pictures.
-        images: the input files; masks: each one's mask (or ``None``).
-        azimuth: the camera azimuth assumed for every input, degrees.
-        viewer_images: cards in ``out/index.html`` (0: no viewer).
-        title: the viewer's title.
-        kind: the kind of bodies the model learned (a body source's name, :meth:`Run.training_kind
-            <cerberus_core.run.Run.training_kind>`; ``None``: unknown), for the out-of-domain notes.
-        part_labels: each learned part's label for the viewer (:meth:`Run.part_labels
-            <cerberus_core.run.Run.part_labels>`; ``None``: the node names alone).
+        trained: the model, its scene set-up, input size, renderer and device (:class:`TrainedModel`).
+        inputs: the files, their masks and the azimuth assumed (:class:`ImageInputs`).
+        page: the viewer ``out/index.html``: title, ``limit`` of cards (0: no viewer), part labels
+            (:class:`~cerberus_core.eval.viewer.ViewerPage`; its background is the scene's).
     """
-    masks = list(masks) if masks is not None else [None] * len(images)
-    pictures, notes = load_inputs(images, masks, image_size, scene, kind)
-    backend = make_renderer(renderer)
+    model, scene, image_size, device = trained.model, trained.scene, trained.image_size, trained.device
+    images, azimuth = list(inputs.images), inputs.azimuth
+    masks = list(inputs.masks) if inputs.masks is not None else [None] * len(images)
+    pictures, notes = load_inputs(images, masks, image_size, scene, trained.kind)
+    backend = make_renderer(trained.renderer)
     stems = output_names(list(images))
     camera = scene.cameras([azimuth] * len(pictures), image_size)
     with torch.no_grad():
@@ -176,10 +205,10 @@ def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, r
         for i, stem in enumerate(stems):
             donor = None if donors[i] is None else recon.index([donors[i]])
             note = "; ".join(n for n in (notes[i], borrowed[i]) if n)
-            written += save_image_pictures(backend, pictures[i], recon.index([i]), camera.index([i]), tmp, stem,
-                                           pose_donor=donor, background=scene.background, note=note)
-        written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems, limit=viewer_images, notes=notes,
-                                               limit_hint="viewer_images", title=title,
-                                               background=scene.background, part_labels=part_labels)
+            written += save_image_pictures(PictureStyle(backend, scene.background), pictures[i], recon.index([i]),
+                                           camera.index([i]), tmp, stem, pose_donor=donor, note=note)
+        written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems,
+                                               replace(page or ViewerPage(), background=scene.background),
+                                               CardDetails(notes=notes))
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
     return Reconstruction(out, stems, written, renamed, notes)

@@ -16,8 +16,8 @@ from PIL import Image
 
 from cerberus_core.cli import main
 from cerberus_core.datasets.dataset import Dataset
-from cerberus_core.eval import input_domain as D
-from cerberus_core.eval.images import load_image
+from cerberus_core.reconstruct import input_domain as D
+from cerberus_core.reconstruct.images import load_image
 
 
 @pytest.fixture(scope="module")
@@ -208,7 +208,7 @@ def test_a_coloured_or_textured_body_is_out_of_domain_even_as_a_cutout(generated
     li = D.prepare_input(root / "clothed.png", 64, scene, warn=False)
     assert "coloured" in li.out_of_domain
     assert "cut-out" not in li.advice and "coarse grey body" in li.advice
-    from cerberus_core.eval.reconstruct import load_inputs
+    from cerberus_core.reconstruct.write import load_inputs
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         load_inputs([root / "clothed.png"], [None], 64, scene)

@@ -56,7 +56,7 @@ class LoadedImage:
         original_size: ``(width, height)`` in the file.
         notes: what was done to it (empty when it already matched).
         out_of_domain: why it does not look like the training images (empty: it does, or it was not
-            checked); see :mod:`cerberus_core.eval.input_domain`.
+            checked); see :mod:`cerberus_core.reconstruct.input_domain`.
         advice: what would bring it closer to them, for that reason (empty with it).
     """
 

@@ -7,7 +7,7 @@ import torch
 from PIL import Image
 
 from cerberus_core.errors import ImageInputError
-from cerberus_core.eval.images import ImageInputWarning, load_image, load_images
+from cerberus_core.reconstruct.images import ImageInputWarning, load_image, load_images
 
 S = 32
 
@@ -93,7 +93,7 @@ def test_a_large_file_resized_to_the_model_is_one_note_in_the_file_s_pixels(tmp_
 def test_an_image_over_the_pixel_limit_is_said_once(tmp_path, monkeypatch):
     """Issue 34 campaign: the bound's own ImageInputError (a ValueError) was caught and wrapped again as "cannot be
     read as an image (ImageInputError: ...)", naming the file twice."""
-    import cerberus_core.eval.images as images
+    import cerberus_core.reconstruct.images as images
 
     monkeypatch.setattr(images, "MAX_INPUT_PIXELS", 100)
     Image.fromarray(np.zeros((20, 20, 3), np.uint8)).save(tmp_path / "big.png")

@@ -1,0 +1,140 @@
+"""The table of evaluation diagnostics: one row per diagnostic, the one list ``cerberus eval`` is made from.
+
+Beside the standard voxel IoU (always scored: the paper's Table 1), :func:`~cerberus_core.eval.runner.evaluate_dataset`
+runs every row of :data:`DIAGNOSTICS` that :attr:`EvalConfig.skip <cerberus_core.eval.runner.EvalConfig>` does not
+name, in table order (each image's record gets their fields in that order). From the row come:
+
+* the switch: its :attr:`Diagnostic.name` in ``EvalConfig(skip=(...))``, which ``cerberus eval`` offers as a flag
+  of its own (``cerberus_core.cli.eval``), with :attr:`Diagnostic.about` as the flag's help;
+* the accumulator: :attr:`Diagnostic.accumulator`, a class following
+  :class:`~cerberus_core.eval.accumulators.MetricAccumulator` (made by ``for_evaluation(context)``, fed every
+  batch, then ``summary()``);
+* what it needs (:data:`NEEDS`): a renderer is made once when a row that runs needs one; scipy is checked
+  before anything runs;
+* its entries of :class:`~cerberus_core.eval.runner.EvaluationResult` and ``results.json``: ``{key: summary}``
+  (``None`` when skipped), or what :attr:`Diagnostic.outputs` makes of the accumulator;
+* its section of ``results.md`` (:attr:`Diagnostic.section`, from the whole result's JSON form) and its line of
+  the summary ``cerberus eval`` prints (:attr:`Diagnostic.line`, from its own summary).
+
+A new diagnostic is one module (its accumulator, line and section) and one row here (docs/architecture.md,
+"Adding an evaluation diagnostic").
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from cerberus_core.errors import ConfigError
+from cerberus_core.eval.accumulators import (
+    Allocation,
+    BodySegments,
+    HardHumanIoU,
+    MetricAccumulator,
+    PartQuality,
+    PartVisibility,
+)
+from cerberus_core.eval.allocation import allocation_line, allocation_section
+from cerberus_core.eval.depth import DepthAccumulator, depth_line, depth_section
+from cerberus_core.eval.part_quality import part_quality_section
+from cerberus_core.eval.segments import segments_line, segments_section
+from cerberus_core.eval.visibility import visibility_line, visibility_section
+from cerberus_core.plumbing.names import did_you_mean
+
+#: What a diagnostic can need, and what the evaluation does about it.
+NEEDS: dict[str, str] = {
+    "renderer": "renders in the input views (one backend, made once for every diagnostic that needs one)",
+    "scipy": "scipy's k-d trees (checked before anything runs: pip install 'cerberus-core[eval]')",
+    "segments": "ground-truth per-vertex segment labels (reported as missing when the data has none)",
+    "poses": "several views of each test pose (not reported when no pose has two)",
+    "canonical": "a canonical-pose image of each subject (not reported without one)",
+}
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One row of :data:`DIAGNOSTICS`.
+
+    Attributes:
+        name: the switch (``EvalConfig(skip=(name,))``, a flag of ``cerberus eval``) and, unless ``key`` says
+            otherwise, the ``results.json`` key of its summary.
+        accumulator: its accumulator class (:class:`~cerberus_core.eval.accumulators.MetricAccumulator`).
+        about: what it measures, one phrase (the flag's help is "skip " and this).
+        needs: keys of :data:`NEEDS`.
+        key: the ``results.json`` key of its summary (default ``name``).
+        line: its one line of the printed summary, from its summary's JSON form (``None``: no line).
+        section: its ``results.md`` section, from the whole result's JSON form (``None``: no section).
+        outputs: its ``results.json`` entries from its accumulator (``None`` when skipped); default
+            ``{key: accumulator.summary()}``.
+    """
+
+    name: str
+    accumulator: type[MetricAccumulator]
+    about: str
+    needs: frozenset[str] = frozenset()
+    key: str = ""
+    line: Callable[[Any], str] | None = None
+    section: Callable[[Mapping[str, Any]], list[str]] | None = None
+    outputs: Callable[[Any], dict[str, Any]] | None = None
+
+    def __post_init__(self) -> None:
+        if not self.key:
+            object.__setattr__(self, "key", self.name)
+        unknown = set(self.needs) - set(NEEDS)
+        if unknown:
+            raise ConfigError.about("needs", sorted(unknown), f"diagnostic {self.name!r}: not one of {sorted(NEEDS)}")
+
+    def results(self, accumulator: MetricAccumulator | None) -> dict[str, Any]:
+        """Its entries of a result (``accumulator``: ``None`` when it was skipped)."""
+        if self.outputs is not None:
+            return self.outputs(accumulator)
+        return {self.key: None if accumulator is None else accumulator.summary()}
+
+
+DIAGNOSTICS: list[Diagnostic] = [
+    Diagnostic("visibility", PartVisibility, "how often each learned part is wholly hidden in its input view",
+               frozenset({"renderer"}), key="part_visibility", line=visibility_line, section=visibility_section),
+    Diagnostic("hard", HardHumanIoU, "the Hard Human test (each subject's canonical part shapes posed by its other "
+               "images)", frozenset({"canonical"}), outputs=HardHumanIoU.outputs),
+    Diagnostic("part_quality", PartQuality, "part quality against the ground-truth semantic parts (the slowest "
+               "diagnostic)", frozenset({"scipy", "segments"}), section=part_quality_section),
+    Diagnostic("depth", DepthAccumulator, "depth across the views of each test pose (translation disagreement, "
+               "turned-view silhouette IoU)", frozenset({"renderer", "poses"}),
+               line=lambda depth: "depth: " + depth_line(depth), section=depth_section),
+    Diagnostic("segments", BodySegments, "the body segments (recall, off-body voxels and input-view coverage per "
+               "ground-truth segment; the IoU lost when each learned part is deleted)",
+               frozenset({"renderer", "scipy", "segments"}), line=segments_line, section=segments_section),
+    Diagnostic("allocation", Allocation, "the allocation diagnostics (per learned part its keypoint's spread around "
+               "the silhouette centroid and the foreground it alone covers; per segment the nearest keypoint)",
+               frozenset({"renderer", "segments"}), line=allocation_line, section=allocation_section),
+]
+"""Every evaluation diagnostic, in the order they run and report (see the module docstring)."""
+
+
+def diagnostic_names() -> list[str]:
+    """The switches of :data:`DIAGNOSTICS`, in order."""
+    return [d.name for d in DIAGNOSTICS]
+
+
+def check_skip(skip: Sequence[str]) -> tuple[str, ...]:
+    """``skip`` as a tuple of diagnostic names, every one a row of :data:`DIAGNOSTICS`, else a
+    :class:`ConfigError` naming it (with "did you mean")."""
+    if isinstance(skip, str):
+        raise ConfigError.about("skip", skip, "must be a sequence of diagnostic names, not one string",
+                                f"`skip=({skip!r},)`")
+    names = diagnostic_names()
+    for name in skip:
+        if name not in names:
+            raise ConfigError.about("skip", name, "is not a diagnostic" + did_you_mean(str(name), names)
+                                    + f"; the diagnostics: {', '.join(names)}")
+    return tuple(skip)
+
+
+def running(skip: Sequence[str]) -> list[Diagnostic]:
+    """The rows that run when ``skip`` names the others, in table order."""
+    return [d for d in DIAGNOSTICS if d.name not in skip]
+
+
+def needed(skip: Sequence[str], need: str) -> bool:
+    """Whether a row that runs needs ``need`` (a key of :data:`NEEDS`)."""
+    return any(need in d.needs for d in running(skip))
