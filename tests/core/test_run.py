@@ -14,7 +14,6 @@ from cerberus_core.plugins import (
     METRIC_GROUP,
 )
 from cerberus_core.run import EvalSettings
-from cerberus_core.train import train
 from cerberus_core.weights import load_weights, resolve_weights
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # as tests/core/train/conftest.py does
@@ -90,7 +89,7 @@ def test_evaluate_in_an_input_look_shows_the_model_the_test_images_so(tiny_run, 
     from cerberus_core.eval.runner import evaluate_dataset
 
     run = Run.load(tiny_run)
-    settings = EvalSettings(limit=3, hard=False, part_quality=False, segments=False, figure_images=1,
+    settings = EvalSettings(limit=3, skip=("hard", "part_quality", "segments"), figure_images=1,
                             viewer_images=0, renderer="torch", input_look="flat")
     evaluation = run.evaluate(tiny_root, settings, tmp_path / "flat")
     assert "the test images in the flat input look" in capsys.readouterr().out.splitlines()[0]
