@@ -139,7 +139,7 @@ def main() -> int:
     ap.add_argument("run")
     ap.add_argument("data", type=Path)
     ap.add_argument("out", type=Path)
-    ap.add_argument("--images", type=int, default=0, help="the first N test images (0: all)")
+    ap.add_argument("--images", type=int, default=0, help="N test images spread evenly over the split (0: all)")
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--masks", default="exact,auto")
     ap.add_argument("--seed", type=int, default=41)
@@ -152,7 +152,8 @@ def main() -> int:
     views = Dataset.open(args.data).views("test")
     scene = views.scene
     size = int(run.config.data.image_size or 64)
-    indices = list(range(len(views) if args.images <= 0 else min(args.images, len(views))))
+    n = len(views) if args.images <= 0 else min(args.images, len(views))
+    indices = sorted({int(round(k)) for k in np.linspace(0, len(views) - 1, n)})  # spread over the split
     photos = args.out / "photos"
     photos.mkdir(parents=True, exist_ok=True)
     renderer = make_renderer("auto")
