@@ -174,7 +174,7 @@ def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, load
                         out: Path, background: Sequence[float]) -> tuple[list[Path], list[float | None]]:
     """For each input reconstructed with a silhouette (:attr:`LoadedImage.silhouette
     <cerberus_core.eval.images.LoadedImage.silhouette>`): ``<stem>_steps.png`` (:func:`steps_picture`) and, for an
-    automatic mask, the mask itself as ``<stem>_mask.png`` (white on the person, the photo's size as read).
+    automatic mask, the mask itself as ``<stem>_mask.png`` (white on the person, the image file's size).
 
     Returns:
         The files written, and each input's silhouette IoU (:func:`silhouette_iou` of the rendered silhouette
@@ -192,7 +192,8 @@ def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, load
         ious.append(iou)
         if item.auto_mask:
             path = out / f"{stem}_mask.png"
-            atomic_save_png(Image.fromarray((np.clip(item.mask, 0, 1) * 255 + 0.5).astype(np.uint8), "L"), path)
+            mask = Image.fromarray((np.clip(item.mask, 0, 1) * 255 + 0.5).astype(np.uint8), "L")
+            atomic_save_png(mask.resize(tuple(item.original_size), Image.BILINEAR), path)  # the file's size
             written.append(path)
         parts = render_reconstruction(renderer, one, cam, parts=True, background=background)[0].cpu()
         picture = steps_picture(item.photo, item.mask, item.image, parts, overlap_picture(rendered, item.silhouette),
