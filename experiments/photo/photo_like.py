@@ -203,7 +203,7 @@ def main() -> int:
         with torch.no_grad():
             rec = run.model.reconstruct(model_input[None], cam)
         parts = render_reconstruction(renderer, rec, cam, parts=True, background=scene.background)[0]
-        small = lambda a: torch.as_tensor(np.asarray(Image.fromarray(u8(a)).resize((size, size), Image.LANCZOS)),  # noqa: E731
+        small = lambda a: torch.as_tensor(np.array(Image.fromarray(u8(a)).resize((size, size), Image.LANCZOS)),  # noqa: E731
                                           dtype=torch.float32).div(255)
         rows.append(torch.stack([small(photo).permute(2, 0, 1), small(mask)[None].expand(3, -1, -1), model_input,
                                  parts]))
