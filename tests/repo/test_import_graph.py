@@ -130,7 +130,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("cerberus_core.render",),
     ("cerberus_core.bodies",),
     ("cerberus_core.datasets", "cerberus_core.parts", "cerberus_core.model", "cerberus_core.losses"),
-    ("cerberus_core.train", "cerberus_core.eval", "cerberus_core.reconstruct"),
+    ("cerberus_core.train", "cerberus_core.eval", "cerberus_core.reconstruct", "cerberus_core.photo_mask"),
     ("cerberus_core.run", "cerberus_core.weights", "cerberus_core.zoo", "cerberus_core.testing"),
     ("cerberus_core.cli", "cerberus_core.__main__", "cerberus_core"),
 ]

@@ -36,6 +36,7 @@ from cerberus_core.eval.standard import SCORER_ENTRY_POINT, VoxelScorer
 from cerberus_core.eval.viewer import ViewerPage
 from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
+from cerberus_core.photo_mask import AUTO, require_segmenter
 from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import result_folder, writing_results
@@ -400,7 +401,7 @@ class Run:
         return evaluation
 
     def reconstruct_images(self, images: Sequence[str | Path], out: str | Path, *,
-                           masks: Sequence[str | Path] | None = None, overwrite: bool = False,
+                           masks: Sequence[str | Path] | str | None = None, overwrite: bool = False,
                            data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
                            viewer_images: int = 12) -> Reconstruction:
         """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
@@ -410,7 +411,9 @@ class Run:
             images: the input files.
             out: the result folder, replaced whole once everything is written; refused when it holds an
                 input or mask, or other files unless ``overwrite``.
-            masks: the body's silhouette per image (or one folder of ``NAME.png``); an RGBA input's
+            masks: the body's silhouette per image (or one folder of ``NAME.png``), or ``"auto"``: the person
+                found in each image by the photo extra's segmenter (:mod:`cerberus_core.photo_mask`; its mask
+                is written beside the result); an RGBA input's
                 alpha is used without one.
             data: a dataset whose scene set-up the images follow (default: the run's recorded one).
             azimuth: the camera azimuth assumed for the inputs, degrees.
@@ -422,8 +425,12 @@ class Run:
         images = check_paths("images", images)
         if not images:
             raise ConfigError.about("images", None, "no image given; pass at least one image file")
-        mask_list = mask_paths(check_paths("masks", masks) if masks else None, images)
-        keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
+        if isinstance(masks, str) and masks == AUTO:
+            require_segmenter()  # before anything is read or written
+            mask_list: list = [AUTO] * len(images)
+        else:
+            mask_list = mask_paths(check_paths("masks", masks) if masks else None, images)
+        keep = images + [m for m in mask_list if isinstance(m, Path)] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(check_path("out", out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
         trained = TrainedModel(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                renderer or self.config.renderer, self.device, self.training_kind())

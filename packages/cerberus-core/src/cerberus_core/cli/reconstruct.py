@@ -32,17 +32,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run\n"
         "  cerberus reconstruct ./human a.png                       # a run folder called human (not the model)\n"
         "  cerberus reconstruct --model human a.jpg --mask a_mask.png   # a photo and its silhouette\n"
-        "  cerberus reconstruct --model human photos/*.jpg --mask masks/  # masks/<name>.png for each photo")
+        "  cerberus reconstruct --model human photos/*.jpg --mask masks/  # masks/<name>.png for each photo\n"
+        "  cerberus reconstruct --model human photo.jpg --mask auto      # the person found by cerberus-core[photo]")
     p.add_argument("inputs", nargs="+", metavar="[RUN] IMAGE",
                    help="a run folder, model.safetensors or checkpoint .pt (unless --model is given), then the input "
                    "image files (PNG, JPEG, ...). A bare name that a shipped model has (human) is that model: "
                    "write a folder of that name as ./human")
     p.add_argument("--model", help="a shipped pretrained model instead of a run (see `cerberus models`), e.g. human; "
                    "always the shipped model, never a local folder of that name")
-    p.add_argument("--mask", action="append", type=Path, metavar="MASK",
+    p.add_argument("--mask", action="append", metavar="MASK",
                    help="the body's silhouette: an image of the input's size, white on the body and black elsewhere "
                    "(or its alpha channel). Give it once per input image, in the same order, or once as a folder "
-                   "holding NAME.png for each input NAME.jpg/.png. Without it, an RGBA input's alpha is used")
+                   "holding NAME.png for each input NAME.jpg/.png; or `--mask auto`: the person found in each image "
+                   "by a segmentation model that ships in the optional extra cerberus-core[photo] (offline), the mask "
+                   "written beside the result (NAME_mask.png, NAME_steps.png); a mask file named auto is ./auto. "
+                   "Without it, an RGBA input's alpha is used")
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="images in the interactive 3D viewer OUT/index.html (default: the first 12; 0: no viewer)")
     p.add_argument("--out", type=Path, default=Path("out/reconstruct"),
@@ -62,6 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from cerberus_core.photo_mask import AUTO, require_segmenter
     from cerberus_core.run import Run
     from cerberus_core.weights import looks_like_path
     from cerberus_core.zoo import model_path
@@ -78,8 +83,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         source, images = args.inputs[0], args.inputs[1:]
     check_device(args.device)
+    auto = args.mask == [AUTO]  # as typed: a mask file named auto is ./auto
+    if auto:
+        require_segmenter()  # one line naming the extra, before the model is loaded
+    masks = AUTO if auto else None if args.mask is None else [Path(m) for m in args.mask]
     result = Run.load(source, args.device).reconstruct_images(
-        images, args.out, masks=args.mask, overwrite=args.overwrite, data=args.data, azimuth=args.azimuth,
+        images, args.out, masks=masks, overwrite=args.overwrite, data=args.data, azimuth=args.azimuth,
         renderer=args.renderer, viewer_images=args.viewer_images)
     print("\n".join(result.lines(viewer=args.viewer_images > 0)))
     return 0

@@ -58,6 +58,11 @@ class LoadedImage:
         out_of_domain: why it does not look like the training images (empty: it does, or it was not
             checked); see :mod:`cerberus_core.reconstruct.input_domain`.
         advice: what would bring it closer to them, for that reason (empty with it).
+        silhouette: ``(S, S)`` in [0, 1]: the body's silhouette (a mask, an alpha channel or the automatic
+            person mask) framed as :attr:`image` is; ``None`` without one.
+        photo, mask: ``(H, W, 3)`` and ``(H, W)`` in [0, 1]: the image as read and its silhouette before the
+            framing; ``None`` without a silhouette.
+        auto_mask: the silhouette is the automatic person mask (:func:`cerberus_core.photo_mask.person_mask`).
     """
 
     path: Path
@@ -66,6 +71,10 @@ class LoadedImage:
     notes: list[str] = field(default_factory=list)
     out_of_domain: str = ""
     advice: str = ""
+    silhouette: np.ndarray | None = None
+    photo: np.ndarray | None = None
+    mask: np.ndarray | None = None
+    auto_mask: bool = False
 
 
 def _open(path: Path) -> Image.Image:

@@ -37,6 +37,7 @@ from PIL import Image
 
 from cerberus_core.bodies.body import FILL, BodySource, source_class
 from cerberus_core.errors import CerberusError, ImageInputError
+from cerberus_core.photo_mask import AUTO, person_mask
 from cerberus_core.plumbing.names import printable
 from cerberus_core.reconstruct.images import (
     LoadedImage,
@@ -381,7 +382,8 @@ def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.nda
 def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = None, *,
                   kind: str | None = None, warn: bool = True) -> LoadedImage:
     """Read one image for a model of ``size`` pixels trained on ``scene`` and on bodies of ``kind`` (a body
-    source's name; ``None``: unknown) (see the module docstring).
+    source's name; ``None``: unknown) (see the module docstring). ``mask``: a mask file, or ``"auto"``
+    (:data:`cerberus_core.photo_mask.AUTO`): the person found by the photo extra's segmenter.
 
     Returns:
         The :class:`LoadedImage`; its ``out_of_domain`` holds the reason when the image does not look like
@@ -392,7 +394,11 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
     path = Path(path)
     raw = read_image(path, size)
     notes = raw.notes
-    if mask is not None:
+    auto = isinstance(mask, str) and mask == AUTO
+    if auto:  # the person segmenter of the photo extra
+        silhouette = auto_silhouette(raw, path)
+        notes.append("the person cut out by the automatic person mask")
+    elif mask is not None:
         silhouette = read_mask(mask, raw, path)
         if raw.alpha is not None:
             notes.append("the mask is used instead of the image's alpha channel")
@@ -413,8 +419,8 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
         notes.append(f"{'mask' if mask is not None else 'alpha'} composited over the training background "
                      f"{_colour(scene.background)}")
         cut = cut_off_sides(silhouette)
-        arr, _ = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size, notes,
-                                   raw=raw)
+        arr, framed = frame_to_training(composite(raw.rgb, silhouette, scene.background), silhouette, scene, size,
+                                        notes, raw=raw)
     if cut:
         reasons.append(cut_off_reason(cut, estimated=silhouette is None))
         advice.append("give images of the whole body")
@@ -426,7 +432,23 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
     loaded = finish(path, arr, raw.original_size, notes, warn=warn)
     loaded.out_of_domain = "; ".join(reasons)
     loaded.advice = "; ".join(advice)
+    if silhouette is not None:
+        loaded.silhouette, loaded.photo, loaded.mask, loaded.auto_mask = framed, raw.rgb, silhouette, auto
     return loaded
+
+
+def auto_silhouette(raw: RawImage, path: str | Path) -> np.ndarray:
+    """The person in ``raw`` found by the photo extra's segmenter (:func:`cerberus_core.photo_mask.person_mask`),
+    checked like a mask file (:func:`silhouette_from`).
+
+    Raises:
+        MissingPackageError: the extra is not installed. ImageInputError: no person found.
+    """
+    found = person_mask(raw.rgb)
+    if not (found >= SILHOUETTE_THRESHOLD).any():
+        raise ImageInputError(f"{printable(path)}: the automatic person mask found no person; give a mask file "
+                              "(white on the body, black elsewhere) or an RGBA cut-out")
+    return silhouette_from(mask=found, name=f"the automatic person mask of {printable(path)}")
 
 
 def domain_note(loaded: LoadedImage) -> str:

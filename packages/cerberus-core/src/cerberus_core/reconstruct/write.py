@@ -23,8 +23,10 @@ from cerberus_core.eval.figures import PictureStyle, save_image_pictures
 from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.parts import pose_donors
+from cerberus_core.photo_mask import write_mask_pictures
 from cerberus_core.plumbing.names import printable, safe_stem
 from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
+from cerberus_core.reconstruct.images import LoadedImage
 from cerberus_core.reconstruct.input_domain import domain_note, prepare_input
 from cerberus_core.render.backends import make_renderer
 
@@ -34,7 +36,7 @@ from cerberus_core.render.backends import make_renderer
 #: of the folder itself. :func:`output_names` keeps every image's set apart from every other's.
 OUTPUT_PATTERNS = ("{}.glb", "{}.obj", "{}_parts", "{}_input.png", "{}_reconstruction.png", "{}_parts.png",
                    "{}_new_lighting.png", "{}_new_pose.png", "{}_turntable.png", "{}_figure1.png",
-                   "{}_new_pose.glb")
+                   "{}_new_pose.glb", "{}_mask.png", "{}_steps.png")
 FOLDER_NAMES = ("index.html", RESULT_MARKER)
 
 
@@ -82,10 +84,11 @@ def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Pat
     return list(masks)
 
 
-def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, scene,
-                kind: str | None = None) -> tuple[torch.Tensor, list[str]]:
-    """The model's input images and, per image, its out-of-domain note (``""`` when in domain); one warning
-    names the images out of the training domain and the fix. ``kind``: the bodies the model learned
+def load_inputs(paths: Sequence[Path], masks: Sequence[Path | str | None], size: int, scene,
+                kind: str | None = None) -> tuple[torch.Tensor, list[str], list[LoadedImage]]:
+    """The model's input images, per image its out-of-domain note (``""`` when in domain), and each one as
+    loaded (its silhouette, if any); one warning names the images out of the training domain and the fix.
+    ``masks``: a file, ``"auto"`` or ``None`` per image; ``kind``: the bodies the model learned
     (:func:`~cerberus_core.reconstruct.input_domain.prepare_input`)."""
     loaded = [prepare_input(p, size, scene, m, kind=kind) for p, m in zip(paths, masks, strict=True)]
     out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
@@ -97,7 +100,7 @@ def load_inputs(paths: Sequence[Path], masks: Sequence[Path | None], size: int, 
         fix = "; ".join(dict.fromkeys(li.advice for li, _ in out if li.advice))
         warnings.warn(f"{len(out)} of {len(loaded)} image(s) are out of the training domain, so their reconstructions "
                       f"are unreliable: {named}{more}; {fix}", UserWarning, stacklevel=1)
-    return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded]
+    return torch.stack([li.image for li in loaded]), [domain_note(li) for li in loaded], loaded
 
 
 def borrowed_pose_notes(stems: Sequence[str], notes: Sequence[str], donors: Sequence[int | None]) -> list[str]:
@@ -125,6 +128,8 @@ class Reconstruction:
         written: the files written, relative to ``out``.
         renamed: ``"INPUT -> NAME"`` for inputs whose outputs could not take the input's own name.
         notes: each input's out-of-domain note (``""`` when in the training domain).
+        silhouette_ious: per input, how well the reconstruction's rendered silhouette covers its mask or alpha
+            (:func:`cerberus_core.photo_mask.silhouette_iou`); ``None`` for an input without one.
     """
 
     out: Path
@@ -132,11 +137,16 @@ class Reconstruction:
     written: list[str]
     renamed: list[str]
     notes: list[str]
+    silhouette_ious: list[float | None]
 
     def lines(self, viewer: bool) -> list[str]:
         """What ``cerberus reconstruct`` prints."""
         lines = ["inputs whose outputs would share or could not take their own name, written as: " +
                  ", ".join(self.renamed)] if self.renamed else []
+        scored = [(s, v) for s, v in zip(self.stems, self.silhouette_ious, strict=True) if v is not None]
+        if scored:
+            shown = ", ".join(f"{printable(s)} {v:.3f}" for s, v in scored[:6]) + (" ..." if len(scored) > 6 else "")
+            lines.append(f"silhouette IoU of the reconstruction against the mask: {shown}")
         lines.append(f"wrote {len(set(self.written))} files for {len(self.stems)} image(s) to {printable(self.out)}")
         return lines + ([f"3D viewer: {printable(self.out / 'index.html')}"] if viewer else [])
 
@@ -174,7 +184,7 @@ class ImageInputs:
     """
 
     images: Sequence[Path]
-    masks: Sequence[Path | None] | None = None
+    masks: Sequence[Path | str | None] | None = None
     azimuth: float = 0.0
 
 
@@ -185,14 +195,15 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
 
     Args:
         trained: the model, its scene set-up, input size, renderer and device (:class:`TrainedModel`).
-        inputs: the files, their masks and the azimuth assumed (:class:`ImageInputs`).
+        inputs: the files, their masks (a file, ``"auto"``: the photo extra's person mask, or ``None`` per image)
+            and the azimuth assumed (:class:`ImageInputs`).
         page: the viewer ``out/index.html``: title, ``limit`` of cards (0: no viewer), part labels
             (:class:`~cerberus_core.eval.viewer.ViewerPage`; its background is the scene's).
     """
     model, scene, image_size, device = trained.model, trained.scene, trained.image_size, trained.device
     images, azimuth = list(inputs.images), inputs.azimuth
     masks = list(inputs.masks) if inputs.masks is not None else [None] * len(images)
-    pictures, notes = load_inputs(images, masks, image_size, scene, trained.kind)
+    pictures, notes, loaded = load_inputs(images, masks, image_size, scene, trained.kind)
     backend = make_renderer(trained.renderer)
     stems = output_names(list(images))
     camera = scene.cameras([azimuth] * len(pictures), image_size)
@@ -207,8 +218,10 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
             note = "; ".join(n for n in (notes[i], borrowed[i]) if n)
             written += save_image_pictures(PictureStyle(backend, scene.background), pictures[i], recon.index([i]),
                                            camera.index([i]), tmp, stem, pose_donor=donor, note=note)
+        masked, ious = write_mask_pictures(backend, recon, camera, loaded, stems, tmp, scene.background)
+        written += masked
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems,
                                                replace(page or ViewerPage(), background=scene.background),
                                                CardDetails(notes=notes))
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
-    return Reconstruction(out, stems, written, renamed, notes)
+    return Reconstruction(out, stems, written, renamed, notes, ious)
