@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
-from cerberus_core.reconstruct.input_domain import prepare_input
 from PIL import Image
 from tqdm import tqdm
 
@@ -38,6 +37,7 @@ from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.figures import render_reconstruction
 from cerberus_core.eval.runner import evaluate_dataset
 from cerberus_core.photo_mask import AUTO, person_mask, rendered_silhouette, segmenter_available, silhouette_iou
+from cerberus_core.reconstruct.input_domain import prepare_input
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.light import Light
