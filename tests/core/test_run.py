@@ -86,7 +86,7 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
     lib, cli = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("lib", "cli"))
     assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
     assert lib["computed_with"] == {"renderer": "torch", "device": "cpu", "dtype": "torch.float32"}  # issue 34
-    for name in ("results.md", "table2.png", ".cerberus-result.json"):
+    for name in ("results.md", "table2.png", ".cerberus-output.json"):
         assert (tmp_path / "lib" / name).is_file(), name
     with pytest.raises(ConfigError, match=r"resolution = 999: must be an integer in \[1, 256\] \(EvalSettings\(resolution=...\)\)"):
         EvalSettings(resolution=999)

@@ -20,7 +20,7 @@ import torch
 from cerberus_core.cli import main
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
-from cerberus_core.plumbing.outputs import RESULT_MARKER
+from cerberus_core.plumbing.outputs import MARKER
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are
@@ -110,7 +110,7 @@ CASES = [
     ("train-config-missing", "train --config {root}/nope.yaml --out {root}/new", "no such file"),
     pytest.param("train-cuda", "train --preset tiny --set data.root={data} --set device=cuda --out {root}/new",
                  "CUDA is not available", marks=NO_CUDA),
-    ("train-out-dataset", "train --preset tiny --set data.root={data} --out {data}", "is a dataset folder"),
+    ("train-out-dataset", "train --preset tiny --set data.root={data} --out {data}", "holds a dataset (cerberus data generate)"),
     ("train-out-notes", "train --preset tiny --set data.root={data} --out {root}/notes", "not empty"),
     ("train-out-file", "train --preset tiny --set data.root={data} --out {root}/afile", "is a file"),
     ("train-out-run", "train --preset tiny --set data.root={data} --out {run}", "--resume"),
@@ -168,7 +168,7 @@ CASES = [
     ("eval-baseline-missing", "eval {run} --baseline X={root}/missing", "--baseline X="),
     ("eval-baseline-form", "eval {run} --baseline justaname", "NAME=RUN"),
     ("eval-out-file", "eval {run} --out {root}/afile", "is a file"),
-    ("eval-out-dataset", "eval {run} --out {data}", "is a dataset folder"),
+    ("eval-out-dataset", "eval {run} --out {data}", "holds a dataset (cerberus data generate), and an output is only"),
     ("eval-data-notes", "eval {run} --data {root}/notes", "not a Cerberus dataset"),
     ("eval-split", "eval {run} --split nosuch", "no split 'nosuch'"),
     ("eval-renderer", "eval {run} --renderer nope", "unknown renderer 'nope'"),
@@ -181,17 +181,17 @@ CASES = [
      "invalid scene set-up (scene.elevation = 'high'"),
     ("data-show-scene-manifest", "data show {root}/badscene --out {root}/sheet.png", "invalid scene set-up"),
     ("eval-unknown-name", "eval nosuchmodel", "no pretrained model named 'nosuchmodel'"),
-    ("eval-out-notes", "eval {run} --out {root}/notes", "pass --overwrite"),
-    ("eval-out-run", "eval {run} --out {run}", "a result folder is replaced whole"),
-    ("eval-out-data-parent", "eval {run} --data {data} --out {root}", "a result folder is replaced whole"),
+    ("eval-out-notes", "eval {run} --out {root}/notes --overwrite", "is not empty (it holds"),
+    ("eval-out-run", "eval {run} --out {run}", "an output folder is replaced whole"),
+    ("eval-out-data-parent", "eval {run} --data {data} --out {root}", "an output folder is replaced whole"),
     ("reconstruct-fifo", "reconstruct {run} {root}/pipe.png --out {root}/rec", "is a FIFO (named pipe), not an image"),
     ("reconstruct-device", "reconstruct {run} /dev/zero --out {root}/rec", "is a device, not an image"),
     ("reconstruct-nan-weights", "reconstruct {root}/nan.safetensors {root}/img.png --out {root}/rec", "NaN"),
     ("reconstruct-scene-value", "reconstruct {root}/scene_value.safetensors {root}/img.png --out {root}/rec",
      "invalid scene set-up"),
     ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds the input " + "{root}/img.png"),
-    ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "a result folder is replaced whole"),
-    ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes", "pass --overwrite"),
+    ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "an output folder is replaced whole"),
+    ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes --overwrite", "is not empty (it holds"),
     ("reconstruct-model-path", "reconstruct --model ./human {root}/img.png --out {root}/rec",
      "takes a shipped model's name"),
     ("reconstruct-out-name-long", "reconstruct {run} {root}/img.png --out {root}/" + "o" * 300,
@@ -214,13 +214,13 @@ CASES = [
     ("reconstruct-huge", "reconstruct {run} {root}/huge.png --out {root}/rec", "downscale it first"),
     ("reconstruct-big", "reconstruct {run} {root}/big.png --out {root}/rec", "9000x5000 pixels is too large"),
     ("reconstruct-out-file", "reconstruct {run} {root}/img.png --out {root}/afile", "is a file"),
-    ("reconstruct-out-dataset", "reconstruct {run} {root}/img.png --out {data}", "is a dataset folder"),
+    ("reconstruct-out-dataset", "reconstruct {run} {root}/img.png --out {data}", "holds a dataset (cerberus data generate)"),
     ("reconstruct-data-notes", "reconstruct {run} {root}/img.png --data {root}/notes --out {root}/rec",
      "not a Cerberus dataset"),
     ("demo-size-0", "demo --image-size 0 --out {root}/demo", "--image-size: must be >= 1"),
     ("demo-size-huge", "demo --image-size 100000 --out {root}/demo", "at most"),
     ("demo-out-file", "demo --out {root}/afile", "is a file"),
-    ("demo-out-dataset", "demo --out {data}", "is a dataset folder"),
+    ("demo-out-dataset", "demo --out {data}", "holds a dataset (cerberus data generate)"),
     ("demo-renderer", "demo --renderer nope --out {root}/demo", "unknown renderer 'nope'"),
     # data generate: the whole generation is validated before --dry-run returns and before the folder's
     # lock or manifest is written (cerberus_core.datasets.generate.validate_generation)
@@ -252,7 +252,7 @@ CASES = [
           ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--test-fraction 0.5: not an option of the primitives body source"),
           ("out-file", "--out {root}/afile", "is a file"),
           ("out-under-file", "--out {root}/afile/sub", "is under"),
-          ("out-notes", "--out {root}/notes", "is not empty and holds no Cerberus dataset"),
+          ("out-notes", "--out {root}/notes", "is not empty (it holds todo.txt) and is not a dataset"),
           ("out-other-dataset", "--seed 5 --out {data}", "holds a different dataset"),
       ] for dry in (False, True)],
     pytest.param("data-generate-cuda", GEN + " --device cuda --out {root}/new", "CUDA is not available",
@@ -314,7 +314,7 @@ def test_same_named_inputs_get_distinct_outputs(place, tmp_path, capsys):
     assert main(["reconstruct", str(place["run"]), str(tmp_path / "a" / "x.png"), str(tmp_path / "b" / "x.png"),
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    files = [p for p in out.rglob("*") if p.is_file() and p.name != RESULT_MARKER]
+    files = [p for p in out.rglob("*") if p.is_file() and p.name != MARKER]
     assert f"wrote {len(files)} files for 2 image(s)" in printed and "a_x" in printed and "b_x" in printed
     assert (out / "a_x.glb").is_file() and (out / "b_x.glb").is_file()
     # per image: 13 pictures and meshes plus its new-pose GLB for the viewer; and the one viewer page
@@ -442,7 +442,7 @@ def test_outputs_of_one_input_never_take_another_inputs_name(place, tmp_path, ca
     out = tmp_path / "rec"
     assert main(["reconstruct", str(place["run"]), *map(str, inputs), "--out", str(out)]) == 0
     assert "x_new_pose.png -> " in capsys.readouterr().out  # the renamed input is named
-    written = {p.name for p in out.iterdir()} - {"index.html", RESULT_MARKER}
+    written = {p.name for p in out.iterdir()} - {"index.html", MARKER}
     expected = [{pattern.format(s) for pattern in OUTPUT_PATTERNS} for s in stems]
     assert written == set().union(*expected), "OUTPUT_PATTERNS must list every name reconstruct writes"
     assert sum(len(e) for e in expected) == len(written)  # no name is shared between two inputs
@@ -556,7 +556,8 @@ def test_eval_reports_its_step_and_a_newer_checkpoint(place, tmp_path, capsys):
     payload["step"] = 5  # as a resumed training that checkpointed step 5, then was stopped
     torch.save(payload, run / "checkpoints" / "last.pt")
     (run / "eval").mkdir()
-    (run / "eval" / "results.json").write_text("{}")  # an earlier version's results: replaced without --overwrite
+    (run / "eval" / "results.json").write_text("{}")  # an earlier version's results, marked as they were then:
+    (run / "eval" / ".cerberus-result.json").write_text('{"command": "cerberus eval", "written": 0}')  # replaced
     with pytest.warns(UserWarning, match=r"holds step 2 but .*last.pt is at step 5.*resuming its training"):
         assert main(["eval", str(run), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
                      "--viewer-images", "0"]) == 0

@@ -44,16 +44,12 @@ from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.plugins import UnknownPluginError, get_metric
 from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.names import printable
-from cerberus_core.plumbing.outputs import result_folder, writing_results
+from cerberus_core.plumbing.outputs import check_output, writing_results
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.checkpoint import LAST, USE_RUN, CheckpointError, checkpoint_dir, error_reason, load_checkpoint
 from cerberus_core.train.settings import TrainConfig
 from cerberus_core.zoo import available, model_path
-
-#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without ``overwrite``.
-EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
-
 
 # ------------------------------------------------------------------ which weights, and loading them
 #: File endings of model files: a name ending so is a path, never a shipped model's name.
@@ -328,7 +324,6 @@ class EvalSettings(EvalConfig):
         limit: only the first ``limit`` images (``None``: all).
         figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
         renderer: backend for the figure and the visibility render (``None``: the run's).
-        overwrite: replace an output folder that holds files that are not earlier results.
     """
 
     split: str = "test"
@@ -336,7 +331,6 @@ class EvalSettings(EvalConfig):
     figure_images: int = ranged(5, ge=1)
     viewer_images: int = ranged(12, ge=0)
     renderer: str | None = None
-    overwrite: bool = False
 
     def validate(self) -> None:
         check_eval_packages(self.part_quality, self.segments)
@@ -533,8 +527,8 @@ class Run:
             data: dataset folder (default: the run's training data root).
             settings: what to measure and write (:class:`EvalSettings`; default: everything, the
                 paper's protocol, the test split).
-            out: the result folder (default :meth:`default_out`); replaced whole, refused when it
-                holds other files unless ``settings.overwrite``.
+            out: the result folder (default :meth:`default_out`); replaced whole, refused unless it is new,
+                empty or earlier evaluation results (:func:`~cerberus_core.plumbing.outputs.check_output`).
             baselines: ``{name: Run or model}`` drawn beside this one in the figure.
             verbose: print what is scored and the summary (:meth:`Evaluation.lines`).
         Raises:
@@ -545,9 +539,8 @@ class Run:
             check_kind(f"baselines[{name!r}]", baseline, (Run, Cerberus), "a Run or a Cerberus model")
         data = None if data is None else open_data(check_path("data", data)).root
         keep = [] if self.shipped else [Path(self.source)]
-        out = result_folder(check_path("out", out) if out is not None else self.default_out(), overwrite=s.overwrite,
-                            keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS,
-                            refuse=Dataset.not_an_output)
+        out = check_path("out", out) if out is not None else self.default_out()
+        check_output(out, "eval", keep=[*keep, *([data] if data else [])])
         baseline_models = {name: b.model if isinstance(b, Run) else b for name, b in (baselines or {}).items()}
         if data is None and not Dataset.is_dataset(self.data_root):
             raise ConfigError.about("data", None, f"needed: the run's training data {self.data_root} is not a dataset "
@@ -563,7 +556,7 @@ class Run:
             print(f"evaluating {printable(self.path)}{at_step}")
         if weights.stale_warning():
             warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
-        with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
+        with writing_results(out, "eval") as tmp:  # out is replaced only once all is written
             indices = range(min(s.limit, len(dataset))) if s.limit else None
             scorer = VoxelScorer(s.protocol, s.resolution)  # one ground-truth grid cache for scores and figure
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
@@ -580,7 +573,7 @@ class Run:
         return evaluation
 
     def reconstruct_images(self, images: Sequence[str | Path], out: str | Path, *,
-                           masks: Sequence[str | Path] | None = None, overwrite: bool = False,
+                           masks: Sequence[str | Path] | None = None,
                            data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
                            viewer_images: int = 12) -> Reconstruction:
         """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
@@ -589,7 +582,8 @@ class Run:
         Args:
             images: the input files.
             out: the result folder, replaced whole once everything is written; refused when it holds an
-                input or mask, or other files unless ``overwrite``.
+                input or mask, or unless it is new, empty or earlier reconstructions
+                (:func:`~cerberus_core.plumbing.outputs.check_output`).
             masks: the body's silhouette per image (or one folder of ``NAME.png``); an RGBA input's
                 alpha is used without one.
             data: a dataset whose scene set-up the images follow (default: the run's recorded one).
@@ -604,7 +598,8 @@ class Run:
             raise ConfigError.about("images", None, "no image given; pass at least one image file")
         mask_list = mask_paths(check_paths("masks", masks) if masks else None, images)
         keep = images + [m for m in mask_list if m is not None] + ([] if self.shipped else [Path(self.source)])
-        out = result_folder(check_path("out", out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
+        out = check_path("out", out)
+        check_output(out, "reconstruct", keep=keep)
         return write_reconstructions(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                      renderer or self.config.renderer, images, out, masks=mask_list, azimuth=azimuth,
                                      viewer_images=viewer_images, device=self.device,
@@ -628,4 +623,4 @@ class Run:
         write_text(report, folder / "results.md")
 
 
-__all__ = ["EARLIER_RESULTS", "EvalSettings", "Evaluation", "Run", "WeightsInfo", "looks_like_path", "resolve_weights"]
+__all__ = ["EvalSettings", "Evaluation", "Run", "WeightsInfo", "looks_like_path", "resolve_weights"]

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from cerberus_core.cli import FlagNames
-from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.checks import OVERWRITE_HELP, positive_int
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.standard import MAX_RESOLUTION
 
@@ -33,9 +33,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "folder of that name as ./human")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
-    p.add_argument("--out", type=Path, help="output folder, replaced whole (default: RUN/eval)")
+    p.add_argument("--out", type=Path, help=f"output folder, replaced whole (default: RUN/eval); {OVERWRITE_HELP}")
     p.add_argument("--overwrite", action="store_true",
-                   help="replace --out even when it holds files that are not earlier results")
+                   help="accepted for older scripts and changes nothing: earlier results of cerberus eval are "
+                   "replaced without it, and nothing else ever is (docs/outputs.md)")
     p.add_argument("--protocol", default="kato", help="voxel-IoU protocol (default: kato, the paper's)")
     p.add_argument("--resolution", type=positive_int, default=32,
                    help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
@@ -57,7 +58,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run, flag_names=FlagNames({
         "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
-        "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device"}))
+        "renderer": "--renderer", "out": "--out", "device": "--device"}))
 
 
 def baseline_runs(specs: list[str], device: str) -> dict:
@@ -87,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
                             hard=not args.no_hard, part_quality=not args.no_part_quality,
                             segments=not args.no_segments, limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,
-                            renderer=args.renderer, overwrite=args.overwrite)
+                            renderer=args.renderer)
     run_ = Run.load(args.run, args.device)
     run_.evaluate(args.data, settings, args.out, baselines=baseline_runs(args.baseline, args.device))
     return 0

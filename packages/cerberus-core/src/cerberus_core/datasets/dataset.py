@@ -62,12 +62,6 @@ class Dataset:
         return (Path(path) / MANIFEST).is_file()
 
     @classmethod
-    def not_an_output(cls, path: Path) -> str | None:
-        """Why results may not be written into ``path`` (a dataset folder: its files are not results), or
-        ``None`` (the ``refuse`` check of :func:`~cerberus_core.plumbing.outputs.output_folder`)."""
-        return "is a dataset folder; write results to another folder" if cls.is_dataset(path) else None
-
-    @classmethod
     def open(cls, root: str | Path) -> Dataset:
         """The dataset in the folder ``root``.
 
@@ -216,7 +210,8 @@ class Dataset:
         lock (one writer per dataset folder).
 
         Rerunning the same config in the same folder resumes it (finished shards are kept); a folder that
-        holds anything else is refused unless ``overwrite``.
+        holds another dataset is refused unless ``overwrite``, and one holding anything else always
+        (:func:`~cerberus_core.plumbing.outputs.check_output`).
 
         Args:
             config: what to generate: a config (:func:`~cerberus_core.datasets.plan.load_generation_config`), or
@@ -226,7 +221,7 @@ class Dataset:
             source_options: the body source's options with a config (checked by its ``Options``; stored in the
                 manifest); a request carries its own.
             source: a body source built by the caller instead (``source_options`` are then stored as given).
-            overwrite: replace a different dataset, or write into a folder holding other files.
+            overwrite: replace a different dataset the toolkit wrote in ``out`` (its own files only).
             device: torch device for posing and rendering (no effect on the dataset).
             batch_size: views per render call (no effect on the dataset).
             progress: show a progress bar; log: where progress lines go.
@@ -234,7 +229,7 @@ class Dataset:
 
         Raises:
             ConfigError: the generation is invalid (nothing written).
-            DatasetError: ``out`` holds something else.
+            DatasetError, ConfigError: ``out`` holds another dataset (without ``overwrite``), or anything else.
             LockedError: another live process writes into ``out``.
         """
         out = check_path("out", out)

@@ -25,7 +25,7 @@ from cerberus_core.eval.viewer import write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.parts import pose_donors
 from cerberus_core.plumbing.names import printable, safe_stem
-from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
+from cerberus_core.plumbing.outputs import MARKER, resolved, writing_results
 from cerberus_core.render.backends import make_renderer
 
 #: Every name ``reconstruct`` writes for an image whose outputs are named ``STEM`` (meshes of
@@ -35,7 +35,7 @@ from cerberus_core.render.backends import make_renderer
 OUTPUT_PATTERNS = ("{}.glb", "{}.obj", "{}_parts", "{}_input.png", "{}_reconstruction.png", "{}_parts.png",
                    "{}_new_lighting.png", "{}_new_pose.png", "{}_turntable.png", "{}_figure1.png",
                    "{}_new_pose.glb")
-FOLDER_NAMES = ("index.html", RESULT_MARKER)
+FOLDER_NAMES = ("index.html", MARKER)
 
 
 def _outputs(stem: str) -> list[str]:
@@ -146,7 +146,7 @@ def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, r
                        viewer_images: int = 12, device: str | torch.device = "cpu", title: str = "",
                        kind: str | None = None, part_labels: Sequence[str | None] | None = None) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
-    :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
+    :func:`cerberus_core.plumbing.outputs.check_output`; replaced whole once everything is written).
 
     Args:
         model: the trained model (on ``device``, in eval mode).
@@ -171,7 +171,7 @@ def write_reconstructions(model: Cerberus, scene: SceneSetup, image_size: int, r
         recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
     donors = pose_donors(len(stems), [bool(n) for n in notes])
     borrowed = borrowed_pose_notes(stems, notes, donors)
-    with writing_results(out, "cerberus reconstruct") as tmp:  # out is replaced only once all is written
+    with writing_results(out, "reconstruct") as tmp:  # out is replaced only once all is written
         written = export_reconstruction(recon, tmp, stems)
         for i, stem in enumerate(stems):
             donor = None if donors[i] is None else recon.index([donors[i]])
