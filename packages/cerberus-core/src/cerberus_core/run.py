@@ -302,22 +302,22 @@ def check_eval_packages(part_quality: bool = True, segments: bool = True) -> Non
                                   "(from the toolkit's wheelhouse: README, 'Installing with pip')")
 
 
-def check_protocol(name: str) -> str:
-    """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
-    anything runs; a missing cerberus-metrics is named as such)."""
+def check_scorer(protocol: str, resolution: int) -> None:
+    """The voxel-IoU protocol and resolution must be ones the metric takes (checked through its entry point,
+    before anything runs: the metric's bounds are the only ones; a missing cerberus-metrics is named as such)."""
     factory = get_metric(SCORER_ENTRY_POINT)
-    try:
-        factory(protocol=name, resolution=32)
-    except (ValueError, KeyError) as exc:
-        raise ConfigError.about("protocol", name, str(exc)) from None
-    return name
+    for key, value, tried in (("protocol", protocol, {"resolution": 32}), ("resolution", resolution, {})):
+        try:
+            factory(**({"protocol": protocol, "resolution": resolution} | tried))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ConfigError.about(key, value, str(exc)) from None
 
 
 @dataclass(frozen=True)
 class EvalSettings(EvalConfig):
     """Everything :meth:`Run.evaluate` is told: what to measure (:class:`EvalConfig`'s fields) and what to
     score and write; checked when made (:class:`~cerberus_core.errors.ConfigError` naming the field),
-    the protocol through the metric's entry point.
+    the protocol and the resolution through the metric's entry point (its bounds: :func:`check_scorer`).
 
     Attributes:
         split: the split to score.
@@ -334,7 +334,7 @@ class EvalSettings(EvalConfig):
 
     def validate(self) -> None:
         check_eval_packages(self.part_quality, self.segments)
-        check_protocol(self.protocol)
+        check_scorer(self.protocol, self.resolution)
 
 
 def _canonical_hint(dataset: Dataset) -> str:

@@ -19,7 +19,15 @@ from typing import Any, NoReturn
 
 from . import __version__
 from .api import METRICS, evaluate_pair, inspect_mesh
-from .batch import check_not_input, check_output_path, pairs_from_file, pairs_from_folders, run_batch, write_results
+from .batch import (
+    check_not_input,
+    check_output_path,
+    check_replaceable,
+    pairs_from_file,
+    pairs_from_folders,
+    run_batch,
+    write_results,
+)
 from .distances import MAX_SAMPLES
 from .io import MeshInputError, MeshQualityWarning
 from .protocols import PROTOCOLS
@@ -329,6 +337,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
     check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [],
                     folders={"--cache-dir": args.cache_dir})
+    check_replaceable({"--out": args.out, "--csv": args.csv})
     result = run_batch(
         pairs,
         metrics,

@@ -8,7 +8,6 @@ from pathlib import Path
 from cerberus_core.cli import FlagNames
 from cerberus_core.cli.checks import OVERWRITE_HELP, positive_int
 from cerberus_core.errors import ConfigError
-from cerberus_core.eval.standard import MAX_RESOLUTION
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -38,8 +37,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="accepted for older scripts and changes nothing: earlier results of cerberus eval are "
                    "replaced without it, and nothing else ever is (docs/outputs.md)")
     p.add_argument("--protocol", default="kato", help="voxel-IoU protocol (default: kato, the paper's)")
-    p.add_argument("--resolution", type=positive_int, default=32,
-                   help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
+    p.add_argument("--resolution", type=int, default=32,
+                   help="voxel grid resolution (default: 32); cerberus-metrics bounds it (2..1024), checked "
+                   "before anything runs")
     p.add_argument("--no-hard", action="store_true", help="skip the Hard Human test")
     p.add_argument("--no-part-quality", action="store_true", help="skip part quality (the slowest part)")
     p.add_argument("--no-segments", action="store_true",

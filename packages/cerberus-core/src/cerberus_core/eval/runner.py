@@ -38,7 +38,7 @@ from cerberus_core.eval.accumulators import (
 )
 from cerberus_core.eval.depth import DepthAccumulator
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.eval.standard import MAX_RESOLUTION, GroundTruthMemo, IoUSummary, VoxelScorer
+from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import PartSet
 from cerberus_core.plumbing.machine import MAX_WORKERS, capped_to_cores
@@ -198,8 +198,8 @@ class EvalConfig(Checked):
     """What one evaluation measures and how (:func:`evaluate_dataset`); checked when made.
 
     Attributes:
-        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the resolution is at most
-            :data:`~cerberus_core.eval.standard.MAX_RESOLUTION` (memory grows with its cube).
+        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the metric bounds both
+            (:class:`cerberus_core.run.EvalSettings` checks them through its entry point before anything runs).
         hard: also run the Hard Human test (needs ``is_canonical`` images).
         part_quality: also score the parts against the ground-truth semantic parts.
         visibility: also measure how often each part is wholly hidden in its input view (one
@@ -220,7 +220,7 @@ class EvalConfig(Checked):
     FIX = "{cls}({key}=...)"
 
     protocol: str = "kato"
-    resolution: int = ranged(32, ge=1, le=MAX_RESOLUTION)
+    resolution: int = ranged(32, integer=True)
     hard: bool = True
     part_quality: bool = True
     visibility: bool = True
