@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -36,6 +37,7 @@ from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.fields import check_kind
 from cerberus_core.plumbing.names import did_you_mean
 
 # ------------------------------------------------------------------------------------ presets
@@ -75,6 +77,10 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
     return replace(load_generation_config(dataset, size), **overrides)
 
 
+#: A config key as :class:`GenerationRequest` takes it: names of letters, digits and ``_`` joined by dots.
+_CONFIG_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*")
+
+
 @dataclass(frozen=True)
 class GenerationRequest:
     """A dataset as it is asked for: a body source, a size preset, the config keys set over the preset and
@@ -94,6 +100,24 @@ class GenerationRequest:
     size: str | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     source_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Each field checked when the request is made (issue 39: ``overrides`` as a list was an AttributeError,
+        a key ``"splits.train.pairs=2 #"`` was accepted): :class:`InputTypeError` or :class:`ConfigError`
+        naming the field."""
+        check_kind("dataset", self.dataset, str, "a body source's name (a str)")
+        if not self.dataset.strip():
+            raise ConfigError.about("dataset", self.dataset, "is empty; name a body source, e.g. 'human'")
+        if self.size is not None:
+            check_kind("size", self.size, str, "a size preset's name (a str) or None")
+        check_kind("overrides", self.overrides, Mapping, "a mapping of config keys to values, e.g. {'seed': 3}")
+        check_kind("source_options", self.source_options, Mapping, "a mapping of the source's options")
+        for where, mapping in (("overrides", self.overrides), ("source_options", self.source_options)):
+            for key in mapping:
+                if not isinstance(key, str) or not _CONFIG_KEY.fullmatch(key):
+                    raise ConfigError.about(where, key, "is not a config key (names of letters, digits "
+                                            "and _ joined by dots); give the value as the key's value, e.g. "
+                                            "{'splits.train.pairs': 2}")
 
     def config(self) -> GenerationConfig:
         """The config asked for (:func:`load_generation_config`)."""
