@@ -595,3 +595,41 @@ def test_a_training_that_crashed_before_its_first_checkpoint_restarts(place, tmp
         torch.set_num_threads(torch_threads)
     assert "finished step 1" in capsys.readouterr().out
     assert (run / "model.safetensors").is_file()
+
+
+#: Every command that takes --out, over a folder (for cerberus-metrics batch: a file) holding a foreign file, with
+#: --overwrite where the command has it (issue 39: the rule is "only what the toolkit wrote as the same output").
+OVER_FOREIGN = [
+    ("data generate", GEN + " --out {out} --overwrite"),
+    ("train", "train --preset tiny --set data.root={data} --set train.steps=1 --out {out}"),
+    ("eval", "eval {run} --data {data} --limit 1 --out {out} --overwrite"),
+    ("reconstruct", "reconstruct {run} {root}/img.png --out {out} --overwrite"),
+    ("reconstruct --model", "reconstruct --model human {root}/img.png --out {out} --overwrite"),
+    ("demo", "demo --renderer torch --out {out}"),
+    ("cerberus-metrics batch", "batch --pairs {root}/pairs.csv --no-progress --out {out}/results.json"),
+]
+
+
+@pytest.mark.parametrize(("command", "argv"), OVER_FOREIGN, ids=[c[0] for c in OVER_FOREIGN])
+def test_no_command_replaces_a_folder_it_did_not_write(place, tmp_path, capsys, command, argv):
+    """Each command, pointed with --overwrite at a folder of someone else's files (under a temporary folder),
+    refuses in one line (exit 2) naming what is there, and every file survives unchanged."""
+    from cerberus_metrics.cli import main as metrics_main
+
+    out = tmp_path / "mine"
+    (out / "sub").mkdir(parents=True)
+    (out / "thesis.tex").write_text("years of work")
+    (out / "sub" / "data.csv").write_text("1,2,3")
+    (out / "results.json").write_text('{"mine": true}')
+    (out / f".{out.name}.999999.mine.tmp").mkdir()  # named like a dead writer's temporary, but not one
+    if command.startswith("cerberus-metrics"):
+        tetra = "v 0 0 0\nv 0.3 0 0\nv 0 0.3 0\nv 0 0 0.3\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+        (tmp_path / "a.obj").write_text(tetra)
+        (place["root"] / "pairs.csv").write_text(f"pred,gt\n{tmp_path / 'a.obj'},{tmp_path / 'a.obj'}\n")
+    before = snapshot(tmp_path)
+    args = [a.format(out=out, **{k: str(v) for k, v in place.items()}) for a in argv.split()]
+    code = metrics_main(args) if command.startswith("cerberus-metrics") else main(args)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "is not empty (it holds" in err or "exists and is not results that cerberus-metrics batch wrote" in err
+    assert snapshot(tmp_path) == before

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.bodies.body import BodyError, BodySource, PosedBody, source_class
+from cerberus_core.bodies.body import BodyError, BodySource, PosedBody, source_class, source_contract
 from cerberus_core.datasets.format import (
     DatasetError,
     check_shard_files,
@@ -239,7 +239,8 @@ def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list
     for s, poses in by_subject.items():
         who = subjects[s].subject
         name = who.name
-        bodies = source.bodies(who, poses)
+        with source_contract(source, f"bodies() of subject {name}"):
+            bodies = source.bodies(who, poses)
         if len(bodies) != len(poses):
             raise BodyError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}; "
                             "BodySource.bodies must return one body per pose id")

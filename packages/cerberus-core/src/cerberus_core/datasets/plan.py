@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class
+from cerberus_core.bodies.body import BodyError, BodySource, Subject, source_class, source_contract
 from cerberus_core.config import build, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
@@ -331,7 +331,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     index: dict[str, int] = {}
     shards: dict[str, list[ShardPlan]] = {}
     for split, cfg in config.splits.items():
-        infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
+        with source_contract(source, f"subjects({split!r}, ...)"):
+            infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
         if not infos:
             shards[split] = []
             continue
@@ -344,9 +345,11 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 table[index[s.name]] = entry.in_split(split)
             else:
                 index[s.name] = len(table)
-                canonical = source.canonical_pose(s)
-                table.append(SubjectRecord(s.name, jsonable(s.info), (split,),
-                                           None if canonical is None else int(canonical)))
+                with source_contract(source, f"the info of subject {s.name!r} (it must be what JSON holds)"):
+                    canonical = source.canonical_pose(s)
+                    info = jsonable(s.info)
+                    json.dumps(info, allow_nan=False)
+                table.append(SubjectRecord(s.name, info, (split,), None if canonical is None else int(canonical)))
         units: list[_Unit] = []
         pair_counts = _spread(cfg.pairs, len(infos)) if (cfg.layout == "pairs" and cfg.pairs is not None) else None
         chunk = max(1, config.shard_images // 4)
