@@ -12,7 +12,7 @@ from PIL import Image
 
 from cerberus_core import Run
 from cerberus_core.cli import main
-from cerberus_core.datasets.readers import ViewDataset
+from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.errors import MissingPackageError
 from cerberus_core.photo_mask import (
     PHOTO_EXTRA,
@@ -38,7 +38,7 @@ def body_png(tmp_path_factory):
     root = tmp_path_factory.mktemp("photo")
     assert main(["data", "generate", "--dataset", "human", "--size", "tiny", "--set", "splits.train.pairs=1",
                  "--set", "image_size=256", "--out", str(root / "data"), "--quiet"]) == 0
-    ds = ViewDataset(root / "data", split="test")
+    ds = Dataset.open(root / "data").views("test")
     image = ds[0]["images"].numpy().transpose(1, 2, 0)
     Image.fromarray((image * 255 + 0.5).astype(np.uint8)).save(root / "body.png")
     mask = np.abs(image - np.asarray(ds.scene.background)).max(-1) > 0.5 / 255

@@ -124,7 +124,7 @@ def test_grid_quadruplets_share_viewpoints(grid_dataset):
 def test_wrong_split_or_kind_is_a_clear_error(pairs_dataset):
     with pytest.raises(DatasetError, match="no split 'val'.*test.*train"):
         Dataset.open(pairs_dataset).quadruplets("val")
-    with pytest.raises(DatasetError, match="no quadruplets.*ViewDataset"):
+    with pytest.raises(DatasetError, match=r"no quadruplets.*Dataset\.views"):
         Dataset.open(pairs_dataset).quadruplets("test")
 
 

@@ -133,6 +133,8 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
         else:
             type(source).check_packages()
             stored = dict(source_options or {})
+        if out is not None:  # the meshes read stay apart from the output, before they are listed
+            check_apart(Path(out), source.reads(), what="a dataset is written there")
         renderer = resolve_renderer(config.renderer)
         make_renderer(renderer)  # installed, imports, builds: before the manifest names it
         # The manifest names the backend that draws the images (``auto`` resolved).
@@ -154,7 +156,6 @@ def validate_generation(config: GenerationConfig, *, source: BodySource | None =
                               + f"), more than it has ({total / 2**30:.1f} GiB); lower `image_size`, `batch_size` "
                               "or `shard_images`", key="image_size", value=config.image_size)
     if out is not None:
-        check_apart(Path(out), source.reads(), what="a dataset is written there")  # the meshes read stay apart
         check_folder(Path(out), jsonable(config.to_dict()), overwrite)
     return GenerationJob(config, source, jsonable(stored), plan, images + buffers)
 
