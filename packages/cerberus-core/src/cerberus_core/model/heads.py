@@ -44,8 +44,8 @@ class ShapeHead(nn.Module):
     moves by ``lr * ||S||_1`` per step — for a 256-dimensional latent, a sizeable fraction of a
     part's radius — and the meshes turn spiky within a few steps.
 
-    With ``recentre`` (beyond the paper, ``model.recentre``) each part's mean displacement is subtracted, so
-    the mean of its vertices stays at its local origin and the part sits where its translation (its
+    With ``recentre`` (beyond the paper, ``model.recentre``) each part's vertex mean is subtracted after the
+    deformation (and the bound), so the mean of its vertices stays at its local origin and the part sits where its translation (its
     keypoint and depth) puts it: a term that wants a part elsewhere must move the keypoint, since the
     vertices can no longer shift the part back toward where the keypoint was.
 
