@@ -172,7 +172,8 @@ def main() -> int:
             mask_iou.append(silhouette_iou(found, alpha))
         for m in masks:
             loaded = prepare_input(photos / f"{i:04d}.png", size, scene,
-                                   AUTO if m == AUTO else photos / f"{i:04d}_exact.png", warn=False)
+                                   AUTO if m == AUTO else photos / f"{i:04d}_exact.png",
+                                   look=run.config.data.input_look, warn=False)
             inputs[m][i] = loaded.image
             sil[m].append(loaded.silhouette)
             if len(sheet) < 6 and m == masks[-1]:

@@ -218,6 +218,29 @@ def test_a_coloured_or_textured_body_is_out_of_domain_even_as_a_cutout(generated
     assert len(domain) == 1 and "give an RGBA cut-out" not in domain[0] and "coarse grey body" in domain[0]
 
 
+def test_a_silhouette_model_gets_the_cutout_as_a_flat_silhouette(generated):
+    """Issue 41: a model trained in the flat input look (``data.input_look: flat``) is shown a masked photo as it
+    saw its training bodies: the body one grey level over the training background; its colour is then no reason
+    to call it out of the domain. A shaded model gets the same cut-out as before (and the warning)."""
+    root, scene = generated["root"], generated["scene"]
+    a, m = generated["images"][0], generated["silhouettes"][0]
+    tinted = np.where(m[..., None], a * np.array([1.0, 0.7, 0.5]), a)
+    rgba = np.concatenate([_u8(tinted), m[..., None].astype(np.uint8) * 255], -1)
+    Image.fromarray(rgba, "RGBA").save(root / "clothed_flat.png")
+    shaded = D.prepare_input(root / "clothed_flat.png", 64, scene, warn=False)
+    flat = D.prepare_input(root / "clothed_flat.png", 64, scene, look="flat", warn=False)
+    assert "coloured" in shaded.out_of_domain and flat.out_of_domain == ""
+    body = (shaded.image - torch.tensor(scene.background).view(3, 1, 1)).abs().amax(0) > 0.5 / 255
+    assert body.sum() > 20
+    assert torch.equal(flat.image[:, ~body], shaded.image[:, ~body])  # the background as it was
+    grey = flat.image[:, body]
+    assert torch.allclose(grey, grey[:1, :1].expand_as(grey))  # one grey level on every channel of the body
+    assert abs(float(grey[0, 0]) - float(shaded.image[:, body].mean())) < 1e-5  # the body's mean
+    assert any("flat silhouette" in n for n in flat.notes)
+    with pytest.raises(Exception, match="input_look"):
+        D.prepare_input(root / "clothed_flat.png", 64, scene, look="chalk", warn=False)
+
+
 def test_one_resize_is_one_warning_in_the_reconstruct_path(generated, tmp_path):
     """Issue 34: ``cerberus reconstruct`` with a 512 px image said "downscaled 4x (box filter) from 512x512 before
     conversion" and "resized from 128x128 to 64x64" for its one resize; a framed cut-out said the window in the

@@ -433,7 +433,8 @@ class Run:
         keep = images + [m for m in mask_list if isinstance(m, Path)] + ([] if self.shipped else [Path(self.source)])
         out = result_folder(check_path("out", out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
         trained = TrainedModel(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
-                               renderer or self.config.renderer, self.device, self.training_kind())
+                               renderer or self.config.renderer, self.device, self.training_kind(),
+                               self.config.data.input_look)
         page = ViewerPage(title=f"cerberus reconstruct: {printable(self.source)}", limit=viewer_images,
                           limit_hint="viewer_images", part_labels=self.part_labels())
         return write_reconstructions(trained, ImageInputs(images, mask_list, azimuth), out, page)

@@ -18,7 +18,10 @@ half-body portrait) is not such an image, and the model answers it with a full b
 
 Either way, :func:`appearance_check` then looks inside the body: the training bodies are untextured grey
 renders (no colour, smooth shading), so a coloured or textured body (a clothed person in a photo) is out
-of the training domain however well it is masked.
+of the training domain however well it is masked. A model trained in another input look
+(``data.input_look``, :mod:`cerberus_core.datasets.looks`) gets its input in that look: for ``flat`` the body
+is filled with one grey level, as in its training, so its appearance is not checked (nor for ``random``,
+which learned coloured and textured bodies).
 
 The thresholds below were measured on generated images (``docs/evaluation.md``, "Input outside the
 training domain"): every test and training image of the human ``small`` set passes, as do the same
@@ -36,6 +39,7 @@ import torch
 from PIL import Image
 
 from cerberus_core.bodies.body import FILL, BodySource, source_class
+from cerberus_core.datasets.looks import check_look, flat_look
 from cerberus_core.errors import CerberusError, ImageInputError
 from cerberus_core.photo_mask import AUTO, person_mask
 from cerberus_core.plumbing.names import printable
@@ -380,10 +384,11 @@ def read_mask(path: str | Path, raw: RawImage, image_path: str | Path) -> np.nda
 
 
 def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = None, *,
-                  kind: str | None = None, warn: bool = True) -> LoadedImage:
-    """Read one image for a model of ``size`` pixels trained on ``scene`` and on bodies of ``kind`` (a body
-    source's name; ``None``: unknown) (see the module docstring). ``mask``: a mask file, or ``"auto"``
-    (:data:`cerberus_core.photo_mask.AUTO`): the person found by the photo extra's segmenter.
+                  kind: str | None = None, look: str = "shaded", warn: bool = True) -> LoadedImage:
+    """Read one image for a model of ``size`` pixels trained on ``scene``, on bodies of ``kind`` (a body
+    source's name; ``None``: unknown) shown in the input ``look`` (``data.input_look``) (see the module
+    docstring). ``mask``: a mask file, or ``"auto"`` (:data:`cerberus_core.photo_mask.AUTO`): the person found
+    by the photo extra's segmenter.
 
     Returns:
         The :class:`LoadedImage`; its ``out_of_domain`` holds the reason when the image does not look like
@@ -424,12 +429,17 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
     if cut:
         reasons.append(cut_off_reason(cut, estimated=silhouette is None))
         advice.append("give images of the whole body")
-    looks, reason = appearance_check(arr, scene, kind)
+    check_look(look)
+    if look == "flat":
+        notes.append("shown as a flat silhouette, the model's input look")
+    looks, reason = appearance_check(arr, scene, kind) if look == "shaded" else (True, "")
     if not looks:
         reasons.append(reason)
         advice.append("expect a coarse grey body: no mask or framing brings a photo's appearance into the "
                       "training domain")
     loaded = finish(path, arr, raw.original_size, notes, warn=warn)
+    if look == "flat":  # the body one grey level, as the model saw its training bodies
+        loaded.image = flat_look(loaded.image[None], scene.background)[0]
     loaded.out_of_domain = "; ".join(reasons)
     loaded.advice = "; ".join(advice)
     if silhouette is not None:

@@ -85,12 +85,12 @@ def mask_paths(masks: Sequence[Path] | None, images: Sequence[Path]) -> list[Pat
 
 
 def load_inputs(paths: Sequence[Path], masks: Sequence[Path | str | None], size: int, scene,
-                kind: str | None = None) -> tuple[torch.Tensor, list[str], list[LoadedImage]]:
+                kind: str | None = None, look: str = "shaded") -> tuple[torch.Tensor, list[str], list[LoadedImage]]:
     """The model's input images, per image its out-of-domain note (``""`` when in domain), and each one as
     loaded (its silhouette, if any); one warning names the images out of the training domain and the fix.
-    ``masks``: a file, ``"auto"`` or ``None`` per image; ``kind``: the bodies the model learned
-    (:func:`~cerberus_core.reconstruct.input_domain.prepare_input`)."""
-    loaded = [prepare_input(p, size, scene, m, kind=kind) for p, m in zip(paths, masks, strict=True)]
+    ``masks``: a file, ``"auto"`` or ``None`` per image; ``kind``: the bodies the model learned; ``look``: the input
+    look it learned (:func:`~cerberus_core.reconstruct.input_domain.prepare_input`)."""
+    loaded = [prepare_input(p, size, scene, m, kind=kind, look=look) for p, m in zip(paths, masks, strict=True)]
     out = [(li, m) for li, m in zip(loaded, masks, strict=True) if li.out_of_domain]
     if out:
         shown = [printable(li.path.name) for li, _ in out[:3]]
@@ -164,6 +164,7 @@ class TrainedModel:
         device: where the model is.
         kind: the kind of bodies the model learned (a body source's name, :meth:`Run.training_kind
             <cerberus_core.run.Run.training_kind>`; ``None``: unknown), for the out-of-domain notes.
+        look: the input look the model learned (``data.input_look``): its inputs are shown in it.
     """
 
     model: Cerberus
@@ -172,6 +173,7 @@ class TrainedModel:
     renderer: str
     device: str | torch.device = "cpu"
     kind: str | None = None
+    look: str = "shaded"
 
 
 @dataclass(frozen=True)
@@ -203,7 +205,7 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
     model, scene, image_size, device = trained.model, trained.scene, trained.image_size, trained.device
     images, azimuth = list(inputs.images), inputs.azimuth
     masks = list(inputs.masks) if inputs.masks is not None else [None] * len(images)
-    pictures, notes, loaded = load_inputs(images, masks, image_size, scene, trained.kind)
+    pictures, notes, loaded = load_inputs(images, masks, image_size, scene, trained.kind, trained.look)
     backend = make_renderer(trained.renderer)
     stems = output_names(list(images))
     camera = scene.cameras([azimuth] * len(pictures), image_size)
