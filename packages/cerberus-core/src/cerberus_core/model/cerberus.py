@@ -51,6 +51,10 @@ class ModelConfig(Checked):
             the part is centred on its translation and a part can reach a limb only by moving its keypoint
             there, not by shifting its vertices (beyond the paper; see
             :class:`~cerberus_core.model.heads.ShapeHead`).
+        deformation_warmup: ``0`` (the paper) or ``S`` steps: the vertex displacements are scaled by ``step / S``
+            while training, from 0 at the first step to the full displacement at step ``S`` (beyond the paper,
+            issue 38). The parts start as spheres that can cover the body only by moving, so the keypoints learn
+            to follow the limbs before the meshes can stretch toward them (:meth:`Cerberus.deformation_gain`).
         anchor_spread: parts start at keypoints on a grid spanning ``[-spread, spread]`` of the
             normalised image (0: all at the centre); see
             :class:`~cerberus_core.model.heads.TranslationHead`.
@@ -75,6 +79,7 @@ class ModelConfig(Checked):
     displacement_scale: float = ranged(0.05, gt=0)
     vertex_bound: float | None = ranged(None, gt=0, integer=False)
     recentre: bool = False
+    deformation_warmup: int = ranged(0, ge=0)
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
     anchor_width: float | None = ranged(None, gt=0, integer=False)
     depth_offset: float | str = "auto"
@@ -178,20 +183,36 @@ class Cerberus(nn.Module):
     def num_parts(self) -> int:
         return self.config.num_parts
 
-    def forward(self, images: Tensor, mix: Callable[[Tensor], Tensor] | None = None) -> Predictions:
+    def deformation_gain(self, step: int | None) -> float:
+        """The share of the vertex displacements used at training step ``step`` (``model.deformation_warmup``):
+        ``min(1, step / S)``; 1 without a warm-up and outside training (``step=None``).
+
+        Example:
+            >>> model = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0,
+            ...                              deformation_warmup=1000))
+            >>> model.deformation_gain(0), model.deformation_gain(250), model.deformation_gain(5000), model.deformation_gain(None)
+            (0.0, 0.25, 1.0, 1.0)
+        """
+        warmup = self.config.deformation_warmup
+        return 1.0 if step is None or warmup == 0 else min(1.0, step / warmup)
+
+    def forward(self, images: Tensor, mix: Callable[[Tensor], Tensor] | None = None, *,
+                step: int | None = None) -> Predictions:
         """Predict parts from images.
 
         Args:
             images: ``(B, 3, H, W)`` in [0, 1], H and W at least 32.
             mix: optional map ``(B, S) → (B, S)`` applied to the shape latents before they are
                 decoded into vertices (pose consistency, equation 3).
+            step: the training step, for ``model.deformation_warmup`` (``None``: a trained model's full
+                deformation).
         """
         check_image_dtype(images, "Cerberus", next(self.parameters()).dtype)
         c4, features = self._cnn(images)
         object_latent = c4.mean(dim=(-2, -1))
         shape_latent = self.shape.latent(object_latent)
         render_latent = shape_latent if mix is None else mix(shape_latent)
-        local = self.shape.deform(render_latent)
+        local = self.shape.deform(render_latent, self.deformation_gain(step))
         quats, rot_cam = self.rotation(object_latent)
         maps = self.translation(features, tuple(images.shape[-2:]))
         return Predictions(object_latent, shape_latent, render_latent, local, quats, rot_cam, maps)

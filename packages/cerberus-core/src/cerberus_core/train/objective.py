@@ -491,12 +491,13 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
         antialias: render with :meth:`Renderer.antialias` (``render.antialias``): visibility
             gradients for the reconstruction and silhouette terms.
         step: the training step, which decides the cross view during its warm-up
-            (:meth:`LossConfig.cross_view_at`; ``None``: after the warm-up).
+            (:meth:`LossConfig.cross_view_at`; ``None``: after the warm-up), the allocation pulls' fade and the
+            deformation's warm-up (:meth:`Cerberus.deformation_gain`).
     """
     core = unwrap(model)
     images = batch.images.flatten(0, 1)  # (4B, 3, H, W): the stored renders, what the losses compare against
     pred: Predictions = model(batch.network_inputs.flatten(0, 1),  # the same in data.input_look
-                              quadruplet_mixer(generator) if losses.pose_consistency else None)
+                              quadruplet_mixer(generator) if losses.pose_consistency else None, step=step)
     parts = core.pose(pred, batch.camera)  # world frame, 4B images
     if not all(bool(torch.isfinite(t.detach()).all()) for t in (parts.local_vertices, parts.rotations,
                                                                  parts.translations)):
