@@ -15,7 +15,6 @@ from pathlib import Path
 import yaml
 
 from cerberus_core.datasets.manifest import Manifest
-from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
@@ -51,7 +50,7 @@ def main() -> None:
     manifest = Manifest.read(args.data)
     trained = Manifest.read(args.train_data) if args.train_data else manifest
     size = args.size or manifest.preset
-    train_split = GenerationConfig.from_dict(trained.config).splits.get("train")
+    train_split = trained.config.splits.get("train")
     counts = ", ".join(f"{getattr(train_split, k):,} {k}" for k in ("pairs", "subjects")
                        if train_split is not None and getattr(train_split, k))
     results = json.loads(((args.eval or args.run / "eval") / "results.json").read_text())

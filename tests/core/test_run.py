@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -106,6 +107,10 @@ def test_evaluate_in_an_input_look_shows_the_model_the_test_images_so(tiny_run, 
                  "--renderer", "torch", "--out", str(tmp_path / "cli")]) == 0
     assert json.loads((tmp_path / "cli" / "results.json").read_text())["standard"] == \
         json.loads((tmp_path / "flat" / "results.json").read_text())["standard"]
+    run.config.data.input_look = "flat"  # a model that learned flat silhouettes is scored on them by default (issue 41)
+    default = run.evaluate(tiny_root, replace(settings, input_look=None), tmp_path / "own", verbose=False)
+    assert [r["iou"] for r in default.result.records] == [r["iou"] for r in flat.records]
+    assert json.loads((tmp_path / "own" / "results.json").read_text())["input_look"] == "flat"
     with pytest.raises(ConfigError, match="input_look = 'grey': must be one of 'shaded', 'flat', 'random'"):
         EvalSettings(input_look="grey")
     capsys.readouterr()

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib.util import find_spec
 from pathlib import Path
 
@@ -135,7 +135,7 @@ class EvalSettings(EvalConfig):
         overwrite: replace an output folder that holds files that are not earlier results.
         input_look: the test images shown to the model in this look (:mod:`cerberus_core.datasets.looks`:
             ``shaded`` as stored, ``flat`` silhouettes, ``random`` appearances), scores, figures and viewer
-            alike; the ground truth is the same.
+            alike; the ground truth is the same. ``None``: the look the model learned (``data.input_look``).
     """
 
     split: str = "test"
@@ -144,7 +144,7 @@ class EvalSettings(EvalConfig):
     viewer_images: int = ranged(12, ge=0)
     renderer: str | None = None
     overwrite: bool = False
-    input_look: InputLook = "shaded"
+    input_look: InputLook | None = None
 
     def validate(self) -> None:
         super().validate()
@@ -357,6 +357,7 @@ class Run:
             ConfigError: ``data`` is not a dataset folder (``key="data"``), or ``out`` may not be written.
         """
         s = check_kind("settings", settings, EvalSettings, "an EvalSettings") if settings is not None else EvalSettings()
+        s = s if s.input_look is not None else replace(s, input_look=self.config.data.input_look)
         for name, baseline in (baselines or {}).items():
             check_kind(f"baselines[{name!r}]", baseline, (Run, Cerberus), "a Run or a Cerberus model")
         data = None if data is None else open_data(check_path("data", data)).root

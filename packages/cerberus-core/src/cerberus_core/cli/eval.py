@@ -52,10 +52,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--renderer", help="renderer backend for the figure and the part-visibility render "
                    "(default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
-    p.add_argument("--input-look", default="shaded", choices=INPUT_LOOKS,
-                   help="show the model the test images in this look: shaded (as stored, the default), flat (each "
-                   "body's mask filled with its mean grey: a silhouette) or random (an albedo colour, a texture and "
-                   "a light balance drawn per image); the ground truth and every score are as without it")
+    p.add_argument("--input-look", default=None, choices=INPUT_LOOKS,
+                   help="show the model the test images in this look: shaded (as stored), flat (each body's mask "
+                   "filled with its mean grey: a silhouette) or random (an albedo colour, a texture and a light balance "
+                   "drawn per image); the ground truth and every score are as without it (default: the look the model "
+                   "learned, data.input_look: shaded for human, flat for human-silhouette)")
     # The flag of each setting of Run.load and Run.evaluate (its EvalSettings fields included).
     p.set_defaults(func=run, flag_names=FlagNames({
         "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
