@@ -39,7 +39,7 @@ def main(argv: list[str]) -> int:
     bg = views.scene.background
     for tol, soft in [(0.5 / 255, False), (0.02, False), (0.05, False), (0.1, False), (0.5 / 255, True)]:
         result = evaluate_dataset(views, lambda im, cam, t=tol, s=soft: run.model.reconstruct(flat(im, bg, t, s), cam),
-                                  hard=False, part_quality=False, visibility=False, depth=False, segments=False,
+                                  skip=("hard", "part_quality", "visibility", "depth", "segments", "allocation"),
                                   progress=False)
         print(f"tolerance {tol:.4f}{', coverage-blended edge' if soft else ''}: voxel IoU {result.standard.mean:.4f}",
               flush=True)

@@ -184,8 +184,7 @@ def main() -> int:
         results["auto_mask_iou"] = {"mean": float(np.nanmean(mask_iou)), "min": float(np.nanmin(mask_iou)),
                                     "below_0.5": int(np.sum(np.asarray(mask_iou) < 0.5))}
     for m in masks:
-        evaluation = evaluate_dataset(PhotoViews(views, inputs[m]), run.model.reconstruct, indices=indices, hard=False,
-                                      part_quality=False, visibility=False, depth=False, segments=False, progress=False)
+        evaluation = evaluate_dataset(PhotoViews(views, inputs[m]), run.model.reconstruct, indices=indices, skip=("hard", "part_quality", "visibility", "depth", "segments", "allocation"), progress=False)
         coverage = []
         for k, i in enumerate(indices):
             batch = views[i]
