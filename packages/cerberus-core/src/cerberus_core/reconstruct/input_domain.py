@@ -20,7 +20,8 @@ Either way, :func:`appearance_check` then looks inside the body: the training bo
 renders (no colour, smooth shading), so a coloured or textured body (a clothed person in a photo) is out
 of the training domain however well it is masked. A model trained in another input look
 (``data.input_look``, :mod:`cerberus_core.datasets.looks`) gets its input in that look: for ``flat`` the body
-is filled with one grey level, as in its training, so its appearance is not checked (nor for ``random``,
+is filled with a training body's mean grey (:func:`~cerberus_core.datasets.looks.flat_grey`), as in its training, so
+its appearance is not checked (nor for ``random``,
 which learned coloured and textured bodies).
 
 The thresholds below were measured on generated images (``docs/evaluation.md``, "Input outside the
@@ -39,7 +40,7 @@ import torch
 from PIL import Image
 
 from cerberus_core.bodies.body import FILL, BodySource, source_class
-from cerberus_core.datasets.looks import check_look, flat_look
+from cerberus_core.datasets.looks import check_look, flat_grey, flat_look
 from cerberus_core.errors import CerberusError, ImageInputError
 from cerberus_core.photo_mask import AUTO, person_mask
 from cerberus_core.plumbing.names import printable
@@ -438,8 +439,8 @@ def prepare_input(path: str | Path, size: int, scene, mask: str | Path | None = 
         advice.append("expect a coarse grey body: no mask or framing brings a photo's appearance into the "
                       "training domain")
     loaded = finish(path, arr, raw.original_size, notes, warn=warn)
-    if look == "flat":  # the body one grey level, as the model saw its training bodies
-        loaded.image = flat_look(loaded.image[None], scene.background)[0]
+    if look == "flat":  # the body one grey level, a training body's (not the photo's colours)
+        loaded.image = flat_look(loaded.image[None], scene.background, grey=flat_grey(scene))[0]
     loaded.out_of_domain = "; ".join(reasons)
     loaded.advice = "; ".join(advice)
     if silhouette is not None:
