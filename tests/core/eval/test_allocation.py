@@ -112,3 +112,27 @@ def test_accumulator_summary_and_line():
     assert line.startswith("keypoints: spread ") and "shin 8.0 px" in line and "1 of 2" in line
     with pytest.raises(ValueError, match="no images were added"):
         AllocationAccumulator(["head"], 1).summary()
+
+
+def test_allocation_takes_a_batch_of_bodies_with_different_vertex_layouts(tmp_path, renderer):
+    """Issue 38: animals of different species have different meshes (the tiny set: 5,002 and 5,004 vertices) in one
+    batch; the allocation diagnostic measured a batch as one stack of vertices and refused them, so a training on
+    the animal data stopped at its first allocation probe. Each layout is now measured alone, in the batch's order:
+    the same numbers as one image at a time."""
+    from cerberus_core.cli import main
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.eval.runner import evaluate_dataset
+
+    assert main(["data", "generate", "--dataset", "animal", "--size", "tiny", "--out", str(tmp_path / "a"),
+                 "--quiet"]) == 0
+    views = Dataset.open(tmp_path / "a").views("test")
+    assert len({len(views.gt_mesh(i).vertices) for i in range(len(views))}) > 1
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(num_parts=3, width=4, shape_latent_dim=8, depth_offset=float(views.scene.distance)))
+    model.eval()
+    skip = ("hard", "part_quality", "visibility", "depth", "segments")
+    together = evaluate_dataset(views, model.reconstruct, renderer=renderer, skip=skip, batch_size=8, progress=False)
+    alone = evaluate_dataset(views, model.reconstruct, renderer=renderer, skip=skip, batch_size=1, progress=False)
+    assert [r["keypoints"] for r in together.records] == [r["keypoints"] for r in alone.records]
+    assert [r["unique_coverage"] for r in together.records] == [r["unique_coverage"] for r in alone.records]
+    assert together.diagnostics["allocation"] == alone.diagnostics["allocation"] is not None

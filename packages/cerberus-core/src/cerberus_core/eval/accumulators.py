@@ -23,7 +23,7 @@ each image (:meth:`BatchResult.voxels`) and the input-view render of the parts
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Protocol
 
 import numpy as np
@@ -31,7 +31,7 @@ import torch
 
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.errors import DatasetError
-from cerberus_core.eval.allocation import AllocationAccumulator, measure_allocation
+from cerberus_core.eval.allocation import AllocationAccumulator, ImageAllocation, measure_allocation
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta
 from cerberus_core.eval.part_quality import PartQualityAccumulator, image_overlap
 from cerberus_core.eval.segments import (
@@ -330,17 +330,27 @@ class Allocation:
         return cls(context.renderer)
 
     def update(self, batch: BatchResult) -> None:
-        first = batch.bodies[0]
         if self.counts is None:
-            self.counts = AllocationAccumulator(list(first.part_names), batch.recon.num_parts)
+            self.counts = AllocationAccumulator(list(batch.bodies[0].part_names), batch.recon.num_parts)
         for item, body in zip(batch.items, batch.bodies, strict=True):
-            if list(body.part_names) != self.counts.segments or len(body.vertices) != len(first.vertices):
-                raise DatasetError(f"item {item.index}: ground-truth body {body.part_names} ({len(body.vertices)} "
-                                   f"vertices) differs from the first item's {self.counts.segments}; allocation needs "
-                                   "one body source: evaluate a dataset of one body source")
-        vertices = torch.stack([torch.as_tensor(b.vertices, dtype=torch.float32) for b in batch.bodies])
-        measured = measure_allocation(self.renderer, batch.recon, batch.camera, batch.gt_foreground(self.renderer),
-                                      (vertices, torch.as_tensor(first.vertex_parts), len(first.part_names)))
+            if list(body.part_names) != self.counts.segments:
+                raise DatasetError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
+                                   f"item's {self.counts.segments}; allocation needs one vocabulary of segments: "
+                                   "evaluate a dataset of one body source")
+        foreground = batch.gt_foreground(self.renderer)
+        layouts: dict[tuple[int, bytes], list[int]] = {}  # one vertex layout per group (animals: one per species)
+        for b, body in enumerate(batch.bodies):
+            layouts.setdefault((len(body.vertices), np.asarray(body.vertex_parts).tobytes()), []).append(b)
+        parts = []
+        for group in layouts.values():
+            first = batch.bodies[group[0]]
+            vertices = torch.stack([torch.as_tensor(batch.bodies[b].vertices, dtype=torch.float32) for b in group])
+            parts.append((group, measure_allocation(self.renderer, batch.recon.index(group), batch.camera.index(group),
+                                                    foreground[group], (vertices, torch.as_tensor(first.vertex_parts),
+                                                                        len(first.part_names)))))
+        order = np.argsort(np.concatenate([g for g, _ in parts]), kind="stable")  # back to the batch's order
+        measured = ImageAllocation(*(np.concatenate([getattr(m, f.name) for _, m in parts])[order]
+                                     for f in fields(ImageAllocation)))
         self.counts.add(measured)
         for b, rec in enumerate(batch.records):
             rec["keypoints"] = [[round(float(u), 3), round(float(v), 3)] for u, v in measured.keypoints[b]]
