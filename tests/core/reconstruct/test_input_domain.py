@@ -364,3 +364,18 @@ def test_the_new_pose_borrows_an_in_domain_pose_or_says_it_cannot(generated, tmp
         warnings.simplefilter("ignore")
         assert main(["reconstruct", "--model", "human", gen1, gen2, "--out", str(tmp_path / "c")]) == 0
     assert one.height > Image.open(tmp_path / "c" / "gen1_figure1.png").height  # the note above gen1's figure
+
+
+def test_a_flat_input_takes_the_body_from_the_silhouettes_coverage(generated):
+    """Issue 41: the faint ring a resize leaves around a silhouette is not body (a photo's flat body came out a pixel
+    wider all round than a render's); a pixel the silhouette covers as much as one of a render's 16 samples is."""
+    scene = generated["scene"]
+    silhouette = np.zeros((8, 8))
+    silhouette[2:6, 2:6] = 1.0
+    silhouette[1, 2:6] = 0.01  # the resize's ring
+    silhouette[6, 2:6] = 1 / 16  # one sample of sixteen
+    image = torch.rand(3, 8, 8)  # the photo's colours: not used
+    flat = D.flat_input(image, silhouette, scene)
+    body = flat[0] == flat_grey(scene)
+    assert body[2:7, 2:6].all() and body.sum() == 20
+    assert torch.equal(flat[:, ~body], torch.zeros(3, int((~body).sum())))  # the training background (black)
