@@ -76,26 +76,25 @@ def test_recentred_shape_head_keeps_each_part_on_its_translation():
     assert float(bounded.deform(s).mean(-2).abs().max()) < 1e-6
 
 
-def test_deformation_warmup_scales_the_displacements_from_the_sphere():
-    """model.deformation_warmup (issue 38): at step 0 the parts are the template spheres and the displacement map
-    gets no gradient (a part can cover the body only by moving); half-way the displacement is halved; after the
-    warm-up, and for a trained model (step None), the deformation is the full one, bit for bit."""
+def test_deformation_hold_keeps_the_template_spheres_then_deforms():
+    """model.deformation_hold (issue 38): before step S the parts are the template spheres and the displacement map
+    gets no gradient (a part can cover the body only by moving); from step S on, and for a trained model (step
+    None), the deformation is the full one, bit for bit, as without a hold."""
     from cerberus_core.model.cerberus import Cerberus, ModelConfig
     torch.manual_seed(0)
-    model = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0, deformation_warmup=100))
+    model = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0, deformation_hold=100))
     with torch.no_grad():
         model.shape.to_displacement.bias.normal_(std=1.0)  # a visible deformation
     images = torch.rand(2, 3, 32, 32)
-    full, half, start = (model(images, step=s).local_vertices for s in (None, 50, 0))
-    sphere = model.shape.template.expand_as(full)
-    torch.testing.assert_close(start, sphere)
-    torch.testing.assert_close(half - sphere, (full - sphere) / 2)
+    full, held = model(images).local_vertices, model(images, step=99).local_vertices
+    torch.testing.assert_close(held, model.shape.template.expand_as(full))
+    assert not torch.allclose(full, held)
     assert torch.equal(model(images, step=100).local_vertices, full)
-    start.sum().backward()
+    held.sum().backward()
     assert float(model.shape.to_displacement.weight.grad.abs().max()) == 0.0
     paper = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0))
     paper.load_state_dict(model.state_dict())
-    assert torch.equal(paper(images, step=0).local_vertices, full)  # no warm-up: every step deforms fully
+    assert torch.equal(paper(images, step=0).local_vertices, full)  # no hold: every step deforms fully
 
 
 def test_rotation_head_unit_quaternions_identity_init_and_valid_rotations():

@@ -492,7 +492,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
             gradients for the reconstruction and silhouette terms.
         step: the training step, which decides the cross view during its warm-up
             (:meth:`LossConfig.cross_view_at`; ``None``: after the warm-up), the allocation pulls' fade and the
-            deformation's warm-up (:meth:`Cerberus.deformation_gain`).
+            deformation's hold (:meth:`Cerberus.deformation_gain`).
     """
     core = unwrap(model)
     images = batch.images.flatten(0, 1)  # (4B, 3, H, W): the stored renders, what the losses compare against
