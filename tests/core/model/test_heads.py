@@ -76,13 +76,13 @@ def test_recentred_shape_head_keeps_each_part_on_its_translation():
     assert float(bounded.deform(s).mean(-2).abs().max()) < 1e-6
 
 
-def test_deformation_hold_keeps_the_template_spheres_then_deforms():
-    """model.deformation_hold (issue 38): before step S the parts are the template spheres and the displacement map
+def test_deformation_warmup_keeps_the_template_spheres_then_deforms():
+    """model.deformation_warmup (issue 38): before step S the parts are the template spheres and the displacement map
     gets no gradient (a part can cover the body only by moving); from step S on, and for a trained model (step
     None), the deformation is the full one, bit for bit, as without a hold."""
     from cerberus_core.model.cerberus import Cerberus, ModelConfig
     torch.manual_seed(0)
-    model = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0, deformation_hold=100))
+    model = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0, deformation_warmup=100))
     with torch.no_grad():
         model.shape.to_displacement.bias.normal_(std=1.0)  # a visible deformation
     images = torch.rand(2, 3, 32, 32)

@@ -51,7 +51,7 @@ class ModelConfig(Checked):
             the part is centred on its translation and a part can reach a limb only by moving its keypoint
             there, not by shifting its vertices (beyond the paper; see
             :class:`~cerberus_core.model.heads.ShapeHead`).
-        deformation_hold: ``0`` (the paper) or ``S`` steps: for the first ``S`` training steps the parts are the
+        deformation_warmup: ``0`` (the paper) or ``S`` steps: for the first ``S`` training steps the parts are the
             template spheres (no displacement, and no gradient to the displacement map), then they deform freely
             (beyond the paper, issue 38): the parts can cover the body only by moving while the keypoints find their
             place (:meth:`Cerberus.deformation_gain`). A linear ramp of the displacements instead (its first form)
@@ -80,7 +80,7 @@ class ModelConfig(Checked):
     displacement_scale: float = ranged(0.05, gt=0)
     vertex_bound: float | None = ranged(None, gt=0, integer=False)
     recentre: bool = False
-    deformation_hold: int = ranged(0, ge=0)
+    deformation_warmup: int = ranged(0, ge=0)
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
     anchor_width: float | None = ranged(None, gt=0, integer=False)
     depth_offset: float | str = "auto"
@@ -185,16 +185,16 @@ class Cerberus(nn.Module):
         return self.config.num_parts
 
     def deformation_gain(self, step: int | None) -> float:
-        """The share of the vertex displacements used at training step ``step`` (``model.deformation_hold: S``): 0
+        """The share of the vertex displacements used at training step ``step`` (``model.deformation_warmup: S``): 0
         before step ``S``, 1 from it on; 1 without a hold and outside training (``step=None``).
 
         Example:
             >>> model = Cerberus(ModelConfig(num_parts=2, width=4, shape_latent_dim=8, depth_offset=2.0,
-            ...                              deformation_hold=1000))
+            ...                              deformation_warmup=1000))
             >>> model.deformation_gain(0), model.deformation_gain(999), model.deformation_gain(1000), model.deformation_gain(None)
             (0.0, 0.0, 1.0, 1.0)
         """
-        return 0.0 if step is not None and step < self.config.deformation_hold else 1.0
+        return 0.0 if step is not None and step < self.config.deformation_warmup else 1.0
 
     def forward(self, images: Tensor, mix: Callable[[Tensor], Tensor] | None = None, *,
                 step: int | None = None) -> Predictions:
@@ -204,7 +204,7 @@ class Cerberus(nn.Module):
             images: ``(B, 3, H, W)`` in [0, 1], H and W at least 32.
             mix: optional map ``(B, S) → (B, S)`` applied to the shape latents before they are
                 decoded into vertices (pose consistency, equation 3).
-            step: the training step, for ``model.deformation_hold`` (``None``: a trained model's full
+            step: the training step, for ``model.deformation_warmup`` (``None``: a trained model's full
                 deformation).
         """
         check_image_dtype(images, "Cerberus", next(self.parameters()).dtype)

@@ -92,7 +92,7 @@ class ShapeHead(nn.Module):
 
     def deform(self, shape_latent: Tensor, gain: float = 1.0) -> Tensor:
         """``(B, latent_dim)`` shape latent → ``(B, N, V, 3)`` deformed part vertices (local frame); ``gain``
-        scales the displacements (0: the template spheres, ``model.deformation_hold``)."""
+        scales the displacements (0: the template spheres, ``model.deformation_warmup``)."""
         scale = self.displacement_scale * gain if gain != 1.0 else self.displacement_scale
         disp = scale * self.to_displacement(shape_latent).view(-1, self.num_parts, self.num_vertices, 3)
         if self.vertex_bound is None:
