@@ -79,3 +79,12 @@ def test_table1_scale_without_a_value_says_so():
     proc = subprocess.run(["bash", str(REPO / "experiments" / "table1" / "run.sh"), "--scale"], capture_output=True,
                           text=True, timeout=60)
     assert proc.returncode == 2 and proc.stderr == "run.sh: --scale needs a value: small or large\n"
+
+
+@pytest.mark.parametrize("variants", sorted((REPO / "experiments" / "ablation").glob("*.txt")), ids=lambda p: p.name)
+def test_every_shipped_variants_file_reads(variants: Path):
+    """Each variants file in the repository (parts.txt came with issue 38, after variants.py) reads without error."""
+    proc = subprocess.run([sys.executable, str(REPO / "experiments" / "ablation" / "variants.py"), "rows", str(variants)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert proc.stdout.count("\n") >= 2
