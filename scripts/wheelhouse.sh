@@ -19,12 +19,15 @@ rm -f "$OUT"/cerberus_*.whl
 # built in place, a module deleted from src/ would still ship from a stale build/lib of an earlier build.
 STAGE="$(mktemp -d)"
 trap 'rm -rf "$STAGE"' EXIT
+echo "[wheelhouse] building 4 wheels into $OUT; pip works quietly, up to a minute a wheel on a busy 2-core machine"
 for pkg in cerberus-core cerberus-render-torch cerberus-render-warp cerberus-metrics; do
-  echo "[wheelhouse] building $pkg $VERSION (from a clean copy)"
+  start=$SECONDS
+  echo "[wheelhouse] building $pkg $VERSION (from a clean copy) ..."
   cp -R "$ROOT/packages/$pkg" "$STAGE/$pkg"
   rm -rf "$STAGE/$pkg/build" "$STAGE/$pkg/dist"
   find "$STAGE/$pkg" \( -name "*.egg-info" -o -name "__pycache__" \) -prune -exec rm -rf {} +
   "$PY" -m pip wheel --quiet --disable-pip-version-check --no-deps --wheel-dir "$OUT" "$STAGE/$pkg"
+  echo "[wheelhouse] built $pkg in $((SECONDS - start)) s"
 done
 {
   echo "# The Cerberus toolkit $VERSION: install its packages from this folder only (pip -c this file)."

@@ -13,7 +13,8 @@
 # experiments/ablation/limbs.txt holds issue 30's changes toward parts on the limbs (docs/training.md, "Beyond the
 # paper: sending parts to the limbs"):
 #   VARIANTS=experiments/ablation/limbs.txt STEPS=3000 RUNS=runs/limbs bash experiments/ablation/run.sh
-# A DATA column "@PATH" uses an existing dataset instead of generating one.
+# A DATA column "@PATH" uses an existing dataset instead of generating one. Rows are read without a shell
+# (variants.py): a NAME is [A-Za-z0-9_.-]+ (no '..'), arguments are split as words and nothing in them is run.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 JOBS=${JOBS:-2}; STEPS=${STEPS:-3000}
@@ -21,34 +22,36 @@ RUNS=${RUNS:-runs/ablation}; DATA=${DATA:-data/ablation}
 mkdir -p "$RUNS" "$DATA"
 VARIANTS=${VARIANTS:-experiments/ablation/variants.txt}
 
+# Rows are read by variants.py (names checked, arguments split as words: nothing is expanded or run).
+python experiments/ablation/variants.py rows "$VARIANTS" > "$RUNS/rows.txt"
+
 # One dataset per distinct data-argument string (variants that share data share the folder).
 declare -A folder
 while IFS='|' read -r name data train; do
-  [[ "$name" =~ ^[[:space:]]*# ]] && continue  # a comment (before xargs, which chokes on an apostrophe)
-  name=$(echo "$name" | xargs); data=$(echo "$data" | xargs)
-  if [ -z "$name" ] || [ "${name:0:1}" = "#" ]; then continue; fi
-  key=$(echo "$data" | sha1sum | cut -c1-8)
+  key=$(printf '%s\n' "$data" | sha1sum | cut -c1-8)
   if [ "${data:0:1}" = "@" ]; then  # @PATH: an existing dataset (e.g. @data/human_large)
     folder[$key]="${data:1}"
     [ -f "${data:1}/manifest.json" ] || { echo "$name: no dataset at ${data:1} (cerberus data generate ... --out ${data:1})" >&2; exit 1; }
   elif [ -z "${folder[$key]:-}" ]; then
     folder[$key]="$DATA/$name"
+    mapfile -d '' -t dargs < <(python experiments/ablation/variants.py argv "$data")
     [ -f "$DATA/$name/manifest.json" ] && grep -q '"complete": true' "$DATA/$name/manifest.json" \
-      || eval cerberus data generate --dataset human $data --renderer warp --out "$DATA/$name" --quiet
+      || cerberus data generate --dataset human "${dargs[@]}" --renderer warp --out "$DATA/$name" --quiet
   fi
   echo "$name|${folder[$key]}|$train"
-done < "$VARIANTS" > "$RUNS/plan.txt"
+done < "$RUNS/rows.txt" > "$RUNS/plan.txt"
 
 one() {  # train then evaluate one variant: NAME|DATA|TRAIN ARGS; logs in RUNS/NAME.log
   IFS='|' read -r name data train <<< "$1"
   {
     if [ -f "$RUNS/$name/model.safetensors" ]; then echo "$name: trained already";
     elif [ -f "$RUNS/$name/checkpoints/last.pt" ]; then cerberus train --out "$RUNS/$name" --resume;
-    else eval cerberus train $train --set renderer=warp --set data.root="$data" --set train.steps="$STEPS" \
+    else mapfile -d '' -t targs < <(python experiments/ablation/variants.py argv "$train")
+         cerberus train "${targs[@]}" --set renderer=warp --set data.root="$data" --set train.steps="$STEPS" \
            --set train.progress=false --out "$RUNS/$name"; fi
     cerberus eval "$RUNS/$name"
   } > "$RUNS/$name.log" 2>&1 && echo "$name: done" || { echo "$name: FAILED (see $RUNS/$name.log)"; return 1; }
 }
 export -f one; export RUNS STEPS
-xargs -P "$JOBS" -I{} bash -c 'one "$@"' _ {} < "$RUNS/plan.txt"
+xargs -d '\n' -P "$JOBS" -I{} bash -c 'one "$@"' _ {} < "$RUNS/plan.txt"  # -d: each line as it is, no quoting
 python experiments/ablation/table.py "$RUNS" | tee "$RUNS/ablation.md"

@@ -18,7 +18,8 @@ cd "$(dirname "$0")/../.."
 SCALE=small
 while [ $# -gt 0 ]; do
   case "$1" in
-    --scale) SCALE=${2:-}; shift 2 ;;
+    --scale) [ $# -ge 2 ] || { echo "run.sh: --scale needs a value: small or large" >&2; exit 2; }
+             SCALE=$2; shift 2 ;;
     --scale=*) SCALE=${1#--scale=}; shift ;;
     -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run.sh: unknown argument '$1' (use --scale small|large)" >&2; exit 2 ;;

@@ -5,8 +5,17 @@ import sys
 
 import pytest
 
-from cerberus_core.errors import CerberusError, DuplicatePluginError, PluginError, PluginLoadError, UnknownPluginError
-from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, discover, get_plugin, plugin_table
+from cerberus_core.bodies.body import source_class
+from cerberus_core.errors import (
+    BodyError,
+    CerberusError,
+    ConfigError,
+    DuplicatePluginError,
+    PluginError,
+    PluginLoadError,
+    UnknownPluginError,
+)
+from cerberus_core.plugins import BODY_GROUP, METRIC_GROUP, RENDERER_GROUP, discover, get_plugin, plugin_table
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.interface import Renderer
 from tests.support.dists import BROKEN, WORKING
@@ -88,3 +97,78 @@ def test_plugin_errors_are_cerberus_errors() -> None:
     assert issubclass(UnknownPluginError, KeyError)
     with pytest.raises(CerberusError, match="unknown"):
         get_plugin(RENDERER_GROUP, "no_such_backend")
+
+
+SOURCE = """
+from dataclasses import dataclass
+from cerberus_core.bodies.sources import PrimitiveSource
+
+class Blocks(PrimitiveSource):
+    name = "{name}"
+"""
+
+
+@pytest.mark.parametrize("body", ["raise SystemExit(0)", "raise GeneratorExit()", "raise BaseException('odd')"])
+def test_a_plugin_whose_import_exits_is_one_load_error_naming_it(fake_dist, monkeypatch, body) -> None:
+    """Issue 39: ``sys.exit`` at a plugin's import made ``cerberus data generate`` exit 0 having done nothing."""
+    root = fake_dist("fake-exit", {BODY_GROUP: {"exits": "fake_exit_source:Source"}}, {"fake_exit_source": body})
+    monkeypatch.syspath_prepend(str(root))
+    with pytest.raises(PluginLoadError, match=r"plugin 'exits' from fake-exit 0.1 \(fake_exit_source:Source\) failed"):
+        source_class("exits")
+    sys.modules.pop("fake_exit_source", None)
+
+
+def test_a_source_is_known_by_one_name_and_options_are_a_dataclass(fake_dist, monkeypatch) -> None:
+    """Issue 39: an entry point ``fakeblocks`` whose class said ``name = "human"`` labelled a dataset with both names;
+    ``Options = dict`` was a traceback at run time."""
+    modules = {"fake_blocks": SOURCE.format(name="human"),
+               "fake_opts": SOURCE.format(name="badopts") + "    Options = dict\n"}
+    root = fake_dist("fake-blocks", {BODY_GROUP: {"fakeblocks": "fake_blocks:Blocks", "badopts": "fake_opts:Blocks"}},
+                     modules)
+    monkeypatch.syspath_prepend(str(root))
+    with pytest.raises(ConfigError, match=r"entry point 'fakeblocks' \(fake-blocks 0.1, fake_blocks:Blocks\) holds a "
+                       r"source whose `name` is 'human'; a source has one name"):
+        source_class("fakeblocks")
+    with pytest.raises(ConfigError, match=r"'badopts' \(fake-blocks 0.1, fake_opts:Blocks\) has `Options` <class "
+                       r"'dict'>, not a dataclass"):
+        source_class("badopts")
+    for name in ("fake_blocks", "fake_opts"):
+        sys.modules.pop(name, None)
+
+
+def test_another_version_of_a_distribution_never_replaces_a_source(fake_dist, monkeypatch) -> None:
+    """Issue 39: a distribution named ``cerberus_core`` (another version) silently replaced the built-in ``human``
+    source, since only names were compared."""
+    root = fake_dist("cerberus_core", {BODY_GROUP: {"human": "fake_human:Blocks"}},
+                     {"fake_human": SOURCE.format(name="human")})
+    monkeypatch.syspath_prepend(str(root))
+    with pytest.raises(DuplicatePluginError, match=r"plugin 'human' comes from a distribution named cerberus-core 0.1 "
+                       r"\(fake_human:Blocks\), not this toolkit's cerberus-core 0.2.0\+toolkit"):
+        source_class("human")
+    sys.modules.pop("fake_human", None)
+
+
+def test_what_a_source_breaks_at_run_time_names_it(fake_dist, monkeypatch, tmp_path) -> None:
+    """Issue 39: a Subject.info JSON cannot hold, or an exception inside bodies(), was a traceback naming no plugin."""
+    from dataclasses import replace
+
+    from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.datasets.plan import preset_config
+
+    info = SOURCE.format(name="badinfo") + (
+        "    def subjects(self, split, n, seed):\n"
+        "        return [type(s)(s.name, {**s.info, 'when': object()}) for s in super().subjects(split, n, seed)]\n")
+    boom = SOURCE.format(name="boom") + "    def bodies(self, subject, poses):\n        raise ZeroDivisionError('x')\n"
+    root = fake_dist("fake-bad", {BODY_GROUP: {"badinfo": "fake_info:Blocks", "boom": "fake_boom:Blocks"}},
+                     {"fake_info": info, "fake_boom": boom})
+    monkeypatch.syspath_prepend(str(root))
+    with pytest.raises(BodyError, match=r"^the body source 'badinfo' \(fake-bad 0.1, fake_info:Blocks\) failed in the "
+                       r"info of subject .*TypeError: Object of type object is not JSON serializable"):
+        Dataset.plan(replace(preset_config("primitives", "tiny"), dataset="badinfo"), tmp_path / "a")
+    with pytest.raises(BodyError, match=r"^the body source 'boom' \(fake-bad 0.1, fake_boom:Blocks\) failed in "
+                       r"bodies\(\) of subject .*: ZeroDivisionError: x; fix the source or uninstall it"):
+        Dataset.generate(replace(preset_config("primitives", "tiny"), dataset="boom"), tmp_path / "b", progress=False,
+                         log=lambda s: None)
+    assert not (tmp_path / "a").exists()
+    for name in ("fake_info", "fake_boom"):
+        sys.modules.pop(name, None)

@@ -71,13 +71,16 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
     lib, cli = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("lib", "cli"))
     assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
     assert lib["computed_with"] == {"renderer": "torch", "device": "cpu", "dtype": "torch.float32"}  # issue 34
-    for name in ("results.md", "table2.png", ".cerberus-result.json"):
+    for name in ("results.md", "table2.png", ".cerberus-output.json"):
         assert (tmp_path / "lib" / name).is_file(), name
-    with pytest.raises(ConfigError, match=r"resolution = 999: must be an integer in \[1, 256\] \(EvalSettings\(resolution=...\)\)"):
-        EvalSettings(resolution=999)
+    # issue 39: one bound, the metric's (2..1024), checked before anything runs (1 failed 167 s later)
+    for bad in (1, 2000):
+        with pytest.raises(ConfigError, match=rf"^resolution = {bad}: resolution must be an integer in \[2, 1024\]"):
+            EvalSettings(resolution=bad)
     capsys.readouterr()
-    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--resolution", "999"]) == 2  # the CLI: its flag
-    assert capsys.readouterr().err.strip() == "cerberus eval: --resolution 999: must be an integer in [1, 256]"
+    assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--resolution", "1"]) == 2  # the CLI: its flag
+    assert capsys.readouterr().err.strip().startswith("cerberus eval: --resolution 1: resolution must be an integer "
+                                                      "in [2, 1024]")
 
 
 

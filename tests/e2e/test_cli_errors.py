@@ -20,7 +20,7 @@ import torch
 from cerberus_core.cli import main
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.plan import preset_config
-from cerberus_core.plumbing.outputs import RESULT_MARKER
+from cerberus_core.plumbing.outputs import MARKER
 
 # The reconstruct inputs here are synthetic coloured squares, out of the training domain by design: the
 # out-of-domain warning is expected in every test that reconstructs them (its own tests, which assert it, are
@@ -52,6 +52,8 @@ def place(tmp_path_factory) -> dict[str, Path]:
     (root / "notes").mkdir()
     (root / "notes" / "todo.txt").write_text("my notes\n")
     (root / "afile").write_text("a file\n")
+    (root / "meshes" / "ann").mkdir(parents=True)  # a folder source: one subject, one pose (a tetrahedron)
+    (root / "meshes" / "ann" / "rest.obj").write_text(TETRA)
     (root / "empty.yaml").write_text("# nothing here\n")
     (root / "bad.yaml").write_text("train:\n  steps: [1\n")
     last = (run / "checkpoints" / "last.pt").read_bytes()
@@ -77,6 +79,10 @@ def place(tmp_path_factory) -> dict[str, Path]:
     (root / "listkey.yaml").write_text("? [1, 2]\n: 3\n")
     (root / "dup.yaml").write_text("extends: tiny\ntrain:\n  steps: 3\n  steps: 5\n")
     return {"root": root, "data": data, "run": run}
+
+
+#: A tetrahedron in OBJ form, the smallest closed mesh.
+TETRA = "v 0 0 0\nv 0.3 0 0\nv 0 0.3 0\nv 0 0 0.3\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
 
 
 def _bad_model_files(root: Path, run: Path) -> None:
@@ -110,7 +116,7 @@ CASES = [
     ("train-config-missing", "train --config {root}/nope.yaml --out {root}/new", "no such file"),
     pytest.param("train-cuda", "train --preset tiny --set data.root={data} --set device=cuda --out {root}/new",
                  "CUDA is not available", marks=NO_CUDA),
-    ("train-out-dataset", "train --preset tiny --set data.root={data} --out {data}", "is a dataset folder"),
+    ("train-out-dataset", "train --preset tiny --set data.root={data} --out {data}", "holds a dataset (cerberus data generate)"),
     ("train-out-notes", "train --preset tiny --set data.root={data} --out {root}/notes", "not empty"),
     ("train-out-file", "train --preset tiny --set data.root={data} --out {root}/afile", "is a file"),
     ("train-out-run", "train --preset tiny --set data.root={data} --out {run}", "--resume"),
@@ -149,10 +155,10 @@ CASES = [
     ("data-show-out-manifest", "data show {data} --out {data}/manifest.json", "is the input"),
     ("data-generate-source-loop", "data generate --dataset folder --source {root}/loopdir --out {root}/new",
      "--source {root}/loopdir: cannot be resolved: a symlink loop"),
-    # a folder source is listed when it is built, so a source without meshes is named before the output is checked
-    # against it (check_apart in validate_generation); a case with a valid source holding the output is still to write
-    ("data-generate-out-holds-source", "data generate --dataset folder --source {root}/notes --out {root}",
-     "no subject folders with meshes found"),
+    # a valid folder source inside the output: refused as an input the dataset would be written over (check_apart
+    # in validate_generation, before the renderer is built and before the output rule looks at the folder)
+    ("data-generate-out-holds-source", "data generate --dataset folder --source {root}/meshes --out {root}",
+     "holds the input " + "{root}/meshes, and a dataset is written there"),
     pytest.param("eval-cuda", "eval {run} --device cuda", "CUDA is not available", marks=NO_CUDA),
     ("eval-truncated", "eval {root}/trunc.pt", "not a readable Cerberus checkpoint"),
     ("eval-random", "eval {root}/random.pt", "not a readable Cerberus checkpoint"),
@@ -161,8 +167,9 @@ CASES = [
     ("eval-missing", "eval {root}/nothing", "does not exist"),
     ("eval-dataset", "eval {data}", "is a dataset folder, not a training run"),
     ("eval-notes", "eval {root}/notes", "not a training run folder"),
-    ("eval-resolution-0", "eval {run} --resolution 0", "--resolution: must be >= 1"),
-    ("eval-resolution-huge", "eval {run} --resolution 100000", "--resolution 100000: must be an integer in [1, 256]"),
+    ("eval-resolution-0", "eval {run} --resolution 0", "--resolution 0: resolution must be an integer in [2, 1024]"),
+    ("eval-resolution-1", "eval {run} --resolution 1", "--resolution 1: resolution must be an integer in [2, 1024]"),
+    ("eval-resolution-huge", "eval {run} --resolution 100000", "--resolution 100000: resolution must be an integer in"),
     ("eval-protocol", "eval {run} --protocol foo", "--protocol foo: unknown protocol 'foo'"),
     ("eval-limit-negative", "eval {run} --limit -3", "--limit: must be >= 1"),
     ("eval-limit-0", "eval {run} --limit 0", "--limit: must be >= 1"),
@@ -170,7 +177,7 @@ CASES = [
     ("eval-baseline-missing", "eval {run} --baseline X={root}/missing", "--baseline X="),
     ("eval-baseline-form", "eval {run} --baseline justaname", "NAME=RUN"),
     ("eval-out-file", "eval {run} --out {root}/afile", "is a file"),
-    ("eval-out-dataset", "eval {run} --out {data}", "is a dataset folder"),
+    ("eval-out-dataset", "eval {run} --out {data}", "holds a dataset (cerberus data generate), and an output is only"),
     ("eval-data-notes", "eval {run} --data {root}/notes", "not a Cerberus dataset"),
     ("eval-split", "eval {run} --split nosuch", "no split 'nosuch'"),
     ("eval-renderer", "eval {run} --renderer nope", "unknown renderer 'nope'"),
@@ -183,17 +190,17 @@ CASES = [
      "invalid scene set-up (scene.elevation: expected a number, got 'high'"),
     ("data-show-scene-manifest", "data show {root}/badscene --out {root}/sheet.png", "invalid scene set-up"),
     ("eval-unknown-name", "eval nosuchmodel", "no pretrained model named 'nosuchmodel'"),
-    ("eval-out-notes", "eval {run} --out {root}/notes", "pass --overwrite"),
-    ("eval-out-run", "eval {run} --out {run}", "a result folder is replaced whole"),
-    ("eval-out-data-parent", "eval {run} --data {data} --out {root}", "a result folder is replaced whole"),
+    ("eval-out-notes", "eval {run} --out {root}/notes --overwrite", "is not empty (it holds"),
+    ("eval-out-run", "eval {run} --out {run}", "an output folder is replaced whole"),
+    ("eval-out-data-parent", "eval {run} --data {data} --out {root}", "an output folder is replaced whole"),
     ("reconstruct-fifo", "reconstruct {run} {root}/pipe.png --out {root}/rec", "is a FIFO (named pipe), not an image"),
     ("reconstruct-device", "reconstruct {run} /dev/zero --out {root}/rec", "is a device, not an image"),
     ("reconstruct-nan-weights", "reconstruct {root}/nan.safetensors {root}/img.png --out {root}/rec", "NaN"),
     ("reconstruct-scene-value", "reconstruct {root}/scene_value.safetensors {root}/img.png --out {root}/rec",
      "invalid scene set-up"),
     ("reconstruct-out-inputs", "reconstruct {run} {root}/img.png --out {root}", "holds the input " + "{root}/img.png"),
-    ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "a result folder is replaced whole"),
-    ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes", "pass --overwrite"),
+    ("reconstruct-out-run", "reconstruct {run} {root}/img.png --out {run}", "an output folder is replaced whole"),
+    ("reconstruct-out-notes", "reconstruct {run} {root}/img.png --out {root}/notes --overwrite", "is not empty (it holds"),
     ("reconstruct-model-path", "reconstruct --model ./human {root}/img.png --out {root}/rec",
      "takes a shipped model's name"),
     ("reconstruct-out-name-long", "reconstruct {run} {root}/img.png --out {root}/" + "o" * 300,
@@ -216,13 +223,13 @@ CASES = [
     ("reconstruct-huge", "reconstruct {run} {root}/huge.png --out {root}/rec", "downscale it first"),
     ("reconstruct-big", "reconstruct {run} {root}/big.png --out {root}/rec", "9000x5000 pixels is too large"),
     ("reconstruct-out-file", "reconstruct {run} {root}/img.png --out {root}/afile", "is a file"),
-    ("reconstruct-out-dataset", "reconstruct {run} {root}/img.png --out {data}", "is a dataset folder"),
+    ("reconstruct-out-dataset", "reconstruct {run} {root}/img.png --out {data}", "holds a dataset (cerberus data generate)"),
     ("reconstruct-data-notes", "reconstruct {run} {root}/img.png --data {root}/notes --out {root}/rec",
      "not a Cerberus dataset"),
     ("demo-size-0", "demo --image-size 0 --out {root}/demo", "--image-size: must be >= 1"),
     ("demo-size-huge", "demo --image-size 100000 --out {root}/demo", "at most"),
     ("demo-out-file", "demo --out {root}/afile", "is a file"),
-    ("demo-out-dataset", "demo --out {data}", "is a dataset folder"),
+    ("demo-out-dataset", "demo --out {data}", "holds a dataset (cerberus data generate)"),
     ("demo-renderer", "demo --renderer nope --out {root}/demo", "unknown renderer 'nope'"),
     # data generate: the whole generation is validated before --dry-run returns and before the folder's
     # lock or manifest is written (cerberus_core.datasets.generate.validate_generation)
@@ -254,7 +261,7 @@ CASES = [
           ("test-fraction-not-folder", "--test-fraction 0.5 --out {root}/new", "--test-fraction 0.5: not an option of the primitives body source"),
           ("out-file", "--out {root}/afile", "is a file"),
           ("out-under-file", "--out {root}/afile/sub", "is under"),
-          ("out-notes", "--out {root}/notes", "is not empty and holds no Cerberus dataset"),
+          ("out-notes", "--out {root}/notes", "is not empty (it holds todo.txt) and is not a dataset"),
           ("out-other-dataset", "--seed 5 --out {data}", "holds a different dataset"),
       ] for dry in (False, True)],
     pytest.param("data-generate-cuda", GEN + " --device cuda --out {root}/new", "CUDA is not available",
@@ -316,7 +323,7 @@ def test_same_named_inputs_get_distinct_outputs(place, tmp_path, capsys):
     assert main(["reconstruct", str(place["run"]), str(tmp_path / "a" / "x.png"), str(tmp_path / "b" / "x.png"),
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    files = [p for p in out.rglob("*") if p.is_file() and p.name != RESULT_MARKER]
+    files = [p for p in out.rglob("*") if p.is_file() and p.name != MARKER]
     assert f"wrote {len(files)} files for 2 image(s)" in printed and "a_x" in printed and "b_x" in printed
     assert (out / "a_x.glb").is_file() and (out / "b_x.glb").is_file()
     # per image: 13 pictures and meshes plus its new-pose GLB for the viewer; and the one viewer page
@@ -443,7 +450,7 @@ def test_outputs_of_one_input_never_take_another_inputs_name(place, tmp_path, ca
     out = tmp_path / "rec"
     assert main(["reconstruct", str(place["run"]), *map(str, inputs), "--out", str(out)]) == 0
     assert "x_new_pose.png -> " in capsys.readouterr().out  # the renamed input is named
-    written = {p.name for p in out.iterdir()} - {"index.html", RESULT_MARKER}
+    written = {p.name for p in out.iterdir()} - {"index.html", MARKER}
     expected = [{pattern.format(s) for pattern in OUTPUT_PATTERNS} for s in stems]
     masked_only = {f"{s}{suffix}" for s in stems for suffix in ("_mask.png", "_steps.png")}  # written with a mask
     assert written <= set().union(*expected), "OUTPUT_PATTERNS must list every name reconstruct writes"
@@ -559,7 +566,8 @@ def test_eval_reports_its_step_and_a_newer_checkpoint(place, tmp_path, capsys):
     payload["step"] = 5  # as a resumed training that checkpointed step 5, then was stopped
     torch.save(payload, run / "checkpoints" / "last.pt")
     (run / "eval").mkdir()
-    (run / "eval" / "results.json").write_text("{}")  # an earlier version's results: replaced without --overwrite
+    (run / "eval" / "results.json").write_text("{}")  # an earlier version's results, marked as they were then:
+    (run / "eval" / ".cerberus-result.json").write_text('{"command": "cerberus eval", "written": 0}')  # replaced
     with pytest.warns(UserWarning, match=r"holds step 2 but .*last.pt is at step 5.*resuming its training"):
         assert main(["eval", str(run), "--limit", "1", "--no-hard", "--no-part-quality", "--figure-images", "1",
                      "--viewer-images", "0"]) == 0
@@ -596,3 +604,40 @@ def test_a_training_that_crashed_before_its_first_checkpoint_restarts(place, tmp
         torch.set_num_threads(torch_threads)
     assert "finished step 1" in capsys.readouterr().out
     assert (run / "model.safetensors").is_file()
+
+
+#: Every command that takes --out, over a folder (for cerberus-metrics batch: a file) holding a foreign file, with
+#: --overwrite where the command has it (issue 39: the rule is "only what the toolkit wrote as the same output").
+OVER_FOREIGN = [
+    ("data generate", GEN + " --out {out} --overwrite"),
+    ("train", "train --preset tiny --set data.root={data} --set train.steps=1 --out {out}"),
+    ("eval", "eval {run} --data {data} --limit 1 --out {out} --overwrite"),
+    ("reconstruct", "reconstruct {run} {root}/img.png --out {out} --overwrite"),
+    ("reconstruct --model", "reconstruct --model human {root}/img.png --out {out} --overwrite"),
+    ("demo", "demo --renderer torch --out {out}"),
+    ("cerberus-metrics batch", "batch --pairs {root}/pairs.csv --no-progress --out {out}/results.json"),
+]
+
+
+@pytest.mark.parametrize(("command", "argv"), OVER_FOREIGN, ids=[c[0] for c in OVER_FOREIGN])
+def test_no_command_replaces_a_folder_it_did_not_write(place, tmp_path, capsys, command, argv):
+    """Each command, pointed with --overwrite at a folder of someone else's files (under a temporary folder),
+    refuses in one line (exit 2) naming what is there, and every file survives unchanged."""
+    from cerberus_metrics.cli import main as metrics_main
+
+    out = tmp_path / "mine"
+    (out / "sub").mkdir(parents=True)
+    (out / "thesis.tex").write_text("years of work")
+    (out / "sub" / "data.csv").write_text("1,2,3")
+    (out / "results.json").write_text('{"mine": true}')
+    (out / f".{out.name}.999999.mine.tmp").mkdir()  # named like a dead writer's temporary, but not one
+    if command.startswith("cerberus-metrics"):
+        (tmp_path / "a.obj").write_text(TETRA)
+        (place["root"] / "pairs.csv").write_text(f"pred,gt\n{tmp_path / 'a.obj'},{tmp_path / 'a.obj'}\n")
+    before = snapshot(tmp_path)
+    args = [a.format(out=out, **{k: str(v) for k, v in place.items()}) for a in argv.split()]
+    code = metrics_main(args) if command.startswith("cerberus-metrics") else main(args)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "is not empty (it holds" in err or "exists and is not results that cerberus-metrics batch wrote" in err
+    assert snapshot(tmp_path) == before

@@ -9,6 +9,7 @@ import os
 import stat
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -188,3 +189,21 @@ def test_a_pairs_file_json_can_not_read_is_one_mesh_input_error(tmp_path, text, 
     (tmp_path / "pairs.json").write_text(text)
     with pytest.raises(MeshInputError, match=words):
         pairs_from_file(tmp_path / "pairs.json")
+
+
+def test_a_rerun_replaces_only_results_batch_wrote(cwd_scenario, monkeypatch):
+    """Issue 39: an output file is replaced only when ``batch`` wrote it (its JSON marker, the results columns of
+    its CSV, or the JSON form before the marker); empty files may be used."""
+    monkeypatch.chdir(cwd_scenario)
+    args = ["batch", "--pairs", "pairs.csv", "--jobs", "1", "--no-progress", "--out", "o.json", "--csv", "o.csv"]
+    assert main(args) == 1  # one failed pair
+    first = json.loads(Path("o.json").read_text())
+    assert next(iter(first)) == "written_by" and first["written_by"] == "cerberus-metrics batch"
+    assert main(args) == 1  # its own results are replaced
+    Path("o.json").write_text(json.dumps({"summary": first["summary"], "pairs": first["pairs"]}, indent=2))
+    assert main(args) == 1  # the form an earlier version wrote
+    Path("o.json").write_text("")
+    assert main(args) == 1 and json.loads(Path("o.json").read_text())["summary"]["pairs"] == 9
+    Path("o.csv").write_text("id,pred,gt\nmine,a.obj,b.obj\n")
+    assert main(args) == 2
+    assert Path("o.csv").read_text() == "id,pred,gt\nmine,a.obj,b.obj\n"

@@ -48,6 +48,9 @@ def bad_inputs(tmp_path, helpers):
     (tmp_path / "pairs.txt").write_text("pred,gt\npred.ply,gt.ply\n")
     (tmp_path / "ok.csv").write_text("pred,gt\npred.ply,gt.ply\n")
     (tmp_path / "afile").write_text("x")
+    (tmp_path / "mine.json").write_text('{\n  "summary": "my own notes"}\n')
+    (tmp_path / "pairs_id.csv").write_text("id,pred,gt\na,pred.ply,gt.ply\n")  # another pairs file, not results
+    (tmp_path / "ten.off").write_text("OFF\n3 10000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
     (tmp_path / "huge.off").write_text("OFF\n3 100000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
     (tmp_path / "nul.csv").write_text("pred,gt\npred.ply\0,gt.ply\n")
     (tmp_path / "cut.stl").write_bytes(b"\0" * 80 + (10**9).to_bytes(4, "little") + b"\0" * 50)
@@ -93,11 +96,19 @@ BAD_CLI = [
     # issue 34: bounded before anything is allocated, and no output may be an input
     ("chamfer samples huge", ["chamfer", "pred.ply", "gt.ply", "--samples", "100000000000"], "--samples"),
     ("fscore samples huge", ["fscore", "pred.ply", "gt.ply", "--samples", "10000001"], "in [1, 10000000]"),
-    ("face count huge", ["check", "huge.off"], "100000000000 faces: a mesh may have 0..20000000"),
+    ("face count huge", ["check", "huge.off"], "100000000000 faces: a mesh may have 0..2000000"),
+    # issue 39: a 10-million-face mesh ran past 300 s with no output; refused at once, with the fix
+    ("ten million faces", ["iou", "ten.off", "gt.ply"], "10000000 faces: a mesh may have 0..2000000 (a larger one "
+     "takes most of an hour); simplify the mesh (e.g. quadric decimation"),
     ("iou face count huge", ["iou", "huge.off", "gt.ply"], "100000000000 faces"),
     ("csv is an input mesh", [*BATCH, "--out", "out.json", "--csv", "gt.ply"], "--csv 'gt.ply' is one of the inputs"),
     ("out is an input mesh", [*BATCH, "--out", "pred.ply"], "--out 'pred.ply' is one of the inputs"),
     ("out is the pairs file", [*BATCH, "--out", "ok.csv"], "--out 'ok.csv' is one of the inputs"),
+    # issue 39: an existing file is replaced only when batch wrote it
+    ("out a foreign file", [*BATCH, "--out", "mine.json"], "--out 'mine.json' exists and is not results that "
+     "cerberus-metrics batch wrote; it is never replaced"),
+    ("csv a pairs file", [*BATCH, "--out", "out.json", "--csv", "pairs_id.csv"], "--csv 'pairs_id.csv' exists"),
+    ("out a FIFO", [*BATCH, "--out", "pipe.ply"], "--out 'pipe.ply' exists"),
     # issue 34 campaign: a cache written among the inputs, a NUL in a path (an 'internal error'), a cut STL (a hang),
     # a FIFO and a symlink loop said not to exist
     ("cache dir holds the inputs", [*BATCH, "--cache-dir", ".", *OUTS], "--cache-dir '.' holds the input"),

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -117,3 +118,16 @@ def test_version(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["--version"])
     assert exit_.value.code == 0 and capsys.readouterr().out == f"cerberus {__version__}\n"
+
+
+@pytest.mark.parametrize("command", [["data", "generate"], ["train"], ["eval"], ["reconstruct"], ["demo"], ["batch"]],
+                         ids=lambda c: " ".join(c))
+def test_every_command_with_out_links_what_it_may_replace(command, capsys) -> None:
+    """Issue 39: each command's --help links the one paragraph on what --out may replace (docs/outputs.md)."""
+    from cerberus_metrics.cli import main as metrics_main
+
+    with pytest.raises(SystemExit) as exit_:
+        (metrics_main if command == ["batch"] else main)([*command, "--help"])
+    assert exit_.value.code == 0
+    assert "docs/outputs.md" in " ".join(capsys.readouterr().out.split())
+    assert (Path(__file__).parents[3] / "docs" / "outputs.md").is_file()

@@ -16,6 +16,9 @@ from cerberus_core.datasets.format import DatasetError, sha256_file
 from cerberus_core.datasets.manifest import MANIFEST, Manifest
 from cerberus_core.datasets.plan import preset_config
 from cerberus_core.datasets.scene import SceneSetup
+from cerberus_core.errors import ConfigError
+from cerberus_core.plumbing.atomic import TEMP_MARKER
+from cerberus_core.plumbing.outputs import MARKER, write_marker
 
 QUIET = {"progress": False, "log": lambda s: None}
 
@@ -92,7 +95,10 @@ def test_killed_mid_shard_leaves_no_accepted_half_shard(pairs_dataset, pairs_con
     manifest = json.loads((out / MANIFEST).read_text())
     assert [s["name"] for s in manifest["splits"]["train"]["shards"]] == ["shard-00000"]
     assert (out / "train" / "shard-00001.images.npy").exists()  # written, but not listed: not accepted
-    (out / "train" / ".shard-00001.quads.npy.abc.tmp").write_bytes(b"partial")  # a torn temporary
+    torn = out / "train" / ".shard-00001.quads.npy.123.abc.tmp"  # a torn temporary: a marked folder
+    torn.mkdir()
+    (torn / TEMP_MARKER).write_text("")
+    (torn / "file").write_bytes(b"partial")
     Dataset.generate(pairs_config(), out, **QUIET)
     assert _fingerprint(out) == _fingerprint(pairs_dataset)
 
@@ -123,14 +129,44 @@ def test_foreign_or_different_folders_are_refused(pairs_dataset, pairs_config, t
     assert json.loads((out / MANIFEST).read_text())["config"]["seed"] == 3
     assert Dataset.open(out).verify() == []
 
+
+
+def test_overwrite_never_touches_a_folder_the_toolkit_did_not_write(pairs_dataset, pairs_config, tmp_path):
+    """Issue 39: ``data generate --out ~ --overwrite`` replaced ``~/train`` and ``~/test``. A folder holding
+    anything but a dataset the toolkit wrote is refused, ``overwrite`` or not, and nothing in it changes."""
+    import shutil
+
     busy = tmp_path / "busy"
-    busy.mkdir()
-    (busy / "notes.txt").write_text("mine")
-    with pytest.raises(DatasetError, match="not empty"):
-        Dataset.generate(pairs_config(), busy, **QUIET)
-    assert sorted(p.name for p in busy.iterdir()) == ["notes.txt"]
-    Dataset.generate(pairs_config(), busy, overwrite=True, **QUIET)
-    assert (busy / "notes.txt").read_text() == "mine"  # --overwrite only replaces dataset files
+    for name in ("train", "test"):
+        (busy / name).mkdir(parents=True)
+        (busy / name / "thesis.tex").write_text("mine")
+    for overwrite in (False, True):
+        with pytest.raises(ConfigError, match=r"is not empty \(it holds test, train\) and is not a dataset .* written "
+                           "by Cerberus"):
+            Dataset.generate(pairs_config(), busy, overwrite=overwrite, **QUIET)
+    assert sorted(p.relative_to(busy).as_posix() for p in busy.rglob("*")) == [
+        "test", "test/thesis.tex", "train", "train/thesis.tex"]
+    # a dataset written before the marker (its manifest reads) is still the toolkit's: replaced with overwrite
+    old = tmp_path / "old"
+    shutil.copytree(pairs_dataset, old)
+    (old / MARKER).unlink()
+    Dataset.generate(pairs_config(seed=3), old, overwrite=True, **QUIET)
+    assert json.loads((old / MARKER).read_text())["kind"] == "dataset"
+    # a split folder the old dataset did not write is not replaced, nor written into
+    (old / "extra").mkdir()
+    (old / "extra" / "mine.txt").write_text("mine")
+    config = pairs_config()
+    config = replace(config, splits={**config.splits, "extra": config.splits["test"]})
+    with pytest.raises(DatasetError, match="holds extra, which the dataset there did not write"):
+        Dataset.generate(config, old, overwrite=True, **QUIET)
+    assert (old / "extra" / "mine.txt").read_text() == "mine"
+    # a run or results are another kind of output: refused by name
+    run = tmp_path / "run"
+    run.mkdir()
+    write_marker(run, "run")
+    (run / "config.yaml").write_text("x")
+    with pytest.raises(ConfigError, match=r"holds a training run \(cerberus train\), and an output is only ever"):
+        Dataset.generate(pairs_config(), run, overwrite=True, **QUIET)
 
 
 def test_resuming_a_finished_dataset_does_nothing(pairs_dataset, pairs_config, tmp_path):

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from cerberus_core.errors import OutputError
-from cerberus_core.plumbing.atomic import atomic_folder, atomic_write_text, remove_stale
+from cerberus_core.plumbing.atomic import TEMP_MARKER, atomic_folder, atomic_write_text, remove_stale
 
 
 def _dead_pid() -> int:
@@ -41,20 +41,37 @@ def test_a_killed_writers_temporary_folder_is_removed_by_the_next_write(tmp_path
     assert (tmp_path / "out" / "whole.txt").read_text() == "whole"
 
 
-def test_remove_stale_keeps_live_writers_and_other_names(tmp_path: Path):
-    dead, live = _dead_pid(), os.getppid()
-    (tmp_path / f".res.{dead}.abc123.tmp").mkdir()
-    (tmp_path / f".res.{dead}.def456.tmp").write_text("x")
-    (tmp_path / f".res.{live}.ghi789.tmp").mkdir()  # a writer that still runs
-    (tmp_path / f".other.{dead}.jkl.tmp").mkdir()  # another target's
-    (tmp_path / ".res.abcdefgh.tmp").mkdir()  # no pid: an earlier version's, left alone
-    removed = remove_stale(tmp_path, "res")
-    assert sorted(p.name for p in removed) == sorted([f".res.{dead}.abc123.tmp", f".res.{dead}.def456.tmp"])
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        [f".res.{live}.ghi789.tmp", f".other.{dead}.jkl.tmp", ".res.abcdefgh.tmp"])
-    atomic_write_text(tmp_path / "res", "ok")  # files go the same way
-    assert (tmp_path / "res").read_text() == "ok"
+def _marked(path: Path) -> Path:
+    path.mkdir()
+    (path / TEMP_MARKER).write_text("")
+    (path / "half").write_text("half")
+    return path
 
+
+def test_remove_stale_keeps_live_writers_other_names_and_anything_unmarked(tmp_path: Path):
+    """Issue 39: a user's folder named like a dead process's temporary (``.res.999999.mine.tmp`` beside ``res``)
+    was deleted by the next write, without a word. Only a temporary that carries the writer's marker goes."""
+    dead, live = _dead_pid(), os.getppid()
+    _marked(tmp_path / f".res.{dead}.abc123.tmp")
+    _marked(tmp_path / f".res.{dead}.abc124.old")
+    (tmp_path / f".res.{dead}.mine.tmp").mkdir()  # a user's folder: no marker
+    (tmp_path / f".res.{dead}.mine.tmp" / "thesis.tex").write_text("precious")
+    (tmp_path / f".res.{dead}.def456.tmp").write_text("x")  # a file: never a temporary of this module
+    (tmp_path / f".res.{dead}.empty.tmp").mkdir()  # empty, unmarked: nothing proves it is ours
+    _marked(tmp_path / f".res.{live}.ghi789.tmp")  # a writer that still runs
+    _marked(tmp_path / f".other.{dead}.jkl.tmp")  # another target's
+    (tmp_path / f".res.{dead}.link.tmp").symlink_to(tmp_path / f".res.{live}.ghi789.tmp")
+    removed = remove_stale(tmp_path, "res")
+    assert sorted(p.name for p in removed) == sorted([f".res.{dead}.abc123.tmp", f".res.{dead}.abc124.old"])
+    assert (tmp_path / f".res.{dead}.mine.tmp" / "thesis.tex").read_text() == "precious"
+    atomic_write_text(tmp_path / "res", "ok")  # files go the same way
+    with atomic_folder(tmp_path / "folder") as tmp:
+        (tmp / "a").write_text("a")
+    assert (tmp_path / "res").read_text() == "ok"
+    assert sorted(p.name for p in (tmp_path / "folder").iterdir()) == ["a"]  # the marker stays with temporaries
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([
+        "res", "folder", f".res.{dead}.mine.tmp", f".res.{dead}.def456.tmp", f".res.{dead}.empty.tmp",
+        f".res.{live}.ghi789.tmp", f".other.{dead}.jkl.tmp", f".res.{dead}.link.tmp"])
 
 
 def test_atomic_folder_is_complete_or_untouched(tmp_path) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import re
 import sys
 import types
 import typing
@@ -28,7 +29,7 @@ from typing import Any
 
 import yaml
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, shown
 from cerberus_core.plumbing.names import did_you_mean
 
 __all__ = ["Presets", "build", "deep_merge", "flatten", "load_raw", "load_yaml", "omit_defaults",
@@ -65,6 +66,8 @@ def omit_defaults(d: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str
     return {k: v for k, v in d.items() if not (k in defaults and v == defaults[k])}
 
 
+_INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+
 #: The deepest nesting of mappings and lists a config text may have (the deepest config key has 3 levels).
 MAX_DEPTH = 16
 
@@ -72,14 +75,24 @@ MAX_DEPTH = 16
 class _StrictLoader(yaml.SafeLoader):
     """A safe YAML loader that refuses a mapping with the same key twice (PyYAML keeps the last one
     silently, so a config with ``steps`` written twice would train with whichever came last), a key
-    that is not a name (a list or a mapping used as a key) and nesting deeper than :data:`MAX_DEPTH`
-    (which would end in a ``RecursionError``)."""
+    that is not a name (a list or a mapping used as a key), nesting deeper than :data:`MAX_DEPTH`
+    (which would end in a ``RecursionError``) and aliases (``*name``: nested ones expand a few hundred
+    bytes into gigabytes; settings never need them). Numbers are read as YAML 1.2 reads them (issue 39):
+    ``010`` is ten (YAML 1.1 read eight), ``1:30`` is text (1.1 read ninety, so an integer setting refuses
+    it), ``0o10`` and ``0x10`` are octal and hexadecimal; booleans stay as PyYAML reads them."""
+
+    yaml_implicit_resolvers = {first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT, _FLOAT)]
+                               for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
 
     def __init__(self, stream) -> None:  # noqa: ANN001 - PyYAML's signature
         super().__init__(stream)
         self._depth = 0
 
     def compose_node(self, parent, index):  # noqa: ANN001 - PyYAML's signature
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(None, None, f"an alias (*{str(event.anchor)[:40]}) repeats another "
+                                              "value; settings take no aliases: write the value out", event.start_mark)
         self._depth += 1
         try:
             if self._depth > MAX_DEPTH:
@@ -106,10 +119,26 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+def _construct_int(loader: _StrictLoader, node: yaml.ScalarNode) -> int:
+    """A YAML 1.2 integer: decimal (a leading zero changes nothing), ``0o`` octal or ``0x`` hexadecimal."""
+    text = loader.construct_scalar(node)
+    sign, body = (-1 if text.startswith("-") else 1), text.lstrip("+-")
+    base = {"0o": 8, "0x": 16}.get(body[:2], 10)
+    return sign * int(body[2:] if base != 10 else body, base)
+
+
+_StrictLoader.add_implicit_resolver(_INT, re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$"),
+                                    list("-+0123456789"))
+_StrictLoader.add_implicit_resolver(_FLOAT, re.compile(
+    r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"),
+    list("-+.0123456789"))
+_StrictLoader.add_constructor(_INT, _construct_int)
+
+
 def load_yaml(text: str, source: object = "config", fix: str = "fix the file") -> Any:
     """The one reader of config text (files, presets, saved configs and ``--set`` values): a safe load that
-    refuses a key given twice in one mapping, a list or mapping as a key and nesting deeper than
-    :data:`MAX_DEPTH`, each as one :class:`ConfigError` line ``SOURCE:LINE: not valid YAML (problem); FIX``."""
+    refuses a key given twice in one mapping, a list or mapping as a key, nesting deeper than
+    :data:`MAX_DEPTH` and aliases, and reads numbers as YAML 1.2 does (:class:`_StrictLoader`), each as one :class:`ConfigError` line ``SOURCE:LINE: not valid YAML (problem); FIX``."""
     try:
         return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as exc:
@@ -261,13 +290,13 @@ def _coerce_union(value: Any, options: tuple, key: str) -> Any:
             return coerce(value, option, key)
         except ConfigError:
             pass
-    raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {value!r}", key=key, value=value)
+    raise ConfigError(f"{key}: expected {' or '.join(_hint_name(o) for o in options)}, got {shown(value)}", key=key, value=value)
 
 
 def _coerce_literal(value: Any, allowed: tuple, key: str) -> Any:
     if any(value == a and type(value) is type(a) for a in allowed):
         return value
-    raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}"
+    raise ConfigError(f"{key}: must be one of {', '.join(repr(a) for a in allowed)}, got {shown(value)}"
                       f"{did_you_mean(value, allowed)}", key=key, value=value)
 
 
@@ -276,7 +305,7 @@ def _coerce_int(value: Any, key: str) -> int:
         return value
     if isinstance(value, float) and value.is_integer():
         return int(value)
-    raise ConfigError(f"{key}: expected an integer, got {value!r}", key=key, value=value)
+    raise ConfigError(f"{key}: expected an integer, got {shown(value)}", key=key, value=value)
 
 
 def _coerce_float(value: Any, key: str) -> float:
@@ -287,7 +316,7 @@ def _coerce_float(value: Any, key: str) -> float:
         with contextlib.suppress(ValueError):
             number = float(value)  # YAML reads "5e-4" as a string
     if number is None:
-        raise ConfigError(f"{key}: expected a number, got {value!r}", key=key, value=value)
+        raise ConfigError(f"{key}: expected a number, got {shown(value)}", key=key, value=value)
     if not math.isfinite(number):  # .nan / .inf are YAML numbers, never sensible settings
         raise ConfigError.about(key, number, "must be a finite number")
     return number
@@ -295,10 +324,10 @@ def _coerce_float(value: Any, key: str) -> float:
 
 def _coerce_sequence(value: Any, origin: type, args: tuple, key: str) -> list | tuple:
     if not isinstance(value, (list, tuple)):
-        raise ConfigError(f"{key}: expected a list, got {value!r}", key=key, value=value)
+        raise ConfigError(f"{key}: expected a list, got {shown(value)}", key=key, value=value)
     if origin is tuple and args and args[-1] is not Ellipsis:
         if len(value) != len(args):
-            raise ConfigError(f"{key}: expected a list of {len(args)} values, got {value!r}", key=key, value=value)
+            raise ConfigError(f"{key}: expected a list of {len(args)} values, got {shown(value)}", key=key, value=value)
         return tuple(coerce(v, a, f"{key}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True)))
     item = args[0] if args else Any
     out = [coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
@@ -307,7 +336,7 @@ def _coerce_sequence(value: Any, origin: type, args: tuple, key: str) -> list | 
 
 def _coerce_mapping(value: Any, args: tuple, key: str) -> dict:
     if not isinstance(value, Mapping):
-        raise ConfigError(f"{key}: expected a mapping, got {value!r}", key=key, value=value)
+        raise ConfigError(f"{key}: expected a mapping, got {shown(value)}", key=key, value=value)
     _, item = args or (str, Any)
     return {str(k): coerce(v, item, f"{key}.{k}") for k, v in value.items()}
 
@@ -324,7 +353,7 @@ def coerce(value: Any, hint: Any, key: str) -> Any:
     if hint in _EXACT:
         if isinstance(value, hint):
             return value
-        raise ConfigError(f"{key}: expected {_EXACT[hint]}, got {value!r}", key=key, value=value)
+        raise ConfigError(f"{key}: expected {_EXACT[hint]}, got {shown(value)}", key=key, value=value)
     if hint is int:
         return _coerce_int(value, key)
     if hint is float:
@@ -348,7 +377,7 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     """
     section = prefix[:-1] if prefix else "config"
     if not isinstance(d, Mapping):
-        raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {d!r}", key=section, value=d)
+        raise ConfigError(f"{section}: expected a mapping of {sorted(f.name for f in fields(cls))}, got {shown(d)}", key=section, value=d)
     hints = typing.get_type_hints(cls)
     known = [f.name for f in fields(cls) if f.init]
     unknown = sorted(set(d) - set(known), key=str)  # a YAML key may be a number

@@ -45,6 +45,7 @@ config key, parameter or field, in backticks where the fix sets it (`` `train.st
 from __future__ import annotations
 
 import os
+import reprlib
 from pathlib import Path
 
 
@@ -55,6 +56,21 @@ class CerberusError(Exception):
 class DatasetError(CerberusError, ValueError):
     """A dataset folder (or a folder of meshes) is missing, corrupt, incomplete or of another format;
     the message names the file and the fix."""
+
+
+_REPR = reprlib.Repr()
+_REPR.maxstring, _REPR.maxother, _REPR.maxlist, _REPR.maxtuple, _REPR.maxdict, _REPR.maxlevel = 60, 60, 6, 6, 4, 3
+
+#: The most characters of a value a message echoes (:func:`shown`).
+SHOWN_MAX = 100
+
+
+def shown(value: object) -> str:
+    """``value``'s repr for a message, bounded in work and length (:data:`SHOWN_MAX`): a setting given as a
+    long text or a deep structure is named by its start, not echoed whole (issue 39: a 400-byte value with
+    nested YAML aliases made a 17.5 MB error line)."""
+    text = _REPR.repr(value)
+    return text if len(text) <= SHOWN_MAX else text[:SHOWN_MAX - 3] + "..."
 
 
 class ConfigError(CerberusError, ValueError):
@@ -80,8 +96,8 @@ class ConfigError(CerberusError, ValueError):
         Args:
             fix: the Python fix, where the problem does not say it, e.g. ``EvalSettings(resolution=...)``.
         """
-        shown = "" if value is None else f" = {os.fspath(value)}" if isinstance(value, os.PathLike) else f" = {value!r}"
-        return cls(f"{key}{shown}: {problem}" + (f" ({fix})" if fix else ""), key=key, value=value, problem=problem)
+        said = "" if value is None else f" = {os.fspath(value)}" if isinstance(value, os.PathLike) else f" = {shown(value)}"
+        return cls(f"{key}{said}: {problem}" + (f" ({fix})" if fix else ""), key=key, value=value, problem=problem)
 
     def within(self, prefix: str) -> ConfigError:
         """This error with its key under the section ``prefix`` (``"splits.train."``: ``views`` becomes
@@ -230,4 +246,4 @@ __all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "Con
            "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError",
            "NonFiniteError", "OutputError", "PluginError", "PluginLoadError", "ReleaseMismatchError",
            "RenderInputError", "RunExistsError", "ShapeError", "TextFormatError", "TrainingDatasetError",
-           "UnknownPluginError", "ZooError"]
+           "UnknownPluginError", "ZooError", "shown"]

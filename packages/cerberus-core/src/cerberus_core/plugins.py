@@ -22,8 +22,9 @@ from typing import Any
 
 import entrypoints
 
-from cerberus_core.errors import DuplicatePluginError, PluginLoadError, UnknownPluginError
+from cerberus_core.errors import DuplicatePluginError, PluginError, PluginLoadError, UnknownPluginError
 from cerberus_core.plumbing.names import did_you_mean
+from cerberus_core.release import VERSION
 
 RENDERER_GROUP = "cerberus.renderers"
 BODY_GROUP = "cerberus.bodies"
@@ -60,10 +61,14 @@ class PluginInfo:
     _entry_point: Any = None
 
     def load(self) -> Any:
-        """Import and return the registered object; :class:`PluginLoadError` if the import fails."""
+        """Import and return the registered object; :class:`PluginLoadError` if the import fails, however it
+        fails (``SystemExit`` and ``GeneratorExit`` too: a plugin calling ``sys.exit`` at import made
+        ``cerberus data generate`` exit 0 having done nothing; only Ctrl-C goes through)."""
         try:
             return self._entry_point.load()
-        except Exception as exc:  # noqa: BLE001 - any import-time failure is reported the same way
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # noqa: BLE001 - any import-time failure is reported the same way
             raise PluginLoadError(
                 f"{self.group} plugin '{self.name}' from {self.distribution} {self.version} ({self.target}) failed to load: "
                 f"{type(exc).__name__}: {exc}. Reinstall it (pip install --force-reinstall {self.distribution}) "
@@ -83,9 +88,15 @@ def discover(group: str, path: list[str] | None = None) -> dict[str, PluginInfo]
         version = getattr(ep.distro, "version", None) or "?"
         target = f"{ep.module_name}:{ep.object_name}" if ep.object_name else ep.module_name
         info = PluginInfo(ep.name, group, target, dist, version, ep)
+        if dist.lower() == "cerberus-core" and version != VERSION:  # the entrypoints package lists one per name
+            raise DuplicatePluginError(
+                f"{group} plugin '{ep.name}' comes from a distribution named cerberus-core {version} ({target}), "
+                f"not this toolkit's cerberus-core {VERSION}: another package of that name shadows the toolkit's "
+                "and would replace its plugins. Uninstall it (pip uninstall cerberus-core) and reinstall the "
+                "toolkit from its wheelhouse (README, 'Installing with pip').")
         prev = found.get(ep.name)
         if prev is not None:
-            if _same_dist(prev.distribution, dist):
+            if _same_dist(prev, info):
                 continue  # the same distribution seen twice on sys.path
             raise DuplicatePluginError(
                 f"{group} plugin name '{ep.name}' is registered by two packages: "
@@ -96,9 +107,22 @@ def discover(group: str, path: list[str] | None = None) -> dict[str, PluginInfo]
     return found
 
 
-def _same_dist(a: str, b: str) -> bool:
+def _same_dist(a: PluginInfo, b: PluginInfo) -> bool:
+    """Whether two entry points are one distribution seen twice on ``sys.path``: the same name, version and
+    target (issue 39: another version of a distribution named ``cerberus_core`` silently replaced a built-in
+    source when only names were compared)."""
     norm = lambda s: s.lower().replace("_", "-")  # noqa: E731
-    return norm(a) == norm(b)
+    return (norm(a.distribution), a.version, a.target) == (norm(b.distribution), b.version, b.target)
+
+
+def plugin_origin(group: str, name: str) -> str:
+    """``'NAME' (DISTRIBUTION VERSION, TARGET)``: where the plugin ``name`` of ``group`` comes from, for a
+    message about something it broke (``'NAME'`` alone when it is not registered)."""
+    try:
+        info = discover(group).get(name)
+    except PluginError:
+        info = None
+    return f"'{name}'" if info is None else f"'{name}' ({info.distribution} {info.version}, {info.target})"
 
 
 def _install_hint(group: str, name: str) -> str:

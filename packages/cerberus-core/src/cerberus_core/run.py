@@ -39,16 +39,13 @@ from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.photo_mask import AUTO, require_segmenter
 from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import printable
-from cerberus_core.plumbing.outputs import result_folder, writing_results
+from cerberus_core.plumbing.outputs import check_output, writing_results
 from cerberus_core.reconstruct.write import ImageInputs, Reconstruction, TrainedModel, mask_paths, write_reconstructions
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.settings import TrainConfig
 from cerberus_core.weights import WeightsInfo, describe_weights, load_weights, looks_like_path
 from cerberus_core.zoo import available
-
-#: What ``cerberus eval`` wrote before result folders were marked: such a folder is replaced without ``overwrite``.
-EARLIER_RESULTS = frozenset({"results.json", "results.md", "table2.png", "pictures"})
 
 
 def open_data(data: str | Path) -> Dataset:
@@ -110,29 +107,28 @@ def check_eval_packages(skip: Sequence[str] = ()) -> None:
                                   "(from the toolkit's wheelhouse: README, 'Installing with pip')")
 
 
-def check_protocol(name: str) -> str:
-    """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
-    anything runs; a missing cerberus-metrics is named as such)."""
+def check_scorer(protocol: str, resolution: int) -> None:
+    """The voxel-IoU protocol and resolution must be ones the metric takes (checked through its entry point,
+    before anything runs: the metric's bounds are the only ones; a missing cerberus-metrics is named as such)."""
     factory = get_metric(SCORER_ENTRY_POINT)
-    try:
-        factory(protocol=name, resolution=32)
-    except (ValueError, KeyError) as exc:
-        raise ConfigError.about("protocol", name, str(exc)) from None
-    return name
+    for key, value, tried in (("protocol", protocol, {"resolution": 32}), ("resolution", resolution, {})):
+        try:
+            factory(**({"protocol": protocol, "resolution": resolution} | tried))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ConfigError.about(key, value, str(exc)) from None
 
 
 @dataclass(frozen=True)
 class EvalSettings(EvalConfig):
     """Everything :meth:`Run.evaluate` is told: what to measure (:class:`EvalConfig`'s fields) and what to
     score and write; checked when made (:class:`~cerberus_core.errors.ConfigError` naming the field),
-    the protocol through the metric's entry point.
+    the protocol and the resolution through the metric's entry point (its bounds: :func:`check_scorer`).
 
     Attributes:
         split: the split to score.
         limit: only the first ``limit`` images (``None``: all).
         figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
         renderer: backend for the figure and the visibility render (``None``: the run's).
-        overwrite: replace an output folder that holds files that are not earlier results.
         input_look: the test images shown to the model in this look (:mod:`cerberus_core.datasets.looks`:
             ``shaded`` as stored, ``flat`` silhouettes, ``random`` appearances), scores, figures and viewer
             alike; the ground truth is the same. ``None``: the look the model learned (``data.input_look``).
@@ -143,13 +139,12 @@ class EvalSettings(EvalConfig):
     figure_images: int = ranged(5, ge=1)
     viewer_images: int = ranged(12, ge=0)
     renderer: str | None = None
-    overwrite: bool = False
     input_look: InputLook | None = None
 
     def validate(self) -> None:
         super().validate()
         check_eval_packages(self.skip)
-        check_protocol(self.protocol)
+        check_scorer(self.protocol, self.resolution)
 
 
 def _canonical_hint(dataset: Dataset) -> str:
@@ -349,8 +344,8 @@ class Run:
             data: dataset folder (default: the run's training data root).
             settings: what to measure and write (:class:`EvalSettings`; default: everything, the
                 paper's protocol, the test split).
-            out: the result folder (default :meth:`default_out`); replaced whole, refused when it
-                holds other files unless ``settings.overwrite``.
+            out: the result folder (default :meth:`default_out`); replaced whole, refused unless it is new,
+                empty or earlier evaluation results (:func:`~cerberus_core.plumbing.outputs.check_output`).
             baselines: ``{name: Run or model}`` drawn beside this one in the figure.
             verbose: print what is scored and the summary (:meth:`Evaluation.lines`).
         Raises:
@@ -362,9 +357,8 @@ class Run:
             check_kind(f"baselines[{name!r}]", baseline, (Run, Cerberus), "a Run or a Cerberus model")
         data = None if data is None else open_data(check_path("data", data)).root
         keep = [] if self.shipped else [Path(self.source)]
-        out = result_folder(check_path("out", out) if out is not None else self.default_out(), overwrite=s.overwrite,
-                            keep=[*keep, *([data] if data else [])], earlier=EARLIER_RESULTS,
-                            refuse=Dataset.not_an_output)
+        out = check_path("out", out) if out is not None else self.default_out()
+        check_output(out, "eval", keep=[*keep, *([data] if data else [])])
         baseline_models = {name: b.model if isinstance(b, Run) else b for name, b in (baselines or {}).items()}
         if data is None and not Dataset.is_dataset(self.data_root):
             raise ConfigError.about("data", None, f"needed: the run's training data {self.data_root} is not a dataset "
@@ -383,7 +377,7 @@ class Run:
             print(f"evaluating {printable(self.path)}{at_step}{look}")
         if weights.stale_warning():
             warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
-        with writing_results(out, "cerberus eval") as tmp:  # out is replaced only once all is written
+        with writing_results(out, "eval") as tmp:  # out is replaced only once all is written
             indices = range(min(s.limit, len(dataset))) if s.limit else None
             scorer = VoxelScorer(s.protocol, s.resolution)  # one ground-truth grid cache for scores and figure
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
@@ -402,7 +396,7 @@ class Run:
         return evaluation
 
     def reconstruct_images(self, images: Sequence[str | Path], out: str | Path, *,
-                           masks: Sequence[str | Path] | str | None = None, overwrite: bool = False,
+                           masks: Sequence[str | Path] | str | None = None,
                            data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
                            viewer_images: int = 12) -> Reconstruction:
         """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
@@ -411,7 +405,8 @@ class Run:
         Args:
             images: the input files.
             out: the result folder, replaced whole once everything is written; refused when it holds an
-                input or mask, or other files unless ``overwrite``.
+                input or mask, or unless it is new, empty or earlier reconstructions
+                (:func:`~cerberus_core.plumbing.outputs.check_output`).
             masks: the body's silhouette per image (or one folder of ``NAME.png``), or ``"auto"``: the person
                 found in each image by the photo extra's segmenter (:mod:`cerberus_core.photo_mask`; its mask
                 is written beside the result); an RGBA input's
@@ -432,7 +427,8 @@ class Run:
         else:
             mask_list = mask_paths(check_paths("masks", masks) if masks else None, images)
         keep = images + [m for m in mask_list if isinstance(m, Path)] + ([] if self.shipped else [Path(self.source)])
-        out = result_folder(check_path("out", out), overwrite=overwrite, keep=keep, refuse=Dataset.not_an_output)
+        out = check_path("out", out)
+        check_output(out, "reconstruct", keep=keep)
         trained = TrainedModel(self.model, self.scene_for(data), int(self.config.data.image_size or 64),
                                renderer or self.config.renderer, self.device, self.training_kind(),
                                self.config.data.input_look)
@@ -460,4 +456,4 @@ class Run:
         write_text(report, folder / "results.md")
 
 
-__all__ = ["EARLIER_RESULTS", "EvalSettings", "Evaluation", "Run"]
+__all__ = ["EvalSettings", "Evaluation", "Run"]

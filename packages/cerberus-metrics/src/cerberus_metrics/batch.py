@@ -319,11 +319,37 @@ def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[st
     return out
 
 
+#: The first key of every JSON results file ``batch`` writes: what marks a file it may replace.
+WRITTEN_BY = "cerberus-metrics batch"
+#: How a results file of this package begins: the marked form, and the form before the marker (issue 39).
+_JSON_STARTS = ('{\n  "written_by": "' + WRITTEN_BY + '"', '{\n  "summary": {\n    "pairs": ')
+#: Columns only a results CSV of ``batch`` has together (a pairs file has ``id``, ``pred``, ``gt`` alone).
+_CSV_COLUMNS = {"id", "pred", "gt", "status", "warnings"}
+
+
+def written_here(path: Path) -> bool:
+    """Whether the existing file ``path`` is empty or results that ``batch`` wrote (a JSON file beginning with
+    its marker, or a CSV whose header has its columns): the only files an output may replace. This package's
+    copy of the toolkit's one output rule (docs/outputs.md): it stands alone, and writes files, never folders."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False
+    if not head:
+        return True
+    text = head.decode("utf-8", "replace")
+    if text.startswith(_JSON_STARTS):
+        return True
+    header = next(csv.reader([text.splitlines()[0]]), []) if text.splitlines() else []
+    return _CSV_COLUMNS <= set(header)
+
+
 def check_output_path(path: str | os.PathLike, flag: str) -> str:
     """Absolute form of an output path, after checking it can be written (before any work is done).
 
-    Raises :class:`MeshInputError` naming ``flag`` when the path is a folder, its folder does
-    not exist or is not writable.
+    Raises :class:`MeshInputError` naming ``flag`` when the path is a folder, its folder does not exist or
+    is not writable (what it may replace: :func:`check_replaceable`, after :func:`check_not_input`).
     """
     p = Path(os.path.abspath(path))
     if p.is_dir():
@@ -333,6 +359,15 @@ def check_output_path(path: str | os.PathLike, flag: str) -> str:
     if not os.access(p.parent, os.W_OK):
         raise MeshInputError(f"{flag} '{path}': folder '{p.parent}' is not writable; choose another place")
     return str(p)
+
+
+def check_replaceable(outputs: dict[str, str | None]) -> None:
+    """Refuse (:class:`MeshInputError` naming the flag) an output file (``{flag: path or None}``) that exists and
+    is not one ``batch`` wrote (:func:`written_here`): such a file is never replaced."""
+    for flag, out in outputs.items():
+        if out and os.path.lexists(out) and (not os.path.isfile(out) or not written_here(Path(out))):
+            raise MeshInputError(f"{flag} '{out}' exists and is not results that cerberus-metrics batch wrote; it "
+                                 "is never replaced: move it away or choose another name (docs/outputs.md)")
 
 
 def check_not_input(outputs: dict[str, str | None], pairs: Sequence[PairSpec], extra: Sequence[str] = (),
@@ -394,7 +429,7 @@ def _create_temp(target: Path) -> tuple[int, str]:
 
 
 def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_path: str | os.PathLike | None) -> None:
-    """Write ``{"summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ').
+    """Write ``{"written_by", "summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ').
 
     Atomic: each file is written to a temporary file in its folder and moved into place only
     when all requested files are complete, so a failure leaves no partial output. Permissions are
@@ -403,7 +438,8 @@ def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_
     """
     todo = []
     if json_path:
-        todo.append((Path(json_path), json.dumps({"summary": result.summary, "pairs": result.rows}, indent=2)))
+        record = {"written_by": WRITTEN_BY, "summary": result.summary, "pairs": result.rows}
+        todo.append((Path(json_path), json.dumps(record, indent=2)))
     if csv_path:
         todo.append((Path(csv_path), _csv_text(result.rows)))
     temps: list[str] = []

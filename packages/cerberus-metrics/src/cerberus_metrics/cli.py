@@ -19,7 +19,15 @@ from typing import Any, NoReturn
 
 from . import __version__
 from .api import METRICS, evaluate_pair, inspect_mesh
-from .batch import check_not_input, check_output_path, pairs_from_file, pairs_from_folders, run_batch, write_results
+from .batch import (
+    check_not_input,
+    check_output_path,
+    check_replaceable,
+    pairs_from_file,
+    pairs_from_folders,
+    run_batch,
+    write_results,
+)
 from .distances import MAX_SAMPLES
 from .io import MeshInputError, MeshQualityWarning
 from .protocols import PROTOCOLS
@@ -232,8 +240,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="worker processes, >= 1 (default: all cores)")
     p.add_argument("--cache-dir", default=None, help="folder for cached ground-truth grids (content-hashed)")
     p.add_argument("--no-cache", action="store_true", help="voxelize every ground truth anew (no grid cache)")
-    p.add_argument("--out", default=None, help="write summary and per-pair results as JSON here")
-    p.add_argument("--csv", default=None, help="write per-pair results as CSV here")
+    replaced = ("; an existing file is replaced only when it is results batch wrote, anything else is refused "
+                "(what --out may replace: docs/outputs.md)")
+    p.add_argument("--out", default=None, help="write summary and per-pair results as JSON here" + replaced)
+    p.add_argument("--csv", default=None, help="write per-pair results as CSV here" + replaced)
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--json", action="store_true", help="print summary and pairs as JSON on stdout")
 
@@ -329,6 +339,7 @@ def _run_batch(args: argparse.Namespace) -> int:
         raise MeshInputError("no pairs found; check the pairs file or the folders (mesh files by suffix)")
     check_not_input({"--out": args.out, "--csv": args.csv}, pairs, [args.pairs] if args.pairs else [],
                     folders={"--cache-dir": args.cache_dir})
+    check_replaceable({"--out": args.out, "--csv": args.csv})
     result = run_batch(
         pairs,
         metrics,

@@ -25,10 +25,12 @@ import numpy as np
 
 __all__ = ["MAX_FACES", "FileDefect", "check_counts", "scan_mesh_file"]
 
-MAX_FACES = 20_000_000
-"""The most faces (and vertices) a mesh may have: about 1 KB each through reading, cleaning and voxelizing, so
-this bound keeps one mesh within about 20 GB; a larger one (or a header claiming one) is refused before
-it is read."""
+MAX_FACES = 2_000_000
+"""The most faces (and vertices) a mesh may have; a larger one (or a header claiming one) is refused before it is
+read, in one line. Reading, cleaning and voxelizing cost about 1 KB and, on the 2-core test machine, 0.3 ms a face
+when idle and several times that when busy (``cerberus-metrics iou`` of a 1,310,720-face sphere against a
+327,680-face one: 364 s at load 6, 548 s at load 10.6; issue 39), so a 10-million-face mesh ran for most of an
+hour with no output. A mesh at this bound takes minutes; decimate a larger one first."""
 
 
 class FileDefect(Exception):
@@ -47,8 +49,9 @@ def check_counts(n_v: int, n_f: int) -> None:
     """:class:`FileDefect` when a mesh's vertex or face count is negative or above :data:`MAX_FACES`."""
     for what, n in (("vertices", n_v), ("faces", n_f)):
         if n < 0 or n > MAX_FACES:
-            raise FileDefect(f"{n} {what}: a mesh may have 0..{MAX_FACES}",
-                             "simplify the mesh (e.g. quadric decimation) or check the header that states the count")
+            raise FileDefect(f"{n} {what}: a mesh may have 0..{MAX_FACES} (a larger one takes most of an hour)",
+                             "simplify the mesh (e.g. quadric decimation: pymeshlab's "
+                             "meshing_decimation_quadric_edge_collapse) or check the header that states the count")
 
 
 def _nan_defect(count: int, total: int, where: str, text: str) -> FileDefect:

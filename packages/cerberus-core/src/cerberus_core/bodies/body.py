@@ -16,10 +16,11 @@ keeps part shapes identical across poses, which pose consistency relies on.
 """
 from __future__ import annotations
 
+import contextlib
 import typing
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, fields, replace
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, ClassVar
@@ -27,9 +28,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cerberus_core.config import Presets, build
-from cerberus_core.errors import BodyError, ConfigError, DatasetError, MissingPackageError
+from cerberus_core.errors import BodyError, CerberusError, ConfigError, DatasetError, MissingPackageError, shown
 from cerberus_core.fields import RANGE, Checked, Range
-from cerberus_core.plugins import BODY_GROUP, get_plugin
+from cerberus_core.plugins import BODY_GROUP, get_plugin, plugin_origin
 from cerberus_core.shapes import check_shapes
 
 FILL: float = 0.9
@@ -346,6 +347,28 @@ def source_class(name: str) -> type[BodySource]:
     """
     cls = get_plugin(BODY_GROUP, name)
     if not (isinstance(cls, type) and issubclass(cls, BodySource)):
-        raise ConfigError.about("dataset", name, f"the {BODY_GROUP} entry point {name!r} is not a BodySource class",
-                                "register the source's class")
+        raise ConfigError.about("dataset", name, f"the {BODY_GROUP} entry point {plugin_origin(BODY_GROUP, name)} is "
+                                "not a BodySource class", "register the source's class")
+    if getattr(cls, "name", None) != name:  # a dataset labelled with both names resolved to the other source
+        raise ConfigError.about("dataset", name, f"the {BODY_GROUP} entry point {plugin_origin(BODY_GROUP, name)} "
+                                f"holds a source whose `name` is {shown(getattr(cls, 'name', None))}; a source has one "
+                                "name: make the entry point's and the class's the same")
+    if not (isinstance(cls.Options, type) and is_dataclass(cls.Options)):
+        raise ConfigError.about("dataset", name, f"the body source {plugin_origin(BODY_GROUP, name)} has `Options` "
+                                f"{shown(cls.Options)}, not a dataclass; a source's options are a dataclass "
+                                "(docs/bodies.md)")
     return cls
+
+
+@contextlib.contextmanager
+def source_contract(source: BodySource | type[BodySource], what: str) -> Iterator[None]:
+    """Run a body source's own code (``subjects``, ``bodies``, its subjects' ``info``): any exception it raises
+    that is not one of the toolkit's own becomes one :class:`BodyError` naming the plugin, its distribution and
+    ``what`` it broke (issue 39: a traceback that did not name the plugin)."""
+    try:
+        yield
+    except CerberusError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever a plugin raises is named the same way
+        raise BodyError(f"the body source {plugin_origin(BODY_GROUP, source.name)} failed in {what}: "
+                        f"{type(exc).__name__}: {shown(str(exc))[1:-1]}; fix the source or uninstall it") from exc

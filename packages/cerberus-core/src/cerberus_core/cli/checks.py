@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import argparse
 
+#: What every command that writes a folder says about --out in its --help (the rule: docs/outputs.md).
+OVERWRITE_HELP = ("it may be new, empty or an earlier output of this command; a folder holding anything else is "
+                  "refused, --overwrite or not (what --out may replace: docs/outputs.md)")
+
 
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""

@@ -7,12 +7,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.checks import OVERWRITE_HELP, positive_int
 from cerberus_core.cli.datasets import CONFIG_FLAGS, finish, source_flags
 from cerberus_core.cli.flags import FlagNames
 
 GENERATE_HELP = """Generate a dataset into --out. Rerunning the same command resumes an interrupted run without
-redoing finished shards; a folder holding anything else is refused unless --overwrite.
+redoing finished shards; --overwrite replaces a different dataset that cerberus data generate wrote there. A
+folder holding anything else is refused, --overwrite or not (what --out may replace: docs/outputs.md).
 
 --dataset names a body source registered under the cerberus.bodies entry points (docs/bodies.md); the core's:
   human:      large (the paper's 19,500 train pairs / 5 subjects with small's test split:
@@ -69,7 +70,7 @@ def _add_what(g: argparse.ArgumentParser) -> None:
     g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size
     g.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set splits.train.pairs=2000 (repeatable; values are YAML)")
-    g.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
+    g.add_argument("--out", type=Path, required=True, help=f"dataset folder to create or resume; {OVERWRITE_HELP}")
 
 
 def _add_source_options(g: argparse._ArgumentGroup) -> dict:
@@ -100,7 +101,7 @@ def _add_config_flags(g: argparse.ArgumentParser) -> None:
 def _add_how(g: argparse.ArgumentParser) -> None:
     g.add_argument("--batch-size", type=positive_int, default=64, help="views per render call (default 64; no effect on output)")
     g.add_argument("--device", default="cpu", help="torch device for posing and rendering (default cpu)")
-    g.add_argument("--overwrite", action="store_true", help="replace a different dataset in --out")
+    g.add_argument("--overwrite", action="store_true", help="replace a different dataset that cerberus data generate wrote in --out (only its own files)")
     g.add_argument("--dry-run", action="store_true", help="print the plan (counts per split) and exit")
     g.add_argument("--print-config", action="store_true", help="print the resolved config (YAML) and exit")
     g.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -5,10 +5,10 @@ import argparse
 import time
 from pathlib import Path
 
-from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.checks import OVERWRITE_HELP, positive_int
 from cerberus_core.cli.flags import FlagNames
 from cerberus_core.errors import ConfigError
-from cerberus_core.plumbing.outputs import output_folder
+from cerberus_core.plumbing.outputs import check_output, writing_results
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.demo import demo_scene
@@ -23,7 +23,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="render a demo scene with every installed renderer backend",
                        description="Render a stick figure of 9 deformed sphere parts from 4 viewpoints with each "
                        "installed renderer backend (or the one named) and write shaded and part-coloured PNGs.")
-    p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default: out/demo)")
+    p.add_argument("--out", type=Path, default=Path("out/demo"),
+                   help=f"output folder, replaced whole (default: out/demo); {OVERWRITE_HELP}")
     p.add_argument("--renderer", action="append", help="backend(s) to use (default: all installed)")
     p.add_argument("--image-size", type=positive_int, default=128,
                    help=f"image size in pixels, 1..{MAX_IMAGE_SIZE} (default: 128)")
@@ -33,9 +34,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.image_size > MAX_IMAGE_SIZE:
         raise ConfigError(f"--image-size {args.image_size}: at most {MAX_IMAGE_SIZE}", key="image_size", value=args.image_size)
-    from cerberus_core.datasets.dataset import Dataset
-
-    out = output_folder(args.out, refuse=Dataset.not_an_output)
+    out = args.out
+    check_output(out, "demo")
     names = args.renderer or available_renderers()
     if not names:
         raise ConfigError("no renderer backend is installed: pip install cerberus-render-torch "
@@ -44,13 +44,14 @@ def run(args: argparse.Namespace) -> int:
     parts, faces, camera = demo_scene(image_size=args.image_size)
     light = Light.following(camera)
     colours = part_colors(parts.shape[1])
-    out.mkdir(parents=True, exist_ok=True)
-    for name, renderer in renderers.items():
-        t0 = time.perf_counter()
-        shaded = render_parts(renderer, parts, faces, camera, light, background=(1.0, 1.0, 1.0))
-        coloured = render_parts(renderer, parts, faces, camera, light, albedo=colours, background=(1.0, 1.0, 1.0))
-        ms = (time.perf_counter() - t0) * 1000
-        path = out / f"demo_{name}.png"
-        save_image_grid([shaded.image, coloured.image], path, titles=["shaded", "parts"])
-        print(f"{name:<8} {ms:8.1f} ms  -> {path}")
+    lines = []
+    with writing_results(out, "demo") as tmp:  # out is replaced whole once every picture is written
+        for name, renderer in renderers.items():
+            t0 = time.perf_counter()
+            shaded = render_parts(renderer, parts, faces, camera, light, background=(1.0, 1.0, 1.0))
+            coloured = render_parts(renderer, parts, faces, camera, light, albedo=colours, background=(1.0, 1.0, 1.0))
+            ms = (time.perf_counter() - t0) * 1000
+            save_image_grid([shaded.image, coloured.image], tmp / f"demo_{name}.png", titles=["shaded", "parts"])
+            lines.append(f"{name:<8} {ms:8.1f} ms  -> {out / f'demo_{name}.png'}")
+    print("\n".join(lines))
     return 0

@@ -5,12 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cerberus_core.cli.checks import positive_int
+from cerberus_core.cli.checks import OVERWRITE_HELP, positive_int
 from cerberus_core.cli.flags import FlagNames
 from cerberus_core.datasets.looks import INPUT_LOOKS
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.diagnostics import DIAGNOSTICS
-from cerberus_core.eval.standard import MAX_RESOLUTION
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -35,12 +34,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "folder of that name as ./human")
     p.add_argument("--data", type=Path, help="dataset folder (default: the run's training data root)")
     p.add_argument("--split", default="test", help="split to evaluate (default: test)")
-    p.add_argument("--out", type=Path, help="output folder, replaced whole (default: RUN/eval)")
+    p.add_argument("--out", type=Path, help=f"output folder, replaced whole (default: RUN/eval); {OVERWRITE_HELP}")
     p.add_argument("--overwrite", action="store_true",
-                   help="replace --out even when it holds files that are not earlier results")
+                   help="accepted for older scripts and changes nothing: earlier results of cerberus eval are "
+                   "replaced without it, and nothing else ever is (docs/outputs.md)")
     p.add_argument("--protocol", default="kato", help="voxel-IoU protocol (default: kato, the paper's)")
-    p.add_argument("--resolution", type=positive_int, default=32,
-                   help=f"voxel grid resolution, 1..{MAX_RESOLUTION} (default: 32)")
+    p.add_argument("--resolution", type=int, default=32,
+                   help="voxel grid resolution (default: 32); cerberus-metrics bounds it (2..1024), checked "
+                   "before anything runs")
     for row in DIAGNOSTICS:  # --no-hard, --no-part-quality, ...: one per diagnostic, from its row
         p.add_argument(skip_flag(row.name), action="store_true", dest=f"no_{row.name}", help=f"skip {row.about}")
     p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
@@ -61,8 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run, flag_names=FlagNames({
         "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
         "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
-        "renderer": "--renderer", "out": "--out", "overwrite": "--overwrite", "device": "--device",
-        "input_look": "--input-look"}))
+        "renderer": "--renderer", "out": "--out", "device": "--device", "input_look": "--input-look"}))
 
 
 def skip_flag(name: str) -> str:
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
                             skip=tuple(row.name for row in DIAGNOSTICS if getattr(args, f"no_{row.name}")),
                             limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,
-                            renderer=args.renderer, overwrite=args.overwrite, input_look=args.input_look)
+                            renderer=args.renderer, input_look=args.input_look)
     run_ = Run.load(args.run, args.device)
     run_.evaluate(args.data, settings, args.out, baselines=baseline_runs(args.baseline, args.device))
     return 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cerberus_core.cli.checks import OVERWRITE_HELP
 from cerberus_core.cli.flags import FlagNames
 from cerberus_core.devices import check_device
 from cerberus_core.errors import ConfigError
@@ -25,8 +26,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "warning naming the fix, and its figure and viewer card say it is out of the training domain; so is a "
         "body cut off by the image's edge (a portrait).\n\n"
         "The results replace --out whole, in one step, when they are all written: an error or Ctrl-C leaves --out "
-        "as it was. --out may hold earlier results; a folder holding other files needs --overwrite, and one holding "
-        "an input is refused.",
+        "as it was. --out may be new, empty or earlier results of cerberus reconstruct; a folder holding anything "
+        "else (or an input) is refused, --overwrite or not (docs/outputs.md).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  cerberus reconstruct --model human person.png          # a shipped model (cerberus models)\n"
         "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run\n"
@@ -50,9 +51,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="images in the interactive 3D viewer OUT/index.html (default: the first 12; 0: no viewer)")
     p.add_argument("--out", type=Path, default=Path("out/reconstruct"),
-                   help="output folder, replaced whole (default: out/reconstruct)")
+                   help=f"output folder, replaced whole (default: out/reconstruct); {OVERWRITE_HELP}")
     p.add_argument("--overwrite", action="store_true",
-                   help="replace --out even when it holds files that are not earlier results (never an input)")
+                   help="accepted for older scripts and changes nothing: earlier results of cerberus reconstruct are "
+                   "replaced without it, and nothing else ever is (docs/outputs.md)")
     p.add_argument("--data", type=Path, help="dataset whose scene set-up (camera elevation, distance, fov, light) "
                    "the images follow (default: the set-up the run recorded, else the run's training data)")
     p.add_argument("--azimuth", type=float, default=0.0,
@@ -61,7 +63,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     # The flag of each setting of Run.load and Run.reconstruct_images (and an image's mask).
     p.set_defaults(func=run, flag_names=FlagNames({
-        "masks": "--mask", "mask": "--mask", "viewer_images": "--viewer-images", "out": "--out", "overwrite": "--overwrite",
+        "masks": "--mask", "mask": "--mask", "viewer_images": "--viewer-images", "out": "--out",
         "data": "--data", "azimuth": "--azimuth", "renderer": "--renderer", "device": "--device"}))
 
 
@@ -88,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         require_segmenter()  # one line naming the extra, before the model is loaded
     masks = AUTO if auto else None if args.mask is None else [Path(m) for m in args.mask]
     result = Run.load(source, args.device).reconstruct_images(
-        images, args.out, masks=masks, overwrite=args.overwrite, data=args.data, azimuth=args.azimuth,
+        images, args.out, masks=masks, data=args.data, azimuth=args.azimuth,
         renderer=args.renderer, viewer_images=args.viewer_images)
     print("\n".join(result.lines(viewer=args.viewer_images > 0)))
     return 0

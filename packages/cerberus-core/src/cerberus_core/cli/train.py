@@ -53,7 +53,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set optim.lr=1e-4 (repeatable; values are YAML)")
     p.add_argument("--out", type=Path, metavar="RUN_DIR",
-                   help="run folder (default: runs/<preset or config name>)")
+                   help="run folder (default: runs/<preset or config name>): new or empty, or a run of cerberus train "
+                   "to --resume; a folder holding anything else is refused (what --out may replace: docs/outputs.md)")
     p.add_argument("--resume", action="store_true",
                    help="continue the run in RUN_DIR from its last checkpoint (the saved config is used; "
                    "--set may change train.steps and logging keys)")
@@ -90,7 +91,6 @@ def _check_config_file(path: Path) -> None:
 def resolve(args: argparse.Namespace) -> tuple[Path, TrainConfig]:
     """The run folder and its config from the flags: --config / --preset (the default one announced) or the run's
     saved config (:func:`resume_config`), plus --set, --device and --renderer; validated, nothing written."""
-    from cerberus_core.datasets.dataset import Dataset
     from cerberus_core.train.settings import default_preset, load_config, resume_config
 
     if args.config is None and not args.preset and not (args.resume and args.out):
@@ -99,7 +99,7 @@ def resolve(args: argparse.Namespace) -> tuple[Path, TrainConfig]:
         print(f"no --preset or --config given: using the '{chosen}' preset ({why}); pass --preset NAME to choose",
               file=sys.stderr)
     name = args.config.stem if args.config else "+".join(args.preset or ["paper"])
-    out = output_folder(args.out or Path("runs") / name, refuse=Dataset.not_an_output)
+    out = output_folder(args.out or Path("runs") / name)
     # one mechanism: --device and --renderer are the config keys of their names
     overrides = [*args.overrides, *(f"{key}={getattr(args, key)}" for key in ("device", "renderer")
                                     if getattr(args, key) is not None)]

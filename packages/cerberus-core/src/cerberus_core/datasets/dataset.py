@@ -61,12 +61,6 @@ class Dataset:
         return (Path(path) / MANIFEST).is_file()
 
     @classmethod
-    def not_an_output(cls, path: Path) -> str | None:
-        """Why results may not be written into ``path`` (a dataset folder: its files are not results), or
-        ``None`` (the ``refuse`` check of :func:`~cerberus_core.plumbing.outputs.output_folder`)."""
-        return "is a dataset folder; write results to another folder" if cls.is_dataset(path) else None
-
-    @classmethod
     def open(cls, root: str | Path) -> Dataset:
         """The dataset in the folder ``root``.
 
@@ -212,7 +206,8 @@ class Dataset:
         lock (one writer per dataset folder).
 
         Rerunning the same config in the same folder resumes it (finished shards are kept); a folder that
-        holds anything else is refused unless ``overwrite``.
+        holds another dataset is refused unless ``overwrite``, and one holding anything else always
+        (:func:`~cerberus_core.plumbing.outputs.check_output`).
 
         Args:
             config: what to generate: a :class:`~cerberus_core.datasets.plan.GenerationRequest` (source, size
@@ -222,7 +217,7 @@ class Dataset:
                 source takes its default options.
             out: the dataset folder (created if needed).
             source: a body source built by the caller instead (a request's options are then stored as given).
-            overwrite: replace a different dataset, or write into a folder holding other files.
+            overwrite: replace a different dataset the toolkit wrote in ``out`` (its own files only).
             device: torch device for posing and rendering (no effect on the dataset).
             batch_size: views per render call (no effect on the dataset).
             progress: show a progress bar; log: where progress lines go.
@@ -230,7 +225,7 @@ class Dataset:
 
         Raises:
             ConfigError: the generation is invalid (nothing written).
-            DatasetError: ``out`` holds something else.
+            DatasetError, ConfigError: ``out`` holds another dataset (without ``overwrite``), or anything else.
             LockedError: another live process writes into ``out``.
         """
         out = check_path("out", out)

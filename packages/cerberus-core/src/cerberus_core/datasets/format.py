@@ -18,13 +18,14 @@ a killed run never leaves a shard that a reader accepts half-written.
 from __future__ import annotations
 
 import hashlib
+import shutil
 from pathlib import Path
 
 import numpy as np
 
 from cerberus_core.datasets.manifest import MANIFEST, FileRecord, Manifest, ShardRecord, canonical_json
 from cerberus_core.errors import DatasetError, ShapeError  # DatasetError re-exported: the format's readers raise it
-from cerberus_core.plumbing.atomic import atomic_write
+from cerberus_core.plumbing.atomic import atomic_write, is_temporary
 from cerberus_core.plumbing.outputs import resolved
 from cerberus_core.shapes import check_shapes
 
@@ -65,12 +66,13 @@ def config_hash(config: dict) -> str:
 
 
 def clean_temporaries(folder: Path) -> int:
-    """Remove leftover ``.*.tmp`` files of an interrupted run under ``folder``; returns the count."""
-    n = 0
-    for tmp in Path(folder).rglob(".*.tmp"):
-        tmp.unlink(missing_ok=True)
-        n += 1
-    return n
+    """Remove the temporaries an interrupted run left under ``folder`` (called under the folder's lock):
+    only those that carry the atomic writer's marker (:func:`cerberus_core.plumbing.atomic.is_temporary`),
+    never a file or folder that merely has such a name. Returns the count."""
+    found = [p for pattern in (".*.tmp", ".*.old") for p in Path(folder).rglob(pattern) if is_temporary(p)]
+    for tmp in found:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return len(found)
 
 
 # ------------------------------------------------------------------------------------ paths

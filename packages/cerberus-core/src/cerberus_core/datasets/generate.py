@@ -3,11 +3,13 @@
 Resumable and deterministic: the plan (:mod:`cerberus_core.datasets.plan`) is a pure function of the
 config, every shard is rebuilt from it alone, and the manifest lists a shard (with the sha256 of its
 files) only after its files are complete on disk. Rerunning the same config in the same folder skips
-the finished shards; a config that differs from the folder's refuses unless ``overwrite=True``.
+the finished shards; a config that differs from the folder's refuses unless ``overwrite=True``, which
+replaces only a dataset the toolkit wrote (``docs/outputs.md``).
 """
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -17,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.bodies.body import BodySource, PosedBody, source_class
+from cerberus_core.bodies.body import BodySource, PosedBody, source_class, source_contract
 from cerberus_core.datasets.format import (
     DatasetError,
     check_shard_files,
@@ -40,9 +42,8 @@ from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.datasets.settings import GenerationConfig
 from cerberus_core.devices import check_device
 from cerberus_core.errors import BodyError, ConfigError
-from cerberus_core.plumbing.lock import is_lock_file
 from cerberus_core.plumbing.machine import memory_bytes
-from cerberus_core.plumbing.outputs import check_apart
+from cerberus_core.plumbing.outputs import check_apart, check_output, write_marker
 from cerberus_core.release import VERSION
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer, resolve_renderer
@@ -240,7 +241,8 @@ def build_bodies(source: BodySource, subjects: list[SubjectRecord], meshes: list
     for s, poses in by_subject.items():
         who = subjects[s].subject
         name = who.name
-        bodies = source.bodies(who, poses)
+        with source_contract(source, f"bodies() of subject {name}"):
+            bodies = source.bodies(who, poses)
         if len(bodies) != len(poses):
             raise BodyError(f"source {source.name} returned {len(bodies)} bodies for {len(poses)} poses of {name}; "
                             "BodySource.bodies must return one body per pose id")
@@ -267,67 +269,75 @@ def _differences(a: Any, b: Any, prefix: str = "") -> list[str]:
 
 
 def _remove_dataset(out: Path, splits: list[str]) -> None:
-    """Delete what a dataset wrote in ``out`` (manifest, split folders, temporaries); nothing else."""
+    """Delete what a dataset wrote in ``out`` (manifest, the split folders its manifest names, temporaries);
+    nothing else."""
     (out / MANIFEST).unlink(missing_ok=True)
     for split in splits:
-        if (out / split).is_dir():
+        if (out / split).is_dir() and not (out / split).is_symlink():
             shutil.rmtree(out / split)
     clean_temporaries(out)
 
 
-def check_folder(out: Path, config: dict, overwrite: bool) -> tuple[str, Manifest | None]:
-    """What generating ``config`` (the manifest's form) into ``out`` will do; changes nothing.
+def _readable_dataset(out: Path) -> bool:
+    """Whether ``out``, unmarked, is a dataset an earlier version wrote (before :data:`MARKER`): its manifest
+    reads as a Cerberus manifest. Such a folder is resumed or replaced like a marked one."""
+    try:
+        Manifest.read(out)
+    except DatasetError:
+        return False
+    return True
+
+
+def check_folder(out: Path, config: dict, overwrite: bool, *, holding_lock: bool = False) -> tuple[str, Manifest | None]:
+    """What generating ``config`` (the manifest's form) into ``out`` will do; changes nothing. The folder
+    must pass the one output rule (:func:`~cerberus_core.plumbing.outputs.check_output`: new, empty or a
+    dataset the toolkit wrote; never a folder of other files, whatever ``overwrite`` says).
 
     Returns:
         ``(action, old)``: ``"new"`` (``out`` is missing or empty), ``"resume"`` (it holds this
-        dataset; ``old`` is its manifest) or ``"overwrite"`` (``overwrite`` and it holds something
-        else; ``old`` is the manifest replaced, if readable).
+        dataset; ``old`` is its manifest) or ``"overwrite"`` (``overwrite`` and it holds another
+        dataset; ``old`` is the manifest replaced, if readable).
 
     Raises:
-        DatasetError: ``out`` is a file, or holds another dataset or other files and not ``overwrite``.
+        ConfigError: ``out`` is a file, or holds anything but a dataset (:func:`check_output`).
+        DatasetError: it holds another dataset and not ``overwrite``.
     """
-    if not out.exists():
+    if not check_output(out, "dataset", legacy=_readable_dataset, holding_lock=holding_lock):
         return "new", None
-    if not out.is_dir():
-        raise DatasetError(f"{out} exists and is not a folder; choose another `out`")
-    if (out / MANIFEST).exists():
-        try:
-            old = Manifest.read(out)
-        except DatasetError as exc:
-            if not overwrite:
-                raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass `overwrite=True` to "
-                                   "replace it, or choose another `out`") from exc
-            return "overwrite", None
-        stored = jsonable(old.config.to_dict())
-        if stored == config:
-            return "resume", old
+    if not (out / MANIFEST).exists():  # marked, stopped before its manifest was written: nothing to keep
+        return "overwrite", None
+    try:
+        old = Manifest.read(out)
+    except DatasetError as exc:
         if not overwrite:
-            diff = "; ".join(_differences(stored, config)[:6])
-            raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
-                               "`overwrite=True` to replace it, or choose another `out`")
-        return "overwrite", old
-    entries = [p for p in out.iterdir() if not (p.name.startswith(".") and p.name.endswith(".tmp")) and not is_lock_file(p)]
-    if not entries:
-        return "new", None
+            raise DatasetError(f"{out} holds a dataset this version cannot resume ({exc}); pass `overwrite=True` to "
+                               "replace it, or choose another `out`") from exc
+        return "overwrite", None
+    stored = jsonable(old.config.to_dict())
+    if stored == config:
+        return "resume", old
     if not overwrite:
-        raise DatasetError(f"{out} is not empty and holds no Cerberus dataset ({len(entries)} entries, e.g. "
-                           f"{entries[0].name}); choose an empty or new `out`, or pass `overwrite=True` to write "
-                           "there anyway")
-    return "overwrite", None
+        diff = "; ".join(_differences(stored, config)[:6])
+        raise DatasetError(f"{out} holds a different dataset ({diff}); resume it with the same options, pass "
+                           "`overwrite=True` to replace it, or choose another `out`")
+    foreign = sorted(s for s in (config.get("splits") or {}) if s not in old.splits and os.path.lexists(out / s))
+    if foreign:
+        raise DatasetError(f"{out} holds {foreign[0]}, which the dataset there did not write, and the new dataset "
+                           f"would write its split {foreign[0]!r} there; move it away, or choose another `out`")
+    return "overwrite", old
 
 
 def _prepare(out: Path, config: GenerationConfig, cfg: dict, overwrite: bool,
              log: Callable[[str], None]) -> Manifest | None:
-    """Decide between a fresh run and a resume (:func:`check_folder`); return the manifest to resume from."""
-    action, old = check_folder(out, cfg, overwrite)
-    if action == "resume":
-        return old
+    """Decide between a fresh run and a resume (:func:`check_folder`); return the manifest to resume from.
+    The folder is marked as a dataset (:data:`MARKER`) before anything else is written into it."""
+    action, old = check_folder(out, cfg, overwrite, holding_lock=True)
     if action == "overwrite":
-        log(f"overwriting the dataset in {out}" if (out / MANIFEST).exists()
-            else f"writing into the non-empty folder {out} (`overwrite=True`)")
-        _remove_dataset(out, list(config.splits) + list(old.splits if old is not None else ()))
+        log(f"overwriting the dataset in {out}")
+        _remove_dataset(out, list(old.splits) if old is not None else [])
     out.mkdir(parents=True, exist_ok=True)
-    return None
+    write_marker(out, "dataset")
+    return old if action == "resume" else None
 
 
 def _manifest(out: Path, config: GenerationConfig, cfg: dict, source: BodySource, source_options: dict,
@@ -355,7 +365,7 @@ def write_dataset(job: GenerationJob, out: str | Path, *, overwrite: bool = Fals
     Args:
         job: what :func:`validate_generation` gave.
         out: the dataset folder (created if needed).
-        overwrite: replace a different dataset (or other files' dataset folders) in ``out``.
+        overwrite: replace a different dataset the toolkit wrote in ``out`` (its own files only).
         device: torch device for posing and rendering (not part of the dataset's identity).
         batch_size: views per render call (results do not depend on it).
         progress: show a tqdm bar.

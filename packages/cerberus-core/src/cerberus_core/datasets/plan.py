@@ -23,19 +23,21 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from cerberus_core.bodies.body import BodySource, Subject, source_class
+from cerberus_core.bodies.body import BodySource, Subject, source_class, source_contract
 from cerberus_core.config import build, flatten, load_raw
 from cerberus_core.datasets.format import VIEW_DTYPE
 from cerberus_core.datasets.manifest import Manifest, SubjectRecord, jsonable
 from cerberus_core.datasets.scene import SceneSetup, evenly_spaced
 from cerberus_core.datasets.settings import GenerationConfig, SplitConfig
 from cerberus_core.errors import BodyError, CerberusError, ConfigError
+from cerberus_core.fields import check_kind
 from cerberus_core.plumbing.names import did_you_mean
 
 # ------------------------------------------------------------------------------------ presets
@@ -75,6 +77,10 @@ def preset_config(dataset: str, size: str, **overrides: Any) -> GenerationConfig
     return replace(load_generation_config(dataset, size), **overrides)
 
 
+#: A config key as :class:`GenerationRequest` takes it: names of letters, digits and ``_`` joined by dots.
+_CONFIG_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*")
+
+
 @dataclass(frozen=True)
 class GenerationRequest:
     """A dataset as it is asked for: a body source, a size preset, the config keys set over the preset and
@@ -94,6 +100,24 @@ class GenerationRequest:
     size: str | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     source_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Each field checked when the request is made (issue 39: ``overrides`` as a list was an AttributeError,
+        a key ``"splits.train.pairs=2 #"`` was accepted): :class:`InputTypeError` or :class:`ConfigError`
+        naming the field."""
+        check_kind("dataset", self.dataset, str, "a body source's name (a str)")
+        if not self.dataset.strip():
+            raise ConfigError.about("dataset", self.dataset, "is empty; name a body source, e.g. 'human'")
+        if self.size is not None:
+            check_kind("size", self.size, str, "a size preset's name (a str) or None")
+        check_kind("overrides", self.overrides, Mapping, "a mapping of config keys to values, e.g. {'seed': 3}")
+        check_kind("source_options", self.source_options, Mapping, "a mapping of the source's options")
+        for where, mapping in (("overrides", self.overrides), ("source_options", self.source_options)):
+            for key in mapping:
+                if not isinstance(key, str) or not _CONFIG_KEY.fullmatch(key):
+                    raise ConfigError.about(where, key, "is not a config key (names of letters, digits "
+                                            "and _ joined by dots); give the value as the key's value, e.g. "
+                                            "{'splits.train.pairs': 2}")
 
     def config(self) -> GenerationConfig:
         """The config asked for (:func:`load_generation_config`)."""
@@ -307,7 +331,8 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
     index: dict[str, int] = {}
     shards: dict[str, list[ShardPlan]] = {}
     for split, cfg in config.splits.items():
-        infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
+        with source_contract(source, f"subjects({split!r}, ...)"):
+            infos: list[Subject] = source.subjects(split, cfg.subjects, config.seed)
         if not infos:
             shards[split] = []
             continue
@@ -320,9 +345,11 @@ def make_plan(config: GenerationConfig, source: BodySource) -> DatasetPlan:
                 table[index[s.name]] = entry.in_split(split)
             else:
                 index[s.name] = len(table)
-                canonical = source.canonical_pose(s)
-                table.append(SubjectRecord(s.name, jsonable(s.info), (split,),
-                                           None if canonical is None else int(canonical)))
+                with source_contract(source, f"the info of subject {s.name!r} (it must be what JSON holds)"):
+                    canonical = source.canonical_pose(s)
+                    info = jsonable(s.info)
+                    json.dumps(info, allow_nan=False)
+                table.append(SubjectRecord(s.name, info, (split,), None if canonical is None else int(canonical)))
         units: list[_Unit] = []
         pair_counts = _spread(cfg.pairs, len(infos)) if (cfg.layout == "pairs" and cfg.pairs is not None) else None
         chunk = max(1, config.shard_images // 4)

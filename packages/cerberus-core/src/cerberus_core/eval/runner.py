@@ -31,7 +31,7 @@ from cerberus_core.errors import DatasetError, InputTypeError, ShapeError
 from cerberus_core.eval.accumulators import BatchResult, EvalContext, StandardIoU
 from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_skip, needed, running
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.eval.standard import MAX_RESOLUTION, GroundTruthMemo, IoUSummary, VoxelScorer
+from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import PartSet
 from cerberus_core.plumbing.machine import MAX_WORKERS, capped_to_cores
@@ -181,8 +181,8 @@ class EvalConfig(Checked):
     """What one evaluation measures and how (:func:`evaluate_dataset`); checked when made.
 
     Attributes:
-        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the resolution is at most
-            :data:`~cerberus_core.eval.standard.MAX_RESOLUTION` (memory grows with its cube).
+        protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the metric bounds both
+            (:class:`cerberus_core.run.EvalSettings` checks them through its entry point before anything runs).
         skip: the diagnostics not to run, by name (:data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`:
             ``visibility``, ``hard``, ``part_quality``, ``depth``, ``segments``, ``allocation``; default: none
             skipped, every diagnostic runs). The standard IoU always runs.
@@ -197,7 +197,7 @@ class EvalConfig(Checked):
     FIX = "{cls}({key}=...)"
 
     protocol: str = "kato"
-    resolution: int = ranged(32, ge=1, le=MAX_RESOLUTION)
+    resolution: int = ranged(32, integer=True)
     skip: tuple[str, ...] = ()
     canonical_view: int | None = ranged(None, ge=0, integer=True)
     batch_size: int = ranged(16, ge=1)

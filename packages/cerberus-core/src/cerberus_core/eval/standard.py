@@ -29,8 +29,6 @@ from cerberus_core.plugins import get_metric
 
 MeshPair = tuple[np.ndarray, np.ndarray]
 
-#: Largest voxel grid ``cerberus eval`` accepts (memory grows with its cube).
-MAX_RESOLUTION = 256
 SCORER_ENTRY_POINT = "voxel_iou_scorer"
 """The ``cerberus.metrics`` entry point evaluation scores with."""
 

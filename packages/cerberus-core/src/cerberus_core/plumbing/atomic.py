@@ -11,9 +11,12 @@
 A write the file system refuses (permission, read-only, full, a name too long) raises
 :class:`~cerberus_core.errors.OutputError` naming the path and the fix.
 
-Temporary names carry the writer's process id (``.NAME.PID.XXXXXXXX.tmp``): a writer killed outright
-(SIGKILL, a power cut) cannot remove its temporary, so the next write beside it removes the
-temporaries of ``NAME`` whose process is gone (:func:`remove_stale`).
+Every temporary is a folder named with the writer's process id (``.NAME.PID.XXXXXXXX.tmp``) that holds
+:data:`TEMP_MARKER` from the moment it is created (a file is written inside it, then renamed out). A
+writer killed outright (SIGKILL, a power cut) cannot remove its temporary, so the next write beside it
+removes the temporaries of ``NAME`` whose process is gone (:func:`remove_stale`), and only those that
+carry the marker (:func:`is_temporary`): a user's folder or file that merely has such a name is never
+touched (issue 39).
 """
 from __future__ import annotations
 
@@ -85,7 +88,8 @@ _FILE_MODE = 0o666 & ~_current_umask()
 
 
 def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None:
-    """Write ``path`` through a temporary file in the same folder: write, flush, fsync, rename.
+    """Write ``path`` through a temporary file in the same folder (inside a marked temporary folder:
+    the module docstring): write, flush, fsync, rename.
 
     A reader sees either the old file, no file, or the complete new one.
     """
@@ -93,23 +97,54 @@ def atomic_write(path: Path, write: Callable[[io.BufferedWriter], None]) -> None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         remove_stale(path.parent, path.name)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=_temp_prefix(path.name), suffix=".tmp")
+        folder = _temporary_folder(path.parent, path.name, ".tmp")
     except OSError as exc:
         raise output_error(exc, path) from None
+    tmp = folder / "file"
     try:
-        with os.fdopen(fd, "wb") as fh:
+        with open(tmp, "wb") as fh:
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
-        os.chmod(tmp, _FILE_MODE)  # mkstemp creates 0600; give the file the usual permissions
+        os.chmod(tmp, _FILE_MODE)
         os.replace(tmp, path)
     except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
         raise output_error(exc, path) from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
     _fsync_dir(path.parent)
+
+
+#: The file inside every temporary folder this module creates: what marks it as the toolkit's own.
+TEMP_MARKER = ".cerberus-temporary"
+
+
+def _temporary_folder(parent: Path, name: str, suffix: str) -> Path:
+    """A new temporary folder beside ``name`` in ``parent`` (``.NAME.PID.XXXXXXXX<suffix>``), holding
+    :data:`TEMP_MARKER` before anything else is put in it."""
+    tmp = Path(tempfile.mkdtemp(dir=parent, prefix=_temp_prefix(name), suffix=suffix))
+    try:
+        os.close(os.open(tmp / TEMP_MARKER, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    except BaseException:
+        os.rmdir(tmp)
+        raise
+    return tmp
+
+
+def is_temporary(path: Path) -> bool:
+    """Whether ``path`` is a temporary this module created: a real folder (not a link) named
+    ``.NAME.PID.XXXXXXXX.tmp`` or ``.old`` holding :data:`TEMP_MARKER` as a plain file. A folder without
+    it is left alone even when empty: nothing proves the toolkit made it."""
+    name = path.name
+    if not (name.startswith(".") and name.endswith((".tmp", ".old"))):
+        return False
+    if path.is_symlink() or not path.is_dir():
+        return False
+    try:
+        marker = path / TEMP_MARKER
+        return marker.is_file() and not marker.is_symlink()
+    except OSError:
+        return False
 
 
 def _temp_prefix(name: str) -> str:
@@ -131,8 +166,9 @@ def remove_stale(folder: Path, name: str) -> list[Path]:
     """Remove the temporaries of ``name`` in ``folder`` left by processes that no longer run.
 
     Returns:
-        The removed paths. Temporaries of running processes, and names not in this module's pattern,
-        are left alone; a temporary that cannot be removed is skipped.
+        The removed paths. Temporaries of running processes, names not in this module's pattern, and
+        anything without the marker (:func:`is_temporary`: a user's file or folder named like one) are
+        left alone; a temporary that cannot be removed is skipped.
     """
     removed = []
     prefix = f".{_short(name)}."
@@ -147,11 +183,10 @@ def remove_stale(folder: Path, name: str) -> list[Path]:
         if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
             continue
         path = Path(entry.path)
+        if not is_temporary(path):
+            continue
         with contextlib.suppress(OSError):
-            if entry.is_dir(follow_symlinks=False):
-                shutil.rmtree(path)
-            else:
-                path.unlink()
+            shutil.rmtree(path)
             removed.append(path)
     return removed
 
@@ -213,7 +248,7 @@ def atomic_folder(target: str | Path) -> Iterator[Path]:
     ``target`` is untouched. Signals arriving during the swap itself are delivered after it.
 
     Callers decide beforehand whether ``target`` may be replaced (see
-    :func:`cerberus_core.plumbing.outputs.result_folder`): this function replaces it unconditionally.
+    :func:`cerberus_core.plumbing.outputs.check_output`): this function replaces it unconditionally.
 
     Raises:
         OutputError: the parent folder cannot be created or written (permission, read-only, full).
@@ -223,13 +258,14 @@ def atomic_folder(target: str | Path) -> Iterator[Path]:
     try:
         parent.mkdir(parents=True, exist_ok=True)
         remove_stale(parent, target.name)
-        tmp = Path(tempfile.mkdtemp(dir=parent, prefix=_temp_prefix(target.name), suffix=".tmp"))
+        tmp = _temporary_folder(parent, target.name, ".tmp")
         os.chmod(tmp, _DIR_MODE)  # mkdtemp creates 0700; results get the usual permissions
     except OSError as exc:
         raise output_error(exc, target) from None
     try:
         try:
             yield tmp
+            (tmp / TEMP_MARKER).unlink(missing_ok=True)  # the results themselves do not carry it
             _fsync_dir(tmp)
             with _signals_deferred():
                 _swap_in(tmp, target)
@@ -253,7 +289,7 @@ def _swap_in(tmp: Path, target: Path) -> None:
     elif target.is_dir() and not target.is_symlink() and _exchange(tmp, target):
         shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old results
     else:  # two renames: the old folder steps aside under a hidden name, the new one takes its place
-        old = Path(tempfile.mkdtemp(dir=target.parent, prefix=_temp_prefix(target.name), suffix=".old"))
+        old = _temporary_folder(target.parent, target.name, ".old")
         os.rename(target, old / "old")
         try:
             os.rename(tmp, target)

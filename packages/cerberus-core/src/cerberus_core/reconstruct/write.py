@@ -25,7 +25,7 @@ from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.parts import pose_donors
 from cerberus_core.photo_mask import write_mask_pictures
 from cerberus_core.plumbing.names import printable, safe_stem
-from cerberus_core.plumbing.outputs import RESULT_MARKER, resolved, writing_results
+from cerberus_core.plumbing.outputs import MARKER, resolved, writing_results
 from cerberus_core.reconstruct.images import LoadedImage
 from cerberus_core.reconstruct.input_domain import domain_note, prepare_input
 from cerberus_core.render.backends import make_renderer
@@ -37,7 +37,7 @@ from cerberus_core.render.backends import make_renderer
 OUTPUT_PATTERNS = ("{}.glb", "{}.obj", "{}_parts", "{}_input.png", "{}_reconstruction.png", "{}_parts.png",
                    "{}_new_lighting.png", "{}_new_pose.png", "{}_turntable.png", "{}_figure1.png",
                    "{}_new_pose.glb", "{}_mask.png", "{}_steps.png")
-FOLDER_NAMES = ("index.html", RESULT_MARKER)
+FOLDER_NAMES = ("index.html", MARKER)
 
 
 def _outputs(stem: str) -> list[str]:
@@ -193,7 +193,7 @@ class ImageInputs:
 def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
                           page: ViewerPage | None = None) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
-    :func:`cerberus_core.plumbing.outputs.result_folder`; replaced whole once everything is written).
+    :func:`cerberus_core.plumbing.outputs.check_output`; replaced whole once everything is written).
 
     Args:
         trained: the model, its scene set-up, input size, renderer and device (:class:`TrainedModel`).
@@ -213,7 +213,7 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
         recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
     donors = pose_donors(len(stems), [bool(n) for n in notes])
     borrowed = borrowed_pose_notes(stems, notes, donors)
-    with writing_results(out, "cerberus reconstruct") as tmp:  # out is replaced only once all is written
+    with writing_results(out, "reconstruct") as tmp:  # out is replaced only once all is written
         written = export_reconstruction(recon, tmp, stems)
         for i, stem in enumerate(stems):
             donor = None if donors[i] is None else recon.index([donors[i]])

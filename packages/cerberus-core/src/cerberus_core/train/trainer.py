@@ -53,10 +53,10 @@ from cerberus_core.errors import (
     RunExistsError,
 )
 from cerberus_core.model.cerberus import Cerberus
-from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text
+from cerberus_core.plumbing.atomic import atomic_write, atomic_write_text, is_temporary
 from cerberus_core.plumbing.lock import acquire, check_unlocked, is_lock_file
 from cerberus_core.plumbing.machine import capped_to_cores
-from cerberus_core.plumbing.outputs import resolved
+from cerberus_core.plumbing.outputs import MARKER, check_output, output_kind, resolved, write_marker
 from cerberus_core.plumbing.signals import interrupt_for
 from cerberus_core.render.backends import make_renderer, resolve_renderer
 from cerberus_core.train.checkpoint import (
@@ -215,58 +215,67 @@ STEP_GRACE_S = 3.0
 """Seconds a running step may still take after SIGINT/SIGTERM before it is abandoned."""
 
 
-#: What a training writes before its first checkpoint: a run folder holding only these (``config.yaml``
-#: among them) and no checkpoint or ``model.safetensors`` is a start that never reached a checkpoint.
-UNFINISHED_START_NAMES = frozenset({"config.yaml", "metrics.csv", "tensorboard", "images", "checkpoints",
+#: What a training writes before its first checkpoint: a run folder marked as a run (:data:`MARKER`) holding only
+#: these and no checkpoint or ``model.safetensors`` is a start that never reached a checkpoint.
+UNFINISHED_START_NAMES = frozenset({MARKER, "config.yaml", "metrics.csv", "tensorboard", "images", "checkpoints",
                                     "loss_curves.png"})
 
 
 def unfinished_start(run_dir: Path) -> list[Path]:
     """The entries of ``run_dir`` when it holds a training that stopped (crashed, was killed) before its
-    first checkpoint, else ``[]``: ``config.yaml`` and only names of :data:`UNFINISHED_START_NAMES`,
-    no ``model.safetensors``, and a ``checkpoints/`` folder (if any) holding no file but an atomic
-    writer's hidden temporary. Nothing there can be resumed, so a fresh run may clear it."""
-    if not (run_dir / "config.yaml").is_file():
+    first checkpoint, else ``[]``: marked as a run by the toolkit (:data:`MARKER`; an earlier version's
+    unmarked start is not recognised: delete it by hand), only names of :data:`UNFINISHED_START_NAMES`, no
+    ``model.safetensors``, and a ``checkpoints/`` folder (if any) holding nothing but an atomic writer's
+    temporary. Nothing there can be resumed, so a fresh run may clear it."""
+    if output_kind(run_dir) != "run":
         return []
-    entries = [p for p in run_dir.iterdir() if not is_lock_file(p)]
+    entries = [p for p in run_dir.iterdir() if not is_lock_file(p) and not is_temporary(p)]
     if any(p.name not in UNFINISHED_START_NAMES for p in entries):
         return []
     ckdir = checkpoint_dir(run_dir)
-    if ckdir.exists() and (not ckdir.is_dir() or any(not (p.name.startswith(".") and p.name.endswith(".tmp"))
-                                                      for p in ckdir.iterdir())):
+    if ckdir.exists() and (not ckdir.is_dir() or ckdir.is_symlink() or any(not is_temporary(p)
+                                                                           for p in ckdir.iterdir())):
         return []
     return entries
 
 
 def _clear_unfinished_start(run_dir: Path, entries: list[Path]) -> None:
-    """Remove what a start that never checkpointed left (``config.yaml`` last: until it goes, the folder
-    still reads as such a start to a rank that looks meanwhile)."""
+    """Remove what a start that never checkpointed left (the marker last, ``config.yaml`` just before: until
+    they go, the folder still reads as such a start to a rank that looks meanwhile, or to a rerun)."""
 
     names = ", ".join(sorted(p.name for p in entries))
     warnings.warn(f"{run_dir} holds a training that stopped before its first checkpoint ({names}); nothing there "
                   "can be resumed, so it is cleared and the training starts again", UserWarning, stacklevel=3)
-    for p in sorted(entries, key=lambda p: p.name == "config.yaml"):
+    for p in sorted(entries, key=lambda p: (p.name == MARKER, p.name == "config.yaml")):
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
         else:
             p.unlink(missing_ok=True)
 
 
+def _earlier_run(run_dir: Path) -> bool:
+    """An unmarked run folder of an earlier version that may be resumed: it holds a last checkpoint."""
+    return (checkpoint_dir(run_dir) / LAST).is_file()
+
+
 def check_run_folder(run_dir: Path, resume: bool, *, holding_lock: bool = False) -> None:
-    """A fresh run needs a new or empty folder, or one holding only a start that never reached a
-    checkpoint (:func:`unfinished_start`); a resumed one a checkpoint (checked before the lock is
-    taken, so a refused run does not even touch the folder, and again under the lock)."""
+    """The one output rule (:func:`~cerberus_core.plumbing.outputs.check_output`: new, empty or a run the
+    toolkit wrote; never a folder of other files), then: a fresh run needs a new or empty folder, or one
+    holding only a start that never reached a checkpoint (:func:`unfinished_start`); a resumed one a
+    checkpoint (checked before the lock is taken, so a refused run does not even touch the folder, and
+    again under the lock)."""
     last = checkpoint_dir(run_dir) / LAST
     if run_dir.exists() and not run_dir.is_dir():
         raise RunExistsError(f"{run_dir} is a file, not a folder; pass a folder as `run_dir`")
     if not holding_lock:
         check_unlocked(run_dir)  # a live writer is the first thing to name
+    ours = check_output(run_dir, "run", "run_dir", legacy=_earlier_run, holding_lock=holding_lock)
     if not resume:
         if last.exists():
             raise RunExistsError(f"{run_dir} already holds a training run ({last}); pass `resume=True` to continue "
                                  "it, or another `run_dir` to start a new run")
-        held = sorted(p.name for p in run_dir.iterdir() if not is_lock_file(p)) if run_dir.is_dir() else []
-        if held and not unfinished_start(run_dir):
+        if ours and not unfinished_start(run_dir):
+            held = sorted(p.name for p in run_dir.iterdir() if not is_lock_file(p) and not is_temporary(p))
             shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
             raise RunExistsError(f"{run_dir} is not empty (it holds {shown}) and is not a resumable run; training "
                                  "starts only in a new or empty folder: pass another `run_dir`")
@@ -446,6 +455,7 @@ class _Trainer:
         log = None
         if info.is_main:
             self.run_dir.mkdir(parents=True, exist_ok=True)
+            write_marker(self.run_dir, "run")  # before anything else: what proves the folder is a run
             atomic_write_text(self.run_dir / "config.yaml", self.config_yaml)
             log = MetricsLog(self.run_dir, start, loop.tensorboard)
         probe = AllocationProbe.for_data(cfg.data.root, self.renderer) if self._probing() else None
