@@ -24,16 +24,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from importlib.util import find_spec
 from typing import Any
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, MissingPackageError, UnknownPluginError
 from cerberus_core.eval.accumulators import MetricAccumulator
 from cerberus_core.eval.allocation import Allocation, allocation_line, allocation_section
 from cerberus_core.eval.depth import DepthAccumulator, depth_line, depth_section
 from cerberus_core.eval.hard import HardHumanIoU
 from cerberus_core.eval.part_quality import PartQuality, part_quality_section
 from cerberus_core.eval.segments import BodySegments, segments_line, segments_section
+from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 from cerberus_core.eval.visibility import PartVisibility, visibility_line, visibility_section
+from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import did_you_mean
 
 #: What a diagnostic can need, and what the evaluation does about it.
@@ -141,3 +144,20 @@ def needed(skip: Sequence[str], need: str) -> bool:
     """Whether a row that runs needs ``need`` (a key of :data:`NEEDS`)."""
     return any(need in d.needs for d in running(skip))
 
+
+def check_eval_packages(skip: Sequence[str] = ()) -> None:
+    """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
+    metric entry point; scipy, for the rows that need it and ``skip`` does not name), else one
+    :class:`MissingPackageError` naming them all and the extra that brings them, ``cerberus-core[eval]``."""
+    missing = []
+    try:
+        get_metric(SCORER_ENTRY_POINT)
+    except UnknownPluginError:
+        missing.append("cerberus-metrics")
+    if needed(skip, "scipy") and find_spec("scipy") is None:
+        missing.append("scipy")
+    if missing:
+        many = len(missing) > 1
+        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which {'are' if many else 'is'} not "
+                                  f"installed: pip install 'cerberus-core[eval]' brings {'them' if many else 'it'} "
+                                  "(from the toolkit's wheelhouse: README, 'Installing with pip')")

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.errors import ShapeError
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.plugins import get_metric
 
 MeshPair = tuple[np.ndarray, np.ndarray]
@@ -110,6 +110,17 @@ class VoxelScorer:
             return Voxels(np.zeros_like(truth.parts[:1]).repeat(len(parts), 0), truth.gt,
                           Score(0.0, 0, f"{type(exc).__name__}: {exc}"), truth.centers)
         return Voxels(grids.parts, grids.gt, Score(grids.iou, int(grids.clamped)), grids.centers)
+
+
+def check_protocol(name: str) -> str:
+    """The voxel-IoU protocol must be one the metric knows (checked through its entry point, before
+    anything runs; a missing cerberus-metrics is named as such)."""
+    factory = get_metric(SCORER_ENTRY_POINT)
+    try:
+        factory(protocol=name, resolution=32)
+    except (ValueError, KeyError) as exc:
+        raise ConfigError.about("protocol", name, str(exc)) from None
+    return name
 
 
 class GroundTruthMemo:
