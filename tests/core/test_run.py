@@ -127,17 +127,18 @@ def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, mo
     not '--protocol ...: unknown plugin' for a flag nobody gave."""
     from importlib.util import find_spec
 
+    import cerberus_core.eval.diagnostics as diagnostics
     import cerberus_core.run as run_module
     from cerberus_core.errors import MissingPackageError
     from cerberus_core.plugins import get_plugin as real_get_plugin
 
-    monkeypatch.setattr(run_module, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
+    monkeypatch.setattr(diagnostics, "get_metric", lambda name: real_get_plugin(METRIC_GROUP, name, path=[str(tmp_path)]))
     with pytest.raises(MissingPackageError) as err:
         run_module.EvalSettings()
     assert "pip install 'cerberus-core[eval]'" in str(err.value) and "--protocol" not in str(err.value)
     assert "needs cerberus-metrics," in str(err.value)
     # issue 34: every missing piece at once, before anything starts, and the extra that brings them
-    monkeypatch.setattr(run_module, "find_spec", lambda name: None if name == "scipy" else find_spec(name))
+    monkeypatch.setattr(diagnostics, "find_spec", lambda name: None if name == "scipy" else find_spec(name))
     with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics and scipy, .*cerberus-core\[eval\]"):
         run_module.EvalSettings()
     # the body segments need scipy too: checked up front, not after the evaluation's bar has started

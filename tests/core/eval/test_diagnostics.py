@@ -9,7 +9,7 @@ import pytest
 
 from cerberus_core.cli.eval import skip_flag
 from cerberus_core.errors import ConfigError
-from cerberus_core.eval.diagnostics import DIAGNOSTICS, Diagnostic, diagnostic_names
+from cerberus_core.eval.diagnostics import DIAGNOSTICS, Diagnostic, diagnostic_names, running
 from cerberus_core.eval.runner import EvalConfig
 
 
@@ -44,9 +44,10 @@ def toy():
 
 def test_the_table_names_every_switch_once():
     names = diagnostic_names()
-    assert names == ["visibility", "hard", "part_quality", "depth", "segments", "allocation"]
+    assert names == ["hard", "part_quality", "visibility", "depth", "segments", "allocation"]  # results.json's order
     assert len({d.key for d in DIAGNOSTICS}) == len(DIAGNOSTICS)
-    assert [skip_flag(d.name) for d in DIAGNOSTICS][:3] == ["--no-visibility", "--no-hard", "--no-part-quality"]
+    assert [skip_flag(d.name) for d in DIAGNOSTICS][:3] == ["--no-hard", "--no-part-quality", "--no-visibility"]
+    assert [d.name for d in running(())][:3] == ["visibility", "hard", "part_quality"]  # visible_pixels leads a record
     with pytest.raises(ConfigError, match=r"skip = 'segment': is not a diagnostic \(did you mean 'segments'\?\)"):
         EvalConfig(skip=("segment",))
     with pytest.raises(ConfigError, match="not one string"):

@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from cerberus_core.eval.part_quality import (
-    PartQualityAccumulator,
+    PartQuality,
     assign_to_parts,
     image_overlap,
     merge_sides,
@@ -23,7 +23,7 @@ def _parts(body):
 
 
 def _summary(bodies, predict, weighting="area"):
-    acc = PartQualityAccumulator(len(bodies[0].part_names), bodies[0].part_names)
+    acc = PartQuality(num_parts=len(bodies[0].part_names), gt_part_names=bodies[0].part_names)
     for body in bodies:
         pv, f = predict(body)
         acc.add(image_overlap(pv, f, body.vertices, body.faces, body.vertex_parts, len(body.part_names),
@@ -100,11 +100,11 @@ def test_vertex_areas_sum_to_surface_area(primitive_bodies):
 
 
 def test_summary_marks_unused_parts():
-    acc = PartQualityAccumulator(3, ["a", "b"])
+    acc = PartQuality(num_parts=3, gt_part_names=["a", "b"])
     acc.add(np.array([[2.0, 0.0], [0.0, 1.0], [0.0, 0.0]]), "s")
     s = acc.summary()
     assert s["unused_parts"] == [2] and s["parts"][2]["label"] is None
-    with pytest.raises(ValueError, match=r"PartQualityAccumulator.add: overlap must be \(3, 2\)"):
+    with pytest.raises(ValueError, match=r"PartQuality.add: overlap must be \(3, 2\)"):
         acc.add(np.zeros((2, 2)))
 
 
@@ -122,7 +122,7 @@ def test_data_without_part_labels_says_so_instead_of_scoring_one(primitive_bodie
     assert bodies[0].part_names == ["body"]
     rng = np.random.default_rng(1)
     sphere = trimesh.creation.icosphere(1)
-    acc = PartQualityAccumulator(4, bodies[0].part_names)
+    acc = PartQuality(num_parts=4, gt_part_names=bodies[0].part_names)
     for body in bodies:  # a nonsense prediction: four random blobs
         pv = np.asarray(sphere.vertices)[None] * 0.1 + rng.uniform(-0.4, 0.4, size=(4, 1, 3))
         acc.add(image_overlap(pv, np.asarray(sphere.faces), body.vertices, body.faces, body.vertex_parts, 1),
@@ -171,6 +171,6 @@ def test_merged_sides_score_a_model_that_follows_the_image_not_the_body(primitiv
     assert merged["consistency"] == 1.0 and merged["mean_segmentation_iou"] == pytest.approx(1.0)
     assert [p["label"] for p in merged["parts"]] == [side_free(n) for n in names]
     assert merged["sides_merged"] is None
-    acc = PartQualityAccumulator(2, ["a", "b"])
+    acc = PartQuality(num_parts=2, gt_part_names=["a", "b"])
     acc.add(np.eye(2))
     assert acc.merged_sides() is None and acc.summary()["sides_merged"] is None

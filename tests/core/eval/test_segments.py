@@ -8,7 +8,7 @@ import torch
 
 from cerberus_core.eval.segments import (
     SPARE_LOSS,
-    SegmentAccumulator,
+    BodySegments,
     covered_vertices,
     deletion_losses,
     group_by_body,
@@ -75,7 +75,7 @@ def test_a_reconstruction_without_forearms_misses_the_forearms(primitive_bodies,
         own = render(renderer, verts, torch.as_tensor(body.faces), camera).part_id >= 0
     coverage = (covered_vertices(predicted, verts, camera)[0].numpy(), covered_vertices(own, verts, camera)[0].numpy())
     image = image_segments(voxels, body.vertices, body.vertex_parts, len(names), coverage)
-    acc = SegmentAccumulator(list(names), recon.num_parts)
+    acc = BodySegments(segments=list(names), num_parts=recon.num_parts)
     acc.add(image)
     s = acc.summary()
     assert s["segment_labels"] is True and s["note"] is None
@@ -112,7 +112,7 @@ def test_off_body_voxels_go_to_the_nearest_segment_and_spare_parts_are_counted(p
     translations[0, head, 1] += 0.12
     moved = type(one)(one.local_vertices[:, keep], one.faces, one.rotations[:, keep], translations)
     voxels = scorer.voxels(moved.part_meshes(0), (body.vertices, body.faces))
-    acc = SegmentAccumulator(list(names), moved.num_parts)
+    acc = BodySegments(segments=list(names), num_parts=moved.num_parts)
     acc.add(image_segments(voxels, body.vertices, body.vertex_parts, len(names)))
     s = acc.summary()
     off = {k: v for k, v in s["off_body_share"].items() if v}
@@ -127,14 +127,13 @@ def test_data_without_segment_labels_says_so_and_still_counts_spare_parts(primit
     scorer = VoxelScorer(factory=iou_scorer)
     body = primitive_bodies[0]
     voxels = scorer.voxels(body_parts(body).part_meshes(0), (body.vertices, body.faces))
-    acc = SegmentAccumulator(["body"], len(body.part_names))
+    acc = BodySegments(segments=["body"], num_parts=len(body.part_names))
     acc.add(image_segments(voxels, body.vertices, np.zeros(len(body.vertices), np.int16), 1))
     s = acc.summary()
     assert s["segment_labels"] is False and s["note"].startswith("no segment labels")
     assert s["recall"] == {} and s["off_body_share"] == {} and s["voxel_recall"] == 1.0 and s["spare_count"] == 0
     assert segments_line(s).startswith("no segment labels") and "spare learned parts" in segments_line(s)
-    with pytest.raises(ValueError, match="no images"):
-        SegmentAccumulator(["body"], 3).summary()
+    assert BodySegments(segments=["body"], num_parts=3).summary() is None  # nothing added: nothing measured
 
 
 def test_views_of_one_pose_share_one_render():

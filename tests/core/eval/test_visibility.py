@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from cerberus_core.eval.visibility import VisibilityAccumulator, visibility_line, visible_pixels
+from cerberus_core.eval.visibility import PartVisibility, visibility_line, visible_pixels
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -49,7 +49,7 @@ def test_part_behind_another_is_hidden_and_part_beside_is_not(renderer):
     back = visible_pixels(renderer, recon.index(0), Camera.look_at(180.0, 0.0, 2.5, fov_y_deg=30.0, image_size=64))
     assert back[0, 1] > 20 and back[0, 0] > 0
 
-    acc = VisibilityAccumulator(4, (64, 64))
+    acc = PartVisibility(num_parts=4, image_size=(64, 64))
     acc.add(counts)
     acc.add(back)
     s = acc.summary()
@@ -64,23 +64,22 @@ def test_part_behind_another_is_hidden_and_part_beside_is_not(renderer):
 def test_single_mesh_is_never_hidden_and_summary_edge_cases(renderer):
     recon = spheres([FRONT], batch=3)
     cams = Camera.look_at([0.0, 90.0, 200.0], 20.0, 2.5, fov_y_deg=30.0, image_size=32)
-    acc = VisibilityAccumulator(1, (32, 32))
+    acc = PartVisibility(num_parts=1, image_size=(32, 32))
     acc.add(visible_pixels(renderer, recon, cams))
     s = acc.summary()
     assert s["hidden_fraction"] == [0.0] and s["mean_silhouette_share"] == [1.0]
     assert visibility_line(s) == "parts hidden in most images: 0 of 1"
     # nothing drawn at all: every part hidden, the share undefined (NaN, written as null in JSON)
-    empty = VisibilityAccumulator(2, (32, 32))
+    empty = PartVisibility(num_parts=2, image_size=(32, 32))
     empty.add(np.zeros((2, 2), dtype=np.int64))
     e = empty.summary()
     assert e["hidden_fraction"] == [1.0, 1.0] and all(math.isnan(v) for v in e["mean_silhouette_share"])
     # sometimes hidden, never in most images: the line names the most often hidden part
-    some = VisibilityAccumulator(2, (32, 32))
+    some = PartVisibility(image_size=(32, 32))  # the parts: the first counts'
     some.add(np.array([[5, 0], [5, 3], [5, 3]]))
     assert visibility_line(some.summary()) == ("parts hidden in most images: 0 of 2 "
                                                "(most often hidden: part 1, in 33% of images)")
-    with pytest.raises(ValueError, match="no images"):
-        VisibilityAccumulator(2, (32, 32)).summary()
+    assert PartVisibility(num_parts=2, image_size=(32, 32)).summary() is None  # nothing added: nothing measured
     with pytest.raises(ValueError, match=r"\(B, 2\)"):
         some.add(np.zeros((1, 3)))
     with pytest.raises(ValueError, match="2 reconstructions but 3 cameras"):

@@ -26,7 +26,7 @@ and the errors of one concept each: :class:`PluginError` (:class:`UnknownPluginE
 :class:`DuplicatePluginError`, :class:`PluginLoadError`), :class:`ZooError`, :class:`IncompleteDatasetError`,
 :class:`ManifestFormatError`, :class:`TrainingDatasetError`, :class:`NonFiniteError`, :class:`RunExistsError`,
 :class:`NoCheckpointError`, :class:`CheckpointError`, :class:`LockedError`, :class:`ImageInputError`,
-:class:`BodyError` and :class:`ReleaseMismatchError`.
+:class:`BodyError`, :class:`ReleaseMismatchError` and :class:`UnknownSubjectError`.
 
 Every error class of ``cerberus_core`` is defined here, and nowhere else (``tests/repo/test_raises.py``), so
 that no module imports another just for an exception. The one exception class that is not an error is
@@ -241,9 +241,17 @@ class ManifestFormatError(DatasetError):
     type); the reader that catches it names the manifest and the fix (:mod:`cerberus_core.datasets.manifest`)."""
 
 
+class UnknownSubjectError(CerberusError, KeyError):
+    """The Hard Human test was asked to pose a subject it has no canonical image of
+    (:meth:`cerberus_core.eval.hard.CanonicalParts.pose`); a ``KeyError`` too, as it was."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0])
+
+
 __all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "ConfigError", "DatasetError", "DeviceError",
            "DuplicatePluginError", "ImageInputError", "IncompleteDatasetError", "InputTypeError",
            "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError",
            "NonFiniteError", "OutputError", "PluginError", "PluginLoadError", "ReleaseMismatchError",
            "RenderInputError", "RunExistsError", "ShapeError", "TextFormatError", "TrainingDatasetError",
-           "UnknownPluginError", "ZooError", "shown"]
+           "UnknownPluginError", "UnknownSubjectError", "ZooError", "shown"]

@@ -17,7 +17,6 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from importlib.util import find_spec
 from pathlib import Path
 
 import torch
@@ -26,18 +25,17 @@ from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.looks import InputLook, LookedViews
 from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.devices import check_device
-from cerberus_core.errors import CerberusError, ConfigError, MissingPackageError, UnknownPluginError
-from cerberus_core.eval.diagnostics import DIAGNOSTICS, needed
+from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages
 from cerberus_core.eval.figures import FigureModels, evaluation_figures
 from cerberus_core.eval.markdown import md_text
 from cerberus_core.eval.report import markdown_report, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
-from cerberus_core.eval.standard import SCORER_ENTRY_POINT, VoxelScorer
+from cerberus_core.eval.standard import VoxelScorer, check_scorer
 from cerberus_core.eval.viewer import ViewerPage
 from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.photo_mask import AUTO, require_segmenter
-from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import check_output, writing_results
 from cerberus_core.reconstruct.write import ImageInputs, Reconstruction, TrainedModel, mask_paths, write_reconstructions
@@ -89,40 +87,13 @@ def model_scene(config: TrainConfig, data: str | Path | None = None, saved: dict
 
 
 # ------------------------------------------------------------------ evaluation settings
-def check_eval_packages(skip: Sequence[str] = ()) -> None:
-    """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
-    metric entry point; scipy, for the diagnostics that need it and ``skip`` does not name), else one
-    :class:`MissingPackageError` naming them all and the extra that brings them, ``cerberus-core[eval]``."""
-    missing = []
-    try:
-        get_metric(SCORER_ENTRY_POINT)
-    except UnknownPluginError:
-        missing.append("cerberus-metrics")
-    if needed(skip, "scipy") and find_spec("scipy") is None:
-        missing.append("scipy")
-    if missing:
-        many = len(missing) > 1
-        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which {'are' if many else 'is'} not "
-                                  f"installed: pip install 'cerberus-core[eval]' brings {'them' if many else 'it'} "
-                                  "(from the toolkit's wheelhouse: README, 'Installing with pip')")
-
-
-def check_scorer(protocol: str, resolution: int) -> None:
-    """The voxel-IoU protocol and resolution must be ones the metric takes (checked through its entry point,
-    before anything runs: the metric's bounds are the only ones; a missing cerberus-metrics is named as such)."""
-    factory = get_metric(SCORER_ENTRY_POINT)
-    for key, value, tried in (("protocol", protocol, {"resolution": 32}), ("resolution", resolution, {})):
-        try:
-            factory(**({"protocol": protocol, "resolution": resolution} | tried))
-        except (ValueError, KeyError, TypeError) as exc:
-            raise ConfigError.about(key, value, str(exc)) from None
-
-
 @dataclass(frozen=True)
 class EvalSettings(EvalConfig):
     """Everything :meth:`Run.evaluate` is told: what to measure (:class:`EvalConfig`'s fields) and what to
     score and write; checked when made (:class:`~cerberus_core.errors.ConfigError` naming the field),
-    the protocol and the resolution through the metric's entry point (its bounds: :func:`check_scorer`).
+    the protocol and the resolution through the metric's entry point (its bounds are the only ones:
+    :func:`~cerberus_core.eval.standard.check_scorer`), the packages the diagnostics need before anything runs
+    (:func:`~cerberus_core.eval.diagnostics.check_eval_packages`).
 
     Attributes:
         split: the split to score.

@@ -27,13 +27,13 @@ These are the columns of the limb screen (``docs/results.md``; the lead's table 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 import torch
 
-from cerberus_core.errors import ShapeError
+from cerberus_core.errors import DatasetError, ShapeError
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
@@ -231,31 +231,75 @@ def measure_allocation(renderer: Renderer, recon: PartSet, camera: Camera, foreg
 
 
 @dataclass
-class AllocationAccumulator:
-    """Collects :class:`ImageAllocation` s and summarises them over the test set.
+class Allocation:
+    """Where the learned parts go over a test set: the accumulator of the ``allocation`` row of
+    :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` (and of ``cerberus train``'s allocation log).
+
+    The evaluation feeds it :class:`~cerberus_core.eval.accumulators.BatchResult` s (:meth:`update`: each part
+    rendered alone once per batch, :func:`measure_allocation`, beside the ground truth's own render,
+    :meth:`BatchResult.gt_foreground`); it adds ``keypoints`` (per part, ``[u, v]`` px) and ``unique_coverage``
+    (per part) to each record. :meth:`add` takes a batch's :class:`ImageAllocation` directly.
 
     Args:
-        segments: the ``K`` ground-truth segment names; num_parts: learned parts ``P``.
+        renderer: the backend of the part renders (what :meth:`update` needs).
+        segments: the ``K`` ground-truth segment names (``None``: the first batch's).
+        num_parts: learned parts ``P`` (``None``: the first batch's).
     """
 
-    segments: list[str]
-    num_parts: int
+    renderer: Renderer | None = None
+    segments: list[str] | None = None
+    num_parts: int | None = None
     batches: list[ImageAllocation] = field(default_factory=list)
 
+    @classmethod
+    def for_evaluation(cls, context: Any) -> Allocation:
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its renderer."""
+        return cls(context.renderer)
+
+    def update(self, batch: Any) -> None:
+        """Measure the batch; every body must share the first one's segments (one body source), else a
+        :class:`DatasetError`. Bodies of different vertex layouts (animals of several species) are measured a
+        layout at a time and put back in the batch's order."""
+        if self.segments is None:
+            self.segments, self.num_parts = list(batch.bodies[0].part_names), batch.recon.num_parts
+        for item, body in zip(batch.items, batch.bodies, strict=True):
+            if list(body.part_names) != self.segments:
+                raise DatasetError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
+                                   f"item's {self.segments}; allocation needs one vocabulary of segments: evaluate a "
+                                   "dataset of one body source")
+        foreground = batch.gt_foreground(self.renderer)
+        layouts: dict[tuple[int, bytes], list[int]] = {}
+        for b, body in enumerate(batch.bodies):
+            layouts.setdefault((len(body.vertices), np.asarray(body.vertex_parts).tobytes()), []).append(b)
+        parts = []
+        for group in layouts.values():
+            first = batch.bodies[group[0]]
+            vertices = torch.stack([torch.as_tensor(batch.bodies[b].vertices, dtype=torch.float32) for b in group])
+            parts.append((group, measure_allocation(self.renderer, batch.recon.index(group), batch.camera.index(group),
+                                                    foreground[group], (vertices, torch.as_tensor(first.vertex_parts),
+                                                                        len(first.part_names)))))
+        order = np.argsort(np.concatenate([g for g, _ in parts]), kind="stable")  # back to the batch's order
+        measured = ImageAllocation(*(np.concatenate([getattr(m, f.name) for _, m in parts])[order]
+                                     for f in fields(ImageAllocation)))
+        self.add(measured)
+        for b, rec in enumerate(batch.records):
+            rec["keypoints"] = [[round(float(u), 3), round(float(v), 3)] for u, v in measured.keypoints[b]]
+            rec["unique_coverage"] = [round(float(c), 5) for c in measured.unique[b]]
+
     def add(self, batch: ImageAllocation) -> None:
-        check_shapes("AllocationAccumulator.add", keypoints=(batch.keypoints, f"B {self.num_parts} 2"),
+        """Record a batch's measurements (:func:`measure_allocation`)."""
+        check_shapes("Allocation.add", keypoints=(batch.keypoints, f"B {self.num_parts} 2"),
                      segments=(batch.segments, f"B {len(self.segments)} 2"), unique=(batch.unique, f"B {self.num_parts}"))
         self.batches.append(batch)
 
-    def summary(self) -> dict[str, Any]:
-        """Returns a dict: ``images``; per learned part (lists of ``P``) ``keypoint_spread`` (px) and
+    def summary(self) -> dict[str, Any] | None:
+        """``None`` when no batch was added, else a dict: ``images``; per learned part (lists of ``P``) ``keypoint_spread`` (px) and
         ``unique_coverage`` (mean share of the foreground), ``spare_coverage`` (the threshold of
         :data:`SPARE_COVERAGE`) and ``low_coverage_parts`` (the parts at or below it); per ground-truth
         segment (``{name: value}``) ``segment_to_keypoint`` (median px to the nearest keypoint) and
         ``segment_spread`` (its projected centroid's spread, px, for scale)."""
         if not self.batches:
-            raise ShapeError("AllocationAccumulator.summary: no images were added; add each batch's measurements "
-                             "(AllocationAccumulator.add) before summarising")
+            return None
 
         def stack(name: str) -> np.ndarray:
             return np.concatenate([getattr(b, name) for b in self.batches])
@@ -280,7 +324,7 @@ def allocation_line(summary: dict[str, Any], top: int = 4) -> str:
     """One line for a console: the ``top`` largest keypoint spreads, the ``top`` segments farthest from a
     keypoint and the parts that add little alone, e.g. ``keypoints: spread 1.9 1.8 1.8 1.8 px (largest 4);
     farthest from a keypoint shin.L 19.7 px, shin.R 19.5 px, ...; parts covering <= 2% of the foreground
-    alone: 5 of 9``; works on :meth:`AllocationAccumulator.summary` or its JSON form."""
+    alone: 5 of 9``; works on :meth:`Allocation.summary` or its JSON form."""
     spread = sorted((v for v in summary["keypoint_spread"] if v is not None), reverse=True)[:top]
     far = sorted(((v, k) for k, v in summary["segment_to_keypoint"].items() if v is not None), reverse=True)[:top]
     line = "keypoints: spread " + " ".join(f"{v:.1f}" for v in spread) + f" px (largest {len(spread)})"

@@ -2,7 +2,8 @@
 
 Beside the standard voxel IoU (always scored: the paper's Table 1), :func:`~cerberus_core.eval.runner.evaluate_dataset`
 runs every row of :data:`DIAGNOSTICS` that :attr:`EvalConfig.skip <cerberus_core.eval.runner.EvalConfig>` does not
-name, in table order (each image's record gets their fields in that order). From the row come:
+name, in table order but those marked :attr:`Diagnostic.first` first (each image's record gets their fields in
+that order). From the row come:
 
 * the switch: its :attr:`Diagnostic.name` in ``EvalConfig(skip=(...))``, which ``cerberus eval`` offers as a flag
   of its own (``cerberus_core.cli.eval``), with :attr:`Diagnostic.about` as the flag's help;
@@ -23,22 +24,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from importlib.util import find_spec
 from typing import Any
 
-from cerberus_core.errors import ConfigError
-from cerberus_core.eval.accumulators import (
-    Allocation,
-    BodySegments,
-    HardHumanIoU,
-    MetricAccumulator,
-    PartQuality,
-    PartVisibility,
-)
-from cerberus_core.eval.allocation import allocation_line, allocation_section
+from cerberus_core.errors import ConfigError, MissingPackageError, UnknownPluginError
+from cerberus_core.eval.accumulators import MetricAccumulator
+from cerberus_core.eval.allocation import Allocation, allocation_line, allocation_section
 from cerberus_core.eval.depth import DepthAccumulator, depth_line, depth_section
-from cerberus_core.eval.part_quality import part_quality_section
-from cerberus_core.eval.segments import segments_line, segments_section
-from cerberus_core.eval.visibility import visibility_line, visibility_section
+from cerberus_core.eval.hard import HardHumanIoU
+from cerberus_core.eval.part_quality import PartQuality, part_quality_section
+from cerberus_core.eval.segments import BodySegments, segments_line, segments_section
+from cerberus_core.eval.standard import SCORER_ENTRY_POINT
+from cerberus_core.eval.visibility import PartVisibility, visibility_line, visibility_section
+from cerberus_core.plugins import get_metric
 from cerberus_core.plumbing.names import did_you_mean
 
 #: What a diagnostic can need, and what the evaluation does about it.
@@ -66,6 +64,9 @@ class Diagnostic:
         section: its ``results.md`` section, from the whole result's JSON form (``None``: no section).
         outputs: its ``results.json`` entries from its accumulator (``None`` when skipped); default
             ``{key: accumulator.summary()}``.
+        first: it runs before the rows not so marked, so its fields come first in each image's record (right
+            after the standard IoU's); its entries, section and line keep its place in the table. Part
+            visibility's ``visible_pixels`` is so placed, as in every ``results.json`` since it was added.
     """
 
     name: str
@@ -76,6 +77,7 @@ class Diagnostic:
     line: Callable[[Any], str] | None = None
     section: Callable[[Mapping[str, Any]], list[str]] | None = None
     outputs: Callable[[Any], dict[str, Any]] | None = None
+    first: bool = False
 
     def __post_init__(self) -> None:
         if not self.key:
@@ -92,12 +94,13 @@ class Diagnostic:
 
 
 DIAGNOSTICS: list[Diagnostic] = [
-    Diagnostic("visibility", PartVisibility, "how often each learned part is wholly hidden in its input view",
-               frozenset({"renderer"}), key="part_visibility", line=visibility_line, section=visibility_section),
     Diagnostic("hard", HardHumanIoU, "the Hard Human test (each subject's canonical part shapes posed by its other "
                "images)", frozenset({"canonical"}), outputs=HardHumanIoU.outputs),
     Diagnostic("part_quality", PartQuality, "part quality against the ground-truth semantic parts (the slowest "
                "diagnostic)", frozenset({"scipy", "segments"}), section=part_quality_section),
+    Diagnostic("visibility", PartVisibility, "how often each learned part is wholly hidden in its input view",
+               frozenset({"renderer"}), key="part_visibility", line=visibility_line, section=visibility_section,
+               first=True),
     Diagnostic("depth", DepthAccumulator, "depth across the views of each test pose (translation disagreement, "
                "turned-view silhouette IoU)", frozenset({"renderer", "poses"}),
                line=lambda depth: "depth: " + depth_line(depth), section=depth_section),
@@ -108,7 +111,8 @@ DIAGNOSTICS: list[Diagnostic] = [
                "the silhouette centroid and the foreground it alone covers; per segment the nearest keypoint)",
                frozenset({"renderer", "segments"}), line=allocation_line, section=allocation_section),
 ]
-"""Every evaluation diagnostic, in the order they run and report (see the module docstring)."""
+"""Every evaluation diagnostic, in the order they report (see the module docstring); they run in this order too,
+the rows marked :attr:`Diagnostic.first` before the others."""
 
 
 def diagnostic_names() -> list[str]:
@@ -131,10 +135,29 @@ def check_skip(skip: Sequence[str]) -> tuple[str, ...]:
 
 
 def running(skip: Sequence[str]) -> list[Diagnostic]:
-    """The rows that run when ``skip`` names the others, in table order."""
-    return [d for d in DIAGNOSTICS if d.name not in skip]
+    """The rows that run when ``skip`` names the others, in the order they run: those marked
+    :attr:`Diagnostic.first`, then the others, each in table order."""
+    return sorted((d for d in DIAGNOSTICS if d.name not in skip), key=lambda d: not d.first)
 
 
 def needed(skip: Sequence[str], need: str) -> bool:
     """Whether a row that runs needs ``need`` (a key of :data:`NEEDS`)."""
     return any(need in d.needs for d in running(skip))
+
+
+def check_eval_packages(skip: Sequence[str] = ()) -> None:
+    """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
+    metric entry point; scipy, for the rows that need it and ``skip`` does not name), else one
+    :class:`MissingPackageError` naming them all and the extra that brings them, ``cerberus-core[eval]``."""
+    missing = []
+    try:
+        get_metric(SCORER_ENTRY_POINT)
+    except UnknownPluginError:
+        missing.append("cerberus-metrics")
+    if needed(skip, "scipy") and find_spec("scipy") is None:
+        missing.append("scipy")
+    if missing:
+        many = len(missing) > 1
+        raise MissingPackageError(f"evaluation needs {' and '.join(missing)}, which {'are' if many else 'is'} not "
+                                  f"installed: pip install 'cerberus-core[eval]' brings {'them' if many else 'it'} "
+                                  "(from the toolkit's wheelhouse: README, 'Installing with pip')")

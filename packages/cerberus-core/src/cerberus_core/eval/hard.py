@@ -13,8 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
-from cerberus_core.errors import ConfigError, ShapeError
+from cerberus_core.errors import ConfigError, ShapeError, UnknownSubjectError
+from cerberus_core.eval.standard import IoUSummary, Score, VoxelScorer, summarize
 from cerberus_core.parts import PartSet, transfer_pose
 
 
@@ -74,7 +76,52 @@ class CanonicalParts:
         return item.subject in self.shapes and self.indices.get(item.subject) != item.index
 
     def pose(self, subject: str, poses: PartSet) -> PartSet:
-        """The canonical parts of ``subject`` with the transforms of ``poses`` (any batch size)."""
+        """The canonical parts of ``subject`` with the transforms of ``poses`` (any batch size).
+
+        Raises:
+            UnknownSubjectError: ``subject`` has no canonical image here (a ``KeyError`` too).
+        """
         if subject not in self.shapes:
-            raise ConfigError.about("subject", subject, f"no canonical image for it; known: {sorted(self.shapes)}")
+            raise UnknownSubjectError(f"CanonicalParts.pose: no canonical image of subject {subject!r} (those with one: "
+                                      f"{', '.join(map(repr, sorted(self.shapes))) or 'none'}); pose a subject "
+                                      "`applies_to(item)` accepts, or give its canonical reconstruction in `shapes` "
+                                      "and its image in `indices`")
         return transfer_pose(self.shapes[subject], poses)
+
+
+class HardHumanIoU:
+    """The Hard Human test: each subject's canonical part shapes, posed by every other image of it, scored like
+    :class:`~cerberus_core.eval.accumulators.StandardIoU` (the accumulator of the ``hard`` row of
+    :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`, fed
+    :class:`~cerberus_core.eval.accumulators.BatchResult` s); adds ``hard_iou``, ``hard_clipped``, ``hard_error`` to the
+    records it applies to. :meth:`summary` is ``None`` when it applied to none."""
+
+    def __init__(self, scorer: VoxelScorer, canonical: CanonicalParts) -> None:
+        self.scorer = scorer
+        self.canonical = canonical
+        self.scores: list[Score] = []
+        self.groups: list[str] = []
+
+    @classmethod
+    def for_evaluation(cls, context: Any) -> HardHumanIoU:
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its scorer and the canonical part
+        shapes (reconstructed now)."""
+        return cls(context.scorer, context.canonical())
+
+    def update(self, batch: Any) -> None:
+        for _, item, one, gt, rec in batch.scored():
+            if self.canonical.applies_to(item):
+                score = self.scorer(self.canonical.pose(item.subject, one).part_meshes(0), gt)
+                self.scores.append(score)
+                self.groups.append(item.subject)
+                rec.update(hard_iou=score.iou, hard_clipped=score.clipped, hard_error=score.error)
+
+    def summary(self) -> IoUSummary | None:
+        return summarize(self.scores, self.groups) if self.scores else None
+
+    @staticmethod
+    def outputs(hard: HardHumanIoU | None) -> dict[str, Any]:
+        """Its entries of a result: ``hard`` (the summary, ``None``: not run or nothing scored) and
+        ``canonical`` (``{subject: dataset index}`` of the images the shapes came from)."""
+        return {"hard": None if hard is None else hard.summary(),
+                "canonical": {} if hard is None else dict(hard.canonical.indices)}

@@ -12,7 +12,7 @@ the parts Cerberus discovered.
    truth part ``k`` assigned to predicted part ``p`` (:func:`overlap_matrix`). Vertices carry a third
    of the area of their incident faces by default, so the dense face of a body mesh does not outweigh
    its limbs.
-3. **Consistency** over the test set (:class:`PartQualityAccumulator`): each predicted part's label
+3. **Consistency** over the test set (:class:`PartQuality`): each predicted part's label
    is its majority ground-truth part, ``argmax_k sum_images M[p, k]``. Its *agreement* is the fraction
    of images (among those where it covers anything) whose own majority ``argmax_k M_i[p, k]`` is that
    label; its *entropy* (bits) is that of the distribution of per-image majorities (0 = always the
@@ -31,7 +31,7 @@ the parts Cerberus discovered.
 **No part labels.** Data without part labels (a mesh folder with no ``parts.npy``: one ground-truth
 part, ``"body"``, covering every vertex) would make every score above a trivial 1.0: every learned
 part's majority is the single ground-truth part. So when fewer than two ground-truth parts carry any
-area over the test set, :meth:`PartQualityAccumulator.summary` scores nothing: ``part_labels`` is
+area over the test set, :meth:`PartQuality.summary` scores nothing: ``part_labels`` is
 ``False``, ``consistency``, ``mean_entropy_bits`` and ``mean_segmentation_iou`` are ``None``,
 ``parts`` and ``segmentation_iou`` are empty and ``note`` says so in one line. With labels,
 ``part_labels`` is ``True`` and ``note`` is ``None``.
@@ -42,13 +42,13 @@ import math
 import re
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import trimesh
 
-from cerberus_core.errors import ConfigError, MeshError, MissingPackageError, ShapeError
+from cerberus_core.errors import ConfigError, DatasetError, MeshError, MissingPackageError
 from cerberus_core.eval.markdown import fmt, markdown_table
 from cerberus_core.eval.visibility import visibility_cells, visibility_header, visibility_sentence
 from cerberus_core.shapes import check_shapes
@@ -181,27 +181,56 @@ def _entropy_bits(counts: Sequence[int]) -> float:
 
 
 @dataclass
-class PartQualityAccumulator:
-    """Collects per-image overlap matrices and summarises consistency and segmentation IoU.
+class PartQuality:
+    """The learned parts against the ground-truth semantic parts over a test set: the accumulator of the
+    ``part_quality`` row of :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`. One ``(P, K)`` overlap
+    matrix per image (:func:`image_overlap`), in one part vocabulary; then consistency and segmentation IoU.
+
+    The evaluation feeds it :class:`~cerberus_core.eval.accumulators.BatchResult` s (:meth:`update`);
+    :meth:`add` takes one image's overlap matrix directly.
 
     Args:
-        num_parts: predicted parts ``P``.
-        gt_part_names: names of the ``K`` ground-truth parts.
+        weighting: vertex weights of the overlap, ``"area"`` or ``"count"``; density: surface lattice steps
+            per predicted triangle edge (:func:`image_overlap`).
+        num_parts: predicted parts ``P`` (``None``: the first batch's).
+        gt_part_names: names of the ``K`` ground-truth parts (``None``: the first image's).
     """
 
-    num_parts: int
-    gt_part_names: list[str]
+    weighting: str = "area"
+    density: int = 4
+    num_parts: int | None = None
+    gt_part_names: list[str] | None = None
     overlaps: list[np.ndarray] = field(default_factory=list)
     groups: list[str] = field(default_factory=list)
+
+    @classmethod
+    def for_evaluation(cls, context: Any) -> PartQuality:
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its config's weighting and density."""
+        return cls(context.config.weighting, context.config.density)
 
     @property
     def num_gt_parts(self) -> int:
         return len(self.gt_part_names)
 
+    def update(self, batch: Any) -> None:
+        """Add each image's overlap matrix (its subject as the group); every image must share the first one's
+        ground-truth part names, else a :class:`DatasetError`."""
+        faces = batch.recon.faces.numpy()
+        for b, item, one, _, _ in batch.scored():
+            body = batch.bodies[b]
+            if self.gt_part_names is None:
+                self.num_parts, self.gt_part_names = batch.recon.num_parts, list(body.part_names)
+            elif list(body.part_names) != self.gt_part_names:
+                raise DatasetError(f"item {item.index}: ground-truth part names {body.part_names} differ from the "
+                                   f"first item's {self.gt_part_names}; part quality needs one part "
+                                   "vocabulary: evaluate a dataset of one body source")
+            self.add(image_overlap(one.posed()[0].numpy(), faces, body.vertices, body.faces, body.vertex_parts,
+                                   len(body.part_names), weighting=self.weighting, density=self.density), item.subject)
+
     def add(self, overlap: np.ndarray, group: str = "") -> None:
         """Record one image's ``(P, K)`` overlap matrix; ``group`` is its subject or species."""
         m = np.asarray(overlap, dtype=np.float64)
-        check_shapes("PartQualityAccumulator.add", overlap=(m, f"{self.num_parts} {self.num_gt_parts}"))
+        check_shapes("PartQuality.add", overlap=(m, f"{self.num_parts} {self.num_gt_parts}"))
         self.overlaps.append(m)
         self.groups.append(str(group))
 
@@ -210,7 +239,7 @@ class PartQualityAccumulator:
         total = np.sum(self.overlaps, axis=0)
         return np.where(total.sum(1) > 0, total.argmax(1), -1)
 
-    def merged_sides(self) -> PartQualityAccumulator | None:
+    def merged_sides(self) -> PartQuality | None:
         """The same images with left and right ground-truth parts merged (:func:`merge_sides`), or
         ``None`` when no part name has a side."""
         names, index = merge_sides(self.gt_part_names)
@@ -218,9 +247,9 @@ class PartQualityAccumulator:
             return None
         onehot = np.zeros((self.num_gt_parts, len(names)))
         onehot[np.arange(self.num_gt_parts), index] = 1.0
-        return PartQualityAccumulator(self.num_parts, names, [m @ onehot for m in self.overlaps], list(self.groups))
+        return replace(self, gt_part_names=names, overlaps=[m @ onehot for m in self.overlaps], groups=list(self.groups))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, Any] | None:
         """Consistency per predicted part and the segmentation IoU (see the module docstring).
 
         Returns a dict: ``images`` (int), ``gt_parts`` (K names), ``part_labels`` (bool: at least two
@@ -230,11 +259,10 @@ class PartQualityAccumulator:
         ``mean_entropy_bits``, ``unused_parts``, ``segmentation_iou`` ({gt part: IoU}) and
         ``mean_segmentation_iou`` (floats in [0, 1], entropy in bits; ``None`` without part labels),
         and ``sides_merged``: the same summary with left and right merged (:meth:`merged_sides`;
-        ``None`` without part labels or when no part has a side).
+        ``None`` without part labels or when no part has a side); ``None`` when no image was added.
         """
         if not self.overlaps:
-            raise ShapeError("PartQualityAccumulator.summary: no images were added; add each image's overlap with "
-                             "`add` before the summary")
+            return None
         stack = np.stack(self.overlaps)  # (N, P, K)
         present = [self.gt_part_names[k] for k in np.flatnonzero(stack.sum(axis=(0, 1)) > 0)]
         if len(present) < 2:

@@ -21,7 +21,7 @@ kept apart), so it adds no voxelization. Per test image (:func:`image_segments`)
   project between pixel centres). A segment missed in the voxels but covered in the image is a depth
   problem; one missed in the image already is a silhouette problem.
 
-Over the test set (:class:`SegmentAccumulator`) voxel and vertex counts are summed before dividing
+Over the test set (:class:`BodySegments`) voxel and vertex counts are summed before dividing
 (pooled), and deletion losses are averaged over images.
 
 **No segment labels.** A mesh folder without ``parts.npy`` has one ground-truth part, ``body``; then
@@ -37,10 +37,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.errors import MissingPackageError, ShapeError
+from cerberus_core.errors import DatasetError, MissingPackageError
 from cerberus_core.eval.markdown import fmt, markdown_table, part_labels, sentence
-from cerberus_core.eval.standard import Voxels
+from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.render.camera import Camera
+from cerberus_core.render.interface import Renderer
 from cerberus_core.shapes import check_shapes
 
 Tensor = torch.Tensor
@@ -170,24 +171,78 @@ def _ratio(num: np.ndarray, den: np.ndarray) -> list[float | None]:
 
 
 @dataclass
-class SegmentAccumulator:
-    """Collects :class:`ImageSegments` and summarises them over the test set.
+class BodySegments:
+    """Per ground-truth body segment, recall and off-body voxels; per learned part, the IoU lost when it is
+    deleted; per segment, its coverage in the input view, over a test set: the accumulator of the ``segments``
+    row of :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`.
+
+    The evaluation feeds it :class:`~cerberus_core.eval.accumulators.BatchResult` s (:meth:`update`: the voxels
+    the standard IoU scores, :meth:`BatchResult.voxels`, and the input-view renders,
+    :meth:`BatchResult.part_id` and :meth:`BatchResult.gt_foreground`); it adds ``voxel_precision``,
+    ``voxel_recall``, ``segment_recall`` and ``deletion_loss`` to each record. :meth:`add` takes one image's
+    :class:`ImageSegments` directly.
 
     Args:
-        segments: the ``K`` ground-truth segment names; num_parts: learned parts ``P``.
+        scorer: the standard IoU's :class:`~cerberus_core.eval.standard.VoxelScorer` (its voxels are reused;
+            what :meth:`update` needs).
+        renderer: the backend of the input-view renders (``None``: no coverage).
+        segments: the ``K`` ground-truth segment names (``None``: the first image's).
+        num_parts: learned parts ``P`` (``None``: the first image's).
     """
 
-    segments: list[str]
-    num_parts: int
+    scorer: VoxelScorer | None = None
+    renderer: Renderer | None = None
+    segments: list[str] | None = None
+    num_parts: int | None = None
     images: list[ImageSegments] = field(default_factory=list)
 
+    @classmethod
+    def for_evaluation(cls, context: Any) -> BodySegments:
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its scorer and renderer."""
+        return cls(context.scorer, context.renderer)
+
+    def update(self, batch: Any) -> None:
+        """Count each image's voxels and covered vertices per segment; every image must share the first one's
+        segment names, else a :class:`DatasetError`."""
+        coverage = self._coverage(batch) if self.renderer is not None else [None] * len(batch.items)
+        for b, item, one, _, rec in batch.scored():
+            body = batch.bodies[b]
+            if self.segments is None:
+                self.segments, self.num_parts = list(body.part_names), one.num_parts
+            elif list(body.part_names) != self.segments:
+                raise DatasetError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
+                                   f"item's {self.segments}; body segments need one vocabulary: evaluate a "
+                                   "dataset of one body source")
+            image = image_segments(batch.voxels(b, self.scorer), body.vertices, body.vertex_parts,
+                                   len(body.part_names), coverage[b])
+            self.add(image)
+            rec.update(image.record())
+
+    def _coverage(self, batch: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per image, which ground-truth vertices project onto a pixel covered by the predicted parts
+        and by the ground truth's own render (:meth:`BatchResult.gt_foreground`)."""
+        predicted = batch.part_id(self.renderer) >= 0
+        own = batch.gt_foreground(self.renderer)
+        camera = batch.camera.to("cpu")
+        out: list[Any] = [None] * len(batch.items)
+        for group in group_by_body(batch.bodies):
+            body = batch.bodies[group[0]]
+            cams = camera.index(group)
+            verts = torch.as_tensor(body.vertices, dtype=torch.float32).expand(len(group), -1, -1)
+            covered = covered_vertices(predicted[group], verts, cams).numpy()
+            gt_covered = covered_vertices(own[group], verts, cams).numpy()
+            for k, b in enumerate(group):
+                out[b] = (covered[k], gt_covered[k])
+        return out
+
     def add(self, image: ImageSegments) -> None:
-        check_shapes("SegmentAccumulator.add", gt_voxels=(image.gt_voxels, f"{len(self.segments)}"),
+        """Record one image's counts (:func:`image_segments`)."""
+        check_shapes("BodySegments.add", gt_voxels=(image.gt_voxels, f"{len(self.segments)}"),
                      deletion_loss=(image.deletion_loss, f"{self.num_parts}"))
         self.images.append(image)
 
-    def summary(self) -> dict[str, Any]:
-        """Returns a dict: ``images``, ``segments`` (K names), ``segment_labels`` (bool: at least two
+    def summary(self) -> dict[str, Any] | None:
+        """``None`` when no image was added, else a dict: ``images``, ``segments`` (K names), ``segment_labels`` (bool: at least two
         segments hold voxels), ``note`` (one line without segment labels, else ``None``),
         ``voxel_precision`` and ``voxel_recall`` (pooled over every voxel), ``spare_threshold``,
         ``deletion_loss`` (per learned part, mean over images), ``spare_parts`` (their indices) and
@@ -197,8 +252,7 @@ class SegmentAccumulator:
         and ``gt_render_coverage`` (the last two empty when coverage was not measured).
         """
         if not self.images:
-            raise ShapeError("SegmentAccumulator.summary: no images were added; add each image's counts "
-                             "(SegmentAccumulator.add) before summarising")
+            return None
 
         def total(name: str) -> np.ndarray:
             return np.sum([getattr(im, name) for im in self.images], axis=0)
@@ -240,7 +294,7 @@ class SegmentAccumulator:
 def segments_line(summary: dict[str, Any], lowest: int = 4) -> str:
     """One line for a console: the ``lowest`` segment recalls and the spare parts, e.g. ``voxel recall
     by body segment: lowest lower_arm.R 0.13, lower_arm.L 0.15 (highest torso 0.91); spare learned parts
-    (deleting one costs <= 0.003 IoU): 6 of 9``; works on :meth:`SegmentAccumulator.summary` or its JSON form."""
+    (deleting one costs <= 0.003 IoU): 6 of 9``; works on :meth:`BodySegments.summary` or its JSON form."""
     spare = (f"spare learned parts (deleting one costs <= {summary['spare_threshold']:g} IoU): "
              f"{summary['spare_count']} of {len(summary['deletion_loss'])}")
     recall = {k: v for k, v in summary["recall"].items() if v is not None}

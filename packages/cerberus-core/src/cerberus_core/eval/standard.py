@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from cerberus_core.errors import ShapeError
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.plugins import get_metric
 
 MeshPair = tuple[np.ndarray, np.ndarray]
@@ -108,6 +108,17 @@ class VoxelScorer:
             return Voxels(np.zeros_like(truth.parts[:1]).repeat(len(parts), 0), truth.gt,
                           Score(0.0, 0, f"{type(exc).__name__}: {exc}"), truth.centers)
         return Voxels(grids.parts, grids.gt, Score(grids.iou, int(grids.clamped)), grids.centers)
+
+
+def check_scorer(protocol: str, resolution: int) -> None:
+    """The voxel-IoU protocol and resolution must be ones the metric takes (checked through its entry point, before
+    anything runs: the metric's bounds are the only ones; a missing cerberus-metrics is named as such)."""
+    factory = get_metric(SCORER_ENTRY_POINT)
+    for key, value, tried in (("protocol", protocol, {"resolution": 32}), ("resolution", resolution, {})):
+        try:
+            factory(**({"protocol": protocol, "resolution": resolution} | tried))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ConfigError.about(key, value, str(exc)) from None
 
 
 class GroundTruthMemo:

@@ -64,29 +64,50 @@ def visible_pixels(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor
 
 
 @dataclass
-class VisibilityAccumulator:
-    """Collects per-image visible-pixel counts and summarises them per part.
+class PartVisibility:
+    """How often each learned part is wholly hidden in its input view, over a test set: the accumulator of the
+    ``visibility`` row of :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`.
+
+    The evaluation feeds it :class:`~cerberus_core.eval.accumulators.BatchResult` s (:meth:`update`: the batch's
+    one input-view render, :meth:`BatchResult.part_id`; adds ``visible_pixels``, per part, to each record);
+    :meth:`add` takes per-image counts directly (:func:`visible_pixels`).
 
     Args:
-        num_parts: learned parts ``P``.
-        image_size: ``(H, W)`` of the renders, for the record.
+        renderer: the backend of the input-view render (what :meth:`update` needs).
+        num_parts: learned parts ``P`` (``None``: those of the first counts added).
+        image_size: ``(H, W)`` of the renders, for the record (``None``: the first batch's cameras').
     """
 
-    num_parts: int
-    image_size: tuple[int, int]
+    renderer: Renderer | None = None
+    num_parts: int | None = None
+    image_size: tuple[int, int] | None = None
     counts: list[np.ndarray] = field(default_factory=list)
+
+    @classmethod
+    def for_evaluation(cls, context: Any) -> PartVisibility:
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its renderer."""
+        return cls(context.renderer)
+
+    def update(self, batch: Any) -> None:
+        """Count each part's front-surface pixels in the batch's input views and record them per image."""
+        shown = part_pixel_counts(batch.part_id(self.renderer), batch.recon.num_parts)
+        if self.image_size is None:
+            self.image_size = (batch.camera.height, batch.camera.width)
+        self.add(shown)
+        for b, rec in enumerate(batch.records):
+            rec["visible_pixels"] = shown[b].tolist()
 
     def add(self, counts: Tensor | np.ndarray) -> None:
         """Record a batch's ``(B, P)`` visible-pixel counts (:func:`visible_pixels`)."""
         c = np.asarray(counts.cpu() if isinstance(counts, Tensor) else counts, dtype=np.int64)
-        check_shapes("VisibilityAccumulator.add", counts=(c, f"B {self.num_parts}"))
+        check_shapes("PartVisibility.add", counts=(c, "B P" if self.num_parts is None else f"B {self.num_parts}"))
+        self.num_parts = c.shape[1]
         self.counts.extend(c)
 
-    def summary(self) -> dict[str, Any]:
-        """Per-part visibility over every image added (see the module docstring)."""
+    def summary(self) -> dict[str, Any] | None:
+        """Per-part visibility over every image added (see the module docstring); ``None`` when none was."""
         if not self.counts:
-            raise ShapeError("VisibilityAccumulator.summary: no images were added; add each image's part pixel counts "
-                             "with `add` before the summary")
+            return None
         stack = np.stack(self.counts).astype(np.float64)  # (N, P)
         hidden = (stack == 0).mean(0)
         silhouette = stack.sum(1)
@@ -107,7 +128,7 @@ class VisibilityAccumulator:
 def visibility_line(summary: dict[str, Any]) -> str:
     """One line for a console or report, e.g. ``parts hidden in most images: 2 of 9 (part 0: 61%,
     part 2: 58%)`` (with none, the most often hidden part is named, if any is ever hidden); works on
-    :meth:`VisibilityAccumulator.summary` or its JSON form."""
+    :meth:`PartVisibility.summary` or its JSON form."""
     hidden = summary["hidden_fraction"]
     most = summary["hidden_in_most_images"]
     line = f"parts hidden in most images: {len(most)} of {len(hidden)}"

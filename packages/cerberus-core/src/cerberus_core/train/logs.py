@@ -22,7 +22,7 @@ from PIL import Image, ImageDraw
 
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.eval.accumulators import Allocation
+from cerberus_core.eval.allocation import Allocation
 from cerberus_core.eval.runner import batch_result, collate
 from cerberus_core.eval.standard import GroundTruthMemo
 from cerberus_core.plumbing.atomic import atomic_write_text
