@@ -160,6 +160,10 @@ see `docs/results.md` for how this toolkit's numbers compare and why.
 Trained on the toolkit's synthetic renders (uniform grey albedo, white light following the camera, {look}){limits}
 {"No learned part has the " + " or ".join(missing) + " as its label at this budget (see the table above)." if missing else ""}
 """
+    lines = card.split("\n")  # a row left empty (no Hard Human, no comparison) must not split its table
+    card = "\n".join(line for i, line in enumerate(lines)
+                     if not (line == "" and 0 < i < len(lines) - 1 and lines[i - 1].startswith("|")
+                             and next((n for n in lines[i + 1:] if n), "").startswith("|")))
     atomic_write_text(ZOO_DIR / f"{args.name}.md", card)
     print(json.dumps(entry, indent=2))
 
