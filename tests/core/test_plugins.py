@@ -148,6 +148,19 @@ def test_another_version_of_a_distribution_never_replaces_a_source(fake_dist, mo
     sys.modules.pop("fake_human", None)
 
 
+def test_a_source_trees_egg_info_without_a_version_is_the_toolkit_itself(tmp_path, monkeypatch) -> None:
+    """A wheel build leaves ``src/cerberus_core.egg-info`` (no version in its folder name) beside an editable install's
+    sources; under pytest that folder leads sys.path, so the entry points were read from it first and the check above
+    took it for another distribution of the name (the whole suite failed on a clean clone after the install check)."""
+    from cerberus_core.plugins import discover
+    egg = tmp_path / "src" / "cerberus_core.egg-info"
+    egg.mkdir(parents=True)
+    (egg / "PKG-INFO").write_text("Metadata-Version: 2.1\nName: cerberus-core\nVersion: 0.2.0+toolkit\n")
+    (egg / "entry_points.txt").write_text("[cerberus.bodies]\nhuman = cerberus_core.bodies.sources:HumanSource\n")
+    found = discover(BODY_GROUP, path=[str(tmp_path / "src"), *sys.path])
+    assert found["human"].version == "0.2.0+toolkit" and found["human"].target == "cerberus_core.bodies.sources:HumanSource"
+
+
 def test_what_a_source_breaks_at_run_time_names_it(fake_dist, monkeypatch, tmp_path) -> None:
     """Issue 39: a Subject.info JSON cannot hold, or an exception inside bodies(), was a traceback naming no plugin."""
     from dataclasses import replace

@@ -16,6 +16,7 @@ Failure modes are explicit:
 """
 from __future__ import annotations
 
+import importlib.metadata
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -85,10 +86,12 @@ def discover(group: str, path: list[str] | None = None) -> dict[str, PluginInfo]
     found: dict[str, PluginInfo] = {}
     for ep in entrypoints.get_group_all(group, path=path):
         dist = (getattr(ep.distro, "name", None) or "<unknown distribution>").replace("_", "-")
-        version = getattr(ep.distro, "version", None) or "?"
+        version = getattr(ep.distro, "version", None) or _installed_version(dist)
         target = f"{ep.module_name}:{ep.object_name}" if ep.object_name else ep.module_name
         info = PluginInfo(ep.name, group, target, dist, version, ep)
-        if dist.lower() == "cerberus-core" and version != VERSION:  # the entrypoints package lists one per name
+        # "?": metadata without a version, a source tree's NAME.egg-info that a wheel build leaves beside an editable
+        # install's sources (found first when that folder leads sys.path, as under pytest): the toolkit itself
+        if dist.lower() == "cerberus-core" and version not in (VERSION, "?"):
             raise DuplicatePluginError(
                 f"{group} plugin '{ep.name}' comes from a distribution named cerberus-core {version} ({target}), "
                 f"not this toolkit's cerberus-core {VERSION}: another package of that name shadows the toolkit's "
@@ -97,6 +100,8 @@ def discover(group: str, path: list[str] | None = None) -> dict[str, PluginInfo]
         prev = found.get(ep.name)
         if prev is not None:
             if _same_dist(prev, info):
+                if prev.version == "?":
+                    found[ep.name] = info  # the installed metadata, with its version, over a source tree's
                 continue  # the same distribution seen twice on sys.path
             raise DuplicatePluginError(
                 f"{group} plugin name '{ep.name}' is registered by two packages: "
@@ -107,12 +112,22 @@ def discover(group: str, path: list[str] | None = None) -> dict[str, PluginInfo]
     return found
 
 
+def _installed_version(dist: str) -> str:
+    """The installed version of ``dist`` for an entry point whose metadata gave none (a source tree's
+    ``NAME.egg-info``, whose folder name carries no version), ``"?"`` when it is not installed."""
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "?"
+
+
 def _same_dist(a: PluginInfo, b: PluginInfo) -> bool:
-    """Whether two entry points are one distribution seen twice on ``sys.path``: the same name, version and
-    target (issue 39: another version of a distribution named ``cerberus_core`` silently replaced a built-in
+    """Whether two entry points are one distribution seen twice on ``sys.path``: the same name, version (or one
+    unknown: a source tree's egg-info) and target (issue 39: another version of a distribution named ``cerberus_core`` silently replaced a built-in
     source when only names were compared)."""
     norm = lambda s: s.lower().replace("_", "-")  # noqa: E731
-    return (norm(a.distribution), a.version, a.target) == (norm(b.distribution), b.version, b.target)
+    versions = a.version == b.version or "?" in (a.version, b.version)  # "?": a source tree's egg-info of it
+    return versions and (norm(a.distribution), a.target) == (norm(b.distribution), b.target)
 
 
 def plugin_origin(group: str, name: str) -> str:
