@@ -184,7 +184,7 @@ class EvalConfig(Checked):
         protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the metric bounds both
             (:class:`cerberus_core.run.EvalSettings` checks them through its entry point before anything runs).
         skip: the diagnostics not to run, by name (:data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`:
-            ``visibility``, ``hard``, ``part_quality``, ``depth``, ``segments``, ``allocation``; default: none
+            ``hard``, ``part_quality``, ``visibility``, ``depth``, ``segments``, ``allocation``, in its order; default: none
             skipped, every diagnostic runs). The standard IoU always runs.
         canonical_view: the view of the canonical pose to extract shapes from (default the lowest).
         batch_size, num_workers: model batching, data-loading workers.
