@@ -1,6 +1,6 @@
 """The photo-like test (issue 41, item 3): the test split rendered as photos, cut out by a mask, scored in 3D.
 
-    python experiments/photo/photo_like.py RUN DATA OUT [--images N] [--size 256] [--masks exact,auto]
+    python experiments/photo/photo_like.py RUN DATA OUT [--images N] [--size 256] [--masks exact,auto] [--fit STEPS]
 
 Each test image's ground-truth body is rendered again from its own camera, as a photo would show it, with
 appearances no training image has: clothes by body part (a shirt over the torso and upper arms, sleeves to
@@ -16,12 +16,16 @@ the training camera, resized to the model's size) by
 
 and the model's reconstruction is scored like ``cerberus eval`` scores it (voxel IoU against the ground
 truth, the image's own camera). Also measured: the automatic mask's IoU against the exact one, and the
-reconstruction's rendered silhouette against the mask it was given. Writes OUT/results.json, OUT/photos/
+reconstruction's rendered silhouette against the mask it was given. With ``--fit STEPS`` each reconstruction is
+also fitted to the silhouette it was given (:func:`cerberus_core.reconstruct.fit.fit_silhouette`, what ``cerberus
+reconstruct --fit`` does) and scored again, under ``<mask>_fit``: whether the fit moves the body in 3D toward the
+truth or only its outline toward the mask. Writes OUT/results.json, OUT/photos/
 (each photo, exact mask and automatic mask as PNG) and OUT/sheet.png (photo, mask, input, parts for a few).
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -37,6 +41,7 @@ from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.figures import render_reconstruction
 from cerberus_core.eval.runner import evaluate_dataset
 from cerberus_core.photo_mask import AUTO, person_mask, rendered_silhouette, segmenter_available, silhouette_iou
+from cerberus_core.reconstruct.fit import FitSettings, fit_silhouette
 from cerberus_core.reconstruct.input_domain import prepare_input
 from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer
@@ -130,6 +135,21 @@ class PhotoViews:
         return getattr(self._views, name)
 
 
+def fitted(run: Run, renderer, silhouettes: dict[str, np.ndarray], steps: int):
+    """A reconstructor (``images, camera -> PartSet``) that fits each prediction to its image's silhouette, found
+    by the image's content (the runner batches the images)."""
+    def reconstruct(images: torch.Tensor, camera):
+        with torch.no_grad():
+            parts = run.model.reconstruct(images, camera)
+        sil = torch.stack([torch.as_tensor(silhouettes[key(im)], dtype=torch.float32) for im in images])
+        return fit_silhouette(renderer, parts, camera, sil, run.model.dihedral, FitSettings(steps=steps))
+    return reconstruct
+
+
+def key(image: torch.Tensor) -> str:
+    return hashlib.sha1(image.detach().cpu().contiguous().numpy().tobytes()).hexdigest()
+
+
 def u8(a: np.ndarray) -> np.ndarray:
     return (np.clip(a, 0, 1) * 255 + 0.5).astype(np.uint8)
 
@@ -143,6 +163,8 @@ def main() -> int:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--masks", default="exact,auto")
     ap.add_argument("--seed", type=int, default=41)
+    ap.add_argument("--fit", type=int, default=0, metavar="STEPS",
+                    help="also score each reconstruction fitted to its silhouette for STEPS steps (0: not)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     masks = args.masks.split(",")
@@ -183,17 +205,30 @@ def main() -> int:
     if mask_iou:
         results["auto_mask_iou"] = {"mean": float(np.nanmean(mask_iou)), "min": float(np.nanmin(mask_iou)),
                                     "below_0.5": int(np.sum(np.asarray(mask_iou) < 0.5))}
-    for m in masks:
-        evaluation = evaluate_dataset(PhotoViews(views, inputs[m]), run.model.reconstruct, indices=indices, skip=("hard", "part_quality", "visibility", "depth", "segments", "allocation"), progress=False)
+    fits = [(m, 0) for m in masks] + ([(m, args.fit) for m in masks] if args.fit > 0 else [])
+    for m, steps in fits:
+        name = m if steps == 0 else f"{m}_fit"
+        reconstruct = run.model.reconstruct if steps == 0 else fitted(
+            run, renderer, {key(inputs[m][i]): sil[m][k] for k, i in enumerate(indices)}, steps)
+        evaluation = evaluate_dataset(PhotoViews(views, inputs[m]), reconstruct, indices=indices,
+                                      skip=("hard", "part_quality", "visibility", "depth", "segments", "allocation"),
+                                      progress=False)
         coverage = []
         for k, i in enumerate(indices):
-            batch = views[i]
-            cam = scene.cameras([float(batch["azimuth"])], size)
+            cam = scene.cameras([float(views[i]["azimuth"])], size)
             with torch.no_grad():
-                rec = run.model.reconstruct(inputs[m][i][None], cam)
+                rec = reconstruct(inputs[m][i][None], cam)
             coverage.append(silhouette_iou(rendered_silhouette(renderer, rec, cam), sil[m][k]))
-        results[m] = {"voxel_iou": evaluation.standard.mean, "silhouette_iou": float(np.mean(coverage))}
-        print(f"{m} mask: voxel IoU {evaluation.standard.mean:.4f}, silhouette IoU {np.mean(coverage):.3f}")
+        results[name] = {"voxel_iou": evaluation.standard.mean, "silhouette_iou": float(np.mean(coverage)),
+                         "per_image": evaluation.image_ious()} | ({"fit_steps": steps} if steps else {})
+        print(f"{name} mask: voxel IoU {evaluation.standard.mean:.4f}, silhouette IoU {np.mean(coverage):.3f}")
+    for m in masks if args.fit > 0 else ():
+        a, b = results[m]["per_image"], results[f"{m}_fit"]["per_image"]
+        d = np.array([b[i] - a[i] for i in a if i in b])
+        results[f"{m}_fit"]["paired_vs_unfitted"] = {"mean": float(d.mean()), "se": float(d.std(ddof=1) / np.sqrt(len(d))),
+                                                     "better": int((d > 0).sum()), "images": len(d)}
+        print(f"{m}: fitted - unfitted voxel IoU {d.mean():+.4f} +- {d.std(ddof=1) / np.sqrt(len(d)):.4f} "
+              f"(better on {(d > 0).sum()} of {len(d)})")
     if mask_iou:
         print(f"automatic mask against the exact one: IoU {results['auto_mask_iou']['mean']:.3f} (min "
               f"{results['auto_mask_iou']['min']:.3f}, {results['auto_mask_iou']['below_0.5']} below 0.5)")

@@ -81,17 +81,34 @@ def test_a_mask_file_named_auto_is_a_file(without_extra, body_png, tmp_path, cap
 
 def test_a_masked_reconstruction_writes_its_steps_and_silhouette_iou(body_png, tmp_path):
     """With a mask file (no extra needed): ``NAME_steps.png`` (photo, mask, framed input, parts, silhouettes) and
-    the rendered silhouette's IoU against the framed mask; no ``NAME_mask.png``, which only an automatic mask
-    writes."""
+    the rendered silhouette's IoU against the framed mask, after the fit to the mask and before it (the network's);
+    no ``NAME_mask.png``, which only an automatic mask writes. ``fit=0`` keeps the network's prediction."""
     image, mask, _ = body_png
     result = Run.load("human").reconstruct_images([image], tmp_path / "rec", masks=[mask], viewer_images=0)
-    (iou,) = result.silhouette_ious
-    assert 0.5 < iou <= 1.0  # the shipped model on a generated body covers most of it
+    (iou,), (network,) = result.silhouette_ious, result.network_ious
+    assert 0.5 < network <= 1.0  # the shipped model on a generated body covers most of it
+    assert iou > network + 0.03 and result.fit_steps == 100  # the fit moves the outline onto the mask
     steps = Image.open(tmp_path / "rec" / "body_steps.png")
     assert steps.width > 4 * steps.height  # five panels side by side
     assert not (tmp_path / "rec" / "body_mask.png").exists()
-    assert any(line.startswith("silhouette IoU of the reconstruction against the mask: body 0.")
+    assert any(line.startswith("silhouette IoU of the reconstruction against the mask after fitting it to the mask "
+                               f"for 100 steps: body {iou:.3f} (network {network:.3f})")
                for line in result.lines(viewer=False))
+    unfitted = Run.load("human").reconstruct_images([image], tmp_path / "net", masks=[mask], viewer_images=0, fit=0)
+    assert unfitted.silhouette_ious == unfitted.network_ious == [network] and unfitted.fit_steps == 0
+    assert any(line == f"silhouette IoU of the reconstruction against the mask: body {network:.3f}"
+               for line in unfitted.lines(viewer=False))
+
+
+def test_reconstruct_fit_flag(body_png, tmp_path, capsys):
+    image, mask, _ = body_png
+    assert main(["reconstruct", "--model", "human", str(image), "--mask", str(mask), "--fit", "0",
+                 "--viewer-images", "0", "--out", str(tmp_path / "cli")]) == 0
+    assert "after fitting" not in capsys.readouterr().out
+    assert main(["reconstruct", "--model", "human", str(image), "--mask", str(mask), "--fit", "-1",
+                 "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err
+    assert "--fit" in err and not (tmp_path / "bad").exists()
 
 
 needs_extra = pytest.mark.skipif(not segmenter_available(), reason=f"the optional extra {PHOTO_EXTRA} is not installed")

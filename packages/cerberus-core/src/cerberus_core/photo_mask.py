@@ -146,7 +146,8 @@ def overlap_picture(rendered: np.ndarray, mask: np.ndarray, threshold: float = 0
 
 
 def steps_picture(photo: np.ndarray, mask: np.ndarray, framed: torch.Tensor, parts: torch.Tensor,
-                  overlap: np.ndarray, iou: float, side: int = 160, auto: bool = True) -> Image.Image:
+                  overlap: np.ndarray, iou: float, side: int = 160, auto: bool = True,
+                  network_iou: float | None = None) -> Image.Image:
     """One picture of how a photo became a body, left to right: the photo, its mask, the framed input the model
     saw, the parts, and the rendered silhouette against the mask with their IoU.
 
@@ -154,12 +155,15 @@ def steps_picture(photo: np.ndarray, mask: np.ndarray, framed: torch.Tensor, par
         photo: ``(H, W, 3)`` in [0, 1] as read; mask: ``(H, W)`` in [0, 1], the same size.
         framed, parts: ``(3, S, S)`` in [0, 1]; overlap: ``(S, S, 3)`` uint8 (:func:`overlap_picture`).
         auto: the mask came from :func:`person_mask` (else a mask the user gave).
+        network_iou: the network's own IoU when the parts shown were then fitted to the mask
+            (:mod:`cerberus_core.reconstruct.fit`): the title gives both.
     """
     tiles = [_square(photo, side), _square(mask, side, (0.0, 0.0, 0.0)),
              *(np.asarray(Image.fromarray(a).resize((side, side), Image.NEAREST))
                for a in (to_uint8(framed[None])[0], to_uint8(parts[None])[0], overlap))]
-    titles = ["photo", "person mask (auto)" if auto else "mask", "framed input", "parts",
-              f"silhouette IoU {iou:.2f}"]
+    titles = ["photo", "person mask (auto)" if auto else "mask", "framed input",
+              "parts" if network_iou is None else "parts, fitted to the mask",
+              f"silhouette IoU {iou:.2f}" if network_iou is None else f"IoU {network_iou:.2f}, fitted {iou:.2f}"]
     pad, head = 4, 18
     canvas = Image.new("RGB", (len(tiles) * (side + pad) + pad, side + head + pad), "white")
     draw = ImageDraw.Draw(canvas)
@@ -170,11 +174,23 @@ def steps_picture(photo: np.ndarray, mask: np.ndarray, framed: torch.Tensor, par
     return canvas
 
 
+def silhouette_ious(renderer: Renderer, recon: PartSet, camera: Camera, silhouettes: Sequence[np.ndarray | None]
+                    ) -> list[float | None]:
+    """Per image, :func:`silhouette_iou` of ``recon``'s rendered silhouette against its silhouette (``(S, S)``
+    in [0, 1], :attr:`LoadedImage.silhouette <cerberus_core.reconstruct.images.LoadedImage.silhouette>`);
+    ``None`` for an image without one."""
+    return [None if s is None else silhouette_iou(rendered_silhouette(renderer, recon.index([i]), camera.index([i])), s)
+            for i, s in enumerate(silhouettes)]
+
+
 def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, loaded: Sequence, stems: Sequence[str],
-                        out: Path, background: Sequence[float]) -> tuple[list[Path], list[float | None]]:
+                        out: Path, background: Sequence[float],
+                        network_ious: Sequence[float | None] | None = None) -> tuple[list[Path], list[float | None]]:
     """For each input reconstructed with a silhouette (:attr:`LoadedImage.silhouette
     <cerberus_core.reconstruct.images.LoadedImage.silhouette>`): ``<stem>_steps.png`` (:func:`steps_picture`) and, for an
     automatic mask, the mask itself as ``<stem>_mask.png`` (white on the person, the image file's size).
+    ``network_ious``: per input, the network's own silhouette IoU when ``recon`` was then fitted to the masks
+    (:func:`silhouette_ious` before :func:`cerberus_core.reconstruct.fit.fit_silhouettes`); the pictures give both.
 
     Returns:
         The files written, and each input's silhouette IoU (:func:`silhouette_iou` of the rendered silhouette
@@ -197,7 +213,7 @@ def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, load
             written.append(path)
         parts = render_reconstruction(renderer, one, cam, parts=True, background=background)[0].cpu()
         picture = steps_picture(item.photo, item.mask, item.image, parts, overlap_picture(rendered, item.silhouette),
-                                iou, auto=item.auto_mask)
+                                iou, auto=item.auto_mask, network_iou=None if network_ious is None else network_ious[i])
         path = out / f"{stem}_steps.png"
         atomic_save_png(picture, path)
         written.append(path)

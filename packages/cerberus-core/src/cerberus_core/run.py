@@ -38,6 +38,7 @@ from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.photo_mask import AUTO, require_segmenter
 from cerberus_core.plumbing.names import printable
 from cerberus_core.plumbing.outputs import check_output, writing_results
+from cerberus_core.reconstruct.fit import FIT_STEPS
 from cerberus_core.reconstruct.write import ImageInputs, Reconstruction, TrainedModel, mask_paths, write_reconstructions
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.interface import Renderer
@@ -369,7 +370,7 @@ class Run:
     def reconstruct_images(self, images: Sequence[str | Path], out: str | Path, *,
                            masks: Sequence[str | Path] | str | None = None,
                            data: str | Path | None = None, azimuth: float = 0.0, renderer: str | None = None,
-                           viewer_images: int = 12) -> Reconstruction:
+                           viewer_images: int = 12, fit: int = FIT_STEPS) -> Reconstruction:
         """Reconstruct image files: what ``cerberus reconstruct`` does (meshes, Figure 1's pictures,
         the 3D viewer; :func:`cerberus_core.reconstruct.write.write_reconstructions`).
 
@@ -386,8 +387,11 @@ class Run:
             azimuth: the camera azimuth assumed for the inputs, degrees.
             renderer: the backend for the pictures (default: the run's).
             viewer_images: cards in ``out/index.html`` (0: no viewer).
+            fit: steps of fitting each reconstruction that has a silhouette (a mask, ``"auto"``, an alpha channel)
+                to it after the network's prediction (:mod:`cerberus_core.reconstruct.fit`; 0: the network's own).
         """
         check_value("viewer_images", viewer_images, Range(ge=0, integer=True), "0: no viewer")
+        check_value("fit", fit, Range(ge=0, integer=True), "0: the network's prediction, not fitted")
         check_value("azimuth", azimuth, Range())
         images = check_paths("images", images)
         if not images:
@@ -405,7 +409,7 @@ class Run:
                                self.config.data.input_look)
         page = ViewerPage(title=f"cerberus reconstruct: {printable(self.source)}", limit=viewer_images,
                           limit_hint="viewer_images", part_labels=self.part_labels())
-        return write_reconstructions(trained, ImageInputs(images, mask_list, azimuth), out, page)
+        return write_reconstructions(trained, ImageInputs(images, mask_list, azimuth), out, page, fit=fit)
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer,
                       input_look: str = "shaded") -> None:

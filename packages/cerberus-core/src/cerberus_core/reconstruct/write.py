@@ -23,9 +23,10 @@ from cerberus_core.eval.figures import PictureStyle, save_image_pictures
 from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
 from cerberus_core.model.cerberus import Cerberus
 from cerberus_core.parts import pose_donors
-from cerberus_core.photo_mask import write_mask_pictures
+from cerberus_core.photo_mask import silhouette_ious, write_mask_pictures
 from cerberus_core.plumbing.names import printable, safe_stem
 from cerberus_core.plumbing.outputs import MARKER, resolved, writing_results
+from cerberus_core.reconstruct.fit import FIT_STEPS, FitSettings, fit_silhouettes
 from cerberus_core.reconstruct.images import LoadedImage
 from cerberus_core.reconstruct.input_domain import domain_note, prepare_input
 from cerberus_core.render.backends import make_renderer
@@ -130,6 +131,9 @@ class Reconstruction:
         notes: each input's out-of-domain note (``""`` when in the training domain).
         silhouette_ious: per input, how well the reconstruction's rendered silhouette covers its mask or alpha
             (:func:`cerberus_core.photo_mask.silhouette_iou`); ``None`` for an input without one.
+        network_ious: the same for the network's prediction before it was fitted to the silhouettes
+            (:mod:`cerberus_core.reconstruct.fit`); equal to ``silhouette_ious`` when nothing was fitted.
+        fit_steps: the steps of that fit (0: none).
     """
 
     out: Path
@@ -138,15 +142,21 @@ class Reconstruction:
     renamed: list[str]
     notes: list[str]
     silhouette_ious: list[float | None]
+    network_ious: list[float | None]
+    fit_steps: int = 0
 
     def lines(self, viewer: bool) -> list[str]:
         """What ``cerberus reconstruct`` prints."""
         lines = ["inputs whose outputs would share or could not take their own name, written as: " +
                  ", ".join(self.renamed)] if self.renamed else []
-        scored = [(s, v) for s, v in zip(self.stems, self.silhouette_ious, strict=True) if v is not None]
+        scored = [(s, v, n) for s, v, n in zip(self.stems, self.silhouette_ious, self.network_ious, strict=True)
+                  if v is not None]
         if scored:
-            shown = ", ".join(f"{printable(s)} {v:.3f}" for s, v in scored[:6]) + (" ..." if len(scored) > 6 else "")
-            lines.append(f"silhouette IoU of the reconstruction against the mask: {shown}")
+            fitted = self.fit_steps > 0
+            shown = ", ".join(f"{printable(s)} {v:.3f}" + (f" (network {n:.3f})" if fitted else "")
+                              for s, v, n in scored[:6]) + (" ..." if len(scored) > 6 else "")
+            how = f" after fitting it to the mask for {self.fit_steps} steps" if fitted else ""
+            lines.append(f"silhouette IoU of the reconstruction against the mask{how}: {shown}")
         lines.append(f"wrote {len(set(self.written))} files for {len(self.stems)} image(s) to {printable(self.out)}")
         return lines + ([f"3D viewer: {printable(self.out / 'index.html')}"] if viewer else [])
 
@@ -191,7 +201,7 @@ class ImageInputs:
 
 
 def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
-                          page: ViewerPage | None = None) -> Reconstruction:
+                          page: ViewerPage | None = None, fit: int = FIT_STEPS) -> Reconstruction:
     """Reconstruct image files and write the result folder ``out`` (checked by the caller with
     :func:`cerberus_core.plumbing.outputs.check_output`; replaced whole once everything is written).
 
@@ -201,6 +211,8 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
             and the azimuth assumed (:class:`ImageInputs`).
         page: the viewer ``out/index.html``: title, ``limit`` of cards (0: no viewer), part labels
             (:class:`~cerberus_core.eval.viewer.ViewerPage`; its background is the scene's).
+        fit: steps of fitting each reconstruction that has a silhouette (a mask, ``"auto"``, an alpha channel) to
+            it after the network's prediction (:func:`~cerberus_core.reconstruct.fit.fit_silhouettes`; 0: none).
     """
     model, scene, image_size, device = trained.model, trained.scene, trained.image_size, trained.device
     images, azimuth = list(inputs.images), inputs.azimuth
@@ -211,6 +223,10 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
     camera = scene.cameras([azimuth] * len(pictures), image_size)
     with torch.no_grad():
         recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
+    silhouettes = [li.silhouette for li in loaded]
+    network_ious = silhouette_ious(backend, recon, camera, silhouettes)
+    recon = fit_silhouettes(backend, recon, camera, silhouettes, model.dihedral.cpu(), FitSettings(steps=fit))
+    fitted = fit > 0 and any(s is not None for s in silhouettes)
     donors = pose_donors(len(stems), [bool(n) for n in notes])
     borrowed = borrowed_pose_notes(stems, notes, donors)
     with writing_results(out, "reconstruct") as tmp:  # out is replaced only once all is written
@@ -220,10 +236,11 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
             note = "; ".join(n for n in (notes[i], borrowed[i]) if n)
             written += save_image_pictures(PictureStyle(backend, scene.background), pictures[i], recon.index([i]),
                                            camera.index([i]), tmp, stem, pose_donor=donor, note=note)
-        masked, ious = write_mask_pictures(backend, recon, camera, loaded, stems, tmp, scene.background)
+        masked, ious = write_mask_pictures(backend, recon, camera, loaded, stems, tmp, scene.background,
+                                           network_ious if fitted else None)
         written += masked
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems,
                                                replace(page or ViewerPage(), background=scene.background),
                                                CardDetails(notes=notes))
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
-    return Reconstruction(out, stems, written, renamed, notes, ious)
+    return Reconstruction(out, stems, written, renamed, notes, ious, network_ious, fit if fitted else 0)
