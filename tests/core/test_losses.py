@@ -397,3 +397,78 @@ def test_part_separation_pushes_stacked_parts_apart_and_ignores_distant_ones():
     assert float(part_separation(t.detach()[:1])) == 0.0  # one part
     assert part_separation(torch.zeros(2, 4, 3, 3)).shape == (2, 4)
     assert float(part_separation(torch.zeros(3, 3))) == pytest.approx(0.01)  # all stacked: the maximum delta^2
+
+
+def _trunk_and_arm(cam, views):
+    """Per view: a trunk (12 x 8 px) that part 0 covers at the origin and a thin arm along +x to x = 0.45 that no part
+    covers; returns the foreground, the part_id map (2 parts) and each view's arm end (the free pixel farthest from
+    the origin's projection)."""
+    fgs, ids, ends = [], [], []
+    for k in views:
+        fg, part_id = torch.zeros(32, 32), torch.full((32, 32), -1)
+        (u0, v0), (u1, _) = (cam.index([k]).project(torch.tensor([[[x, 0.0, 0.0]]]))[0][0, 0].tolist()
+                             for x in (0.0, 0.45))
+        col, row, end = int(u0), int(v0), int(u1)
+        fg[row - 6:row + 6, col - 4:col + 4] = 1
+        part_id[row - 6:row + 6, col - 4:col + 4] = 0
+        lo, hi = (col + 4, end + 1) if end > col else (end, col - 4)
+        fg[row:row + 2, lo:hi] = 1  # the arm, two rows
+        free = (fg > 0) & (part_id < 0)
+        rr, cc = torch.nonzero(free, as_tuple=True)
+        centres = torch.stack([cc, rr], -1).float() + 0.5
+        ends.append(centres[(centres - torch.tensor([u0, v0])).norm(dim=-1).argmax()])
+        fgs.append(fg), ids.append(part_id)
+    return torch.stack(fgs)[None], torch.stack(ids)[None], torch.stack(ends)[None]
+
+
+def test_relocation_pulls_a_spare_part_through_the_pose_to_the_farthest_uncovered_pixel():
+    """Part 1 covers nothing: its pose-agreed translation, projected into each view, is pulled to that view's free
+    pixel farthest from part 0's keypoint (the arm's end); both views pull it along +x, one step brings it closer in
+    each image, and part 0 (holding the trunk) feels nothing."""
+    from cerberus_core.losses import pose_consensus, relocation_pull
+
+    cam = SceneSetup(distance=2.5).cameras(torch.tensor([0.0, 60.0, 0.0, 60.0]), 32)
+    fg, part_id, ends = _trunk_and_arm(cam, range(4))
+    t = torch.zeros(1, 4, 2, 3, requires_grad=True)  # both parts at the origin in every view
+
+    def pulled(t):
+        return cam.project(pose_consensus(t).flatten(0, 1))[0].view(1, 4, 2, 2)
+
+    points = pulled(t)
+    loss = relocation_pull(points, part_id, fg, points)
+    expected = ((points[0, :, 1].detach() - ends[0]) / 32).square().sum(-1)
+    torch.testing.assert_close(loss.detach()[0], expected)
+    loss.sum().backward()
+    assert (t.grad[0, :, 1, 0] < 0).all()  # descending moves the spare part toward the arm (+x) in every view
+    assert float(t.grad[0, :, 0].abs().sum()) == 0.0  # the part that holds the trunk: no gradient
+    stepped = pulled(t.detach() - 0.5 * t.grad)
+    before = (points[0, :, 1].detach() - ends[0]).norm(dim=-1)
+    assert ((stepped[0, :, 1] - ends[0]).norm(dim=-1) < before).all()
+    reached = part_id.clone()  # part 1 holds the arm's end pixel, too little to be placed: the end stays its target
+    for k in range(4):
+        reached[0, k, int(ends[0, k, 1]), int(ends[0, k, 0])] = 1
+    torch.testing.assert_close(relocation_pull(points.detach(), reached, fg, points.detach()), loss.detach())
+
+
+def test_relocation_is_zero_without_a_spare_part_and_decides_spare_over_the_pose():
+    """No spare part (each holds more than 2 % of the pose's foreground), no foreground, or a part hidden behind
+    another in one view but holding the arm in its partner: 0, and no gradient. Spare is the eval's spare share."""
+    import inspect
+
+    from cerberus_core.eval.allocation import SPARE_COVERAGE
+    from cerberus_core.losses import relocation_pull
+
+    assert inspect.signature(relocation_pull).parameters["spare_share"].default == SPARE_COVERAGE
+    cam = SceneSetup(distance=2.5).cameras(torch.tensor([0.0, 60.0, 0.0, 60.0]), 32)
+    fg, part_id, _ = _trunk_and_arm(cam, range(4))
+    points = torch.full((1, 4, 2, 2), 16.0, requires_grad=True)
+    held = torch.where((fg > 0) & (part_id < 0), 1, part_id)  # part 1 holds the arm in every view
+    loss = relocation_pull(points, held, fg, points.detach())
+    assert loss.shape == (1, 4) and float(loss.detach().abs().sum()) == 0.0
+    loss.sum().backward()
+    assert float(points.grad.abs().sum()) == 0.0
+    assert float(relocation_pull(points.detach(), part_id, torch.zeros_like(fg), points.detach()).abs().sum()) == 0
+    hidden_in_one = held.clone()
+    hidden_in_one[0, 0][hidden_in_one[0, 0] == 1] = 0  # view a0: part 0 in front of the arm too
+    assert float(relocation_pull(points.detach(), hidden_in_one, fg, points.detach()).abs().sum()) == 0.0
+    assert relocation_pull(points.detach(), part_id, fg, points.detach()).gt(0).all()  # part 1 holds nothing: spare

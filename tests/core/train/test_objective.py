@@ -207,6 +207,31 @@ def test_objective_hidden_term_is_the_pull_of_the_hidden_parts():
     assert _grad_norm(model, out.total) > 0  # no renderer in the path: a gradient with the paper's renderer too
 
 
+def test_objective_relocation_is_the_pull_of_the_spare_parts_of_the_own_view_render():
+    """losses.relocation (issue 38): relocation_pull of the pose's agreed translations projected into each image,
+    the own-view render's front parts and the image's keypoints; twelve parts at one anchor leave some spare."""
+    _, scene, batch, _ = _setup()
+    losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, relocation=1.0)
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(num_parts=12, sphere_level=1, width=8, shape_latent_dim=8, depth_offset=2.5,
+                                 anchor_spread=0.0))
+    out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))
+    from cerberus_core.losses import pose_consensus, relocation_pull
+    images = batch.images.flatten(0, 1)
+    pred = model(images)
+    parts = model.pose(pred, batch.camera)  # the translations and keypoints do not see the mixed latent
+    part_id = render_parts(make_renderer("torch"), out.parts.flatten(0, 1), model.faces, batch.camera).part_id
+    uv, _ = batch.camera.project(pose_consensus(parts.translations.view(1, 4, -1, 3)).flatten(0, 1))
+    fg = 1 - background_mask(batch.images[0], scene.background, losses.background_tolerance)
+    expected = relocation_pull(uv.view(1, 4, -1, 2), part_id.view(1, 4, 32, 32), fg[None],
+                               pred.maps.uv.view(1, 4, -1, 2)).mean()
+    assert expected.item() > 0
+    assert out.terms["relocation"].item() == pytest.approx(expected.item(), rel=1e-5)
+    assert _grad_norm(model, out.total) > 0
+    assert quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(),
+                                torch.Generator().manual_seed(0)).terms["relocation"].item() == 0.0  # off: not computed
+
+
 def test_loss_config_rejects_nan_weights():
     with pytest.raises(ValueError, match="losses.silhouette"):
         LossConfig(silhouette=float("nan")).validate()
@@ -366,7 +391,8 @@ def test_allocation_pulls_fade_over_allocation_steps_and_the_image_terms_do_not(
                         allocation_steps=1000)
     from cerberus_core.train.objective import TERM_TABLE
 
-    assert {t.name for t in TERM_TABLE if t.allocation} == {"keypoint_coverage", "consensus_coverage", "separation"}
+    assert {t.name for t in TERM_TABLE if t.allocation} == {"keypoint_coverage", "consensus_coverage", "separation",
+                                                             "relocation"}
     assert losses.weights_at(0) == losses.weights
     half = losses.weights_at(500)
     assert (half["consensus_coverage"], half["keypoint_coverage"], half["separation"]) == (1.5, 0.5, 1.0)

@@ -171,8 +171,8 @@ def test_the_own_cross_view_must_start_before_the_end():
     for preset in ("paper", "paper_faithful", "cpu"):  # issue 30's limb terms: screened, in no preset yet
         c = load_config(preset=preset)
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
-        assert (c.losses.consensus_coverage, c.losses.separation, c.model.recentre, c.model.deformation_warmup) == (
-            0, 0, False, 0)  # issue 38's
+        assert (c.losses.consensus_coverage, c.losses.separation, c.losses.relocation, c.model.recentre,
+                c.model.deformation_warmup) == (0, 0, 0, False, 0)  # issue 38's
 
 
 def test_a_resume_without_config_yaml_continues_with_the_checkpoints_config(tiny_config, tmp_path):

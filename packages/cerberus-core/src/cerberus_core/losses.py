@@ -25,6 +25,7 @@ import torch
 
 from cerberus_core.errors import ConfigError
 from cerberus_core.parts import pose_parts
+from cerberus_core.render.api import part_pixel_counts
 from cerberus_core.render.nearest import nearest_indices
 from cerberus_core.shapes import check_shapes
 
@@ -194,6 +195,109 @@ def part_separation(translations: Tensor, min_distance: float = 0.1) -> Tensor:
     push = (min_distance**2 - gap).clamp(min=0)
     others = 1 - torch.eye(n, dtype=translations.dtype, device=translations.device)
     return (push * others).sum(dim=(-2, -1)) / (n * (n - 1))
+
+
+RELOCATION_SHARE = 0.02
+"""The share of a pose's foreground below which (or at which) :func:`relocation_pull` calls a part spare: the
+``spare_coverage`` of ``cerberus eval`` (:data:`cerberus_core.eval.allocation.SPARE_COVERAGE`), read here off the
+own-view render's front-part map."""
+
+
+def relocation_pull(points: Tensor, part_id: Tensor, foreground: Tensor, keypoints: Tensor,
+                    spare_share: float = RELOCATION_SHARE) -> Tensor:
+    """Relocation of spare parts (beyond the paper): a part that adds almost nothing is pulled to a body end.
+
+    **Spare.** In image ``x`` part ``i`` alone holds the foreground pixels where it is the front part
+    (``part_id == i``: the rendered front surface, so a proxy of its unique coverage that counts a part
+    hidden behind another as holding nothing there). The decision is made per pose: part ``i`` is spare when
+    ``(c_i^x + c_i^x') / (F^x + F^x') <= spare_share``, ``c`` its front pixels on the foreground and ``F`` the
+    foreground's pixels, over the image and its viewpoint partner ``x'`` (:data:`VIEW_PARTNER`). Per image,
+    a part hidden behind the trunk in one view would count as spare there while it holds an arm in the other
+    (and either view alone saying "spare" would tear it off that arm); over the pose, the share is
+    ``cerberus eval``'s mean over views, and both views pull the same parts.
+
+    **Targets.** In each image, among the foreground pixels no placed part covers (``part_id`` -1 or a spare
+    part: a spare part that has reached a hand but holds too little of the pose keeps the hand as its target
+    instead of being sent on; all the foreground where placed parts cover it all), farthest-point sampling from
+    the keypoints of the parts that are *not* spare picks one target per spare part: the first is the pixel
+    centre farthest from its nearest non-spare keypoint (a hand, a foot, the head's top: the body ends the placed
+    parts miss), each next one the farthest from those keypoints and the targets already picked, so several spare
+    parts go to several ends. Each spare
+    part takes a target by greedy matching of its (detached) pulled point to the nearest free target, so the
+    two views of a pose, which pull one agreed point, hand it the body end it is already nearest to. The
+    targets are computed without gradient.
+
+    **Loss.** ``L^x = 1/|S| sum_{i in S} ||p_i^x - t_i^x||^2 / H^2`` over the spare parts ``S``, ``p_i^x`` the
+    pulled point (in training the pose's agreed translation, :func:`pose_consensus`, projected into image
+    ``x``, so the two views' pulls add up only when both targets are the same body end), ``H`` the image
+    height (as :func:`reprojection_loss`). 0 for an image with no spare part, no foreground, or no part that
+    is not spare (nothing to keep away from; the chamfer and hidden-part pulls bring such parts back).
+
+    Args:
+        points: ``(B, 4, N, 2)`` pixels: the point pulled for each part in each image (gradient flows here).
+        part_id: ``(B, 4, H, W)`` int: the front part of each pixel of each image's own-view render, -1 where none.
+        foreground: ``(B, 4, 1, H, W)`` or ``(B, 4, H, W)``, 1 on the input's body.
+        keypoints: ``(B, 4, N, 2)`` pixels: where each part sits in each image (detached; the targets keep away
+            from the non-spare ones).
+        spare_share: the pose's foreground share at or below which a part is spare.
+    Returns:
+        ``(B, 4)`` in image heights squared.
+
+    Example:
+        >>> fg = torch.zeros(1, 4, 8, 8); fg[..., 4, :] = 1  # a bar along row 4
+        >>> part_id = torch.full((1, 4, 8, 8), -1); part_id[..., 4, :6] = 0  # part 0 covers 6 of its 8 pixels
+        >>> kp = torch.tensor([3.5, 4.5]).expand(1, 4, 2, 2)  # both keypoints at u = 3.5; part 1 covers nothing
+        >>> relocation_pull(kp, part_id, fg, kp)  # part 1 to the uncovered end (7.5, 4.5): 4 px of 8, squared
+        tensor([[0.2500, 0.2500, 0.2500, 0.2500]])
+    """
+    fg = foreground.reshape(*foreground.shape[:2], *foreground.shape[-2:]) > 0.5
+    check_shapes("relocation_pull", points=(points, "B 4 N 2"), part_id=(part_id, "B 4 H W"),
+                 foreground=(fg, "B 4 H W"), keypoints=(keypoints, "B 4 N 2"))
+    bsz, _, n, _ = points.shape
+    height, width = fg.shape[-2:]
+    partner = list(VIEW_PARTNER)
+    with torch.no_grad():
+        alone = part_pixel_counts(torch.where(fg, part_id, -1).flatten(0, 1), n).view(bsz, 4, n).float()
+        area = fg.flatten(2).sum(-1).float()  # (B, 4)
+        pose_area = area + area[:, partner]
+        share = (alone + alone[:, partner]) / pose_area.clamp(min=1).unsqueeze(-1)
+        spare = ((share <= spare_share) & (pose_area > 0).unsqueeze(-1)).flatten(0, 1)  # (4B, N)
+        spare &= (~spare).any(-1, keepdim=True) & fg.flatten(0, 1).flatten(1).any(-1, keepdim=True)
+        front = part_id.flatten(0, 1).flatten(1)  # (4B, HW)
+        placed = (front >= 0) & ~spare.gather(1, front.clamp(min=0))  # held by a part that is not spare
+        free = fg.flatten(0, 1).flatten(1) & ~placed
+        free = torch.where(free.any(-1, keepdim=True), free, fg.flatten(0, 1).flatten(1))
+        rows, cols = torch.meshgrid(torch.arange(height, device=fg.device), torch.arange(width, device=fg.device),
+                                    indexing="ij")
+        centres = torch.stack([cols, rows], -1).flatten(0, 1).to(points.dtype) + 0.5  # (HW, 2)
+        anchors = keypoints.detach().flatten(0, 1).to(points.dtype)  # (4B, N, 2)
+        gap = (centres[:, None] - anchors[:, None]).square().sum(-1)  # (4B, HW, N)
+        gap = gap.masked_fill(spare.unsqueeze(1), float("inf")).amin(-1)  # to the nearest non-spare keypoint
+        gap = gap.masked_fill(~free, -1.0)  # only free pixels are picked
+        wanted = spare.sum(-1)  # (4B,)
+        slots = int(wanted.max()) if wanted.numel() else 0
+        targets = points.new_zeros(4 * bsz, max(slots, 1), 2)
+        for s in range(slots):  # farthest-point sampling, all images at once
+            pick = centres[gap.argmax(-1)]  # (4B, 2)
+            targets[:, s] = pick
+            gap = torch.minimum(gap, (centres - pick[:, None]).square().sum(-1))
+        pulled = points.detach().flatten(0, 1)
+        cost = (pulled[:, :, None] - targets[:, None]).square().sum(-1)  # (4B, N, slots)
+        unused = torch.arange(targets.shape[1], device=fg.device) >= wanted.unsqueeze(-1)  # (4B, slots)
+        cost = cost.masked_fill(~spare.unsqueeze(-1) | unused.unsqueeze(1), float("inf"))
+        assigned = torch.zeros(4 * bsz, n, dtype=torch.long, device=fg.device)
+        image = torch.arange(4 * bsz, device=fg.device)
+        for _ in range(slots):  # greedy matching: the closest free (part, target) pair first
+            best, flat = cost.flatten(1).min(-1)
+            ok = torch.isfinite(best)
+            part, slot = flat // cost.shape[-1], flat % cost.shape[-1]
+            assigned[image[ok], part[ok]] = slot[ok]
+            cost[image[ok], part[ok]] = float("inf")
+            cost[image[ok], :, slot[ok]] = float("inf")
+    target = targets.gather(1, assigned.unsqueeze(-1).expand(-1, -1, 2))  # (4B, N, 2)
+    dist = ((points.flatten(0, 1) - target) / height).square().sum(-1)  # (4B, N)
+    weight = spare.to(points.dtype)
+    return ((dist * weight).sum(-1) / weight.sum(-1).clamp(min=1)).view(bsz, 4)
 
 
 def rotation_loss(rotations: Tensor) -> Tensor:

@@ -39,6 +39,7 @@ from cerberus_core.losses import (
     part_separation,
     pose_consensus,
     reconstruction_loss,
+    relocation_pull,
     reprojection_loss,
     rotation_loss,
     silhouette_chamfer,
@@ -253,10 +254,18 @@ _chamfer = _vertex_pull(silhouette_chamfer)
 _coverage = _vertex_pull(silhouette_coverage)
 
 
-def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed translations over each image
+def _consensus_uv(x: ObjectiveInputs) -> Tensor:  # (4B, N, 2): the pose's agreed translations in each image
     consensus = pose_consensus(_quad(x.parts.translations, x)).flatten(0, 1)  # (4B, N, 3)
-    uv, _ = x.batch.camera.project(consensus)
-    return silhouette_coverage(uv, x.foreground.flatten(0, 1), search=x.search)
+    return x.batch.camera.project(consensus)[0]
+
+
+def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed translations over each image
+    return silhouette_coverage(_consensus_uv(x), x.foreground.flatten(0, 1), search=x.search)
+
+
+def _relocation(x: ObjectiveInputs) -> Tensor:  # (4B,): spare parts' agreed translations to the body ends
+    return relocation_pull(_quad(_consensus_uv(x), x), x.render.own.part_id, x.foreground,
+                           _quad(x.pred.maps.uv, x)).flatten()
 
 
 def _keypoint_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): each image's keypoints over its own foreground
@@ -367,8 +376,9 @@ class LossConfig(Checked):
             renderer has no silhouette gradient, so a part over a white background would be pushed to face the
             light, which flattens and inflates it; towards black it is not); ``dataset`` keeps the dataset's colour.
         allocation_steps: the allocation pulls (:attr:`Term.allocation`: ``keypoint_coverage``,
-            ``consensus_coverage``, ``separation``) fade linearly from their weight at step 0 to nothing at this step,
-            so they place the parts early and leave the rest of training to the image terms (:meth:`weights_at`);
+            ``consensus_coverage``, ``separation``, ``relocation``) fade linearly from their weight at step 0 to nothing
+            at this step, so they place the parts early and leave the rest of training to the image terms
+            (:meth:`weights_at`);
             0: full weight for the whole run (beyond the paper, issue 38).
         background_tolerance: a pixel is background (``b = 1``) when every channel is within this of the dataset's
             background colour (:func:`cerberus_core.losses.background_mask`).
@@ -410,6 +420,9 @@ class LossConfig(Checked):
     separation: float = term(0.0, lambda x: part_separation(x.parts.translations), "lambda_sep L_sep", BEYOND,
                              "KeypointNet's separation in 3D: parts whose translations lie closer than 0.1 push apart",
                              part_separation, allocation=True)
+    relocation: float = term(0.0, _relocation, "lambda_rel L_rel", BEYOND, "spare parts (alone at most 2 % of the "
+                             "pose's foreground) pulled, through the pose's agreed translation, to the uncovered "
+                             "foreground farthest from the other keypoints", relocation_pull, allocation=True)
     overlap: float = term(0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), "lambda_o L_o", BEYOND,
                           "share of each part's volume inside another part (each part the Gaussian of its vertices)",
                           part_overlap)
