@@ -253,7 +253,11 @@ class Worker:
                 self.proc.stdin.close()
             except BrokenPipeError:
                 pass
-            self.proc.wait(timeout=60)
+            try:  # a loaded machine can take minutes to tear a training down; the timings are already in
+                self.proc.wait(timeout=600)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
 
     @property
     def wall_s(self) -> float:
