@@ -110,7 +110,7 @@ def test_every_bundled_dataset_preset_loads():
     def sizes(dataset: str) -> list[str]:
         return source_class(dataset).sizes()
 
-    assert sizes("human") == ["large", "paper", "small", "small128", "small_faithful", "tiny"]
+    assert sizes("human") == ["heldout_poses", "large", "paper", "small", "small128", "small_faithful", "tiny"]
     assert sizes("animal") == ["paper", "small", "small128", "small_faithful", "tiny"]
     assert sizes("primitives") == ["paper", "small", "tiny"]
     assert sizes("folder") == ["grid", "pairs"]
@@ -118,7 +118,8 @@ def test_every_bundled_dataset_preset_loads():
     for dataset in plugin_names(BODY_GROUP):
         for size in sizes(dataset):
             cfg = load_generation_config(dataset, size)
-            assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, ["train", "test"])
+            splits = ["test"] if (dataset, size) == ("human", "heldout_poses") else ["train", "test"]  # test only
+            assert (cfg.dataset, cfg.preset, list(cfg.splits)) == (dataset, size, splits)
     human, prims = preset_config("human", "small").splits, preset_config("primitives", "small").splits
     assert human["train"].pose_pairs == "independent" and prims["train"].pose_pairs == "independent"
     # the default look (anti-aliased, framed, on black) and the paper's (look_paper.yaml)
@@ -186,3 +187,31 @@ def test_motion_pairs_are_refused_where_they_cannot_exist():
         load_generation_config("human", "tiny", ["splits.train.pose_pairs=video"])
     with pytest.raises(ConfigError, match="unlimited motion pairs"):
         source_class("human")().motion_pairs(source_class("human")().subjects("train", 1, 0)[0], "train", None)
+
+
+def test_heldout_pose_set_shows_the_test_subjects_in_heldout_poses_and_only_heldout_enters_the_config_hash():
+    from cerberus_core.bodies.human_heldout import HELDOUT_POSE_BASE
+    from cerberus_core.datasets.format import config_hash
+    from cerberus_core.datasets.plan import load_generation_config
+
+    heldout, large = load_generation_config("human", "heldout_poses"), load_generation_config("human", "large")
+    assert list(heldout.splits) == ["test"] and heldout.scene == large.scene
+    assert heldout.supersample == large.supersample and heldout.seed == large.seed
+    plan, standard = _plan(heldout), _plan(large)
+    views, old = plan.shards["test"][0].views, standard.shards["test"][0].views
+    assert plan.totals("test")["images"] == 2 * (36 + 1) * 4
+    assert [s.name for s in plan.subjects] == [s.name for s in standard.subjects if "test" in s.splits]
+    poses = sorted({int(p) for p in views["pose"][~views["canonical"]]})
+    assert poses == [HELDOUT_POSE_BASE + k for k in range(36)]
+    canonical = views[views["canonical"]]
+    for key in ("pose", "view", "azimuth", "elevation", "distance", "fov_y"):  # Hard Human's images: the large set's
+        np.testing.assert_array_equal(canonical[key], old[old["canonical"]][key])
+    assert "pose_set" not in large.to_dict()["splits"]["test"]  # `sampled` is stored by omission
+    assert heldout.to_dict()["splits"]["test"]["pose_set"] == "heldout"
+    assert config_hash(heldout.to_dict()) != config_hash(replace(heldout, splits={
+        "test": replace(heldout.splits["test"], pose_set="sampled")}).to_dict())
+    with pytest.raises(ValueError, match="pose_set = 'heldout': needs layout grid"):
+        SplitConfig(layout="pairs", pairs=2, pose_set="heldout")
+    with pytest.raises(ValueError, match="the primitives source has no held-out poses; use `splits.test.pose_set=sampled`"):
+        _plan(preset_config("primitives", "tiny", splits={"test": SplitConfig(layout="grid", subjects=1, poses=2,
+                                                                                 pose_set="heldout")}))

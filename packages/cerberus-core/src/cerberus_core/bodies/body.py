@@ -306,6 +306,16 @@ class BodySource(ABC):
         raise ConfigError.about(f"splits.{split}.pose_pairs", "motion", f"the {self.name} source has no motion pose "
                                 f"pairs; use `splits.{split}.pose_pairs=independent`")
 
+    def heldout_poses(self, subject: Subject, split: str, n: int | None) -> list[int]:
+        """``n`` pose ids of ``subject`` from poses its training generators do not make (the ``pose_set:
+        heldout`` mode of a ``grid`` split: a test of bodies in unseen poses); sources without them refuse.
+
+        Raises:
+            ConfigError: the source has no held-out poses (or, for ``n=None``, no fixed number of them).
+        """
+        raise ConfigError.about(f"splits.{split}.pose_set", "heldout", f"the {self.name} source has no held-out "
+                                f"poses; use `splits.{split}.pose_set=sampled`")
+
     def prepare(self) -> None:
         """Load now what posing needs (a body model, its one-time cache) rather than in the first :meth:`bodies`
         call: the generator calls it before its progress bar starts, so a slow first load is neither hidden

@@ -32,7 +32,10 @@ of pose ids is generated identically whatever the chunking (:meth:`HumanBodySour
 These independent draws are the ``independent`` pose-pair mode. Ids from
 :data:`~cerberus_core.bodies.human_motion.MOTION_POSE_BASE` (10^9) on are frames of *motion clips*
 (:mod:`cerberus_core.bodies.human_motion`: everyday motions, two nearby frames per clip), the
-``motion`` pose-pair mode of training splits.
+``motion`` pose-pair mode of training splits. Ids from
+:data:`~cerberus_core.bodies.human_heldout.HELDOUT_POSE_BASE` (2 x 10^9) on are poses of the *held-out
+families* (:mod:`cerberus_core.bodies.human_heldout`: a kick, a jumping jack, a lunge ..., poses neither
+training generator makes), the ``pose_set: heldout`` test grids.
 
 Scale rule (one scale per subject, :func:`~cerberus_core.bodies.body.normalise_subject`): the
 subject's scale is ``normalise_subject`` applied to a fixed *reference set* of that subject's
@@ -61,7 +64,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cerberus_core.bodies import human_motion
+from cerberus_core.bodies import human_heldout, human_motion
 from cerberus_core.bodies.body import FILL, PosedBody, normalise_subject
 from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES, DOFS
 from cerberus_core.errors import BodyError, MissingPackageError
@@ -222,7 +225,8 @@ def canonical_pose() -> np.ndarray:
 
 def pose_params(subject: HumanSubject, pose_ids: Sequence[int], attempt: int = 0) -> np.ndarray:
     """Deterministic joint angles of a subject's poses by id (0 canonical, k >= 1 sampled, ids
-    from :data:`~cerberus_core.bodies.human_motion.MOTION_POSE_BASE` on motion-clip frames).
+    from :data:`~cerberus_core.bodies.human_motion.MOTION_POSE_BASE` on motion-clip frames, ids from
+    :data:`~cerberus_core.bodies.human_heldout.HELDOUT_POSE_BASE` on held-out family poses).
 
     Args:
         subject: the person.
@@ -234,7 +238,8 @@ def pose_params(subject: HumanSubject, pose_ids: Sequence[int], attempt: int = 0
         ``(len(pose_ids), D)`` float64 degrees; pose ``k`` comes from
         ``default_rng([subject.pose_seed, k])`` (``[..., k, attempt]`` for redraws) whatever the
         other ids requested; a motion frame from its clip's generator
-        (:func:`~cerberus_core.bodies.human_motion.motion_frame`).
+        (:func:`~cerberus_core.bodies.human_motion.motion_frame`); a held-out pose from
+        ``default_rng([subject.pose_seed, pose_id])`` (:func:`~cerberus_core.bodies.human_heldout.heldout_pose`).
     """
     out = np.empty((len(pose_ids), len(DOFS)))
     for row, pid in enumerate(pose_ids):
@@ -243,7 +248,10 @@ def pose_params(subject: HumanSubject, pose_ids: Sequence[int], attempt: int = 0
         if pid == CANONICAL_POSE_ID:
             out[row] = canonical_pose()
             continue
-        if pid >= human_motion.MOTION_POSE_BASE:
+        if human_heldout.is_heldout_id(pid):
+            out[row] = human_heldout.heldout_pose(subject.pose_seed, int(pid), attempt)
+            continue
+        if human_motion.is_motion_id(pid):
             out[row] = human_motion.motion_frame(subject.pose_seed, int(pid), attempt)
             continue
         key = [subject.pose_seed, int(pid)] + ([int(attempt)] if attempt else [])

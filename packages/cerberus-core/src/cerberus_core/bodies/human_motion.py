@@ -49,7 +49,12 @@ from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES
 from cerberus_core.errors import BodyError
 
 MOTION_POSE_BASE: int = 1_000_000_000
-"""Pose ids ``>=`` this are motion-clip frames (module docstring); fits the int32 ``pose`` field."""
+"""Pose ids ``>=`` this (and below :data:`MOTION_POSE_END`) are motion-clip frames (module docstring); fits
+the int32 ``pose`` field."""
+
+MOTION_POSE_END: int = 2_000_000_000
+"""Where the motion ids end: ids from here on are held-out family poses
+(:data:`cerberus_core.bodies.human_heldout.HELDOUT_POSE_BASE`), so clips number below 5 * 10^8."""
 
 MOTIONS: tuple[str, ...] = ("walk", "arm_raise", "reach", "squat", "turn", "wave")
 """The motion primitives, drawn with equal probability."""
@@ -83,20 +88,22 @@ _INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
 
 def is_motion_id(pose_id: int) -> bool:
     """Whether a pose id names a motion-clip frame."""
-    return int(pose_id) >= MOTION_POSE_BASE
+    return MOTION_POSE_BASE <= int(pose_id) < MOTION_POSE_END
 
 
 def motion_pose_id(clip: int, frame: int) -> int:
     """The pose id of frame ``frame`` (0 = ``a``, 1 = ``b``) of motion clip ``clip >= 0``."""
-    if clip < 0 or frame not in (0, 1):
-        raise BodyError(f"motion clips are numbered from 0 and have frames 0 and 1, got clip {clip}, frame {frame}")
+    if not 0 <= clip < (MOTION_POSE_END - MOTION_POSE_BASE) // 2 or frame not in (0, 1):
+        raise BodyError(f"motion clips are numbered from 0 to {(MOTION_POSE_END - MOTION_POSE_BASE) // 2 - 1} and have "
+                        f"frames 0 and 1, got clip {clip}, frame {frame}")
     return MOTION_POSE_BASE + 2 * int(clip) + int(frame)
 
 
 def clip_frame(pose_id: int) -> tuple[int, int]:
     """``(clip, frame)`` of a motion pose id (the inverse of :func:`motion_pose_id`)."""
     if not is_motion_id(pose_id):
-        raise BodyError(f"pose id {pose_id} is not a motion frame (motion ids start at {MOTION_POSE_BASE})")
+        raise BodyError(f"pose id {pose_id} is not a motion frame (motion ids are {MOTION_POSE_BASE} to "
+                        f"{MOTION_POSE_END - 1})")
     return divmod(int(pose_id) - MOTION_POSE_BASE, 2)
 
 
@@ -317,6 +324,7 @@ __all__ = [
     "JITTER_SD",
     "MOTIONS",
     "MOTION_POSE_BASE",
+    "MOTION_POSE_END",
     "PERIODS_S",
     "POSTURE_SD",
     "SWAY_AMPLITUDE",

@@ -8,6 +8,8 @@ options (and, for ``folder``, the files it reads):
 * :meth:`~BodySource.canonical_pose` ``(subject) -> pose id | None``;
 * :meth:`~BodySource.motion_pairs` ``(subject, split, n) -> [(pose id, pose id)]`` — pairs of nearby
   frames of one motion (``human`` only; the others refuse);
+* :meth:`~BodySource.heldout_poses` ``(subject, split, n) -> [pose id]`` — poses its training generators
+  do not make (``human`` only; the others refuse);
 * :meth:`~BodySource.bodies` ``(subject, pose ids) -> [PosedBody]`` — mesh + part labels;
 * :meth:`~BodySource.prepare` ``()`` — load a body model now (``human``: anny), before the generator's bar.
 
@@ -32,6 +34,7 @@ from typing import Any
 
 from cerberus_core.bodies import animal, human, primitives
 from cerberus_core.bodies.body import BodySource, PosedBody, Subject
+from cerberus_core.bodies.human_heldout import heldout_pose_id
 from cerberus_core.bodies.human_motion import motion_pose_id
 from cerberus_core.errors import ConfigError
 
@@ -99,6 +102,14 @@ class HumanSource(_SeededSubjects):
         if n is None:
             raise ConfigError(f"splits.{split}.pairs: the human source has unlimited motion pairs; give a pair count", key=f"splits.{split}.pairs")
         return [(motion_pose_id(c, 0), motion_pose_id(c, 1)) for c in range(n)]
+
+    def heldout_poses(self, subject: Subject, split: str, n: int | None) -> list[int]:
+        """Held-out family poses ``0..n-1``: pose ids ``2 * 10^9 + k``, the families in turn
+        (:mod:`cerberus_core.bodies.human_heldout`)."""
+        if n is None:
+            raise ConfigError.about(f"splits.{split}.poses", None, "the human source has unlimited held-out poses; "
+                                    "give a pose count", f"`splits.{split}.poses=N`")
+        return [heldout_pose_id(k) for k in range(n)]
 
     def bodies(self, subject: Subject, pose_ids: Sequence[int]) -> list[PosedBody]:
         phenotype, split, pose_seed = subject.need(self.name, "phenotype", "split", "pose_seed")

@@ -19,7 +19,9 @@ folder holding anything else is refused, --overwrite or not (what --out may repl
   human:      large (the paper's 19,500 train pairs / 5 subjects with small's test split:
               the data of the shipped human model, about half an hour on 2 cores),
               paper (19,500 train pairs / 5 subjects; 810 test poses x 4 views / 2 subjects),
-              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds)
+              small (1,000 pairs; 50 test poses, a few minutes on a CPU), tiny (seconds),
+              heldout_poses (test only: small's 2 test subjects in 36 poses each of six families
+              no training generator makes, plus the canonical pose; 296 images)
   animal:     paper (41 species x 47 poses x 4 views, 38,540 quadruplets; 984 test views),
               small (12 species), tiny
   primitives: capsule figures with the human presets' structure (paper, small, tiny)
@@ -64,7 +66,7 @@ def _add_what(g: argparse.ArgumentParser) -> None:
     g.add_argument("--dataset", required=True, metavar="SOURCE", help="body source: human, animal, primitives, "
                    "folder or an installed plugin's")
     g.add_argument("--size", default=None, metavar="NAME",
-                   help="size preset: human: large, paper, small, small128, small_faithful, tiny; animal: paper, "
+                   help="size preset: human: heldout_poses, large, paper, small, small128, small_faithful, tiny; animal: paper, "
                    "small, small128, small_faithful, tiny; primitives: paper, small, tiny; folder: pairs, grid; default "
                    "small (folder: pairs)")
     g.add_argument("--preset", dest="size_alias", default=None, help=argparse.SUPPRESS)  # deprecated: --size

@@ -14,7 +14,9 @@ Two layouts, following the paper's two protocols (section 5):
   (sampled without replacement; the paper's 38,540 animal quadruplets are 20 per pose).
 
 With ``canonical=True`` a grid also renders each subject's canonical pose from azimuths
-``0, 360/views, ...`` (flagged ``canonical``; the Hard Human test takes its parts from these).
+``0, 360/views, ...`` (flagged ``canonical``; the Hard Human test takes its parts from these). A grid
+with ``pose_set="heldout"`` shows the source's held-out poses (:attr:`SplitConfig.pose_set`) instead of
+its pose pool.
 
 The plan is a pure function of the config and the body source, so any shard can be (re)built alone:
 that is what makes generation resumable and deterministic.
@@ -245,7 +247,10 @@ def _pairs_units(subject: int, who: Subject, cfg: SplitConfig, n_pairs: int | No
 
 def _grid_units(subject: int, who: Subject, cfg: SplitConfig, source: BodySource, split: str,
                 rng: np.random.Generator, shard_images: int) -> list[_Unit]:
-    pool = list(source.pose_pool(who, split, cfg.poses))
+    if cfg.pose_set == "heldout":
+        pool = list(source.heldout_poses(who, split, cfg.poses))
+    else:
+        pool = list(source.pose_pool(who, split, cfg.poses))
     canonical = source.canonical_pose(who) if cfg.canonical else None
     if canonical is not None and canonical in pool:
         pool.remove(canonical)

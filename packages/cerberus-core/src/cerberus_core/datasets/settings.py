@@ -55,6 +55,10 @@ class SplitConfig(Checked):
             everyday motion (:meth:`BodySource.motion_pairs`; human only, the human presets'
             choice). Omitted from :meth:`GenerationConfig.to_dict` (so from the manifest and the
             config hash) when ``"independent"``, so configs from before the key hash as they did.
+        pose_set: ``grid`` layout: which poses it shows. ``"sampled"``: the source's pose pool (its
+            training generator's draws); ``"heldout"``: poses its training generators do not make
+            (:meth:`BodySource.heldout_poses`; human only: :mod:`cerberus_core.bodies.human_heldout`,
+            the ``heldout_poses`` size). Omitted from :meth:`GenerationConfig.to_dict` when ``"sampled"``.
     """
 
     layout: Literal["pairs", "grid"]
@@ -67,11 +71,15 @@ class SplitConfig(Checked):
     canonical: bool = False
     meshes: bool = True
     pose_pairs: Literal["independent", "motion"] = "independent"
+    pose_set: Literal["sampled", "heldout"] = "sampled"
 
     def validate(self) -> None:
         if self.layout != "pairs" and self.pose_pairs != "independent":
             raise ConfigError.about("pose_pairs", self.pose_pairs, "needs layout pairs (a grid has no pose pairs)",
                                     "drop `pose_pairs`, or set `layout=pairs`")
+        if self.layout != "grid" and self.pose_set != "sampled":
+            raise ConfigError.about("pose_set", self.pose_set, "needs layout grid (held-out poses are a test grid)",
+                                    "drop `pose_set`, or set `layout=grid`")
         if self.layout == "grid" and self.quadruplets_per_pose and self.views < 2:
             raise ConfigError.about("views", self.views, "quadruplets need at least 2 views per pose",
                                     "set `views=2` or more, or `quadruplets_per_pose=0`")
@@ -136,7 +144,7 @@ class GenerationConfig(Checked):
         d = {
             "dataset": self.dataset, "preset": self.preset, "seed": self.seed, "image_size": self.image_size,
             "renderer": self.renderer, "scene": self.scene.to_dict(), "shard_images": self.shard_images,
-            "splits": {k: omit_defaults(asdict(v), {"pose_pairs": "independent"}) for k, v in self.splits.items()},
+            "splits": {k: omit_defaults(asdict(v), {"pose_pairs": "independent", "pose_set": "sampled"}) for k, v in self.splits.items()},
             "source": self.source, "supersample": self.supersample,
         }
         return omit_defaults(d, {"supersample": 1})
