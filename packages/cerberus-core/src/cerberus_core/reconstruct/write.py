@@ -224,9 +224,10 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
     with torch.no_grad():
         recon = model.reconstruct(pictures.to(device), camera.to(device)).to("cpu")
     silhouettes = [li.silhouette for li in loaded]
-    network_ious = silhouette_ious(backend, recon, camera, silhouettes)
-    recon = fit_silhouettes(backend, recon, camera, silhouettes, model.dihedral.cpu(), FitSettings(steps=fit))
     fitted = fit > 0 and any(s is not None for s in silhouettes)
+    network_ious = silhouette_ious(backend, recon, camera, silhouettes) if fitted else None  # else: the ones below
+    if fitted:
+        recon = fit_silhouettes(backend, recon, camera, silhouettes, model.dihedral.cpu(), FitSettings(steps=fit))
     donors = pose_donors(len(stems), [bool(n) for n in notes])
     borrowed = borrowed_pose_notes(stems, notes, donors)
     with writing_results(out, "reconstruct") as tmp:  # out is replaced only once all is written
@@ -236,11 +237,11 @@ def write_reconstructions(trained: TrainedModel, inputs: ImageInputs, out: Path,
             note = "; ".join(n for n in (notes[i], borrowed[i]) if n)
             written += save_image_pictures(PictureStyle(backend, scene.background), pictures[i], recon.index([i]),
                                            camera.index([i]), tmp, stem, pose_donor=donor, note=note)
-        masked, ious = write_mask_pictures(backend, recon, camera, loaded, stems, tmp, scene.background,
-                                           network_ious if fitted else None)
+        masked, ious = write_mask_pictures(backend, recon, camera, loaded, stems, tmp, scene.background, network_ious)
         written += masked
         written += write_reconstruction_viewer(tmp, pictures, recon, camera, stems,
                                                replace(page or ViewerPage(), background=scene.background),
                                                CardDetails(notes=notes))
     renamed = [f"{printable(p)} -> {s}" for p, s in zip(images, stems, strict=True) if Path(p).stem != s]
-    return Reconstruction(out, stems, written, renamed, notes, ious, network_ious, fit if fitted else 0)
+    return Reconstruction(out, stems, written, renamed, notes, ious, ious if network_ious is None else network_ious,
+                          fit if fitted else 0)
