@@ -44,7 +44,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES
+from cerberus_core.bodies.human_joints import DOF_INDEX, DOF_LIMITS, DOF_NAMES, random_side
 from cerberus_core.errors import BodyError
 
 HELDOUT_POSE_BASE: int = 2_000_000_000
@@ -53,7 +53,6 @@ HELDOUT_POSE_BASE: int = 2_000_000_000
 JITTER_SD: float = 3.0
 """Standard deviation (degrees) of the independent noise added to every joint of a held-out pose."""
 
-_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
 
 Family = Callable[[np.random.Generator], dict[str, float]]
 
@@ -82,13 +81,8 @@ def family_of(pose_id: int) -> str:
 # ----------------------------------------------------------------------------------------------
 
 
-def _side(rng: np.random.Generator) -> tuple[str, str]:
-    """``(moving side, other side)``, each with probability 1/2."""
-    return ("L", "R") if rng.random() < 0.5 else ("R", "L")
-
-
 def _kick(rng: np.random.Generator) -> dict[str, float]:
-    s, o = _side(rng)
+    s, o = random_side(rng)
     out = {
         f"hip_flex.{s}": rng.uniform(75.0, 100.0), f"knee_flex.{s}": rng.uniform(0.0, 20.0),
         f"ankle_flex.{s}": rng.uniform(-30.0, -15.0), f"hip_abd.{s}": rng.uniform(0.0, 10.0),
@@ -116,7 +110,7 @@ def _jumping_jack(rng: np.random.Generator) -> dict[str, float]:
 
 
 def _lunge(rng: np.random.Generator) -> dict[str, float]:
-    s, o = _side(rng)
+    s, o = random_side(rng)
     out = {
         f"hip_flex.{s}": rng.uniform(75.0, 100.0), f"knee_flex.{s}": rng.uniform(85.0, 115.0),
         f"ankle_flex.{s}": rng.uniform(10.0, 20.0),
@@ -145,7 +139,7 @@ def _crouch_arms_up(rng: np.random.Generator) -> dict[str, float]:
 
 
 def _side_lean(rng: np.random.Generator) -> dict[str, float]:
-    s, o = _side(rng)  # lean toward s; the leg on the other side lifts
+    s, o = random_side(rng)  # lean toward s; the leg on the other side lifts
     sign = 1.0 if s == "L" else -1.0  # spine_side > 0 leans to the body's left
     out = {
         "spine_side": sign * rng.uniform(15.0, 20.0), "neck_side": sign * rng.uniform(15.0, 25.0),
@@ -193,7 +187,7 @@ def family_pose(family: str, rng: np.random.Generator) -> np.ndarray:
         raise BodyError(f"unknown held-out pose family {family!r}; choose one of {', '.join(FAMILIES)}")
     pose = np.zeros(len(DOF_NAMES))
     for name, angle in _FAMILIES[family](rng).items():
-        pose[_INDEX[name]] = angle
+        pose[DOF_INDEX[name]] = angle
     pose += rng.normal(0.0, JITTER_SD, len(DOF_NAMES))
     return np.clip(pose, DOF_LIMITS[:, 0], DOF_LIMITS[:, 1])
 

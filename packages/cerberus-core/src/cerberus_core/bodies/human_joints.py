@@ -76,3 +76,11 @@ DOF_NAMES: list[str] = [d.name for d in DOFS]
 """Names of the pose vector's entries (degrees), in order."""
 DOF_LIMITS: np.ndarray = np.array([[d.low, d.high] for d in DOFS], dtype=np.float64)
 """``(D, 2)`` lower/upper joint limits in degrees; the canonical pose (zeros) lies inside."""
+DOF_INDEX: dict[str, int] = {name: j for j, name in enumerate(DOF_NAMES)}
+"""``{dof name: its entry in the pose vector}``."""
+
+
+def random_side(rng: np.random.Generator) -> tuple[str, str]:
+    """``(moving side, other side)``: ``("L", "R")`` or ``("R", "L")``, each with probability 1/2 (one uniform
+    drawn), for a pose whose one side moves (a motion primitive, a held-out family)."""
+    return ("L", "R") if rng.random() < 0.5 else ("R", "L")

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cerberus_core.bodies.human_joints import DOF_LIMITS, DOF_NAMES
+from cerberus_core.bodies.human_joints import DOF_INDEX, DOF_LIMITS, DOF_NAMES, random_side
 from cerberus_core.errors import BodyError
 
 MOTION_POSE_BASE: int = 1_000_000_000
@@ -83,7 +83,6 @@ SWAY_AMPLITUDE: tuple[float, float] = (0.5, 1.2)
 """The secondary movement of every clip (:func:`_sway`), on top of its primitive, with its own phase:
 a period uniform in ``SWAY_PERIOD_S`` seconds and a scale ``s`` uniform in ``SWAY_AMPLITUDE``."""
 
-_INDEX = {name: j for j, name in enumerate(DOF_NAMES)}
 
 
 def is_motion_id(pose_id: int) -> bool:
@@ -122,11 +121,6 @@ def _ramp(t: np.ndarray) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(t)
 
 
-def _side(rng: np.random.Generator) -> tuple[str, str]:
-    """``(moving side, other side)``, each with probability 1/2."""
-    return ("L", "R") if rng.random() < 0.5 else ("R", "L")
-
-
 def _arms_down(out: dict[str, np.ndarray], side: str, t: np.ndarray) -> None:
     """An idle arm hanging near the body, elbow slightly bent."""
     out[f"shoulder_abd.{side}"] = np.full_like(t, -15.0)
@@ -159,7 +153,7 @@ def _arm_raise(t: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]
     forward = rng.uniform(0.0, 1.0)  # 1: straight forward (flexion), 0: sideways (abduction)
     rest_elbow = rng.uniform(5.0, 20.0)
     both = rng.random() < 0.5
-    side, other = _side(rng)
+    side, other = random_side(rng)
     psi = _ramp(t)
     out: dict[str, np.ndarray] = {}
     for s in (side, other) if both else (side,):
@@ -176,7 +170,7 @@ def _reach(t: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
     height = rng.uniform(0.0, 1.0)  # 0: reach low (lean), 1: reach high
     lean = rng.uniform(0.0, 30.0) * (1.0 - height)
     sideways = rng.uniform(0.0, 30.0)
-    side, other = _side(rng)
+    side, other = random_side(rng)
     psi = _ramp(t)
     twist = -12.0 if side == "L" else 12.0
     return {
@@ -229,7 +223,7 @@ def _wave(t: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
     abd = rng.uniform(40.0, 75.0)
     flex = rng.uniform(0.0, 30.0)
     elbow = rng.uniform(60.0, 100.0)
-    side, other = _side(rng)
+    side, other = random_side(rng)
     s = np.sin(t)
     out = {
         f"shoulder_abd.{side}": np.full_like(t, abd),
@@ -292,7 +286,7 @@ def motion_clip(rng: np.random.Generator) -> tuple[str, np.ndarray]:
     poses = np.zeros((2, len(DOF_NAMES)))
     for layer, t in ((_PRIMITIVES[motion], phase + seconds / period), (_sway, sway_phase + seconds / sway_period)):
         for name, angle in layer(2.0 * np.pi * t, rng).items():
-            poses[:, _INDEX[name]] += angle
+            poses[:, DOF_INDEX[name]] += angle
     poses += rng.normal(0.0, POSTURE_SD, len(DOF_NAMES))
     poses += rng.normal(0.0, JITTER_SD, poses.shape)
     return motion, np.clip(poses, DOF_LIMITS[:, 0], DOF_LIMITS[:, 1])
