@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import csv
 import json
-import statistics
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
+from table import paired as table1_paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 LIMBS = ("head", "upper_arm", "lower_arm", "thigh", "shin")
 
@@ -29,15 +31,10 @@ def load(run: Path) -> tuple[dict | None, list[dict]]:
 
 
 def paired(a: dict | None, b: dict | None, key: str = "iou") -> str:
-    """``mean ± sem (k / n)`` of the per-image difference a - b over the images both scored."""
-    if a is None or b is None or a is b:
-        return "-"
-    rb = {r["index"]: r for r in b.get("records", [])}
-    d = [r[key] - rb[r["index"]][key] for r in a.get("records", [])
-         if r.get(key) is not None and rb.get(r["index"], {}).get(key) is not None]
-    if len(d) < 2:
-        return "-"
-    return f"{statistics.mean(d):+.3f} ± {statistics.stdev(d) / len(d) ** 0.5:.3f} ({sum(x > 0 for x in d)} / {len(d)})"
+    """``mean ± sem (k / n)`` of the per-image difference a - b over the images both scored (the paired difference
+    of experiments/table1/table.py)."""
+    diff = None if a is b else table1_paired(a, b, key, key)
+    return "-" if diff is None else f"{diff[0]:+.3f} ± {diff[1]:.3f} ({diff[2]})"
 
 
 def limb_parts(pq: dict) -> str:

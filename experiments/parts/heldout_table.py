@@ -12,10 +12,14 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from cerberus_core.bodies.human_heldout import FAMILIES, family_of, is_heldout_id
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
+from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 
 def _values(res: dict, key: str) -> np.ndarray:
@@ -23,10 +27,9 @@ def _values(res: dict, key: str) -> np.ndarray:
     return np.array([np.nan if r.get(key) is None else r[key] for r in res["records"]], dtype=float)
 
 
-def _paired(a: np.ndarray, b: np.ndarray) -> str:
-    ok = ~np.isnan(a) & ~np.isnan(b)
-    d = a[ok] - b[ok]
-    return f"{d.mean():+.3f} ± {d.std(ddof=1) / np.sqrt(len(d)):.3f} ({int((d > 0).sum())} / {len(d)})"
+def _versus(a: dict, b: dict, key: str) -> str:
+    diff = paired(a, b, key, key)
+    return "-" if diff is None else f"{diff[0]:+.3f} ± {diff[1]:.3f} ({diff[2]})"
 
 
 def main(argv: list[str]) -> None:
@@ -45,8 +48,8 @@ def main(argv: list[str]) -> None:
     print("| --- |" + " ---: |" * (4 + len(groups)))
     for name, _ in runs:
         iou, hard = _values(res[name], "iou"), _values(res[name], "hard_iou")
-        cells = [name, f"{np.nanmean(iou):.4f}", "–" if name == first else _paired(iou, _values(res[first], "iou")),
-                 f"{np.nanmean(hard):.4f}", "–" if name == first else _paired(hard, _values(res[first], "hard_iou"))]
+        cells = [name, f"{np.nanmean(iou):.4f}", "–" if name == first else _versus(res[name], res[first], "iou"),
+                 f"{np.nanmean(hard):.4f}", "–" if name == first else _versus(res[name], res[first], "hard_iou")]
         cells += [f"{np.nanmean(iou[family == g]):.3f}" for g in groups]
         print("| " + " | ".join(cells) + " |")
 

@@ -28,6 +28,7 @@ import argparse
 import hashlib
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,9 @@ from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.light import Light
 from cerberus_core.viz import image_grid
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
+from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 SKIN = np.array([[0.96, 0.80, 0.69], [0.88, 0.67, 0.53], [0.76, 0.55, 0.40], [0.55, 0.38, 0.26],
                  [0.36, 0.24, 0.16]])
@@ -135,14 +139,19 @@ class PhotoViews:
         return getattr(self._views, name)
 
 
-def fitted(run: Run, renderer, silhouettes: dict[str, np.ndarray], steps: int):
-    """A reconstructor (``images, camera -> PartSet``) that fits each prediction to its image's silhouette, found
-    by the image's content (the runner batches the images)."""
+def recording(run: Run, renderer, silhouettes: dict[str, np.ndarray], steps: int, made: dict[str, object]):
+    """A reconstructor (``images, camera -> PartSet``): the model's prediction, fitted to each image's silhouette for
+    ``steps`` (0: not fitted); images are found by their content (the runner batches them), and each image's
+    reconstruction is kept in ``made`` under it, for the silhouette IoU."""
     def reconstruct(images: torch.Tensor, camera):
         with torch.no_grad():
             parts = run.model.reconstruct(images, camera)
-        sil = torch.stack([torch.as_tensor(silhouettes[key(im)], dtype=torch.float32) for im in images])
-        return fit_silhouette(renderer, parts, camera, sil, run.model.dihedral, FitSettings(steps=steps))
+        if steps:
+            sil = torch.stack([torch.as_tensor(silhouettes[key(im)], dtype=torch.float32) for im in images])
+            parts = fit_silhouette(renderer, parts, camera, sil, run.model.dihedral, FitSettings(steps=steps))
+        for b, im in enumerate(images):
+            made[key(im)] = parts.index([b])
+        return parts
     return reconstruct
 
 
@@ -206,29 +215,29 @@ def main() -> int:
         results["auto_mask_iou"] = {"mean": float(np.nanmean(mask_iou)), "min": float(np.nanmin(mask_iou)),
                                     "below_0.5": int(np.sum(np.asarray(mask_iou) < 0.5))}
     fits = [(m, 0) for m in masks] + ([(m, args.fit) for m in masks] if args.fit > 0 else [])
+    evaluations = {}
     for m, steps in fits:
         name = m if steps == 0 else f"{m}_fit"
-        reconstruct = run.model.reconstruct if steps == 0 else fitted(
-            run, renderer, {key(inputs[m][i]): sil[m][k] for k, i in enumerate(indices)}, steps)
-        evaluation = evaluate_dataset(PhotoViews(views, inputs[m]), reconstruct, indices=indices,
-                                      skip=("hard", "part_quality", "visibility", "depth", "segments", "allocation"),
-                                      progress=False)
-        coverage = []
-        for k, i in enumerate(indices):
-            cam = scene.cameras([float(views[i]["azimuth"])], size)
-            with torch.no_grad():
-                rec = reconstruct(inputs[m][i][None], cam)
-            coverage.append(silhouette_iou(rendered_silhouette(renderer, rec, cam), sil[m][k]))
-        results[name] = {"voxel_iou": evaluation.standard.mean, "silhouette_iou": float(np.mean(coverage)),
-                         "per_image": evaluation.image_ious()} | ({"fit_steps": steps} if steps else {})
-        print(f"{name} mask: voxel IoU {evaluation.standard.mean:.4f}, silhouette IoU {np.mean(coverage):.3f}")
+        made: dict[str, object] = {}
+        reconstruct = recording(run, renderer, {key(inputs[m][i]): sil[m][k] for k, i in enumerate(indices)}, steps,
+                                made)
+        evaluations[name] = evaluate_dataset(PhotoViews(views, inputs[m]), reconstruct, indices=indices,
+                                             skip=("hard", "part_quality", "visibility", "depth", "segments",
+                                                   "allocation"), progress=False)
+        coverage = [silhouette_iou(rendered_silhouette(renderer, made[key(inputs[m][i])],
+                                                       scene.cameras([float(views[i]["azimuth"])], size)), sil[m][k])
+                    for k, i in enumerate(indices)]
+        mean = evaluations[name].standard.mean
+        results[name] = {"voxel_iou": mean, "silhouette_iou": float(np.mean(coverage)),
+                         "per_image": evaluations[name].image_ious()} | ({"fit_steps": steps} if steps else {})
+        print(f"{name} mask: voxel IoU {mean:.4f}, silhouette IoU {np.mean(coverage):.3f}")
     for m in masks if args.fit > 0 else ():
-        a, b = results[m]["per_image"], results[f"{m}_fit"]["per_image"]
-        d = np.array([b[i] - a[i] for i in a if i in b])
-        results[f"{m}_fit"]["paired_vs_unfitted"] = {"mean": float(d.mean()), "se": float(d.std(ddof=1) / np.sqrt(len(d))),
-                                                     "better": int((d > 0).sum()), "images": len(d)}
-        print(f"{m}: fitted - unfitted voxel IoU {d.mean():+.4f} +- {d.std(ddof=1) / np.sqrt(len(d)):.4f} "
-              f"(better on {(d > 0).sum()} of {len(d)})")
+        diff = paired({"records": evaluations[f"{m}_fit"].records}, {"records": evaluations[m].records})
+        if diff is not None:
+            mean, se, better = diff
+            k, n = (int(x) for x in better.split(" / "))
+            results[f"{m}_fit"]["paired_vs_unfitted"] = {"mean": mean, "se": se, "better": k, "images": n}
+            print(f"{m}: fitted - unfitted voxel IoU {mean:+.4f} +- {se:.4f} (better on {k} of {n})")
     if mask_iou:
         print(f"automatic mask against the exact one: IoU {results['auto_mask_iou']['mean']:.3f} (min "
               f"{results['auto_mask_iou']['min']:.3f}, {results['auto_mask_iou']['below_0.5']} below 0.5)")
