@@ -11,6 +11,7 @@ from cerberus_core.losses import (
     background_loss,
     background_mask,
     dihedral_cosines,
+    keep_own_elements,
     mix_shape_latents,
     reconstruction_loss,
     smoothness_loss,
@@ -40,6 +41,19 @@ def test_mixing_draws_each_element_from_one_of_the_four_latents():
     torch.testing.assert_close(mixed, choice.float() + 10 * torch.arange(3.0).view(3, 1))
     counts = torch.bincount(choice.flatten(), minlength=4).float() / choice.numel()
     assert torch.allclose(counts, torch.full((4,), 0.25), atol=0.04)  # uniform categorical Z
+
+
+def test_keep_own_elements_sends_each_gradient_to_the_latent_it_took():
+    mixed = torch.randn(2, 4, 300, requires_grad=True)
+    own = torch.randn(2, 4, 300, requires_grad=True)
+    out = keep_own_elements(mixed, own, 0.3, torch.Generator().manual_seed(0))
+    out.sum().backward()
+    took_mixed = mixed.grad == 1
+    assert torch.equal(took_mixed, own.grad == 0) and torch.equal(out, torch.where(took_mixed, mixed, own))
+    assert took_mixed.float().mean().item() == pytest.approx(0.3, abs=0.03)
+    assert torch.equal(keep_own_elements(mixed, own, 1.0), mixed) and torch.equal(keep_own_elements(mixed, own, 0.0), own)
+    with pytest.raises(ValueError, match="losses.pose_mixing"):
+        keep_own_elements(mixed, own, 1.2)
 
 
 def test_viewpoint_scenes_cross_uses_partner_translation_with_own_rotation():

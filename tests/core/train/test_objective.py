@@ -30,6 +30,28 @@ def test_quadruplet_mixer_shares_one_mixed_latent_per_quadruplet():
         assert not torch.equal(mq[b, 0], quads[b, 0])
 
 
+def test_partial_pose_mixing_keeps_each_images_own_elements_at_the_rest():
+    own = torch.randn(8, 4000)  # 2 quadruplets
+    mixed = quadruplet_mixer(torch.Generator().manual_seed(1), mixing=0.5)(own)
+    quads, mq = own.view(2, 4, 4000), mixed.view(2, 4, 4000)
+    for b in range(2):
+        assert ((mq[b].unsqueeze(1) == quads[b].unsqueeze(0)).any(1)).all()  # every element from one of the four
+        kept = (mq[b] == quads[b]).float().mean().item()
+        assert kept == pytest.approx(0.5 + 0.5 * 0.25, abs=0.02)  # own when not mixed, or mixed onto itself
+        assert not torch.equal(mq[b, 0], mq[b, 1])  # the four images no longer share one latent
+    # mixing 1 is equation 3 and draws nothing more: a resumed run's draws do not change
+    g1, g2 = torch.Generator().manual_seed(5), torch.Generator().manual_seed(5)
+    torch.testing.assert_close(quadruplet_mixer(g1, mixing=1.0)(own), quadruplet_mixer(g2)(own))
+    assert torch.equal(g1.get_state(), g2.get_state())
+
+
+def test_partial_pose_mixing_is_a_probability_above_zero():
+    for bad in (0.0, 1.5, -0.1):
+        with pytest.raises(ValueError, match="losses.pose_mixing"):
+            LossConfig(pose_mixing=bad).validate()
+    LossConfig(pose_mixing=0.3).validate()
+
+
 def test_cross_view_warmup_keeps_the_partner_translations_first():
     cfg = LossConfig(cross_view="own", cross_view_warmup=300)
     assert [cfg.cross_view_at(s) for s in (0, 299, 300, None)] == ["partner", "partner", "own", "own"]

@@ -85,6 +85,32 @@ def mix_shape_latents(latents: Tensor, generator: torch.Generator | None = None)
     return mixed, choice
 
 
+def keep_own_elements(mixed: Tensor, own: Tensor, mixing: float, generator: torch.Generator | None = None) -> Tensor:
+    """Partial pose consistency (beyond the paper): each element is ``mixed``'s with probability ``mixing``, else
+    ``own``'s, drawn independently per image and element. ``mixing`` 1 is equation 3, 0 Free Cerberus.
+
+    Args:
+        mixed: ``(B, 4, S)`` the quadruplet's mixed latent for each of its four images (:func:`mix_shape_latents`).
+        own: ``(B, 4, S)`` each image's own shape latent.
+        mixing: probability in ``[0, 1]``.
+        generator: random source (a CPU generator).
+    Returns:
+        ``(B, 4, S)``; gradients reach ``mixed`` where it was taken and ``own`` elsewhere.
+
+    Example:
+        >>> own = torch.zeros(1, 4, 1000)
+        >>> out = keep_own_elements(torch.ones(1, 4, 1000), own, 0.25, torch.Generator().manual_seed(0))
+        >>> 0.2 < out.mean().item() < 0.3
+        True
+    """
+    check_shapes("keep_own_elements", mixed=(mixed, "B 4 S"), own=(own, "B 4 S"))
+    if not 0 <= mixing <= 1:
+        raise ConfigError.about("losses.pose_mixing", mixing, "keep_own_elements: mixing must be a probability in "
+                                "[0, 1]", "`losses.pose_mixing=1` (equation 3)")
+    take = torch.rand(own.shape, generator=generator).to(own.device) < mixing
+    return torch.where(take, mixed, own)
+
+
 def viewpoint_scenes(local_vertices: Tensor, rotations: Tensor, translations: Tensor,
                      cross_view: str = "partner") -> tuple[Tensor, Tensor]:
     """The posed meshes rendered for equation 4 (all in world coordinates).

@@ -34,6 +34,7 @@ from cerberus_core.losses import (
     background_loss,
     background_mask,
     hidden_part_pull,
+    keep_own_elements,
     mix_shape_latents,
     part_overlap,
     part_separation,
@@ -89,13 +90,21 @@ def unwrap(model: nn.Module) -> Cerberus:
     return inner
 
 
-def quadruplet_mixer(generator: torch.Generator | None) -> Callable[[Tensor], Tensor]:
+def quadruplet_mixer(generator: torch.Generator | None, mixing: float = 1.0) -> Callable[[Tensor], Tensor]:
     """Pose consistency for flattened quadruplets: ``(4 B, S)`` own latents → ``(4 B, S)`` where the
-    four images of each quadruplet share one mixed latent (equation 3)."""
+    four images of each quadruplet share one mixed latent (equation 3).
+
+    ``mixing`` below 1 (``losses.pose_mixing``, beyond the paper) makes the consistency partial: each element of
+    each image's latent is the quadruplet's mixed element with probability ``mixing`` and the image's own
+    otherwise (:func:`cerberus_core.losses.keep_own_elements`); 1 is equation 3 and draws nothing more.
+    """
     def mix(latents: Tensor) -> Tensor:
         quads = latents.view(-1, 4, latents.shape[-1])
         mixed, _ = mix_shape_latents(quads, generator)
-        return mixed.unsqueeze(1).expand_as(quads).reshape_as(latents)
+        shared = mixed.unsqueeze(1).expand_as(quads)
+        if mixing < 1:
+            shared = keep_own_elements(shared, quads, mixing, generator)
+        return shared.reshape_as(latents)
     return mix
 
 
@@ -360,6 +369,10 @@ class LossConfig(Checked):
     Attributes:
         pose_consistency: render with the mixed shape latent of equation 3 (off: each image uses its own shape
             latent, 'Free Cerberus').
+        pose_mixing: with pose consistency, the probability that an element of an image's shape latent is the
+            quadruplet's mixed one (else the image keeps its own; :func:`quadruplet_mixer`): 1 is equation 3, and
+            lower values trade Free Cerberus's fit of each image against parts that hold across poses (beyond
+            the paper, issue 38).
         viewpoint_consistency: also render each image's rotated mesh from the other viewpoint (equation 4); off:
             only the image's own viewpoint.
         cross_view: which translations that second rendering uses (:func:`cerberus_core.losses.viewpoint_scenes`):
@@ -432,6 +445,7 @@ class LossConfig(Checked):
 
     # the switches
     pose_consistency: bool = True
+    pose_mixing: float = ranged(1.0, gt=0, le=1)
     viewpoint_consistency: bool = True
     cross_view: Literal["partner", "own"] = "partner"
     cross_view_warmup: int = ranged(0, ge=0)
@@ -510,7 +524,8 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
     core = unwrap(model)
     images = batch.images.flatten(0, 1)  # (4B, 3, H, W): the stored renders, what the losses compare against
     pred: Predictions = model(batch.network_inputs.flatten(0, 1),  # the same in data.input_look
-                              quadruplet_mixer(generator) if losses.pose_consistency else None, step=step)
+                              quadruplet_mixer(generator, losses.pose_mixing) if losses.pose_consistency else None,
+                              step=step)
     parts = core.pose(pred, batch.camera)  # world frame, 4B images
     if not all(bool(torch.isfinite(t.detach()).all()) for t in (parts.local_vertices, parts.rotations,
                                                                  parts.translations)):
@@ -523,8 +538,9 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
     render = render_quadruplets(renderer, parts, batch, scene, (0.0, 0.0, 0.0) if black else scene.background,
                                 viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias,
                                 cross_view=losses.cross_view_at(step))
-    inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral,
-                             smoothness_once and losses.pose_consistency, renderer.nearest_indices, losses.cross_pulls)
+    shared_meshes = losses.pose_consistency and losses.pose_mixing == 1  # the four images decode one latent
+    inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral, smoothness_once and shared_meshes,
+                             renderer.nearest_indices, losses.cross_pulls)
     weights = losses.weights_at(step)
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}
