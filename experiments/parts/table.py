@@ -1,7 +1,7 @@
 """The parts-that-move screen of docs/results.md ("Parts that move", issue 38): one row per evaluated run, the
 allocation columns beside the IoU, each run paired with the first on the same test images.
 
-    python experiments/parts/table.py NAME=RUN [NAME=RUN ...]
+    python experiments/parts/table.py NAME=RUN [NAME=RUN ...] [--plot PNG]
 
 Each RUN holds ``eval/results.json`` (``cerberus eval RUN``). Columns: voxel IoU; the paired difference to the
 first run (mean ± s.e., images better); Hard Human; spare parts (deleting one costs <= 0.003 IoU); voxel
@@ -9,7 +9,8 @@ recall of the lower arms and the shins; the four largest keypoint spreads (px, p
 keypoint minus silhouette centroid); the median distance from the forearms' and the shins' projected
 centroids to the nearest keypoint (px); the mean translation disagreement between two views of a pose (world
 units); the labels among head, thigh, shin and lower arm that a part takes with agreement >= 0.5, left and right
-merged; training minutes.
+merged; training minutes. ``--plot PNG`` also draws each run's test IoU against its Hard Human IoU (the trade
+between fitting each image and parts that hold across poses).
 """
 from __future__ import annotations
 
@@ -54,7 +55,47 @@ def row(name: str, run: Path, base: dict | None) -> str:
             f"{depth.get('mean_translation_disagreement', float('nan')):.3f} | {', '.join(named) or '-'} | {minutes} |")
 
 
+def plot_trade(points: dict[str, tuple[float, float]], path: Path, size: tuple[int, int] = (620, 460)) -> None:
+    """Scatter of ``{name: (test IoU, Hard Human IoU)}``, Hard Human up, test IoU across, with PIL."""
+    from PIL import Image, ImageDraw
+
+    from cerberus_core.viz import atomic_save_png
+
+    w, h = size
+    left, right, top, bottom = 56, 20, 20, 44
+    img = Image.new("RGB", size, "white")
+    draw = ImageDraw.Draw(img)
+    draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
+    xs, ys = [p[0] for p in points.values()], [p[1] for p in points.values()]
+    x0, x1 = (int(min(xs) * 100) - 1) / 100, (int(max(xs) * 100) + 2) / 100  # a 0.01 grid around the data
+    y0, y1 = (int(min(ys) * 50) - 1) / 50, (int(max(ys) * 50) + 2) / 50  # a 0.02 grid
+    sx = lambda v: left + (v - x0) / (x1 - x0) * (w - left - right)  # noqa: E731
+    sy = lambda v: h - bottom - (v - y0) / (y1 - y0) * (h - top - bottom)  # noqa: E731
+    for k in range(round((x1 - x0) / 0.01) + 1):
+        x = sx(x0 + k * 0.01)
+        draw.line([x, top, x, h - bottom], fill=(228, 228, 228))
+        draw.text((x - 12, h - bottom + 6), f"{x0 + k * 0.01:.2f}", fill=(0, 0, 0))
+    for k in range(round((y1 - y0) / 0.02) + 1):
+        y = sy(y0 + k * 0.02)
+        draw.line([left, y, w - right, y], fill=(228, 228, 228))
+        draw.text((8, y - 6), f"{y0 + k * 0.02:.2f}", fill=(0, 0, 0))
+    draw.text(((w + left) // 2 - 90, h - 18), "test voxel IoU (208 images)", fill=(0, 0, 0))
+    draw.text((left + 6, top + 4), "Hard Human IoU (one set of parts per subject)", fill=(0, 0, 0))
+    for name, (x, y) in points.items():
+        draw.ellipse([sx(x) - 4, sy(y) - 4, sx(x) + 4, sy(y) + 4], fill=(31, 119, 180))
+        draw.text((sx(x) + 7, sy(y) - 6), name, fill=(0, 0, 0))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_save_png(img, path)
+
+
 def main(argv: list[str]) -> int:
+    plot = None
+    if "--plot" in argv:
+        at = argv.index("--plot")
+        plot, argv = (Path(argv[at + 1]) if at + 1 < len(argv) else None), argv[:at] + argv[at + 2:]
+        if plot is None:
+            print("--plot needs a PNG path", file=sys.stderr)
+            return 2
     if not argv or any("=" not in a for a in argv):
         print(__doc__, file=sys.stderr)
         return 2
@@ -69,6 +110,12 @@ def main(argv: list[str]) -> int:
             print(f"| {name} | - | not evaluated ({res_path}) |")
             continue
         print(row(name, run, None if run == runs[0][1] else base))
+    if plot is not None:
+        results = {name: json.loads((run / "eval" / "results.json").read_text()) for name, run in runs
+                   if (run / "eval" / "results.json").is_file()}
+        plot_trade({name: (r["standard"]["mean"], r["hard"]["mean"]) for name, r in results.items()
+                    if (r.get("hard") or {}).get("mean") is not None}, plot)
+        print(f"wrote {plot}")
     return 0
 
 
