@@ -50,6 +50,8 @@ def test_partial_pose_mixing_is_a_probability_above_zero():
         with pytest.raises(ValueError, match="losses.pose_mixing"):
             LossConfig(pose_mixing=bad).validate()
     LossConfig(pose_mixing=0.3).validate()
+    with pytest.raises(ValueError, match="losses.pose_mixing.*pose_consistency=true"):
+        LossConfig(pose_mixing=0.5, pose_consistency=False)
 
 
 def test_cross_view_warmup_keeps_the_partner_translations_first():

@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.errors import InputTypeError
+from cerberus_core.errors import ConfigError, InputTypeError
 from cerberus_core.fields import RANGE, Checked, Range, ranged
 from cerberus_core.losses import (
     VIEW_PARTNER,
@@ -453,6 +453,13 @@ class LossConfig(Checked):
     allocation_steps: int = ranged(0, ge=0)
     render_background: Literal["black", "dataset"] = "black"
     background_tolerance: float = ranged(0.02, ge=0, lt=1)
+
+    def validate(self) -> None:
+        """A partial mixing needs the mixing it makes partial."""
+        if self.pose_mixing < 1 and not self.pose_consistency:
+            raise ConfigError.about("losses.pose_mixing", self.pose_mixing, "makes pose consistency partial, which "
+                                    "is off (losses.pose_consistency: false)", "`losses.pose_consistency=true`, or "
+                                    "`losses.pose_mixing=1`")
 
     def cross_view_at(self, step: int | None) -> Literal["partner", "own"]:
         """The cross view's translations at training step ``step`` (``None``: after any warm-up)."""
