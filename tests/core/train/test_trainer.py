@@ -71,6 +71,20 @@ def test_resumed_run_ends_with_the_same_weights_as_an_uninterrupted_one(tiny_con
     assert [r["total"] for r in rows(tmp_path / "killed")] == [r["total"] for r in rows(tmp_path / "straight")]
 
 
+def test_resume_is_exact_with_partial_pose_mixing(tiny_config, tmp_path):
+    """losses.pose_mixing < 1 draws from the objective's generator too: a resumed run draws what the straight one did."""
+    straight = train(tiny_config("losses.pose_mixing=0.5"), tmp_path / "straight")
+    with pytest.raises(NonFiniteError):
+        train(tiny_config("losses.pose_mixing=0.5", "debug.poison_steps=[2]"), tmp_path / "killed")
+    resumed = train(tiny_config("losses.pose_mixing=0.5"), tmp_path / "killed", resume=True)
+    assert resumed.step == 4
+    assert_same_weights(params(straight.model), params(resumed.model))
+    assert [r["total"] for r in rows(tmp_path / "killed")] == [r["total"] for r in rows(tmp_path / "straight")]
+    mixed_fully = train(tiny_config(), tmp_path / "eq3")  # and the draws differ from equation 3's
+    assert [r["total"] for r in rows(tmp_path / "eq3")] != [r["total"] for r in rows(tmp_path / "straight")]
+    assert mixed_fully.step == 4
+
+
 def test_resume_refuses_a_different_run_and_fresh_start_refuses_an_existing_one(tiny_config, tmp_path):
     train(tiny_config("train.steps=2"), tmp_path / "run")
     with pytest.raises(FileExistsError, match="pass `resume=True` to continue it"):
