@@ -57,35 +57,20 @@ def row(name: str, run: Path, base: dict | None) -> str:
 
 def plot_trade(points: dict[str, tuple[float, float]], path: Path, size: tuple[int, int] = (620, 460)) -> None:
     """Scatter of ``{name: (test IoU, Hard Human IoU)}``, Hard Human up, test IoU across, with PIL."""
-    from PIL import Image, ImageDraw
+    from cerberus_core.viz import chart_frame
 
-    from cerberus_core.viz import atomic_save_png
-
-    w, h = size
-    left, right, top, bottom = 56, 20, 20, 44
-    img = Image.new("RGB", size, "white")
-    draw = ImageDraw.Draw(img)
-    draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
     xs, ys = [p[0] for p in points.values()], [p[1] for p in points.values()]
     x0, x1 = (int(min(xs) * 100) - 1) / 100, (int(max(xs) * 100) + 2) / 100  # a 0.01 grid around the data
     y0, y1 = (int(min(ys) * 50) - 1) / 50, (int(max(ys) * 50) + 2) / 50  # a 0.02 grid
-    sx = lambda v: left + (v - x0) / (x1 - x0) * (w - left - right)  # noqa: E731
-    sy = lambda v: h - bottom - (v - y0) / (y1 - y0) * (h - top - bottom)  # noqa: E731
-    for k in range(round((x1 - x0) / 0.01) + 1):
-        x = sx(x0 + k * 0.01)
-        draw.line([x, top, x, h - bottom], fill=(228, 228, 228))
-        draw.text((x - 12, h - bottom + 6), f"{x0 + k * 0.01:.2f}", fill=(0, 0, 0))
-    for k in range(round((y1 - y0) / 0.02) + 1):
-        y = sy(y0 + k * 0.02)
-        draw.line([left, y, w - right, y], fill=(228, 228, 228))
-        draw.text((8, y - 6), f"{y0 + k * 0.02:.2f}", fill=(0, 0, 0))
-    draw.text(((w + left) // 2 - 90, h - 18), "test voxel IoU (208 images)", fill=(0, 0, 0))
-    draw.text((left + 6, top + 4), "Hard Human IoU (one set of parts per subject)", fill=(0, 0, 0))
+    chart = chart_frame(size, margins=(56, 20, 20, 44), x_range=(x0, x1), y_range=(y0, y1))
+    chart.grid_x([x0 + k * 0.01 for k in range(round((x1 - x0) / 0.01) + 1)], "{:.2f}".format)
+    chart.grid_y([y0 + k * 0.02 for k in range(round((y1 - y0) / 0.02) + 1)], "{:.2f}".format)
+    chart.axis_titles(x="test voxel IoU (208 images)", y="Hard Human IoU (one set of parts per subject)")
     for name, (x, y) in points.items():
-        draw.ellipse([sx(x) - 4, sy(y) - 4, sx(x) + 4, sy(y) + 4], fill=(31, 119, 180))
-        draw.text((sx(x) + 7, sy(y) - 6), name, fill=(0, 0, 0))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_save_png(img, path)
+        px, py = chart.x_px(x), chart.y_px(y)
+        chart.draw.ellipse([px - 4, py - 4, px + 4, py + 4], fill=(31, 119, 180))
+        chart.draw.text((px + 7, py - 6), name, fill=(0, 0, 0))
+    chart.save(path)
 
 
 def main(argv: list[str]) -> int:

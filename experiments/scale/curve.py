@@ -49,47 +49,30 @@ def curve(run: Path, test: str, train: str, limit: int) -> list[tuple[int, float
 
 def plot(curves: dict[str, list[tuple[int, float, float]]], path: Path, size: tuple[int, int] = (760, 420)) -> None:
     """Test IoU (solid, dots) and own-training-image IoU (thin, squares) against the step, with PIL."""
-    from PIL import Image, ImageDraw
+    from cerberus_core.viz import chart_frame
 
-    from cerberus_core.viz import atomic_save_png
-
-    w, h = size
-    left, right, top, bottom = 60, 250, 20, 40
-    img = Image.new("RGB", size, "white")
-    draw = ImageDraw.Draw(img)
-    draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
     steps = [r[0] for rows in curves.values() for r in rows] or [0, 1]
     values = [v for rows in curves.values() for r in rows for v in r[1:]] or [0.0, 1.0]
-    s1 = max(steps)
     y0, y1 = (int(min(values) * 50) - 1) / 50, (int(max(values) * 50) + 2) / 50  # a 0.02 grid around the data
-    sx = lambda s: left + s / s1 * (w - left - right)  # noqa: E731
-    sy = lambda v: h - bottom - (v - y0) / (y1 - y0) * (h - top - bottom)  # noqa: E731
-    k = 0
-    while y0 + k * 0.02 <= y1 + 1e-9:
-        y = sy(y0 + k * 0.02)
-        draw.line([left, y, w - right, y], fill=(228, 228, 228))
-        draw.text((8, y - 6), f"{y0 + k * 0.02:.2f}", fill=(0, 0, 0))
-        k += 1
-    for s in sorted(set(steps)):
-        draw.text((sx(s) - 14, h - bottom + 6), f"{s // 1000}k", fill=(0, 0, 0))
-    draw.text(((w - right + left) // 2 - 40, h - 16), "training step", fill=(0, 0, 0))
-    draw.text((left + 6, top + 4), "voxel IoU (32^3)", fill=(0, 0, 0))
+    chart = chart_frame(size, margins=(60, 250, 20, 40), x_range=(0, max(steps)), y_range=(y0, y1))
+    chart.grid_y([y0 + k * 0.02 for k in range(round((y1 - y0) / 0.02) + 1)], "{:.2f}".format)
+    chart.grid_x(sorted(set(steps)), lambda s: f"{s // 1000}k", fill=None)
+    chart.axis_titles(x="training step", y="voxel IoU (32^3)")
     colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40)]
     legend = 0
     for (name, rows), col in zip(curves.items(), colours, strict=False):
         for index, label, width, marker in ((1, "test (unseen subjects)", 3, "o"), (2, "own training images", 1, "s")):
-            xy = [(sx(r[0]), sy(r[index])) for r in rows]
+            xy = [(chart.x_px(r[0]), chart.y_px(r[index])) for r in rows]
             if len(xy) > 1:
-                draw.line(xy, fill=col, width=width)
+                chart.draw.line(xy, fill=col, width=width)
             for x, y in xy:
                 box = [x - 3, y - 3, x + 3, y + 3]
-                draw.ellipse(box, fill=col) if marker == "o" else draw.rectangle(box, outline=col)
-            ly = top + 10 + 18 * legend
-            draw.line([w - right + 10, ly, w - right + 30, ly], fill=col, width=width)
-            draw.text((w - right + 36, ly - 6), f"{name}: {label}", fill=(0, 0, 0))
+                chart.draw.ellipse(box, fill=col) if marker == "o" else chart.draw.rectangle(box, outline=col)
+            ly = chart.top + 10 + 18 * legend
+            chart.draw.line([chart.right + 10, ly, chart.right + 30, ly], fill=col, width=width)
+            chart.draw.text((chart.right + 36, ly - 6), f"{name}: {label}", fill=(0, 0, 0))
             legend += 1
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_save_png(img, path)
+    chart.save(path)
 
 
 def main(argv: list[str]) -> int:

@@ -1,4 +1,5 @@
-"""Text in the pictures (cerberus_core.viz): words drawn apart, lines wrapped to a width.
+"""Text in the pictures (cerberus_core.viz): words drawn apart, lines wrapped to a width; the chart frame's map
+from data to pixels and its gridlines.
 
 Issue 34: the warning drawn above ``*_figure1.png`` read "its border is notthe training background": Pillow's
 default font advances a space by 2 px at 11 px, no more than the gap between two letters.
@@ -9,8 +10,19 @@ import numpy as np
 import pytest
 from PIL import Image, ImageDraw
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.eval.figures import note_banner
-from cerberus_core.viz import WORD_GAP, draw_text, figure_font, text_width, word_positions, wrap_text
+from cerberus_core.viz import (
+    GRID,
+    INK,
+    WORD_GAP,
+    chart_frame,
+    draw_text,
+    figure_font,
+    text_width,
+    word_positions,
+    wrap_text,
+)
 
 SENTENCE = "out of the training domain: its border is not the training background (0, 0, 0)"
 
@@ -58,3 +70,45 @@ def test_the_figure_note_shows_its_spaces():
     banner = note_banner(SENTENCE, 800)  # one line
     assert banner.height < 20
     assert len([r for r in _blank_runs(banner) if r >= 3]) == SENTENCE.count(" ")  # a gap per space, none else
+
+
+def _chart():
+    """A 300 x 200 px chart whose box spans x 40..270 px and y 20..150 px: data x 10..20, data y -2..3."""
+    return chart_frame((300, 200), margins=(40, 30, 20, 50), x_range=(10.0, 20.0), y_range=(-2.0, 3.0))
+
+
+def _ink(image, box):
+    """Whether any pixel of ``box = (x0, y0, x1, y1)`` (px, end exclusive) is dark (text or frame)."""
+    return bool((np.asarray(image.crop(box).convert("L")) < 128).any())
+
+
+def test_the_chart_maps_the_data_ranges_onto_the_frame_edges():
+    chart = _chart()
+    assert (chart.left, chart.top, chart.right, chart.bottom) == (40, 20, 270, 150)
+    assert (chart.x_px(10.0), chart.x_px(20.0), chart.x_px(15.0)) == (40.0, 270.0, 155.0)
+    assert (chart.y_px(-2.0), chart.y_px(3.0), chart.y_px(0.0)) == (150.0, 20.0, 98.0)  # y runs up
+    image = chart.image
+    for corner in ((40, 20), (270, 20), (40, 150), (270, 150)):
+        assert image.getpixel(corner) == INK
+    assert image.getpixel((155, 98)) == image.getpixel((20, 98)) == (255, 255, 255)
+
+
+def test_the_gridlines_land_on_their_values_and_keep_the_frame():
+    chart = _chart()
+    chart.grid_y([-2.0, 0.0], "{:.1f}".format)
+    chart.grid_x([15.0], "{:.0f}".format)
+    image = chart.image
+    assert image.getpixel((100, 98)) == GRID and image.getpixel((100, 72)) == (255, 255, 255)  # y = 0, not y = 1
+    assert image.getpixel((100, 97)) == image.getpixel((100, 99)) == (255, 255, 255)  # one pixel thick
+    assert image.getpixel((155, 60)) == GRID  # x = 15 up the box
+    assert image.getpixel((100, 150)) == INK  # the line at y = -2 lies on the bottom edge, which stays black
+    assert _ink(image, (0, 90, 40, 100)) and not _ink(image, (0, 105, 40, 140))  # "0.0" in the left margin by its line
+    assert _ink(image, (145, 156, 165, 170)) and not _ink(image, (45, 156, 135, 170))  # "15" under x = 15
+    chart.grid_x([10.0, 20.0], "{:.0f}".format, fill=None)  # tick labels only: the frame edges stay black
+    assert image.getpixel((40, 60)) == image.getpixel((270, 60)) == INK
+
+
+@pytest.mark.parametrize("x_range, y_range", [((1.0, 1.0), (0.0, 1.0)), ((0.0, 1.0), (0.0, float("nan")))])
+def test_a_chart_axis_needs_two_different_ends(x_range, y_range):
+    with pytest.raises(ConfigError, match="two different finite ends"):
+        chart_frame((100, 100), margins=(10, 10, 10, 10), x_range=x_range, y_range=y_range)

@@ -1,4 +1,4 @@
-"""Pictures: part colours, text, image grids and PNG writing (PIL only).
+"""Pictures: part colours, text, image grids, chart frames and PNG writing (PIL only).
 
 Text is drawn word by word (:func:`draw_text`, :func:`wrap_text`): Pillow's default font (Aileron, from
 ``ImageFont.load_default``) advances a space by 2 px at the 7-11 px sizes the figures use, no more than the
@@ -9,19 +9,24 @@ from __future__ import annotations
 
 import colorsys
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.atomic import atomic_write
 
 Tensor = torch.Tensor
 
 #: Least advance between two drawn words, as a share of the font size (Aileron's own space is 0.18 of it).
 WORD_GAP = 0.35
+
+#: RGB of a chart's frame and text, and of its gridlines (:class:`ChartFrame`).
+INK, GRID = (0, 0, 0), (228, 228, 228)
 
 
 def part_colors(n: int) -> Tensor:
@@ -97,6 +102,100 @@ def to_uint8(images: Tensor) -> np.ndarray:
 def atomic_save_png(img: Image.Image, path: str | Path) -> None:
     """Write a PNG atomically (:func:`cerberus_core.plumbing.atomic.atomic_write`): a reader never sees half a file."""
     atomic_write(Path(path), lambda fh: img.save(fh, format="PNG"))
+
+
+@dataclass(frozen=True)
+class ChartFrame:
+    """The plotting box of a line or scatter chart on its canvas, and the linear maps from data to pixels.
+
+    Pixels are PIL's (x right, y down, from the canvas's top-left corner); ``left``/``right`` are the x and
+    ``top``/``bottom`` the y of the box's edges, in px. Data ``x_range`` runs from the left edge to the right one
+    and ``y_range`` from the bottom edge up to the top one, in the caller's data units (a step, an IoU, the log10
+    of a loss). Made with its white canvas and the black frame by :func:`chart_frame`; a chart draws its lines
+    and markers with :attr:`draw` at :meth:`x_px`, :meth:`y_px` and its legend in the margins.
+
+    >>> chart = chart_frame((200, 100), margins=(20, 10, 10, 30), x_range=(0.0, 5.0), y_range=(-1.0, 1.0))
+    >>> chart.x_px(0.0), chart.x_px(5.0), chart.y_px(-1.0), chart.y_px(1.0)
+    (20.0, 190.0, 70.0, 10.0)
+    >>> chart.grid_y([-1.0, 0.0, 1.0], "{:+.0f}".format)  # grey lines at y = 70, 40, 10 px, labels at the left
+    >>> chart.image.getpixel((100, 40)), chart.image.getpixel((100, 70))  # the frame stays black over a line
+    ((228, 228, 228), (0, 0, 0))
+    """
+
+    image: Image.Image
+    draw: ImageDraw.ImageDraw
+    left: int
+    top: int
+    right: int
+    bottom: int
+    x_range: tuple[float, float]
+    y_range: tuple[float, float]
+
+    def x_px(self, x: float) -> float:
+        """The canvas x (px) of data ``x`` (the box's left edge at ``x_range[0]``, its right edge at ``x_range[1]``)."""
+        x0, x1 = self.x_range
+        return self.left + (x - x0) / (x1 - x0) * (self.right - self.left)
+
+    def y_px(self, y: float) -> float:
+        """The canvas y (px) of data ``y`` (the box's bottom edge at ``y_range[0]``, its top edge at ``y_range[1]``)."""
+        y0, y1 = self.y_range
+        return self.bottom - (y - y0) / (y1 - y0) * (self.bottom - self.top)
+
+    def grid_y(self, values: Iterable[float], label: Callable[[float], str], fill: tuple[int, int, int] = GRID) -> None:
+        """A horizontal line across the box at each data y of ``values``, labelled ``label(value)`` 8 px from the
+        canvas's left edge (its top 6 px above the line). The frame is drawn again over the lines: a line at a
+        range's end leaves the edge black."""
+        font = figure_font(10)
+        for v in values:
+            y = self.y_px(v)
+            self.draw.line([self.left, y, self.right, y], fill=fill)
+            draw_text(self.draw, (8, y - 6), label(v), font=font, fill=INK)
+        self._frame()
+
+    def grid_x(self, values: Iterable[float], label: Callable[[float], str],
+               fill: tuple[int, int, int] | None = GRID) -> None:
+        """A vertical line up the box at each data x of ``values`` (none where ``fill`` is ``None``: tick labels
+        only), labelled ``label(value)`` centred under it, 6 px below the box; the frame drawn again as by :meth:`grid_y`."""
+        font = figure_font(10)
+        for v in values:
+            x = self.x_px(v)
+            if fill is not None:
+                self.draw.line([x, self.top, x, self.bottom], fill=fill)
+            draw_text(self.draw, (x, self.bottom + 6), label(v), font=font, fill=INK, anchor="ma")
+        self._frame()
+
+    def axis_titles(self, x: str = "", y: str = "") -> None:
+        """``x`` centred under the box, 16 px above the canvas's bottom edge; ``y`` inside the box's top-left
+        corner (6 px right of and 4 px below it)."""
+        font = figure_font(10)
+        draw_text(self.draw, ((self.left + self.right) / 2, self.image.height - 16), x, font=font, fill=INK, anchor="ma")
+        draw_text(self.draw, (self.left + 6, self.top + 4), y, font=font, fill=INK)
+
+    def save(self, path: str | Path) -> Path:
+        """The canvas written atomically to ``path`` (:func:`atomic_save_png`, which makes the folder)."""
+        atomic_save_png(self.image, path)
+        return Path(path)
+
+    def _frame(self) -> None:
+        self.draw.rectangle([self.left, self.top, self.right, self.bottom], outline=INK)
+
+
+def chart_frame(size: tuple[int, int], *, margins: tuple[int, int, int, int], x_range: tuple[float, float] = (0.0, 1.0),
+                y_range: tuple[float, float] = (0.0, 1.0)) -> ChartFrame:
+    """A white ``size = (width, height)`` px canvas with a black frame ``margins = (left, right, top, bottom)`` px
+    inside its edges, as a :class:`ChartFrame` mapping ``x_range`` across the frame and ``y_range`` up it.
+
+    Raises:
+        ConfigError: a range whose two ends are equal or not finite (no map to pixels).
+    """
+    for key, (lo, hi) in (("x_range", x_range), ("y_range", y_range)):
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo != hi):
+            raise ConfigError.about(key, (lo, hi), "a chart axis needs two different finite ends (data units)")
+    (w, h), (left, right, top, bottom) = size, margins
+    image = Image.new("RGB", size, "white")
+    chart = ChartFrame(image, ImageDraw.Draw(image), left, top, w - right, h - bottom, x_range, y_range)
+    chart._frame()
+    return chart
 
 
 def image_grid(rows: Sequence[Tensor], titles: Sequence[str] | None = None, scale: int = 1, pad: int = 2) -> Image.Image:

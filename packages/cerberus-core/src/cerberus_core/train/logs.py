@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import torch
-from PIL import Image, ImageDraw
 
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.datasets.scene import SceneSetup
@@ -30,7 +29,7 @@ from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.objective import TERMS
-from cerberus_core.viz import atomic_save_png, draw_text, figure_font, part_colors, save_image_grid
+from cerberus_core.viz import chart_frame, draw_text, figure_font, part_colors, save_image_grid
 
 Tensor = torch.Tensor
 
@@ -182,39 +181,30 @@ def plot_loss_curves(csv_path: str | Path, png_path: str | Path,
         pts = [(s, v) for s, v in pts if math.isfinite(v) and v > 0]
         if pts:
             series[t] = pts
-    w, h = size
-    left, right, top, bottom = 70, 130, 20, 40
-    img = Image.new("RGB", size, "white")
-    draw = ImageDraw.Draw(img)
-    draw.rectangle([left, top, w - right, h - bottom], outline=(0, 0, 0))
+    margins = (70, 130, 20, 40)  # left, right, top, bottom (px); the legend fills the right margin
     if not series:
-        draw_text(draw, (left + 10, top + 10), "no finite losses logged", font=figure_font(10), fill=(0, 0, 0))
-        atomic_save_png(img, png_path)
-        return Path(png_path)
+        chart = chart_frame(size, margins=margins)
+        draw_text(chart.draw, (chart.left + 10, chart.top + 10), "no finite losses logged", font=figure_font(10),
+                  fill=(0, 0, 0))
+        return chart.save(png_path)
     steps = [s for pts in series.values() for s, _ in pts]
     logs = [math.log10(v) for pts in series.values() for _, v in pts]
     s0, s1 = min(steps), max(max(steps), min(steps) + 1)
     y0, y1 = math.floor(min(logs)), math.ceil(max(logs))
     y1 = max(y1, y0 + 1)
-    sx = lambda s: left + (s - s0) / (s1 - s0) * (w - left - right)  # noqa: E731
-    sy = lambda lv: h - bottom - (lv - y0) / (y1 - y0) * (h - top - bottom)  # noqa: E731
-    for e in range(y0, y1 + 1):  # decade grid lines
-        y = sy(e)
-        draw.line([left, y, w - right, y], fill=(225, 225, 225))
-        draw.text((8, y - 6), f"1e{e}", fill=(0, 0, 0))
-    for frac in (0.0, 0.5, 1.0):
-        s = s0 + frac * (s1 - s0)
-        draw.text((sx(s) - 15, h - bottom + 6), f"{int(s)}", fill=(0, 0, 0))
-    draw.text(((w - right + left) // 2 - 10, h - 16), "step", fill=(0, 0, 0))
+    chart = chart_frame(size, margins=margins, x_range=(s0, s1), y_range=(y0, y1))  # y: log10 of the loss
+    chart.grid_y(range(y0, y1 + 1), "1e{}".format, fill=(225, 225, 225))  # decade grid lines
+    chart.grid_x([s0 + frac * (s1 - s0) for frac in (0.0, 0.5, 1.0)], lambda s: f"{int(s)}", fill=None)
+    chart.axis_titles(x="step")
     colours = (part_colors(len(series)) * 200).to(torch.uint8).tolist()
     for i, (name, pts) in enumerate(series.items()):
         col = tuple(colours[i])
-        xy = [(sx(s), sy(math.log10(v))) for s, v in pts]
+        xy = [(chart.x_px(s), chart.y_px(math.log10(v))) for s, v in pts]
         if len(xy) == 1:
-            draw.ellipse([xy[0][0] - 2, xy[0][1] - 2, xy[0][0] + 2, xy[0][1] + 2], fill=col)
+            chart.draw.ellipse([xy[0][0] - 2, xy[0][1] - 2, xy[0][0] + 2, xy[0][1] + 2], fill=col)
         else:
-            draw.line(xy, fill=col, width=2)
-        draw.line([w - right + 10, top + 12 + 18 * i, w - right + 30, top + 12 + 18 * i], fill=col, width=3)
-        draw.text((w - right + 36, top + 6 + 18 * i), name, fill=(0, 0, 0))
-    atomic_save_png(img, png_path)
-    return Path(png_path)
+            chart.draw.line(xy, fill=col, width=2)
+        ly = chart.top + 12 + 18 * i
+        chart.draw.line([chart.right + 10, ly, chart.right + 30, ly], fill=col, width=3)
+        chart.draw.text((chart.right + 36, ly - 6), name, fill=(0, 0, 0))
+    return chart.save(png_path)
