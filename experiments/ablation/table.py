@@ -12,10 +12,11 @@ steps per second. A variant that is missing shows ``-``.
 """
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from pathlib import Path
+
+from cerberus_core.train.logs import TrainingTime, training_time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
 from table import paired as table1_paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
@@ -23,11 +24,9 @@ from table import paired as table1_paired  # noqa: E402  (the paired difference 
 LIMBS = ("head", "upper_arm", "lower_arm", "thigh", "shin")
 
 
-def load(run: Path) -> tuple[dict | None, list[dict]]:
+def load(run: Path) -> tuple[dict | None, TrainingTime | None]:
     res = run / "eval" / "results.json"
-    log = run / "metrics.csv"
-    return (json.loads(res.read_text()) if res.is_file() else None,
-            list(csv.DictReader(log.open())) if log.is_file() else [])
+    return json.loads(res.read_text()) if res.is_file() else None, training_time(run / "metrics.csv")
 
 
 def paired(a: dict | None, b: dict | None, key: str = "iou") -> str:
@@ -59,13 +58,13 @@ def main(argv: list[str]) -> int:
           "translation disagreement | steps/s |")
     print("| :--- | ---: | ---: | ---: | ---: | :--- | ---: | ---: | ---: | ---: |")
     for name, _, _ in plan:
-        res, log = loaded[name]
+        res, trained = loaded[name]
         std = (res or {}).get("standard") or {}
         hard = (res or {}).get("hard") or {}
         pq = (res or {}).get("part_quality") or {}
         vis = (res or {}).get("part_visibility") or {}
         hidden = vis.get("parts_hidden_in_most_images")
-        speed = f"{int(log[-1]['step']) / float(log[-1]['elapsed_s']):.2f}" if log else "-"
+        speed = f"{trained.steps / trained.seconds:.2f}" if trained else "-"
         depth = (res or {}).get("depth") or {}
         print(f"| {name} | {fmt(std.get('mean'))} | {paired(res, base)} | {fmt(hard.get('mean'))} | "
               f"{fmt(pq.get('consistency'))} | {limb_parts(pq) if pq else '-'} | "

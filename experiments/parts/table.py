@@ -9,15 +9,16 @@ recall of the lower arms and the shins; the four largest keypoint spreads (px, p
 keypoint minus silhouette centroid); the median distance from the forearms' and the shins' projected
 centroids to the nearest keypoint (px); the mean translation disagreement between two views of a pose (world
 units); the labels among head, thigh, shin and lower arm that a part takes with agreement >= 0.5, left and right
-merged; training minutes. ``--plot PNG`` also draws each run's test IoU against its Hard Human IoU (the trade
-between fitting each image and parts that hold across poses).
+merged; training minutes (summed over the sittings of a resumed run). ``--plot PNG`` also draws each run's test
+IoU against its Hard Human IoU (the trade between fitting each image and parts that hold across poses).
 """
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from pathlib import Path
+
+from cerberus_core.train.logs import training_time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
 from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
@@ -37,9 +38,8 @@ def row(name: str, run: Path, base: dict | None) -> str:
     parts = (quality.get("sides_merged") or quality).get("parts", [])  # left and right merged, as issue 38 counts
     named = sorted({p["label"].split(".")[0] for p in parts if p.get("label", "").split(".")[0] in LIMBS
                     and p["agreement"] >= 0.5})
-    metrics = run / "metrics.csv"
-    rows = list(csv.DictReader(metrics.open())) if metrics.is_file() else []
-    minutes = f"{float(rows[-1]['elapsed_s']) / 60:.0f}" if rows else "-"
+    trained = training_time(run / "metrics.csv")
+    minutes = f"{trained.seconds / 60:.0f}" if trained else "-"
     spare = seg.get("spare_count")
     spare = f"{spare} of {len(seg.get('deletion_loss') or []) or '?'}" if spare is not None else "-"
     diff = paired(res, base) if base is not None else None

@@ -5,17 +5,19 @@ training images, their gap, and paired differences between runs scored on the sa
 
 Each RUN holds ``eval/results.json`` (``cerberus eval RUN --data TEST``: the unseen test subjects)
 and, if it was measured, ``eval_train/results.json`` (``cerberus eval RUN --data TRAIN --split train
---limit K``: the first K of its own training images); ``metrics.csv`` gives the training time.
+--limit K``: the first K of its own training images); ``metrics.csv`` gives the training time
+(summed over the sittings of a resumed run).
 ``--pair A-B`` prints ``A − B`` per test image (mean ± s.e., images where A is better), e.g.
 ``--pair cer_s200-nmr_s200`` for the Cerberus − NMRr margin.
 """
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 from pathlib import Path
+
+from cerberus_core.train.logs import training_time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
 from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
@@ -27,7 +29,7 @@ def load(path: Path) -> dict | None:
 
 def summary(run: Path) -> dict:
     test, train = load(run / "eval" / "results.json"), load(run / "eval_train" / "results.json")
-    rows = list(csv.DictReader((run / "metrics.csv").open())) if (run / "metrics.csv").is_file() else []
+    trained = training_time(run / "metrics.csv")
     pq = (test or {}).get("part_quality") or {}
     vis = (test or {}).get("part_visibility") or {}
     limbs = ", ".join(f"{p['label']} ({p['agreement']:.2f})" for p in pq.get("parts", [])
@@ -35,8 +37,7 @@ def summary(run: Path) -> dict:
                       and p["agreement"] >= 0.3)
     return {"test": test and test["standard"]["mean"], "hard": test and (test.get("hard") or {}).get("mean"),
             "train": train and train["standard"]["mean"], "train_n": train and train["standard"]["count"],
-            "steps": int(rows[-1]["step"]) if rows else None,
-            "minutes": float(rows[-1]["elapsed_s"]) / 60 if rows else None,
+            "steps": trained and trained.steps, "minutes": trained and trained.seconds / 60,
             "limbs": limbs or "-", "hidden": vis.get("parts_hidden_in_most_images"), "results": test}
 
 

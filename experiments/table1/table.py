@@ -17,6 +17,7 @@ from pathlib import Path
 
 from cerberus_core.eval.markdown import markdown_table
 from cerberus_core.eval.report import comparison_table
+from cerberus_core.train.logs import TrainingTime, training_time
 
 VARIANTS = {"nmrr": "NMRr", "free_cerberus": "Free Cerberus", "cerberus": "Cerberus"}
 PAPER = {  # Deng, Kornblith & Hinton, Table 1: voxel IoU on Human, Hard Human, Animal
@@ -26,14 +27,15 @@ PAPER = {  # Deng, Kornblith & Hinton, Table 1: voxel IoU on Human, Hard Human, 
 }
 
 
-def load(runs: Path, dataset: str, variant: str) -> tuple[dict | None, list[dict]]:
-    """The run's ``results.json`` (or None) and its ``metrics.csv`` rows (or [])."""
+def load(runs: Path, dataset: str, variant: str) -> tuple[dict | None, list[dict], TrainingTime | None]:
+    """The run's ``results.json`` (or None), its ``metrics.csv`` rows (or []) and its training steps and time
+    summed over the sittings (:func:`~cerberus_core.train.logs.training_time`; None without a log)."""
     run = runs / f"{dataset}_{variant}"
     res = run / "eval" / "results.json"
     results = json.loads(res.read_text()) if res.is_file() else None
     log = run / "metrics.csv"
     rows = list(csv.DictReader(log.open())) if log.is_file() else []
-    return results, rows
+    return results, rows, training_time(log)
 
 
 def paired(a: dict | None, b: dict | None, key_a: str = "iou", key_b: str = "iou") -> list | None:
@@ -57,8 +59,8 @@ def main(argv: list[str]) -> int:
     ours: dict[str, dict[str, float | None]] = {}
     quality, cost = [], []
     for variant, label in VARIANTS.items():
-        human, human_log = load(runs, "human", variant)
-        animal, animal_log = load(runs, "animal", variant)
+        human, human_log, human_time = load(runs, "human", variant)
+        animal, animal_log, animal_time = load(runs, "animal", variant)
         hard = (human or {}).get("hard") or {}
         ours[label] = {"Human": (human or {}).get("standard", {}).get("mean"),
                        "Hard Human": hard.get("mean") if variant != "nmrr" else None,
@@ -69,13 +71,12 @@ def main(argv: list[str]) -> int:
             quality.append([f"{label}, {name}", None if one_part else pq.get("consistency"),
                             None if one_part else pq.get("mean_entropy_bits"), pq.get("mean_segmentation_iou"),
                             len(pq.get("unused_parts", []) or []) if pq else None])
-        for name, log in (("Human", human_log), ("Animal", animal_log)):
-            if log:
-                last = log[-1]
+        for name, log, trained in (("Human", human_log, human_time), ("Animal", animal_log, animal_time)):
+            if trained:
                 tail = log[-max(1, len(log) // 20):]  # last 5% of the logged steps
                 recon = sum(float(r["recon"]) for r in tail) / len(tail)
-                cost.append([f"{label}, {name}", f"{int(last['step']):,}", f"{float(last['elapsed_s']) / 60:.1f}",
-                             f"{int(last['step']) / float(last['elapsed_s']):.2f}", recon])
+                cost.append([f"{label}, {name}", f"{trained.steps:,}", f"{trained.seconds / 60:.1f}",
+                             f"{trained.steps / trained.seconds:.2f}", recon])
             else:
                 cost.append([f"{label}, {name}", None, None, None, None])
     res = {(ds, v): load(runs, ds, v)[0] for ds in ("human", "animal") for v in VARIANTS}

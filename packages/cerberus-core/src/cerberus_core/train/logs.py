@@ -16,6 +16,7 @@ import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import torch
 
@@ -47,6 +48,38 @@ def _read_rows(path: Path) -> list[dict[str, str]]:
         return []
     with path.open(newline="") as f:
         return list(csv.DictReader(f))
+
+
+class TrainingTime(NamedTuple):
+    """A run's training length from its ``metrics.csv`` (:func:`training_time`)."""
+
+    steps: int
+    """The ``step`` of the last row with an ``elapsed_s``."""
+    seconds: float
+    """Wall-clock training time in seconds, summed over the sittings."""
+
+
+def training_time(csv_path: str | Path) -> TrainingTime | None:
+    """The steps and the wall-clock training seconds of a run's ``metrics.csv``; ``None`` when the file is
+    missing or no row has an ``elapsed_s``.
+
+    ``elapsed_s`` (seconds) restarts at every sitting: the clock starts when ``cerberus train`` starts, and again
+    at each ``--resume``. A sitting ends where ``elapsed_s`` drops, and ``seconds`` is the sum over the sittings
+    of each sitting's last ``elapsed_s``, so the last row's ``elapsed_s`` alone undercounts a resumed run. Not
+    counted: the seconds of the rows that a resume dropped (an interrupted sitting's steps after its last
+    checkpoint, which the next sitting trains and times again), and a sitting's time after its last logged row.
+    Steps per second is ``steps / seconds``.
+    """
+    rows = [r for r in _read_rows(Path(csv_path)) if r.get("elapsed_s") not in (None, "")]
+    if not rows:
+        return None
+    seconds, previous = 0.0, 0.0
+    for r in rows:
+        elapsed = float(r["elapsed_s"])
+        if elapsed < previous:  # a new sitting: the previous one ended at its last row
+            seconds += previous
+        previous = elapsed
+    return TrainingTime(int(rows[-1]["step"]), seconds + previous)
 
 
 class MetricsLog:
