@@ -4,7 +4,10 @@ Re-exports the run's weights with the dataset's scene set-up in the metadata (so
 reconstruct images), records its SHA-256, and writes the model card from the run's config and the
 results.json of `cerberus eval`. Every figure in the card comes from those files.
 
-    python experiments/zoo/package.py human RUN DATA "one-line summary" --train-seconds S --command "..."
+    python experiments/zoo/package.py human RUN DATA "one-line summary" --command "..."
+
+The card's training time is RUN/metrics.csv's, summed over the run's sittings (``training_time``);
+``--train-seconds`` overrides it (a run whose log is gone, or timed elsewhere).
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from cerberus_core.datasets.manifest import Manifest
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
+from cerberus_core.train.logs import training_time
 from cerberus_core.zoo import ZOO_DIR, sha256_file
 
 
@@ -33,7 +37,8 @@ def main() -> None:
     ap.add_argument("--size", default=None, help="the named `cerberus data generate --size` whose test split DATA "
                     "holds (default: DATA's own preset); the zoo test regenerates that size's test split")
     ap.add_argument("summary")
-    ap.add_argument("--train-seconds", type=float, required=True, help="measured wall time of the training")
+    ap.add_argument("--train-seconds", type=float, default=None, help="measured wall time of the training "
+                    "(default: RUN/metrics.csv's, summed over the run's sittings)")
     ap.add_argument("--command", action="append", default=[], help="a command that made it (repeatable)")
     ap.add_argument("--machine", default="2-core x86 CPU (AVX-512), 24 GiB, no GPU; one thread per training")
     ap.add_argument("--changes", default="", help="what changed against the weights this replaces (the card's "
@@ -45,6 +50,11 @@ def main() -> None:
                     "e.g. 'the shaded test=RUN/eval'")
     args = ap.parse_args()
 
+    if args.train_seconds is None:
+        trained_for = training_time(args.run / "metrics.csv")
+        if trained_for is None:
+            ap.error(f"{args.run / 'metrics.csv'} has no training time: give --train-seconds S")
+        args.train_seconds = trained_for.seconds
     run = Run.load(args.run)
     model, config = run.model, run.config
     manifest = Manifest.read(args.data)
