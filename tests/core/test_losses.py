@@ -91,6 +91,40 @@ def test_viewpoint_reconstruction_halves_own_and_cross_then_averages():
     assert viewpoint_reconstruction(own, None).item() == pytest.approx(2.5)
 
 
+def test_body_translation_loss_is_the_mean_part_of_equation_5_blind_to_which_part_is_which():
+    from cerberus_core.losses import body_translation_loss
+
+    g = torch.Generator().manual_seed(0)
+    t = torch.randn(2, 4, 5, 3, generator=g)
+    # equation 5's decomposition: 1/N sum ||d_i||^2 = ||mean d||^2 + 1/N sum ||d_i - mean d||^2
+    d_a, d_b = t[:, 0] - t[:, 1], t[:, 2] - t[:, 3]
+    rest = 0.5 * sum((d - d.mean(1, keepdim=True)).square().sum(-1).mean(-1) for d in (d_a, d_b))
+    torch.testing.assert_close(translation_loss(t), body_translation_loss(t) + rest)
+    # the parts of one view in another order: equation 5 changes, the body's translation does not
+    swapped = t.clone()
+    swapped[:, 1] = t[:, 1, torch.tensor([4, 3, 2, 1, 0])]
+    torch.testing.assert_close(body_translation_loss(swapped), body_translation_loss(t))
+    assert (translation_loss(swapped) != translation_loss(t)).all()
+    # one view's whole body 0.1 farther along z, every part: the loss is that shift squared, halved over two poses
+    t = torch.zeros(1, 4, 3, 3)
+    t[0, 1, :, 2] = 0.1
+    assert body_translation_loss(t).item() == pytest.approx(0.5 * 0.01)
+
+
+def test_body_translation_loss_gradient_moves_each_view_toward_the_other_and_keeps_the_parts_apart():
+    from cerberus_core.losses import body_translation_loss
+
+    t = torch.zeros(1, 4, 2, 3)
+    t[0, :, 1, 0] = 0.5  # two parts 0.5 apart in every view
+    t[0, 1, :, 2] = 0.2  # a1's whole body 0.2 farther in z than a0's
+    t.requires_grad_(True)
+    body_translation_loss(t).backward()
+    grad = t.grad[0]
+    assert (grad[0, :, 2] < 0).all() and (grad[1, :, 2] > 0).all()  # descent: a0 goes +z, a1 goes -z
+    torch.testing.assert_close(grad[0, 0], grad[0, 1])  # every part of a view moves alike: the parts stay apart
+    assert grad[2:].abs().max() == 0  # pose b agrees already
+
+
 def test_translation_loss_equations_5_and_6():
     t = torch.zeros(1, 4, 3, 3)
     t[0, 0, :, 0] = 1.0  # a0 differs from a1 by 1 in x for every part; b0 == b1

@@ -33,8 +33,8 @@ def reference_keypoint_maps(head: TranslationHead, features: torch.Tensor, size:
 class ReferenceTranslationHead(TranslationHead):
     """A :class:`TranslationHead` computing :func:`reference_keypoint_maps` (same parameters)."""
 
-    def forward(self, features: torch.Tensor, size: tuple[int, int]) -> KeypointMaps:
-        return KeypointMaps(*reference_keypoint_maps(self, features, size))
+    def forward(self, features: torch.Tensor, size: tuple[int, int], latent: torch.Tensor | None = None) -> KeypointMaps:
+        return KeypointMaps(*reference_keypoint_maps(self, features, size))  # the paper's head: no body depth
 
 
 def loop_search(points, targets, counts, both=True):

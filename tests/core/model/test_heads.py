@@ -4,6 +4,7 @@ import math
 import pytest
 import torch
 
+from cerberus_core.errors import ShapeError
 from cerberus_core.model.heads import (
     RotationHead,
     ShapeHead,
@@ -152,6 +153,27 @@ def test_translation_head_maps_shapes_and_depth_init():
     assert torch.allclose(maps.prob.sum(dim=(-2, -1)), torch.ones(2, 9), atol=1e-5)
     assert torch.allclose(maps.depth, torch.full((2, 9), 2.5))
     assert ((maps.uv >= 0) & (maps.uv <= 32)).all()
+
+
+def test_translation_head_body_depth_shifts_every_part_alike_and_starts_at_zero():
+    """model.body_depth (issue 38): one depth shift per image from its global latent, the same for every part;
+    zero at the start, so a new model predicts what the paper's head does; a loss on one part's depth teaches it."""
+    torch.manual_seed(0)
+    plain = TranslationHead(16, 5, depth_offset=2.5)
+    head = TranslationHead(16, 5, depth_offset=2.5, body_depth_from=12)
+    head.load_state_dict(plain.state_dict(), strict=False)
+    features, latent = torch.randn(3, 16, 8, 8), torch.randn(3, 12)
+    torch.testing.assert_close(head(features, (32, 32), latent).depth, plain(features, (32, 32)).depth)
+    head(features, (32, 32), latent).depth[:, 0].sum().backward()  # a pull on part 0's depth alone
+    assert head.body_depth.bias.grad.item() == pytest.approx(3.0)  # d(sum of 3 images' depth)/d(shift)
+    with torch.no_grad():
+        head.body_depth.bias.fill_(0.1)
+        head.body_depth.weight.copy_(torch.linspace(-1, 1, 12))
+    shifted = head(features, (32, 32), latent).depth - plain(features, (32, 32)).depth  # (3, 5)
+    expected = (0.1 + latent @ torch.linspace(-1, 1, 12)).unsqueeze(1).expand(3, 5)
+    torch.testing.assert_close(shifted, expected, atol=1e-5, rtol=0)
+    with pytest.raises(ShapeError, match="global latent"):
+        head(features, (32, 32))
 
 
 def _camera(batch=2, size=(24, 32)):

@@ -382,12 +382,20 @@ def test_the_first_step_equals_the_one_before_the_speed_rewrites():
 def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off_when_unweighted():
     """Issue 30's terms: each is its function of the objective's own parts, keypoints and rotations,
     has a gradient without a renderer in the path, and is not computed at weight 0."""
-    from cerberus_core.losses import part_overlap, part_separation, pose_consensus, rotation_loss, silhouette_coverage
+    from cerberus_core.losses import (
+        body_translation_loss,
+        part_overlap,
+        part_separation,
+        pose_consensus,
+        rotation_loss,
+        silhouette_coverage,
+    )
 
     model, scene, batch, _ = _setup()
     with torch.no_grad():
         model.translation.coords.weight.zero_()  # every part starts at the image centre: stacked, so separation acts
-    names = ("coverage", "keypoint_coverage", "overlap", "rotation", "consensus_coverage", "separation")
+    names = ("coverage", "keypoint_coverage", "overlap", "rotation", "consensus_coverage", "separation",
+             "body_translation")
     off = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(), torch.Generator().manual_seed(0))
     assert all(off.terms[k].item() == 0.0 for k in names)
     fg = 1 - background_mask(batch.images[0], scene.background, LossConfig().background_tolerance)
@@ -400,7 +408,8 @@ def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off
                 "rotation": rotation_loss(parts.rotations.view(1, 4, *parts.rotations.shape[1:])),
                 "consensus_coverage": silhouette_coverage(batch.camera.project(pose_consensus(
                     parts.translations.view(1, 4, -1, 3)).flatten(0, 1))[0], fg),
-                "separation": part_separation(parts.translations)}
+                "separation": part_separation(parts.translations),
+                "body_translation": body_translation_loss(parts.translations.view(1, 4, -1, 3))}
     for name in names:
         losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, **{name: 1.0})
         out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))

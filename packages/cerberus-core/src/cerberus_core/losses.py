@@ -171,6 +171,34 @@ def translation_loss(translations: Tensor) -> Tensor:
     return 0.5 * (pose_a + pose_b)
 
 
+def body_translation_loss(translations: Tensor) -> Tensor:
+    """Disagreement of where the whole body stands, as the two viewpoints of a pose predict it (beyond the paper).
+
+    The body's translation is the mean of its parts' world translations, so the term does not care which part
+    is which: a part that takes the image's left limb in one view and the right limb in the other (the
+    views' part assignments differ) costs nothing here, where equations 5 and 6 (:func:`translation_loss`)
+    charge it in full. What is left is the whole body's position, and in practice its depth: one shift per
+    image along the camera's view is most of what a triangulation of the views' keypoints corrects
+    (``experiments/depth/depth_oracle.py``, "whole body"). Equation 5 holds this component once
+    (``1/N sum_i ||d_i||^2 = ||mean_i d_i||^2 + 1/N sum_i ||d_i - mean d||^2``); ``losses.body_translation: w``
+    weighs it ``1 + w`` times.
+
+    Args:
+        translations: ``(B, 4, N, 3)`` world-space part translations of ``(a0, a1, b0, b1)``.
+    Returns:
+        ``(B,)`` ``(||mean_i T_i^a0 - mean_i T_i^a1||^2 + ||mean_i T_i^b0 - mean_i T_i^b1||^2) / 2`` (world units
+        squared).
+
+    Example:
+        >>> t = torch.zeros(1, 4, 2, 3); t[0, 1, 0, 0] = 1.0; t[0, 1, 1, 0] = -1.0  # a1's parts swapped sides
+        >>> body_translation_loss(t).tolist(), translation_loss(t).tolist()
+        ([0.0], [0.5])
+    """
+    check_shapes("body_translation_loss", translations=(translations, "B 4 N 3"))
+    body = translations.mean(dim=2)  # (B, 4, 3)
+    return 0.5 * ((body[:, 0] - body[:, 1]).square().sum(-1) + (body[:, 2] - body[:, 3]).square().sum(-1))
+
+
 def pose_consensus(translations: Tensor) -> Tensor:
     """Each part's translation as the pose's two viewpoints agree on it (beyond the paper).
 

@@ -68,6 +68,11 @@ class ModelConfig(Checked):
         predict_rotation: predict a rotation per part (Cerberus). ``False`` fixes every part's
             world rotation to the identity (the NMR baseline, which deforms one sphere in the
             world frame).
+        body_depth: ``false`` (the paper: each part's depth is read from the features under its keypoint) or
+            ``true``: one depth shift per image, a linear map of the image's global latent (zero at the start), is
+            added to every part's depth, so the whole body's distance is read from the whole image (beyond the
+            paper, issue 38: one shift per image is most of what the depth oracle corrects; see
+            :class:`~cerberus_core.model.heads.TranslationHead`).
     """
 
     SECTION = "model"
@@ -85,6 +90,7 @@ class ModelConfig(Checked):
     anchor_width: float | None = ranged(None, gt=0, integer=False)
     depth_offset: float | str = "auto"
     predict_rotation: bool = True
+    body_depth: bool = False
 
     def validate(self) -> None:
         """The checks between fields (the ranges are declared above)."""
@@ -174,7 +180,8 @@ class Cerberus(nn.Module):
                                config.recentre)
         self.rotation = RotationHead(latent, config.num_parts)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
-                                           config.anchor_spread, config.anchor_width)
+                                           config.anchor_spread, config.anchor_width,
+                                           latent if config.body_depth else None)
         self.cnn_autocast: torch.dtype | None = None
         """Run the convolutional trunk (encoder and decoder) under ``torch.autocast`` to this dtype
         (``None``: off). The heads, and so all geometry, stay in the input dtype; set by the
@@ -214,7 +221,7 @@ class Cerberus(nn.Module):
         render_latent = shape_latent if mix is None else mix(shape_latent)
         local = self.shape.deform(render_latent, self.deformation_gain(step))
         quats, rot_cam = self.rotation(object_latent)
-        maps = self.translation(features, tuple(images.shape[-2:]))
+        maps = self.translation(features, tuple(images.shape[-2:]), object_latent)
         return Predictions(object_latent, shape_latent, render_latent, local, quats, rot_cam, maps)
 
     def _cnn(self, images: Tensor) -> tuple[Tensor, Tensor]:

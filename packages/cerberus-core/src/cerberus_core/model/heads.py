@@ -183,10 +183,14 @@ class TranslationHead(nn.Module):
         anchor_spread: half-extent of the anchor grid in normalised image coordinates.
         anchor_width: the bumps' standard deviation in normalised image coordinates (``None``:
             ``anchor_spread``).
+        body_depth_from: ``None`` (the paper) or the size of the image's global latent: one depth shift per
+            image, a linear map of that latent (zero at the start), is added to every part's depth maps, so
+            where the whole body stands along the view is read from the whole image and not from the
+            features under each keypoint (``model.body_depth``; beyond the paper, issue 38).
     """
 
     def __init__(self, in_channels: int, num_parts: int, depth_offset: float, anchor_spread: float = 0.4,
-                 anchor_width: float | None = None) -> None:
+                 anchor_width: float | None = None, body_depth_from: int | None = None) -> None:
         super().__init__()
         self.logits = nn.Conv2d(in_channels, num_parts, 1)
         self.coords = nn.Linear(4, num_parts, bias=False)
@@ -194,6 +198,10 @@ class TranslationHead(nn.Module):
         nn.init.zeros_(self.depth.weight)
         nn.init.zeros_(self.depth.bias)
         self.depth_offset = float(depth_offset)
+        self.body_depth = None if body_depth_from is None else nn.Linear(body_depth_from, 1)
+        if self.body_depth is not None:
+            nn.init.zeros_(self.body_depth.weight)
+            nn.init.zeros_(self.body_depth.bias)
         with torch.no_grad():
             if anchor_spread > 0:
                 centre = anchor_grid(num_parts, anchor_spread)
@@ -203,8 +211,9 @@ class TranslationHead(nn.Module):
             else:
                 self.coords.weight.zero_()
 
-    def forward(self, features: Tensor, size: tuple[int, int]) -> KeypointMaps:
-        """``features`` ``(B, C, h, w)`` → :class:`KeypointMaps` on an ``size = (H, W)`` pixel grid."""
+    def forward(self, features: Tensor, size: tuple[int, int], latent: Tensor | None = None) -> KeypointMaps:
+        """``features`` ``(B, C, h, w)`` → :class:`KeypointMaps` on an ``size = (H, W)`` pixel grid; ``latent``
+        ``(B, L)``, the image's global latent, is read only with ``body_depth_from``."""
         h, w = features.shape[-2:]
         # Feature-cell centres in [-1, 1], x right and y down (rows): the pixel-centre rule of
         # render.camera.pixel_centres, whose y grows up (0 - py, not -py: the same bits, +0.0 included).
@@ -214,7 +223,13 @@ class TranslationHead(nn.Module):
         coords = torch.stack([gx, gy, gx.square(), gy.square()], -1)  # (h, w, 4)
         logits = self.logits(features) + self.coords(coords).permute(2, 0, 1).unsqueeze(0)
         prob = spatial_softmax(upsample_bilinear(logits, tuple(size)))
-        return expectation(prob, self.depth(features) + self.depth_offset)
+        depth = self.depth(features) + self.depth_offset
+        if self.body_depth is not None:
+            if latent is None:
+                raise ShapeError("TranslationHead: built with body_depth_from, so it needs the image's global latent "
+                                 "(B, L) as its third argument")
+            depth = depth + self.body_depth(latent).view(-1, 1, 1, 1)  # the same shift for every part and cell
+        return expectation(prob, depth)
 
 
 @functools.lru_cache(maxsize=16)

@@ -33,6 +33,7 @@ from cerberus_core.losses import (
     NearestSearch,
     background_loss,
     background_mask,
+    body_translation_loss,
     hidden_part_pull,
     keep_own_elements,
     mix_shape_latents,
@@ -439,6 +440,10 @@ class LossConfig(Checked):
     overlap: float = term(0.0, lambda x: part_overlap(x.render.parts_own.flatten(0, 1)), "lambda_o L_o", BEYOND,
                           "share of each part's volume inside another part (each part the Gaussian of its vertices)",
                           part_overlap)
+    body_translation: float = term(0.0, lambda x: body_translation_loss(_quad(x.parts.translations, x)),
+                                   "lambda_bt L_bt", BEYOND, "disagreement of the whole body's translation (the mean "
+                                   "of its parts') between the two viewpoints: eqs. 5, 6 blind to which part is which",
+                                   body_translation_loss)
     rotation: float = term(0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), "lambda_R L_R", BEYOND,
                            "disagreement of the world rotations predicted from the two viewpoints (eq. 6 for "
                            "rotations)", rotation_loss)
