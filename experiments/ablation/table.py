@@ -16,10 +16,8 @@ import json
 import sys
 from pathlib import Path
 
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.train.logs import TrainingTime, training_time
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
-from table import paired as table1_paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 LIMBS = ("head", "upper_arm", "lower_arm", "thigh", "shin")
 
@@ -27,13 +25,6 @@ LIMBS = ("head", "upper_arm", "lower_arm", "thigh", "shin")
 def load(run: Path) -> tuple[dict | None, TrainingTime | None]:
     res = run / "eval" / "results.json"
     return json.loads(res.read_text()) if res.is_file() else None, training_time(run / "metrics.csv")
-
-
-def paired(a: dict | None, b: dict | None, key: str = "iou") -> str:
-    """``mean ± sem (k / n)`` of the per-image difference a - b over the images both scored (the paired difference
-    of experiments/table1/table.py)."""
-    diff = None if a is b else table1_paired(a, b, key, key)
-    return "-" if diff is None else f"{diff[0]:+.3f} ± {diff[1]:.3f} ({diff[2]})"
 
 
 def limb_parts(pq: dict) -> str:
@@ -66,7 +57,8 @@ def main(argv: list[str]) -> int:
         hidden = vis.get("parts_hidden_in_most_images")
         speed = f"{trained.steps / trained.seconds:.2f}" if trained else "-"
         depth = (res or {}).get("depth") or {}
-        print(f"| {name} | {fmt(std.get('mean'))} | {paired(res, base)} | {fmt(hard.get('mean'))} | "
+        versus = "-" if res is base else paired_difference(res, base) or "-"
+        print(f"| {name} | {fmt(std.get('mean'))} | {versus} | {fmt(hard.get('mean'))} | "
               f"{fmt(pq.get('consistency'))} | {limb_parts(pq) if pq else '-'} | "
               f"{'-' if hidden is None else hidden} | {fmt(depth.get('turned_view_silhouette_iou'))} | "
               f"{fmt(depth.get('mean_translation_disagreement'))} | {speed} |")

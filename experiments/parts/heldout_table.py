@@ -12,24 +12,16 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from cerberus_core.bodies.human_heldout import FAMILIES, family_of, is_heldout_id
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
-from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
+from cerberus_core.eval.compare import paired_difference
 
 
 def _values(res: dict, key: str) -> np.ndarray:
     """``(N,)`` one per record, NaN where the record has none."""
     return np.array([np.nan if r.get(key) is None else r[key] for r in res["records"]], dtype=float)
-
-
-def _versus(a: dict, b: dict, key: str) -> str:
-    diff = paired(a, b, key, key)
-    return "-" if diff is None else f"{diff[0]:+.3f} ± {diff[1]:.3f} ({diff[2]})"
 
 
 def main(argv: list[str]) -> None:
@@ -48,8 +40,10 @@ def main(argv: list[str]) -> None:
     print("| --- |" + " ---: |" * (4 + len(groups)))
     for name, _ in runs:
         iou, hard = _values(res[name], "iou"), _values(res[name], "hard_iou")
-        cells = [name, f"{np.nanmean(iou):.4f}", "–" if name == first else _versus(res[name], res[first], "iou"),
-                 f"{np.nanmean(hard):.4f}", "–" if name == first else _versus(res[name], res[first], "hard_iou")]
+        cells = [name, f"{np.nanmean(iou):.4f}",
+                 "–" if name == first else str(paired_difference(res[name], res[first], "iou") or "-"),
+                 f"{np.nanmean(hard):.4f}",
+                 "–" if name == first else str(paired_difference(res[name], res[first], "hard_iou") or "-")]
         cells += [f"{np.nanmean(iou[family == g]):.3f}" for g in groups]
         print("| " + " | ".join(cells) + " |")
 

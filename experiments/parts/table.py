@@ -18,10 +18,8 @@ import json
 import sys
 from pathlib import Path
 
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.train.logs import training_time
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
-from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 LIMBS = ("head", "thigh", "shin", "lower_arm")
 
@@ -42,8 +40,7 @@ def row(name: str, run: Path, base: dict | None) -> str:
     minutes = f"{trained.seconds / 60:.0f}" if trained else "-"
     spare = seg.get("spare_count")
     spare = f"{spare} of {len(seg.get('deletion_loss') or []) or '?'}" if spare is not None else "-"
-    diff = paired(res, base) if base is not None else None
-    versus = "–" if diff is None else f"{diff[0]:+.3f} ± {diff[1]:.3f} ({diff[2]})"
+    versus = paired_difference(res, base) or "–"
 
     return (f"| {name} | {res['standard']['mean']:.4f} | {versus} | "
             f"{(res.get('hard') or {}).get('mean', float('nan')):.4f} | {spare} | "

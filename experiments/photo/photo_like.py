@@ -28,7 +28,6 @@ import argparse
 import hashlib
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +38,7 @@ from tqdm import tqdm
 
 from cerberus_core import Run
 from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.eval.figures import render_reconstruction
 from cerberus_core.eval.runner import evaluate_dataset
 from cerberus_core.photo_mask import AUTO, person_mask, rendered_silhouette, segmenter_available, silhouette_iou
@@ -48,9 +48,6 @@ from cerberus_core.render.api import render
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.light import Light
 from cerberus_core.viz import image_grid
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
-from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 SKIN = np.array([[0.96, 0.80, 0.69], [0.88, 0.67, 0.53], [0.76, 0.55, 0.40], [0.55, 0.38, 0.26],
                  [0.36, 0.24, 0.16]])
@@ -232,12 +229,12 @@ def main() -> int:
                          "per_image": evaluations[name].image_ious()} | ({"fit_steps": steps} if steps else {})
         print(f"{name} mask: voxel IoU {mean:.4f}, silhouette IoU {np.mean(coverage):.3f}")
     for m in masks if args.fit > 0 else ():
-        diff = paired({"records": evaluations[f"{m}_fit"].records}, {"records": evaluations[m].records})
+        diff = paired_difference(evaluations[f"{m}_fit"].records, evaluations[m].records)
         if diff is not None:
-            mean, se, better = diff
-            k, n = (int(x) for x in better.split(" / "))
-            results[f"{m}_fit"]["paired_vs_unfitted"] = {"mean": mean, "se": se, "better": k, "images": n}
-            print(f"{m}: fitted - unfitted voxel IoU {mean:+.4f} +- {se:.4f} (better on {k} of {n})")
+            results[f"{m}_fit"]["paired_vs_unfitted"] = {"mean": diff.mean, "se": diff.sem, "better": diff.better,
+                                                         "images": diff.n}
+            print(f"{m}: fitted - unfitted voxel IoU {diff.mean:+.4f} +- {diff.sem:.4f} "
+                  f"(better on {diff.better} of {diff.n})")
     if mask_iou:
         print(f"automatic mask against the exact one: IoU {results['auto_mask_iou']['mean']:.3f} (min "
               f"{results['auto_mask_iou']['min']:.3f}, {results['auto_mask_iou']['below_0.5']} below 0.5)")

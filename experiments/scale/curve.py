@@ -20,8 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
-from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
+from cerberus_core.eval.compare import paired_difference
 
 
 def score(ckpt: Path, data: str, out: Path, extra: list[str]) -> float:
@@ -99,8 +98,8 @@ def main(argv: list[str]) -> int:
         for step in sorted({r[0] for r in curves[a]} & {r[0] for r in curves[b]}):
             res = [json.loads((Path(paths[n]) / "curve" / f"step_{step:07d}" / "test" / "results.json").read_text())
                    for n in (a, b)]
-            mean, sem, wins = paired(*res)
-            print(f"{a} - {b} at step {step:,}: {mean:+.4f} ± {sem:.4f} ({wins} images favour {a})")
+            d = paired_difference(*res)
+            print(f"{a} - {b} at step {step:,}: {d.mean:+.4f} ± {d.sem:.4f} ({d.better} / {d.n} images favour {a})")
     if args.plot:
         plot(curves, args.plot)
     return 0

@@ -17,10 +17,8 @@ import json
 import sys
 from pathlib import Path
 
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.train.logs import training_time
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "table1"))
-from table import paired  # noqa: E402  (the paired difference of experiments/table1/table.py)
 
 
 def load(path: Path) -> dict | None:
@@ -63,8 +61,8 @@ def main(argv: list[str]) -> int:
               f"{fmt(gap)} | {s['steps'] or '-'} | {fmt(s['minutes'], 0)} | {s['limbs']} | {s['hidden'] if s['hidden'] is not None else '-'} |")
     for pair in args.pair:
         a, _, b = pair.partition("-")
-        d = paired(runs[a]["results"], runs[b]["results"])
-        print(f"\n{a} − {b}: " + ("-" if d is None else f"{d[0]:+.3f} ± {d[1]:.3f} ({d[2]} images)"))
+        d = paired_difference(runs[a]["results"], runs[b]["results"])
+        print(f"\n{a} − {b}: " + ("-" if d is None else f"{d.mean:+.3f} ± {d.sem:.3f} ({d.better} / {d.n} images)"))
     return 0
 
 

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import csv
 import json
-import statistics
 import sys
 from pathlib import Path
 
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.eval.markdown import markdown_table
 from cerberus_core.eval.report import comparison_table
 from cerberus_core.train.logs import TrainingTime, training_time
@@ -36,19 +36,6 @@ def load(runs: Path, dataset: str, variant: str) -> tuple[dict | None, list[dict
     log = run / "metrics.csv"
     rows = list(csv.DictReader(log.open())) if log.is_file() else []
     return results, rows, training_time(log)
-
-
-def paired(a: dict | None, b: dict | None, key_a: str = "iou", key_b: str = "iou") -> list | None:
-    """Mean per-image difference ``a[key_a] - b[key_b]`` over the test images both scored, its
-    standard error, and how many images favour ``a``: ``[mean, sem, "k / n"]`` (None if missing)."""
-    if a is None or b is None:
-        return None
-    rb = {r["index"]: r for r in b.get("records", [])}
-    d = [r[key_a] - rb[r["index"]][key_b] for r in a.get("records", [])
-         if r.get(key_a) is not None and rb.get(r["index"], {}).get(key_b) is not None]
-    if len(d) < 2:
-        return None
-    return [statistics.mean(d), statistics.stdev(d) / len(d) ** 0.5, f"{sum(x > 0 for x in d)} / {len(d)}"]
 
 
 def main(argv: list[str]) -> int:
@@ -81,15 +68,17 @@ def main(argv: list[str]) -> int:
                 cost.append([f"{label}, {name}", None, None, None, None])
     res = {(ds, v): load(runs, ds, v)[0] for ds in ("human", "animal") for v in VARIANTS}
     comparisons = [
-        ("Human: Cerberus - NMRr", paired(res["human", "cerberus"], res["human", "nmrr"])),
-        ("Human: Free Cerberus - Cerberus", paired(res["human", "free_cerberus"], res["human", "cerberus"])),
-        ("Hard Human: Cerberus - Free Cerberus", paired(res["human", "cerberus"], res["human", "free_cerberus"],
-                                                        "hard_iou", "hard_iou")),
-        ("Cerberus: Human - Hard Human", paired(res["human", "cerberus"], res["human", "cerberus"], "iou", "hard_iou")),
-        ("Free Cerberus: Human - Hard Human", paired(res["human", "free_cerberus"], res["human", "free_cerberus"],
-                                                     "iou", "hard_iou")),
-        ("Animal: Cerberus - NMRr", paired(res["animal", "cerberus"], res["animal", "nmrr"])),
-        ("Animal: Free Cerberus - Cerberus", paired(res["animal", "free_cerberus"], res["animal", "cerberus"])),
+        ("Human: Cerberus - NMRr", paired_difference(res["human", "cerberus"], res["human", "nmrr"])),
+        ("Human: Free Cerberus - Cerberus", paired_difference(res["human", "free_cerberus"], res["human", "cerberus"])),
+        ("Hard Human: Cerberus - Free Cerberus", paired_difference(res["human", "cerberus"],
+                                                                   res["human", "free_cerberus"], "hard_iou")),
+        ("Cerberus: Human - Hard Human", paired_difference(res["human", "cerberus"], res["human", "cerberus"],
+                                                           "iou", "hard_iou")),
+        ("Free Cerberus: Human - Hard Human", paired_difference(res["human", "free_cerberus"],
+                                                                res["human", "free_cerberus"], "iou", "hard_iou")),
+        ("Animal: Cerberus - NMRr", paired_difference(res["animal", "cerberus"], res["animal", "nmrr"])),
+        ("Animal: Free Cerberus - Cerberus", paired_difference(res["animal", "free_cerberus"],
+                                                               res["animal", "cerberus"])),
     ]
     columns = ["Human", "Hard Human", "Animal"]
     print("### Voxel IoU (32^3, kato protocol, union of parts), ours\n")
@@ -98,7 +87,8 @@ def main(argv: list[str]) -> int:
     print(comparison_table(PAPER, columns))
     print("\n### Paired differences over the same test images (one training run each)\n")
     print(markdown_table(["Difference", "mean IoU difference", "standard error", "images where positive"],
-                         [[name, *(c or [None, None, None])] for name, c in comparisons], digits=4))
+                         [[name, *((c.mean, c.sem, f"{c.better} / {c.n}") if c else (None, None, None))]
+                          for name, c in comparisons], digits=4))
     print("\n### Part quality against the ground-truth parts (never seen in training)\n")
     print("Consistency and entropy are left out for NMRr: one mesh is trivially consistent.\n")
     print(markdown_table(["Run", "consistency", "entropy (bits)", "mean segmentation IoU", "unused parts"],

@@ -10,6 +10,7 @@
   part is hidden in its input view), :mod:`.depth` (depth across the views of a pose), :mod:`.segments` (per
   ground-truth body segment), :mod:`.allocation` (where the parts' keypoints go).
 * :mod:`.report`, :mod:`.markdown` — JSON and Markdown.
+* :mod:`.compare` — two evaluations compared image by image (:func:`paired_difference`).
 * :mod:`.export` — GLB / OBJ files of posed parts; :mod:`.figures` — Figure 1 (b)-(f), Table 2, turntables;
   :mod:`.viewer` — the offline 3D viewer (also drawn by :mod:`cerberus_core.reconstruct`).
 

@@ -1,0 +1,85 @@
+"""cerberus_core.eval.compare: the paired difference of two evaluations, image by image."""
+from __future__ import annotations
+
+import ast
+import dataclasses
+import inspect
+import math
+
+import pytest
+
+from cerberus_core.eval import compare
+from cerberus_core.eval.compare import PairedDifference, paired_difference
+
+
+def _results(values: dict[int, float | None], key: str = "iou") -> dict:
+    return {"standard": {"mean": 0.0}, "records": [{"index": i, key: v} for i, v in values.items()]}
+
+
+def test_images_are_matched_by_index_not_by_position():
+    a = _results({0: 0.5, 1: 0.6, 2: 0.7, 3: 0.8})
+    b = _results({3: 0.7, 1: 0.4, 0: 0.6, 2: 0.7})  # another order: a - b = -0.1, 0.2, 0.0, 0.1 by index
+    d = paired_difference(a, b)
+    assert d.n == 4 and d.better == 2  # 0.2 and 0.1; 0.0 is no image better
+    by_index = [-0.1, 0.2, 0.0, 0.1]
+    sd = math.sqrt(sum((x - 0.05) ** 2 for x in by_index) / 3)
+    assert d.mean == pytest.approx(0.05) and d.sem == pytest.approx(sd / 2)
+    by_position = [ra["iou"] - rb["iou"] for ra, rb in zip(a["records"], b["records"], strict=True)]
+    assert sum(x > 0 for x in by_position) == 3  # paired by position, three images would look better
+    assert paired_difference(a, {"records": b["records"][::-1]}) == d  # the order of the records does not matter
+
+
+def test_only_the_images_both_scored_count():
+    a = _results({0: 0.5, 1: 0.6, 2: 0.9, 5: 0.4, 7: None})
+    b = _results({1: 0.5, 2: 0.6, 7: 0.3, 9: 0.1, 0: None})  # shared with a value on both sides: 1 and 2
+    d = paired_difference(a, b)
+    assert (d.n, d.better) == (2, 2)
+    assert d.mean == pytest.approx(0.2)
+    assert d.sem == pytest.approx(math.sqrt(((0.1 - 0.2) ** 2 + (0.3 - 0.2) ** 2) / 1) / math.sqrt(2))
+
+
+def test_mean_standard_error_and_count_by_hand():
+    diffs = [0.03, -0.01, 0.05, 0.02, -0.04]
+    a = _results({i: 0.5 + x for i, x in enumerate(diffs)})
+    b = _results({i: 0.5 for i in range(5)})
+    d = paired_difference(a, b)
+    mean = sum(diffs) / 5  # 0.01
+    sd = math.sqrt(sum((x - mean) ** 2 for x in diffs) / 4)  # the sample standard deviation (n - 1)
+    assert d == PairedDifference(pytest.approx(mean), pytest.approx(sd / math.sqrt(5)), 3, 5)
+    assert paired_difference(b, a).better == 2 and paired_difference(b, a).mean == pytest.approx(-mean)
+
+
+def test_two_keys_of_one_evaluation_and_records_without_the_dict():
+    records = [{"index": i, "iou": 0.5 + 0.1 * i, "hard_iou": 0.4} for i in range(3)]
+    d = paired_difference({"records": records}, {"records": records}, "iou", "hard_iou")
+    assert d.mean == pytest.approx(0.2) and (d.better, d.n) == (3, 3)
+    assert paired_difference(records, records[::-1], "hard_iou") == paired_difference(records, records, "hard_iou")
+    assert paired_difference(records, {"records": records}, "hard_iou").mean == 0  # key_b is key_a by default
+
+
+@pytest.mark.parametrize("a, b", [
+    (None, _results({0: 0.5, 1: 0.6})),
+    (_results({0: 0.5, 1: 0.6}), None),
+    (_results({0: 0.5, 1: 0.6}), _results({1: 0.4, 2: 0.3})),  # one image shared
+    (_results({0: 0.5, 1: 0.6}), _results({2: 0.4, 3: 0.3})),  # none
+    (_results({0: 0.5, 1: 0.6}), {"standard": {}}),  # no records
+])
+def test_none_below_two_shared_images(a, b):
+    assert paired_difference(a, b) is None
+
+
+def test_the_text_form_the_tables_print():
+    assert str(PairedDifference(0.0123, 0.0041, 130, 208)) == "+0.012 ± 0.004 (130 / 208)"
+    assert str(PairedDifference(-0.0056, 0.0048, 91, 208)) == "-0.006 ± 0.005 (91 / 208)"
+    assert f"{PairedDifference(0.0, 0.0, 0, 2)}" == "+0.000 ± 0.000 (0 / 2)"  # an f-string says the same
+    d = paired_difference(_results({0: 0.5, 1: 0.6}), _results({0: 0.4, 1: 0.4}))
+    assert str(d or "-") == "+0.150 ± 0.050 (2 / 2)"  # a difference is true, so `d or "-"` picks it
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        d.mean = 0.0
+
+
+def test_the_module_imports_no_torch():
+    tree = ast.parse(inspect.getsource(compare))
+    imported = {alias.name.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    imported |= {node.module.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module}
+    assert imported <= {"__future__", "statistics", "collections", "dataclasses", "typing"}, imported
