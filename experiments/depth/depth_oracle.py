@@ -49,17 +49,8 @@ from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.parts import PartSet
+from cerberus_core.render.camera import triangulate
 from cerberus_core.run import Run
-
-
-def triangulate(origins: torch.Tensor, directions: torch.Tensor) -> torch.Tensor:
-    """``(N, 3)`` least-squares intersection of ``K`` rays per point: ``origins`` ``(K, 3)`` (the
-    cameras' centres), ``directions`` ``(K, N, 3)`` unit vectors."""
-    eye = torch.eye(3, dtype=directions.dtype)
-    proj = eye - directions.unsqueeze(-1) * directions.unsqueeze(-2)  # (K, N, 3, 3)
-    lhs = proj.sum(0)
-    rhs = (proj @ origins.view(-1, 1, 3, 1).to(directions.dtype)).sum(0)
-    return torch.linalg.solve(lhs, rhs).squeeze(-1)
 
 
 def flatness(points: np.ndarray) -> float:

@@ -125,6 +125,24 @@ def test_body_translation_loss_gradient_moves_each_view_toward_the_other_and_kee
     assert grad[2:].abs().max() == 0  # pose b agrees already
 
 
+def test_triangulated_body_depth_loss_moves_each_views_whole_body_toward_its_target_alike_for_every_part():
+    from cerberus_core.losses import triangulated_body_depth_loss
+
+    depth = torch.full((2, 4, 3), 2.0)
+    depth[0, 1] += torch.tensor([0.1, -0.1, 0.3])  # a1 of the first quadruplet: its body 0.1 too far on average
+    target = torch.full((2, 4, 3), 2.0)
+    weight = torch.ones(2, 4)
+    weight[1] = 0.0  # the second quadruplet's views fix no depth
+    depth.requires_grad_(True)
+    loss = triangulated_body_depth_loss(depth, target, weight)
+    assert loss[0].item() == pytest.approx(0.01 / 4, rel=1e-5) and loss[1].item() == 0.0
+    loss.sum().backward()
+    grad = depth.grad
+    assert (grad[0, 1] > 0).all()  # descent brings a1's body nearer, every part by the same amount
+    torch.testing.assert_close(grad[0, 1], grad[0, 1, :1].expand(3))
+    assert grad[0, [0, 2, 3]].abs().max() == 0 and grad[1].abs().max() == 0
+
+
 def test_translation_loss_equations_5_and_6():
     t = torch.zeros(1, 4, 3, 3)
     t[0, 0, :, 0] = 1.0  # a0 differs from a1 by 1 in x for every part; b0 == b1

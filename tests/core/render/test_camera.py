@@ -150,3 +150,23 @@ def test_the_transforms_take_points_of_another_float_dtype():
     assert clip64.dtype == torch.float64
     torch.testing.assert_close(clip64.float(), cam.world_to_clip(points))
     torch.testing.assert_close(cam.camera_to_world(cam.world_to_camera(points.double())), points.double())
+
+
+def test_triangulate_finds_the_common_point_of_rays_with_batch_dimensions_and_stays_finite_on_parallel_rays():
+    from cerberus_core.render.camera import triangulate
+
+    g = torch.Generator().manual_seed(0)
+    points = torch.randn(2, 5, 3, generator=g, dtype=torch.float64) * 0.3  # (batch 2, 5 points)
+    origins = torch.randn(2, 3, 3, generator=g, dtype=torch.float64) * 2 + 3  # 3 cameras per batch element
+    dirs = torch.nn.functional.normalize(points.unsqueeze(1) - origins.unsqueeze(2), dim=-1)  # (2, 3, 5, 3)
+    torch.testing.assert_close(triangulate(origins, dirs, ridge=0.0), points)
+    # two rays that miss each other: the midpoint of their closest points, (0, 0, 0.5) here
+    o = torch.tensor([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64)
+    d = torch.tensor([[[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]], dtype=torch.float64)
+    torch.testing.assert_close(triangulate(o, d, ridge=0.0), torch.tensor([[0.0, 0.0, 0.5]], dtype=torch.float64))
+    # the same ray twice: no intersection along it, yet a finite point on the ray (the ridge's pick)
+    same = torch.tensor([[0.0, 0.0, 3.0], [0.0, 0.0, 3.0]])
+    down = torch.tensor([[[0.0, 0.6, -0.8]], [[0.0, 0.6, -0.8]]])
+    p = triangulate(same, down)
+    assert torch.isfinite(p).all()
+    assert torch.linalg.cross(p[0] - same[0], down[0, 0]).norm() < 1e-3

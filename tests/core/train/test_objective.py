@@ -379,23 +379,39 @@ def test_the_first_step_equals_the_one_before_the_speed_rewrites():
     assert float((new_grad - ref_grad).norm() / ref_grad.norm()) < 1e-4
 
 
+def _triangulated_by_hand(maps, camera, partner, triangulate, loss):
+    """The triangulated-depth term of one quadruplet, image by image: each view's keypoint rays and its partner's."""
+    depth, target, weight = maps.depth.view(1, 4, -1), torch.zeros(1, 4, maps.depth.shape[-1]), torch.zeros(1, 4)
+    for k in range(4):
+        pair = [k, partner[k]]
+        cams = camera.index(pair)
+        ends = cams.unproject(maps.uv[pair].detach(), torch.ones(2, maps.uv.shape[1]))
+        rays = torch.nn.functional.normalize(ends - cams.center.unsqueeze(1), dim=-1)  # (2, N, 3)
+        target[0, k] = camera.index([k]).project(triangulate(cams.center, rays).unsqueeze(0))[1][0]
+        weight[0, k] = (1 - (rays[0] * rays[1]).sum(-1).square()).mean()
+    return loss(depth, target, weight)
+
+
 def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off_when_unweighted():
     """Issue 30's terms: each is its function of the objective's own parts, keypoints and rotations,
     has a gradient without a renderer in the path, and is not computed at weight 0."""
     from cerberus_core.losses import (
+        VIEW_PARTNER,
         body_translation_loss,
         part_overlap,
         part_separation,
         pose_consensus,
         rotation_loss,
         silhouette_coverage,
+        triangulated_body_depth_loss,
     )
+    from cerberus_core.render.camera import triangulate
 
     model, scene, batch, _ = _setup()
     with torch.no_grad():
         model.translation.coords.weight.zero_()  # every part starts at the image centre: stacked, so separation acts
     names = ("coverage", "keypoint_coverage", "overlap", "rotation", "consensus_coverage", "separation",
-             "body_translation")
+             "body_translation", "triangulated_depth")
     off = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(), torch.Generator().manual_seed(0))
     assert all(off.terms[k].item() == 0.0 for k in names)
     fg = 1 - background_mask(batch.images[0], scene.background, LossConfig().background_tolerance)
@@ -409,7 +425,9 @@ def test_objective_limb_terms_are_their_functions_of_the_objective_parts_and_off
                 "consensus_coverage": silhouette_coverage(batch.camera.project(pose_consensus(
                     parts.translations.view(1, 4, -1, 3)).flatten(0, 1))[0], fg),
                 "separation": part_separation(parts.translations),
-                "body_translation": body_translation_loss(parts.translations.view(1, 4, -1, 3))}
+                "body_translation": body_translation_loss(parts.translations.view(1, 4, -1, 3)),
+                "triangulated_depth": _triangulated_by_hand(model(images).maps, batch.camera, VIEW_PARTNER,
+                                                            triangulate, triangulated_body_depth_loss)}
     for name in names:
         losses = LossConfig(recon=0, translation=0, background=0, smoothness=0, **{name: 1.0})
         out = quadruplet_objective(model, make_renderer("torch"), batch, scene, losses, torch.Generator().manual_seed(0))

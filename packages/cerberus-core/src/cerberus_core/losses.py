@@ -370,6 +370,35 @@ def rotation_loss(rotations: Tensor) -> Tensor:
     return 0.5 * (pose_a + pose_b)
 
 
+def triangulated_body_depth_loss(depth: Tensor, target: Tensor, weight: Tensor) -> Tensor:
+    """Each view's whole-body depth against where the pose's two views triangulate it (beyond the paper).
+
+    ``target`` holds, for every part, the depth in each view of the point its rays from the two viewpoints of
+    the pose meet at (:func:`~cerberus_core.render.camera.triangulate` of the two keypoints' rays, detached by
+    the caller): what the depth oracle of ``experiments/depth/depth_oracle.py`` moves each part to. Only the
+    mean over the parts is compared, one depth per image: where the whole body stands along the view, which is
+    most of that oracle's gain for every model, while the parts' depths relative to each other, which the
+    triangulation does not improve for a pose-consistent model, are left to the image terms. The target is
+    detached: the term asks each view's depth to move, not the two views' keypoint rays to meet.
+
+    Args:
+        depth: ``(B, 4, N)`` each image's predicted part depths (world units).
+        target: ``(B, 4, N)`` the triangulated points' depths in the same views (no gradient).
+        weight: ``(B, 4)`` how well the two rays fix a depth, in ``[0, 1]``: the mean over the parts of
+            ``sin^2`` of the angle between the two views' rays (0 for two views from the same side).
+    Returns:
+        ``(B,)`` the mean over the quadruplet's four images of ``weight · (mean_i d_i - mean_i t_i)^2``.
+
+    Example:
+        >>> d = torch.full((1, 4, 3), 2.0); t = d.clone(); t[0, 0] += 0.1  # image a0's body 0.1 too near
+        >>> round(triangulated_body_depth_loss(d, t, torch.ones(1, 4)).item(), 6)
+        0.0025
+    """
+    check_shapes("triangulated_body_depth_loss", depth=(depth, "B 4 N"), target=(target, "B 4 N"),
+                 weight=(weight, "B 4"))
+    return (weight * (depth.mean(-1) - target.mean(-1)).square()).mean(-1)
+
+
 def reprojection_loss(projected: Tensor, keypoints: Tensor, height: int) -> Tensor:
     """Depth checked in the partner's image: a reprojection form of equation 5 (beyond the paper).
 

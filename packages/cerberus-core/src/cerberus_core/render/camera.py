@@ -341,6 +341,33 @@ class Camera:
         return self.rotation[:, 2, :]
 
 
+def triangulate(origins: Tensor, directions: Tensor, ridge: float = 1e-6) -> Tensor:
+    """The least-squares intersection of ``K`` rays per point: the point whose summed squared distance to the
+    rays is least (for two rays, the midpoint of their closest points).
+
+    Args:
+        origins: ``(..., K, 3)`` each ray's start (a camera's centre), world units.
+        directions: ``(..., K, N, 3)`` unit directions, ``N`` points seen by each of the ``K`` rays.
+        ridge: a small pull toward the world origin, so rays that are (nearly) parallel, whose intersection is
+            undefined along them, still give a finite point: the origin's side of the ray (the body stands there).
+    Returns:
+        ``(..., N, 3)`` world points.
+
+    Example:
+        >>> o = torch.tensor([[0.0, 0.0, 2.0], [2.0, 0.0, 0.0]])          # two cameras
+        >>> p = torch.tensor([[0.1, 0.2, -0.1]])                           # one point
+        >>> d = torch.nn.functional.normalize(p - o.unsqueeze(1), dim=-1)  # (2, 1, 3) rays through it
+        >>> [round(v, 4) for v in triangulate(o, d)[0].tolist()]
+        [0.1, 0.2, -0.1]
+    """
+    check_shapes("triangulate", origins=(origins, "... K 3"), directions=(directions, "... K N 3"))
+    eye = torch.eye(3, dtype=directions.dtype, device=directions.device)
+    proj = eye - directions.unsqueeze(-1) * directions.unsqueeze(-2)  # (..., K, N, 3, 3): off each ray
+    lhs = proj.sum(-4) + ridge * eye
+    rhs = (proj @ origins.unsqueeze(-2).unsqueeze(-1).to(directions.dtype)).sum(-4)  # (..., N, 3, 1)
+    return torch.linalg.solve(lhs, rhs).squeeze(-1)
+
+
 def default_fov_for(distance: float, extent: float = 1.0, margin: float = 1.05) -> float:
     """Vertical field of view (degrees) at which a cube of side ``extent`` centred at the origin,
     seen from ``distance``, just fits the frame (with ``margin``). Useful for scene set-ups."""

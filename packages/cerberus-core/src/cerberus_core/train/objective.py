@@ -49,13 +49,14 @@ from cerberus_core.losses import (
     silhouette_loss,
     smoothness_loss,
     translation_loss,
+    triangulated_body_depth_loss,
     viewpoint_reconstruction,
     viewpoint_scenes,
 )
 from cerberus_core.model.cerberus import Cerberus, Predictions
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import part_pixel_counts, render_parts
-from cerberus_core.render.camera import Camera
+from cerberus_core.render.camera import Camera, triangulate
 from cerberus_core.render.interface import Renderer, RenderOutput
 from cerberus_core.train.data import QuadrupletBatch
 
@@ -303,6 +304,20 @@ def _reprojection(x: ObjectiveInputs) -> Tensor:
     return reprojection_loss(projected.view(bsz, 4, n, 2), keypoints, x.batch.camera.height)
 
 
+def _triangulated_depth(x: ObjectiveInputs) -> Tensor:  # (B,): each view's body depth against the pose's rays
+    bsz, n = x.batch.num_quadruplets, x.parts.num_parts
+    camera = x.batch.camera
+    uv = x.pred.maps.uv.detach()  # (4B, N, 2): the target moves no keypoint
+    centres = camera.center  # (4B, 3)
+    rays = nn.functional.normalize(camera.unproject(uv, torch.ones_like(uv[..., 0])) - centres.unsqueeze(1), dim=-1)
+    c, d = centres.view(bsz, 4, 3), rays.view(bsz, 4, n, 3)
+    partner = list(VIEW_PARTNER)
+    points = triangulate(torch.stack([c, c[:, partner]], 2), torch.stack([d, d[:, partner]], 2))  # (B, 4, N, 3)
+    _, target = camera.project(points.view(4 * bsz, n, 3))
+    weight = (1 - (d * d[:, partner]).sum(-1).square()).mean(-1)  # (B, 4): sin^2 of the rays' angle
+    return triangulated_body_depth_loss(x.pred.maps.depth.view(bsz, 4, n), target.view(bsz, 4, n), weight)
+
+
 BEYOND = "beyond the paper"
 TERM = "cerberus.term"
 """The ``dataclasses.field`` metadata key of a weight field of :class:`LossConfig` that holds its :class:`Term`."""
@@ -444,6 +459,9 @@ class LossConfig(Checked):
                                    "lambda_bt L_bt", BEYOND, "disagreement of the whole body's translation (the mean "
                                    "of its parts') between the two viewpoints: eqs. 5, 6 blind to which part is which",
                                    body_translation_loss)
+    triangulated_depth: float = term(0.0, _triangulated_depth, "lambda_td L_td", BEYOND, "each image's whole-body "
+                                     "depth (mean over its parts) against the depth its and its partner's keypoint "
+                                     "rays meet at (detached)", triangulated_body_depth_loss)
     rotation: float = term(0.0, lambda x: rotation_loss(_quad(x.parts.rotations, x)), "lambda_R L_R", BEYOND,
                            "disagreement of the world rotations predicted from the two viewpoints (eq. 6 for "
                            "rotations)", rotation_loss)
