@@ -385,7 +385,8 @@ def triangulated_body_depth_loss(depth: Tensor, target: Tensor, weight: Tensor) 
         depth: ``(B, 4, N)`` each image's predicted part depths (world units).
         target: ``(B, 4, N)`` the triangulated points' depths in the same views (no gradient).
         weight: ``(B, 4)`` how well the two rays fix a depth, in ``[0, 1]``: the mean over the parts of
-            ``sin^2`` of the angle between the two views' rays (0 for two views from the same side).
+            ``sin^2`` of the angle between the two views' rays (0 for parallel rays: views from the same or the
+            opposite side).
     Returns:
         ``(B,)`` the mean over the quadruplet's four images of ``weight · (mean_i d_i - mean_i t_i)^2``.
 
