@@ -108,8 +108,7 @@ def main(argv: list[str]) -> int:
     flat_pred, flat_gt, local_max, extents = [], [], [], []
     for views in poses:
         centres = torch.cat([cams[i].center for i in views])  # (K, 3)
-        rays = torch.stack([cams[i].unproject(uv[i].unsqueeze(0), torch.ones(1, uv[i].shape[0]))[0] for i in views])
-        dirs = torch.nn.functional.normalize(rays - centres.unsqueeze(1), dim=-1)  # (K, N, 3)
+        dirs = torch.stack([cams[i].rays(uv[i].unsqueeze(0))[0] for i in views])  # (K, N, 3)
         point = triangulate(centres, dirs)  # (N, 3) world
         for k, i in enumerate(views):
             body = dataset.gt_mesh(i)

@@ -170,3 +170,12 @@ def test_triangulate_finds_the_common_point_of_rays_with_batch_dimensions_and_st
     p = triangulate(same, down)
     assert torch.isfinite(p).all()
     assert torch.linalg.cross(p[0] - same[0], down[0, 0]).norm() < 1e-3
+
+
+def test_rays_are_unit_directions_from_the_centre_through_their_pixels():
+    cam = Camera.look_at(torch.tensor([30.0, -100.0]), 15.0, 2.0, fov_y_deg=30.0, image_size=64)
+    uv = torch.tensor([[[10.5, 20.5], [32.0, 32.0]], [[60.0, 5.0], [1.0, 63.0]]])
+    rays = cam.rays(uv)
+    torch.testing.assert_close(rays.norm(dim=-1), torch.ones(2, 2))
+    points = cam.center.unsqueeze(1) + 1.7 * rays  # any point along a ray projects back onto its pixel
+    torch.testing.assert_close(cam.project(points)[0], uv, atol=1e-4, rtol=0)

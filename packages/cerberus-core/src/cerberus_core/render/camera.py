@@ -334,6 +334,12 @@ class Camera:
         cam = torch.stack([x_cam, y_cam, -depth], dim=-1)
         return self.camera_to_world(cam) if to_world else cam
 
+    def rays(self, uv: Tensor) -> Tensor:
+        """``(B, N, 3)`` unit world directions from each camera's centre through the pixels ``uv`` ``(B, N, 2)``:
+        the rays :func:`triangulate` intersects."""
+        ends = self.unproject(uv, torch.ones_like(uv[..., 0]))
+        return torch.nn.functional.normalize(ends - self.center.unsqueeze(1), dim=-1)
+
     def view_direction(self) -> Tensor:
         """``(B, 3)`` unit vectors from the origin of the world towards each camera centre, i.e. the
         direction *towards* a light that follows the camera (world coordinates)."""

@@ -307,10 +307,8 @@ def _reprojection(x: ObjectiveInputs) -> Tensor:
 def _triangulated_depth(x: ObjectiveInputs) -> Tensor:  # (B,): each view's body depth against the pose's rays
     bsz, n = x.batch.num_quadruplets, x.parts.num_parts
     camera = x.batch.camera
-    uv = x.pred.maps.uv.detach()  # (4B, N, 2): the target moves no keypoint
-    centres = camera.center  # (4B, 3)
-    rays = nn.functional.normalize(camera.unproject(uv, torch.ones_like(uv[..., 0])) - centres.unsqueeze(1), dim=-1)
-    c, d = centres.view(bsz, 4, 3), rays.view(bsz, 4, n, 3)
+    rays = camera.rays(x.pred.maps.uv.detach())  # (4B, N, 3): the target moves no keypoint
+    c, d = camera.center.view(bsz, 4, 3), rays.view(bsz, 4, n, 3)
     partner = list(VIEW_PARTNER)
     points = triangulate(torch.stack([c, c[:, partner]], 2), torch.stack([d, d[:, partner]], 2))  # (B, 4, N, 3)
     _, target = camera.project(points.view(4 * bsz, n, 3))
