@@ -1,6 +1,6 @@
 """The per-part depth oracle: what the voxel IoU would be if every part sat at the right depth.
 
-    python experiments/depth/depth_oracle.py RUN DATA [--limit N] [--best-shift] [--json OUT]
+    python experiments/depth/depth_oracle.py RUN DATA [--limit N] [--best-shift] [--readout POSES] [--json OUT]
 
 Every test pose is seen from several views. For each pose and each learned part, the part's rays
 (from each view's camera centre through the keypoint that view predicts for it) are intersected in
@@ -14,7 +14,14 @@ and the moved reconstruction is scored like ``cerberus eval`` (32^3, ``kato``, u
   much of the gain is where the whole body stands and how much is where the parts stand within it;
 * with ``--best-shift``, the one shift per image that scores best against the ground truth (a grid of
   ±0.08 world units in steps of 0.01): the most the whole body's depth can give, and how well the
-  triangulated shift finds it (correlation); 17 more scorings per image;
+  triangulated shift finds it (correlation); 17 more scorings per image. Beside it, the shift on that grid
+  that other signals pick, each scored the same way: the one that centres the parts' bounding box on the
+  world origin (where the data puts every pose's box), and the ones that best match the pose's *other*
+  views' ground-truth silhouettes, by silhouette IoU (what the cross view of eq. 4 and the silhouette term
+  see in training) and by the silhouettes' centroids;
+* with ``--readout POSES``, whether the network's global features hold the whole-body shift: a ridge read-out of
+  it from the encoder's latents, fitted on the first ``POSES`` training poses (their triangulated shifts) and
+  scored on the test images (R², correlation);
 * **the moves**: median distance a part moves, and the predicted against the triangulated depth
   (least-squares slope and correlation over every part of every image: slope 1 and correlation 1
   mean the depths are already consistent across views);
@@ -38,6 +45,7 @@ the 208 test images.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import warnings
@@ -47,10 +55,14 @@ import numpy as np
 import torch
 
 from cerberus_core.datasets.dataset import Dataset
+from cerberus_core.eval.allocation import silhouette_centroids
+from cerberus_core.eval.depth import mask_iou
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.parts import PartSet
-from cerberus_core.render.camera import triangulate
+from cerberus_core.render.api import render_parts
+from cerberus_core.render.backends import make_renderer
+from cerberus_core.render.camera import Camera, triangulate
 from cerberus_core.run import Run
 
 
@@ -72,6 +84,108 @@ GRID = np.round(np.arange(-0.08, 0.0801, 0.01), 2)
 """The single depth shifts ``--best-shift`` tries (world units)."""
 
 
+def silhouette(renderer, posed: torch.Tensor, faces: torch.Tensor, camera: Camera) -> torch.Tensor:
+    """``(B, H, W)`` bool coverage of ``B`` scenes of parts ``(B, N, V, 3)`` seen by one camera."""
+    return render_parts(renderer, posed.contiguous(), faces, camera.index([0] * posed.shape[0])).part_id >= 0
+
+
+def views_by_pose(dataset, limit: int | None) -> list[list[int]]:
+    """The first ``limit`` (``None``: all) poses of a split seen from at least two views: their views' indices."""
+    rec = dataset.records
+    by_pose: dict[tuple[int, int], list[int]] = defaultdict(list)
+    for i in range(len(dataset)):
+        by_pose[(int(rec["subject"][i]), int(rec["pose"][i]))].append(i)
+    return [v for v in by_pose.values() if len(v) >= 2][:limit]
+
+
+def predict(model, dataset, poses: list[list[int]]) -> tuple[dict, ...]:
+    """Per view index: the keypoints ``uv`` ``(N, 2)``, their depths ``(N,)``, the reconstruction (a batch-1
+    :class:`PartSet`), the camera and the encoder's latents (object and shape latent, concatenated)."""
+    uv, depth, recon, cams, latents = {}, {}, {}, {}, {}
+    with torch.no_grad():
+        for batch_idx, batch, camera in iterate_batches(dataset, [i for v in poses for i in v], 16):
+            pred = model(batch["images"])
+            parts = model.pose(pred, camera)
+            for b, i in enumerate(batch_idx):
+                uv[i], depth[i] = pred.maps.uv[b], pred.maps.depth[b]
+                recon[i], cams[i] = parts.index(b), camera.index([b])
+                latents[i] = torch.cat([pred.object_latent[b], pred.shape_latent[b]]).float()
+    return uv, depth, recon, cams, latents
+
+
+def triangulated_depths(views: list[int], uv: dict, cams: dict) -> dict[int, torch.Tensor]:
+    """Per view of one pose, the depth ``(N,)`` in that view of each part's triangulated position (its keypoint
+    rays from all the pose's views, met in the least-squares sense)."""
+    centres = torch.cat([cams[i].center for i in views])  # (K, 3)
+    dirs = torch.stack([cams[i].rays(uv[i].unsqueeze(0))[0] for i in views])  # (K, N, 3)
+    point = triangulate(centres, dirs)  # (N, 3) world
+    return {i: cams[i].project(point.unsqueeze(0))[1][0] for i in views}
+
+
+def body_shifts(poses: list[list[int]], uv: dict, depth: dict, cams: dict) -> dict[int, float]:
+    """Per view, the whole body's triangulated shift: the mean over its parts of (triangulated - predicted depth)."""
+    return {i: float((t - depth[i]).mean()) for v in poses for i, t in triangulated_depths(v, uv, cams).items()}
+
+
+def ridge_readout(x: np.ndarray, y: np.ndarray, test_x: np.ndarray, test_y: np.ndarray) -> dict:
+    """A ridge regression of ``y`` ``(M,)`` on standardised features ``x`` ``(M, D)``, its penalty (1 to 10⁴) picked
+    on the last fifth of the rows held out, refitted on all of them and scored on ``(test_x, test_y)``: R² (1 -
+    residual / variance) on both, the test correlation, and the test's mean |y| before and after subtracting the
+    prediction."""
+    mu, sd = x.mean(0), x.std(0) + 1e-6
+
+    def fit(a: np.ndarray, b: np.ndarray, lam: float) -> np.ndarray:
+        a = (a - mu) / sd
+        return np.linalg.solve(a.T @ a + lam * np.eye(a.shape[1]), a.T @ (b - b.mean()))
+
+    def r2(w: np.ndarray, a: np.ndarray, b: np.ndarray, offset: float) -> float:
+        return float(1 - (((a - mu) / sd @ w + offset - b) ** 2).mean() / b.var())
+
+    cut = int(len(y) * 0.8)
+    lam = max((10.0 ** e for e in range(5)), key=lambda lam: r2(fit(x[:cut], y[:cut], lam), x[cut:], y[cut:],
+                                                                 y[:cut].mean()))
+    w = fit(x, y, lam)
+    guess = (test_x - mu) / sd @ w + y.mean()
+    return {"train_images": len(y), "features": x.shape[1], "ridge": lam, "train_r2": r2(w, x, y, y.mean()),
+            "test_r2": r2(w, test_x, test_y, y.mean()), "test_correlation": float(np.corrcoef(guess, test_y)[0, 1]),
+            "mean_abs_shift": float(np.abs(test_y).mean()), "mean_abs_residual": float(np.abs(test_y - guess).mean())}
+
+
+def readout(model, data: str, train_poses: int, test_x: np.ndarray, test_y: np.ndarray) -> dict:
+    """Can a linear read-out of the encoder's latents tell each image's whole-body shift? :func:`ridge_readout`
+    fitted to the latents and triangulated shifts of the views of the first ``train_poses`` training poses, scored
+    on the test images' latents ``test_x`` ``(M, D)`` and shifts ``test_y`` ``(M,)``."""
+    train = Dataset.open(data).views("train")
+    poses = views_by_pose(train, train_poses)
+    uv, depth, _, cams, latents = predict(model, train, poses)
+    shifts = body_shifts(poses, uv, depth, cams)
+    x = np.stack([latents[i].numpy() for v in poses for i in v])
+    y = np.array([shifts[i] for v in poses for i in v])
+    return ridge_readout(x, y, test_x, test_y)
+
+
+def shift_search(scorer: VoxelScorer, renderer, one: PartSet, camera: Camera, depth: torch.Tensor, gt: tuple,
+                 others: list[Camera], truths: list[torch.Tensor]) -> tuple[list[float], dict[str, tuple[float, float]]]:
+    """One image's reconstruction shifted along its rays by every ``GRID`` step and scored: the IoUs ``(G,)``, and
+    per signal (``box_centre``, ``partner_silhouette``, ``partner_centroid``) the shift it picks and that shift's
+    IoU. ``others``/``truths``: the pose's other cameras and the ground-truth silhouettes they see."""
+    centre = camera.center[0]
+    ious = [scorer(along_rays(one, centre, depth, depth + float(g)).part_meshes(0), gt).iou for g in GRID]
+    shifted = torch.stack([along_rays(one, centre, depth, depth + float(g)).posed()[0] for g in GRID])
+    sil_iou, cen_err = torch.zeros(len(GRID)), torch.zeros(len(GRID))
+    for cam, mask in zip(others, truths, strict=True):
+        seen = silhouette(renderer, shifted, one.faces, cam)  # (G, H, W)
+        sil_iou += mask_iou(seen, mask)
+        cen_err += (silhouette_centroids(seen) - silhouette_centroids(mask[None])).norm(dim=-1).nan_to_num(1e3)
+    posed = one.posed()[0].flatten(0, 1)
+    box = (posed.amax(0) + posed.amin(0)).view(1, 1, 3) / 2  # the data centres every pose's box on the origin
+    g = float(camera.project(torch.zeros(1, 1, 3))[1][0, 0] - camera.project(box)[1][0, 0])
+    picks = {"box_centre": (g, scorer(along_rays(one, centre, depth, depth + g).part_meshes(0), gt).iou)}
+    for key, k in (("partner_silhouette", int(torch.argmax(sil_iou))), ("partner_centroid", int(torch.argmin(cen_err)))):
+        picks[key] = (float(GRID[k]), ious[k])
+    return ious, picks
+
+
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 2)[2],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -80,6 +194,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("--limit", type=int, default=None, help="first N test poses only (default all)")
     p.add_argument("--best-shift", action="store_true",
                    help="also search the best single depth shift per image against the ground truth")
+    p.add_argument("--readout", type=int, default=None, metavar="POSES",
+                   help="also fit a linear read-out of the whole-body shift from the encoder's latents on this many "
+                        "training poses and score it on the test images")
     p.add_argument("--json", default=None, help="also write the figures as JSON here")
     args = p.parse_args(argv)
     torch.set_num_threads(1)
@@ -87,30 +204,24 @@ def main(argv: list[str]) -> int:
     run = Run.load(args.run)
     model = run.model.eval()
     dataset = Dataset.open(args.data).views("test")
-    rec = dataset.records
-    by_pose: dict[tuple[int, int], list[int]] = defaultdict(list)
-    for i in range(len(dataset)):
-        by_pose[(int(rec["subject"][i]), int(rec["pose"][i]))].append(i)
-    poses = [v for v in by_pose.values() if len(v) >= 2][:args.limit]
-    indices = [i for v in poses for i in v]
-    uv, depth, recon, cams = {}, {}, {}, {}
-    with torch.no_grad():
-        for batch_idx, batch, camera in iterate_batches(dataset, indices, 16):
-            pred = model(batch["images"])
-            parts = model.pose(pred, camera)
-            for b, i in enumerate(batch_idx):
-                uv[i], depth[i] = pred.maps.uv[b], pred.maps.depth[b]
-                recon[i], cams[i] = parts.index(b), camera.index([b])
+    poses = views_by_pose(dataset, args.limit)
+    uv, depth, recon, cams, latents = predict(model, dataset, poses)
     scorer = VoxelScorer()
     before, after, moves, d_pred, d_tri, d_mass = [], [], [], [], [], []
     errors = defaultdict(list)
     whole, relative, shifts, best, best_shift = [], [], [], [], []
+    shift_picks: list[dict[str, tuple[float, float]]] = []  # per image: (shift, IoU) each other signal picks
+    renderer = make_renderer("torch")
+
+    @functools.cache
+    def truth(j: int) -> torch.Tensor:  # (H, W) the ground-truth body's silhouette in view j
+        body = dataset.gt_mesh(j)
+        verts = torch.as_tensor(np.asarray(body.vertices), dtype=torch.float32)[None, None]
+        return silhouette(renderer, verts, torch.as_tensor(np.asarray(body.faces)), cams[j])[0]
     flat_pred, flat_gt, local_max, extents = [], [], [], []
     for views in poses:
-        centres = torch.cat([cams[i].center for i in views])  # (K, 3)
-        dirs = torch.stack([cams[i].rays(uv[i].unsqueeze(0))[0] for i in views])  # (K, N, 3)
-        point = triangulate(centres, dirs)  # (N, 3) world
-        for k, i in enumerate(views):
+        targets = triangulated_depths(views, uv, cams)
+        for i in views:
             body = dataset.gt_mesh(i)
             gt = (body.vertices, body.faces)
             one = recon[i]
@@ -123,8 +234,7 @@ def main(argv: list[str]) -> int:
             labels = np.asarray(body.vertex_parts)
             flat_gt += [flatness(np.asarray(body.vertices)[labels == k]) for k in np.unique(labels)
                         if (labels == k).sum() >= 4]
-            _, target = cams[i].project(point.unsqueeze(0))  # (1, N) triangulated depth in this view
-            target, centre, d = target[0], centres[k], depth[i]
+            target, centre, d = targets[i], cams[i].center[0], depth[i]
             shift = (target - d).mean()
             moved = along_rays(one, centre, d, target)
             before.append(scorer(one.part_meshes(0), gt).iou)
@@ -133,9 +243,12 @@ def main(argv: list[str]) -> int:
             relative.append(scorer(along_rays(one, centre, d, target - shift).part_meshes(0), gt).iou)
             shifts.append(float(shift))
             if args.best_shift:
-                ious = [scorer(along_rays(one, centre, d, d + float(g)).part_meshes(0), gt).iou for g in GRID]
+                truths = [truth(j) for j in views if j != i]
+                ious, picks = shift_search(scorer, renderer, one, cams[i], d, gt, [cams[j] for j in views if j != i],
+                                           truths)
                 best.append(max(ious))
                 best_shift.append(float(GRID[int(np.argmax(ious))]))
+                shift_picks.append(picks)
             moves.extend((moved.translations[0] - one.translations[0]).norm(dim=-1).tolist())
             d_pred.extend(depth[i].tolist())
             d_tri.extend(target.tolist())
@@ -180,6 +293,16 @@ def main(argv: list[str]) -> int:
         print(f"  the best shift per image against the ground truth: {f['iou']:.4f} ({f['gain']:+.4f} ± "
               f"{f['gain_se']:.4f}), mean |shift| {f['mean_abs_shift']:.4f}, correlation with the triangulated "
               f"shift {f['correlation_with_triangulated']:.2f}")
+        for key, what in (("box_centre", "centring the union's box on the world origin"),
+                          ("partner_silhouette", "the pose's other views' silhouette IoU"),
+                          ("partner_centroid", "the pose's other views' silhouette centroid")):
+            ps = np.array([p[key][0] for p in shift_picks])
+            figures[key] = {**paired([p[key][1] for p in shift_picks]), "mean_abs_shift": float(np.abs(ps).mean()),
+                            "correlation_with_best": float(np.corrcoef(ps, bs)[0, 1])}
+            f = figures[key]
+            print(f"  the shift {what} picks: {f['iou']:.4f} ({f['gain']:+.4f} ± {f['gain_se']:.4f}), "
+                  f"mean |shift| {f['mean_abs_shift']:.4f}, correlation with the best shift "
+                  f"{f['correlation_with_best']:.2f}")
     print(f"median move {figures['median_move']:.3f} world units; predicted vs triangulated depth: "
           f"slope {slope:.2f}, correlation {corr:.2f}")
     print(f"mean |depth error| of the translations {figures['translation_depth_error']:.3f}, of the parts' vertex means "
@@ -191,6 +314,13 @@ def main(argv: list[str]) -> int:
     print(f"flatness (smallest / middle extent, median): predicted parts {figures['median_flatness']:.2f}, "
           f"ground-truth body parts {figures['median_flatness_gt_parts']:.2f}; local frames: largest |coordinate| "
           f"{figures['largest_local_coordinate']:.3f}, median largest part extent {figures['median_largest_extent']:.3f}")
+    if args.readout:
+        test_x = np.stack([latents[i].numpy() for v in poses for i in v])
+        figures["readout"] = f = readout(model, args.data, args.readout, test_x, np.array(shifts))
+        print(f"linear read-out of the whole-body shift from the latents ({f['features']} features, ridge "
+              f"{f['ridge']:g}, {f['train_images']} training images): R² {f['train_r2']:.3f} on them, "
+              f"{f['test_r2']:.3f} on the test images (correlation {f['test_correlation']:+.2f}); mean |shift| "
+              f"{f['mean_abs_shift']:.4f} -> {f['mean_abs_residual']:.4f} with the read-out subtracted")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(figures, fh, indent=2)

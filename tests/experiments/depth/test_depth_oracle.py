@@ -28,3 +28,49 @@ def test_along_rays_keeps_each_keypoint_in_view_and_reaches_the_new_depth():
     torch.testing.assert_close(uv2, uv, atol=1e-4, rtol=0)
     torch.testing.assert_close(depth2[0], new_depth, atol=1e-5, rtol=0)
     torch.testing.assert_close(moved.local_vertices, parts.local_vertices)
+
+
+def test_shift_search_finds_the_depth_a_sphere_was_pushed_away_by_from_each_signal():
+    import trimesh
+
+    from cerberus_core.eval.standard import VoxelScorer
+    from cerberus_core.parts import PartSet
+    from cerberus_core.render.backends import make_renderer
+    from cerberus_core.render.camera import Camera
+
+    spec = importlib.util.spec_from_file_location("depth_oracle", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
+    verts = torch.as_tensor(sphere.vertices, dtype=torch.float32)
+    faces = torch.as_tensor(sphere.faces, dtype=torch.long)
+    camera = Camera.look_at(0.0, 15.0, 2.0, fov_y_deg=30.0, image_size=64)
+    other = Camera.look_at(90.0, 15.0, 2.0, fov_y_deg=30.0, image_size=64)
+    centre = camera.center[0]
+    at_origin = PartSet(verts[None, None], faces, torch.eye(3)[None, None], torch.zeros(1, 1, 3))
+    _, depth = camera.project(at_origin.translations)
+    pushed = module.along_rays(at_origin, centre, depth[0], depth[0] + 0.03)  # 0.03 too far from the camera
+    renderer = make_renderer("torch")
+    truth = module.silhouette(renderer, verts[None, None], faces, other)[0]
+    ious, picks = module.shift_search(VoxelScorer(), renderer, pushed, camera, depth[0] + 0.03,
+                                      (sphere.vertices, sphere.faces), [other], [truth])
+    assert module.GRID[int(torch.tensor(ious).argmax())] == -0.03
+    assert picks["partner_silhouette"][0] == -0.03 and picks["partner_centroid"][0] == -0.03
+    assert abs(picks["box_centre"][0] + 0.03) < 2e-3
+    assert min(iou for _, iou in picks.values()) > ious[list(module.GRID).index(0.0)] + 0.1
+
+
+def test_ridge_readout_finds_a_linear_signal_and_reports_none_in_noise():
+    import numpy as np
+
+    spec = importlib.util.spec_from_file_location("depth_oracle", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rng = np.random.default_rng(0)
+    x, test_x = rng.normal(size=(600, 20)), rng.normal(size=(200, 20))
+    w = rng.normal(size=20)
+    signal = module.ridge_readout(x, x @ w + 0.1 * rng.normal(size=600), test_x, test_x @ w)
+    assert signal["test_r2"] > 0.95 and signal["test_correlation"] > 0.95
+    assert signal["mean_abs_residual"] < 0.2 * signal["mean_abs_shift"]
+    noise = module.ridge_readout(x, rng.normal(size=600), test_x, rng.normal(size=200))
+    assert noise["test_r2"] < 0.05 and abs(noise["test_correlation"]) < 0.2
