@@ -99,7 +99,8 @@ def main(argv: list[str]) -> int:
             res = [json.loads((Path(paths[n]) / "curve" / f"step_{step:07d}" / "test" / "results.json").read_text())
                    for n in (a, b)]
             d = paired_difference(*res)
-            print(f"{a} - {b} at step {step:,}: {d.mean:+.4f} ± {d.sem:.4f} ({d.better} / {d.n} images favour {a})")
+            print(f"{a} - {b} at step {step:,}: " + (f"{d.mean:+.4f} ± {d.sem:.4f} ({d.better} / {d.n} images favour {a})"
+                                                    if d else "fewer than 2 test images scored by both"))
     if args.plot:
         plot(curves, args.plot)
     return 0

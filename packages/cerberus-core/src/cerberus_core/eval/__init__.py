@@ -16,6 +16,3 @@
 
 Reading user images, framing them and ``cerberus reconstruct``'s outputs are :mod:`cerberus_core.reconstruct`.
 """
-from cerberus_core.parts import PartSet, transfer_pose
-
-__all__ = ["PartSet", "transfer_pose"]
