@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib.util
 
+import pytest
 import torch
 
 from tests.support.paths import REPO
@@ -74,3 +75,19 @@ def test_ridge_readout_finds_a_linear_signal_and_reports_none_in_noise():
     assert signal["mean_abs_residual"] < 0.2 * signal["mean_abs_shift"]
     noise = module.ridge_readout(x, rng.normal(size=600), test_x, rng.normal(size=200))
     assert noise["test_r2"] < 0.05 and abs(noise["test_correlation"]) < 0.2
+
+
+def test_triangulated_depths_are_each_view_s_depth_of_the_point_its_rays_meet_at():
+    from cerberus_core.render.camera import Camera
+
+    spec = importlib.util.spec_from_file_location("depth_oracle", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    points = torch.tensor([[[0.1, 0.2, -0.1], [-0.2, -0.1, 0.15]]])  # (1, N=2, 3) world
+    cams = {i: Camera.look_at(az, 15.0, 2.0, fov_y_deg=30.0, image_size=64) for i, az in ((3, 0.0), (7, 70.0))}
+    uv = {i: cam.project(points)[0][0] for i, cam in cams.items()}
+    depths = module.triangulated_depths([3, 7], uv, cams)
+    for i, cam in cams.items():
+        torch.testing.assert_close(depths[i], cam.project(points)[1][0], atol=1e-4, rtol=0)
+    shifts = module.body_shifts([[3, 7]], uv, {i: d - 0.05 for i, d in depths.items()}, cams)
+    assert shifts == {3: pytest.approx(0.05, abs=1e-4), 7: pytest.approx(0.05, abs=1e-4)}
