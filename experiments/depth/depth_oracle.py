@@ -63,6 +63,7 @@ from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera, triangulate
+from cerberus_core.render.interface import Renderer
 from cerberus_core.run import Run
 
 
@@ -84,7 +85,7 @@ GRID = np.round(np.arange(-0.08, 0.0801, 0.01), 2)
 """The single depth shifts ``--best-shift`` tries (world units)."""
 
 
-def silhouette(renderer, posed: torch.Tensor, faces: torch.Tensor, camera: Camera) -> torch.Tensor:
+def silhouette(renderer: Renderer, posed: torch.Tensor, faces: torch.Tensor, camera: Camera) -> torch.Tensor:
     """``(B, H, W)`` bool coverage of ``B`` scenes of parts ``(B, N, V, 3)`` seen by one camera."""
     return render_parts(renderer, posed.contiguous(), faces, camera.index([0] * posed.shape[0])).part_id >= 0
 
@@ -164,14 +165,15 @@ def readout(model, data: str, train_poses: int, test_x: np.ndarray, test_y: np.n
     return ridge_readout(x, y, test_x, test_y)
 
 
-def shift_search(scorer: VoxelScorer, renderer, one: PartSet, camera: Camera, depth: torch.Tensor, gt: tuple,
+def shift_search(scorer: VoxelScorer, renderer: Renderer, one: PartSet, camera: Camera, depth: torch.Tensor, gt: tuple,
                  others: list[Camera], truths: list[torch.Tensor]) -> tuple[list[float], dict[str, tuple[float, float]]]:
     """One image's reconstruction shifted along its rays by every ``GRID`` step and scored: the IoUs ``(G,)``, and
     per signal (``box_centre``, ``partner_silhouette``, ``partner_centroid``) the shift it picks and that shift's
     IoU. ``others``/``truths``: the pose's other cameras and the ground-truth silhouettes they see."""
     centre = camera.center[0]
-    ious = [scorer(along_rays(one, centre, depth, depth + float(g)).part_meshes(0), gt).iou for g in GRID]
-    shifted = torch.stack([along_rays(one, centre, depth, depth + float(g)).posed()[0] for g in GRID])
+    moved = [along_rays(one, centre, depth, depth + float(g)) for g in GRID]
+    ious = [scorer(m.part_meshes(0), gt).iou for m in moved]
+    shifted = torch.stack([m.posed()[0] for m in moved])  # (G, N, V, 3)
     sil_iou, cen_err = torch.zeros(len(GRID)), torch.zeros(len(GRID))
     for cam, mask in zip(others, truths, strict=True):
         seen = silhouette(renderer, shifted, one.faces, cam)  # (G, H, W)
@@ -293,14 +295,14 @@ def main(argv: list[str]) -> int:
         print(f"  the best shift per image against the ground truth: {f['iou']:.4f} ({f['gain']:+.4f} ± "
               f"{f['gain_se']:.4f}), mean |shift| {f['mean_abs_shift']:.4f}, correlation with the triangulated "
               f"shift {f['correlation_with_triangulated']:.2f}")
-        for key, what in (("box_centre", "centring the union's box on the world origin"),
-                          ("partner_silhouette", "the pose's other views' silhouette IoU"),
-                          ("partner_centroid", "the pose's other views' silhouette centroid")):
+        for key, what in (("box_centre", "that centres the parts' box on the world origin"),
+                          ("partner_silhouette", "the pose's other views' silhouette IoU picks"),
+                          ("partner_centroid", "their silhouettes' centroids pick")):
             ps = np.array([p[key][0] for p in shift_picks])
             figures[key] = {**paired([p[key][1] for p in shift_picks]), "mean_abs_shift": float(np.abs(ps).mean()),
                             "correlation_with_best": float(np.corrcoef(ps, bs)[0, 1])}
             f = figures[key]
-            print(f"  the shift {what} picks: {f['iou']:.4f} ({f['gain']:+.4f} ± {f['gain_se']:.4f}), "
+            print(f"  the shift {what}: {f['iou']:.4f} ({f['gain']:+.4f} ± {f['gain_se']:.4f}), "
                   f"mean |shift| {f['mean_abs_shift']:.4f}, correlation with the best shift "
                   f"{f['correlation_with_best']:.2f}")
     print(f"median move {figures['median_move']:.3f} world units; predicted vs triangulated depth: "
