@@ -56,11 +56,10 @@ import torch
 
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.allocation import silhouette_centroids
-from cerberus_core.eval.depth import mask_iou
+from cerberus_core.eval.depth import coverage_masks, mask_iou
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.parts import PartSet
-from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera, triangulate
 from cerberus_core.render.interface import Renderer
@@ -83,11 +82,6 @@ def along_rays(parts: PartSet, centre: torch.Tensor, depth: torch.Tensor, new_de
 
 GRID = np.round(np.arange(-0.08, 0.0801, 0.01), 2)
 """The single depth shifts ``--best-shift`` tries (world units)."""
-
-
-def silhouette(renderer: Renderer, posed: torch.Tensor, faces: torch.Tensor, camera: Camera) -> torch.Tensor:
-    """``(B, H, W)`` bool coverage of ``B`` scenes of parts ``(B, N, V, 3)`` seen by one camera."""
-    return render_parts(renderer, posed.contiguous(), faces, camera.index([0] * posed.shape[0])).part_id >= 0
 
 
 def views_by_pose(dataset, limit: int | None) -> list[list[int]]:
@@ -176,7 +170,7 @@ def shift_search(scorer: VoxelScorer, renderer: Renderer, one: PartSet, camera: 
     shifted = torch.stack([m.posed()[0] for m in moved])  # (G, N, V, 3)
     sil_iou, cen_err = torch.zeros(len(GRID)), torch.zeros(len(GRID))
     for cam, mask in zip(others, truths, strict=True):
-        seen = silhouette(renderer, shifted, one.faces, cam)  # (G, H, W)
+        seen = coverage_masks(renderer, shifted, one.faces, cam.index([0] * len(GRID)))  # (G, H, W)
         sil_iou += mask_iou(seen, mask)
         cen_err += (silhouette_centroids(seen) - silhouette_centroids(mask[None])).norm(dim=-1).nan_to_num(1e3)
     posed = one.posed()[0].flatten(0, 1)
@@ -219,7 +213,7 @@ def main(argv: list[str]) -> int:
     def truth(j: int) -> torch.Tensor:  # (H, W) the ground-truth body's silhouette in view j
         body = dataset.gt_mesh(j)
         verts = torch.as_tensor(np.asarray(body.vertices), dtype=torch.float32)[None, None]
-        return silhouette(renderer, verts, torch.as_tensor(np.asarray(body.faces)), cams[j])[0]
+        return coverage_masks(renderer, verts, torch.as_tensor(np.asarray(body.faces)), cams[j])[0]
     flat_pred, flat_gt, local_max, extents = [], [], [], []
     for views in poses:
         targets = triangulated_depths(views, uv, cams)

@@ -41,6 +41,7 @@ def test_along_rays_keeps_each_keypoint_in_view_and_reaches_the_new_depth():
 def test_shift_search_finds_the_depth_a_sphere_was_pushed_away_by_from_each_signal():
     import trimesh
 
+    from cerberus_core.eval.depth import coverage_masks
     from cerberus_core.eval.standard import VoxelScorer
     from cerberus_core.parts import PartSet
     from cerberus_core.render.backends import make_renderer
@@ -57,7 +58,7 @@ def test_shift_search_finds_the_depth_a_sphere_was_pushed_away_by_from_each_sign
     _, depth = camera.project(at_origin.translations)
     pushed = module.along_rays(at_origin, centre, depth[0], depth[0] + 0.03)  # 0.03 too far from the camera
     renderer = make_renderer("torch")
-    truth = module.silhouette(renderer, verts[None, None], faces, other)[0]
+    truth = coverage_masks(renderer, verts[None, None], faces, other)[0]
     ious, picks = module.shift_search(VoxelScorer(), renderer, pushed, camera, depth[0] + 0.03,
                                       (sphere.vertices, sphere.faces), [other], [truth])
     assert module.GRID[int(torch.tensor(ious).argmax())] == -0.03

@@ -34,9 +34,9 @@ import numpy as np
 import torch
 
 from cerberus_core.errors import DatasetError, ShapeError
+from cerberus_core.eval.depth import coverage_masks
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
 from cerberus_core.parts import PartSet
-from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.shapes import check_shapes
@@ -165,11 +165,9 @@ def part_masks(renderer: Renderer, recon: PartSet, camera: Camera) -> Tensor:
                          "camera per reconstruction")
     bsz, nparts = recon.batch_size, recon.num_parts
     posed = recon.to(camera.device).posed()  # (B, P, V, 3)
-    with torch.no_grad():
-        part_id = render_parts(renderer, posed.reshape(bsz * nparts, 1, *posed.shape[-2:]).contiguous(),
-                               recon.faces.to(camera.device),
-                               camera.index(torch.arange(bsz).repeat_interleave(nparts))).part_id
-    return (part_id >= 0).reshape(bsz, nparts, *part_id.shape[-2:])
+    masks = coverage_masks(renderer, posed.reshape(bsz * nparts, 1, *posed.shape[-2:]), recon.faces.to(camera.device),
+                           camera.index(torch.arange(bsz).repeat_interleave(nparts)))
+    return masks.reshape(bsz, nparts, *masks.shape[-2:])
 
 
 def unique_coverage(masks: Tensor, foreground: Tensor) -> Tensor:

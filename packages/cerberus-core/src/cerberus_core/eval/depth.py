@@ -61,6 +61,17 @@ def mask_iou(a: Tensor, b: Tensor) -> Tensor:
     return torch.where(union > 0, inter / union.clamp(min=1), torch.ones_like(union))
 
 
+def coverage_masks(renderer: Renderer, posed: Tensor, faces: Tensor, cameras: Camera) -> Tensor:
+    """Where each of ``B`` scenes covers its camera's image: ``(B, H, W)`` bool, no gradient.
+
+    Args:
+        renderer: a backend; posed: ``(B, N, V, 3)`` world-frame vertices of ``N`` meshes per scene (parts, or
+        one ground-truth body with ``N = 1``); faces: ``(F, 3)`` shared by every mesh; cameras: ``B`` cameras.
+    """
+    with torch.no_grad():
+        return render_parts(renderer, posed.contiguous(), faces, cameras).part_id >= 0
+
+
 @dataclass
 class _PoseViews:
     """What one test pose's images gave: per view, the parts, the camera and the ground-truth body."""
@@ -89,11 +100,9 @@ def turned_view_ious(renderer: Renderer, parts: PartSet, cameras: Camera, body: 
     seen_by = torch.arange(k).repeat(k)  # (x, y) pairs, x major
     from_view = torch.arange(k).repeat_interleave(k)
     posed = parts.posed()[from_view]  # (K K, N, V, 3)
-    with torch.no_grad():
-        pred = render_parts(renderer, posed, parts.faces, cameras.index(seen_by)).part_id >= 0
-        verts = torch.as_tensor(body[0], dtype=posed.dtype).unsqueeze(0).unsqueeze(0).expand(k, 1, -1, 3)
-        truth = render_parts(renderer, verts.contiguous(), torch.as_tensor(body[1], dtype=torch.long),
-                             cameras).part_id >= 0  # (K, H, W)
+    pred = coverage_masks(renderer, posed, parts.faces, cameras.index(seen_by))
+    verts = torch.as_tensor(body[0], dtype=posed.dtype).unsqueeze(0).unsqueeze(0).expand(k, 1, -1, 3)
+    truth = coverage_masks(renderer, verts, torch.as_tensor(body[1], dtype=torch.long), cameras)  # (K, H, W)
     return mask_iou(pred, truth[seen_by]).view(k, k)
 
 
