@@ -60,6 +60,7 @@ from cerberus_core.eval.depth import coverage_masks, mask_iou
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.parts import PartSet
+from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera, triangulate
 from cerberus_core.render.interface import Renderer
@@ -159,6 +160,14 @@ def readout(model, data: str, train_poses: int, test_x: np.ndarray, test_y: np.n
     return ridge_readout(x, y, test_x, test_y)
 
 
+def paired_gain(x: list[float] | np.ndarray, base: np.ndarray) -> dict:
+    """The mean IoU of a variant ``x`` ``(M,)`` and its paired difference to ``base`` ``(M,)`` (the prediction's):
+    ``iou``, ``gain`` ± ``gain_se`` (0 for one image), and the images ``improved``."""
+    dx = np.asarray(x) - base
+    return {"iou": float(np.mean(x)), "gain": float(dx.mean()),
+            "gain_se": float(dx.std(ddof=1) / np.sqrt(len(dx))) if len(dx) > 1 else 0.0, "improved": int((dx > 0).sum())}
+
+
 def shift_search(scorer: VoxelScorer, renderer: Renderer, one: PartSet, camera: Camera, depth: torch.Tensor, gt: tuple,
                  others: list[Camera], truths: list[torch.Tensor]) -> tuple[list[float], dict[str, tuple[float, float]]]:
     """One image's reconstruction shifted along its rays by every ``GRID`` step and scored: the IoUs ``(G,)``, and
@@ -251,11 +260,7 @@ def main(argv: list[str]) -> int:
             for n, e in enumerate((d - target).abs().tolist()):
                 errors[n].append(e)
     b = np.array(before)
-
-    def paired(x: list[float]) -> dict:  # the mean IoU of a variant and its paired difference to the prediction
-        dx = np.array(x) - b
-        return {"iou": float(np.mean(x)), "gain": float(dx.mean()),
-                "gain_se": float(dx.std(ddof=1) / np.sqrt(len(dx))) if len(dx) > 1 else 0.0, "improved": int((dx > 0).sum())}
+    paired = functools.partial(paired_gain, base=b)
     dp, dt = np.array(d_pred), np.array(d_tri)
     slope = float(np.polyfit(dt, dp, 1)[0])
     corr = float(np.corrcoef(dt, dp)[0, 1])
@@ -318,8 +323,7 @@ def main(argv: list[str]) -> int:
               f"{f['test_r2']:.3f} on the test images (correlation {f['test_correlation']:+.2f}); mean |shift| "
               f"{f['mean_abs_shift']:.4f} -> {f['mean_abs_residual']:.4f} with the read-out subtracted")
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(figures, fh, indent=2)
+        atomic_write_text(args.json, json.dumps(figures, indent=2))
     return 0
 
 

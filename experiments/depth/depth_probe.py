@@ -47,6 +47,7 @@ from torch import nn
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
+from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.render.camera import Camera
 from cerberus_core.run import Run
 
@@ -185,13 +186,6 @@ def shifted_ious(dataset, kept: dict, indices: list[int], shifts: np.ndarray) ->
     return np.array(out)
 
 
-def paired(x: np.ndarray, base: np.ndarray) -> dict:
-    """Mean of ``x`` and its paired difference to ``base`` (mean ± s.e., images better)."""
-    d = x - base
-    return {"iou": float(x.mean()), "gain": float(d.mean()), "gain_se": float(d.std(ddof=1) / np.sqrt(len(d))),
-            "improved": int((d > 0).sum())}
-
-
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 2)[2],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -204,7 +198,7 @@ def main(argv: list[str]) -> int:
     args = p.parse_args(argv)
     torch.set_num_threads(1)
     warnings.simplefilter("ignore")  # mesh-quality warnings on predicted parts, as in cerberus eval
-    from depth_oracle import body_shifts, predict, views_by_pose
+    from depth_oracle import body_shifts, paired_gain, predict, views_by_pose
 
     data = Dataset.open(args.data)
     train, test = data.views("train"), data.views("test")
@@ -247,7 +241,8 @@ def main(argv: list[str]) -> int:
         figures["model"] = {"run": args.run, "own_depth_r2": float(r2(fit_te, y_te[:, 0], mean[0])),
                             "own_depth_mean_abs_error": float(np.abs(own_te[:, 0] - y_te[:, 0]).mean()),
                             "line_fit": [a, b], "iou": float(base.mean()),
-                            **{k: paired(shifted_ious(test, kept, te, m - own_te[:, 0]), base) for k, m in moves.items()}}
+                            **{k: paired_gain(shifted_ious(test, kept, te, m - own_te[:, 0]), base)
+                               for k, m in moves.items()}}
         f = figures["model"]
         print(f"  the model's own centroid depth: R² {f['own_depth_r2']:.3f} after a line fit on the training views "
               f"(slope {a:.2f}), mean |error| {f['own_depth_mean_abs_error']:.4f}")
@@ -257,8 +252,7 @@ def main(argv: list[str]) -> int:
             print(f"  voxel IoU {f['iou']:.4f} -> {g['iou']:.4f} with the centroid at {what} depth "
                   f"({g['gain']:+.4f} ± {g['gain_se']:.4f}, better on {g['improved']} / {len(te)})")
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(figures, fh, indent=2)
+        atomic_write_text(args.json, json.dumps(figures, indent=2))
     return 0
 
 

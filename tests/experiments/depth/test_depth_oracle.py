@@ -1,30 +1,17 @@
 """experiments/depth/depth_oracle.py: the oracle that triangulates each part's rays."""
 from __future__ import annotations
 
-import functools
-import importlib.util
-
 import pytest
 import torch
 
-from tests.support.paths import REPO
-
-SCRIPT = REPO / "experiments" / "depth" / "depth_oracle.py"
-
-
-@functools.cache
-def _oracle():
-    spec = importlib.util.spec_from_file_location("depth_oracle", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from tests.support.paths import load_script
 
 
 def test_along_rays_keeps_each_keypoint_in_view_and_reaches_the_new_depth():
     from cerberus_core.parts import PartSet
     from cerberus_core.render.camera import Camera
 
-    module = _oracle()
+    module = load_script("experiments/depth/depth_oracle.py")
     camera = Camera.look_at(30.0, 15.0, 2.0, fov_y_deg=30.0, image_size=64)
     translations = torch.tensor([[[0.1, 0.0, 0.0], [-0.2, 0.3, 0.1]]])  # (1, 2, 3)
     local = torch.randn(1, 2, 5, 3) * 0.05
@@ -47,7 +34,7 @@ def test_shift_search_finds_the_depth_a_sphere_was_pushed_away_by_from_each_sign
     from cerberus_core.render.backends import make_renderer
     from cerberus_core.render.camera import Camera
 
-    module = _oracle()
+    module = load_script("experiments/depth/depth_oracle.py")
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
     verts = torch.as_tensor(sphere.vertices, dtype=torch.float32)
     faces = torch.as_tensor(sphere.faces, dtype=torch.long)
@@ -70,7 +57,7 @@ def test_shift_search_finds_the_depth_a_sphere_was_pushed_away_by_from_each_sign
 def test_ridge_readout_finds_a_linear_signal_and_reports_none_in_noise():
     import numpy as np
 
-    module = _oracle()
+    module = load_script("experiments/depth/depth_oracle.py")
     rng = np.random.default_rng(0)
     x, test_x = rng.normal(size=(600, 20)), rng.normal(size=(200, 20))
     w = rng.normal(size=20)
@@ -84,7 +71,7 @@ def test_ridge_readout_finds_a_linear_signal_and_reports_none_in_noise():
 def test_triangulated_depths_are_each_view_s_depth_of_the_point_its_rays_meet_at():
     from cerberus_core.render.camera import Camera
 
-    module = _oracle()
+    module = load_script("experiments/depth/depth_oracle.py")
     points = torch.tensor([[[0.1, 0.2, -0.1], [-0.2, -0.1, 0.15]]])  # (1, N=2, 3) world
     cams = {i: Camera.look_at(az, 15.0, 2.0, fov_y_deg=30.0, image_size=64) for i, az in ((3, 0.0), (7, 70.0))}
     uv = {i: cam.project(points)[0][0] for i, cam in cams.items()}

@@ -1,27 +1,14 @@
 """experiments/depth/depth_probe.py: does an image carry where the body stands along the view?"""
 from __future__ import annotations
 
-import functools
-import importlib.util
-
 import numpy as np
 import torch
 
-from tests.support.paths import REPO
-
-SCRIPT = REPO / "experiments" / "depth" / "depth_probe.py"
-
-
-@functools.cache
-def _probe():
-    spec = importlib.util.spec_from_file_location("depth_probe", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from tests.support.paths import load_script
 
 
 def test_surface_centroid_weights_by_area_not_by_vertex():
-    module = _probe()
+    module = load_script("experiments/depth/depth_probe.py")
     # A unit square at x in [0, 1] and a tiny triangle far out at x = 10 with many of the vertices: the centroid
     # stays on the square (a vertex mean would not).
     verts = torch.tensor([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [10, 0, 0], [10.001, 0, 0], [10, 0.001, 0]])
@@ -35,7 +22,7 @@ def test_surface_centroid_weights_by_area_not_by_vertex():
 def test_offsets_measure_depth_along_the_view_and_pixels_from_the_origin():
     from cerberus_core.render.camera import Camera
 
-    module = _probe()
+    module = load_script("experiments/depth/depth_probe.py")
     camera = Camera.look_at(torch.tensor([0.0, 0.0]), torch.tensor([15.0, 15.0]), torch.tensor([2.0, 2.0]),
                             fov_y_deg=30.0, image_size=64)
     towards = camera.center[1] / camera.center[1].norm() * 0.05  # 0.05 from the origin towards the camera
@@ -47,7 +34,7 @@ def test_offsets_measure_depth_along_the_view_and_pixels_from_the_origin():
 
 
 def test_fit_probe_reads_what_the_image_shows_and_not_noise():
-    module = _probe()
+    module = load_script("experiments/depth/depth_probe.py")
     gen = torch.Generator().manual_seed(0)
     n, size = 480, 32
     x0 = torch.randint(0, size - 6, (n,), generator=gen)

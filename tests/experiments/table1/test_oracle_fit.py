@@ -1,8 +1,6 @@
 """experiments/table1/oracle_fit.py: the direct 3D fit of deformed icospheres behind Table 1's oracle row."""
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 import torch
@@ -10,18 +8,13 @@ import trimesh
 
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.render.templates import icosphere
-from tests.support.paths import REPO
-
-SCRIPT = REPO / "experiments" / "table1" / "oracle_fit.py"
+from tests.support.paths import load_script
 
 
 @pytest.fixture(scope="module")
 def oracle():
     pytest.importorskip("cerberus_metrics")
-    spec = importlib.util.spec_from_file_location("oracle_fit", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("experiments/table1/oracle_fit.py")
 
 
 def test_one_part_fits_an_ellipsoid_and_two_parts_two_blobs(oracle):
