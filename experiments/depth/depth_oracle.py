@@ -218,16 +218,18 @@ def main(argv: list[str]) -> int:
     shift_picks: list[dict[str, tuple[float, float]]] = []  # per image: (shift, IoU) each other signal picks
     renderer = make_renderer("torch")
 
+    gt_mesh = functools.cache(dataset.gt_mesh)  # each view's body is read once, for its scoring and as a partner
+
     @functools.cache
     def truth(j: int) -> torch.Tensor:  # (H, W) the ground-truth body's silhouette in view j
-        body = dataset.gt_mesh(j)
+        body = gt_mesh(j)
         verts = torch.as_tensor(np.asarray(body.vertices), dtype=torch.float32)[None, None]
         return coverage_masks(renderer, verts, torch.as_tensor(np.asarray(body.faces)), cams[j])[0]
     flat_pred, flat_gt, local_max, extents = [], [], [], []
     for views in poses:
         targets = triangulated_depths(views, uv, cams)
         for i in views:
-            body = dataset.gt_mesh(i)
+            body = gt_mesh(i)
             gt = (body.vertices, body.faces)
             one = recon[i]
             posed = one.posed()[0]  # (N, V, 3) world
