@@ -1,4 +1,4 @@
-"""experiments/parts/off_body.py: where the wrong voxels lie."""
+"""experiments/table1/voxel_errors.py: where the wrong voxels lie."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +7,7 @@ from tests.support.paths import load_script
 
 
 def test_off_body_counts_measure_distances_both_ways_and_count_the_parts_over_each_voxel():
-    module = load_script("experiments/parts/off_body.py")
+    module = load_script("experiments/table1/voxel_errors.py")
     body = np.zeros((9, 9, 9), bool)
     body[2:7, 2:7, 2:7] = True
     parts = np.zeros((3, 9, 9, 9), bool)
