@@ -149,9 +149,9 @@ def fit_probe(x: torch.Tensor, y: np.ndarray, test_x: torch.Tensor, epochs: int,
     return run(x).numpy() * sd + mu, run(test_x).numpy() * sd + mu, curve
 
 
-def model_offsets(model, dataset, indices: list[int]) -> tuple[np.ndarray, dict]:
+def model_offsets(model, dataset, indices: list[int], keep: bool = False) -> tuple[np.ndarray, dict]:
     """A trained model's own :data:`TARGETS` ``(M, 3)`` for the views ``indices`` (its parts' surface centroid), and
-    per view index ``(parts, camera, keypoint depths)`` for shifting it."""
+    with ``keep``, per view index ``(parts, camera, keypoint depths)`` for shifting it (else an empty dict)."""
     out, kept = [], {}
     with torch.no_grad():
         for idx, batch, camera in iterate_batches(dataset, indices, 64):
@@ -162,7 +162,7 @@ def model_offsets(model, dataset, indices: list[int]) -> tuple[np.ndarray, dict]
             faces = torch.cat([parts.faces + k * v for k in range(n)])  # the parts as one mesh
             centre = surface_centroid(posed.flatten(1, 2), faces)  # (B, 3)
             out.append(offsets(camera, centre))
-            for b, i in enumerate(idx):
+            for b, i in enumerate(idx if keep else ()):
                 kept[i] = (parts.index(b), camera.index([b]), pred.maps.depth[b])
     return torch.cat(out).numpy(), kept
 
@@ -211,7 +211,7 @@ def main(argv: list[str]) -> int:
     if args.run:
         model = Run.load(args.run).model.eval()
         own_tr, _ = model_offsets(model, train, tr)
-        own_te, kept = model_offsets(model, test, te)
+        own_te, kept = model_offsets(model, test, te, keep=True)
         a, b = line_fit(own_tr[:, 0], y_tr[:, 0])  # the model's centroid depth, calibrated on the training views
         fit_tr, fit_te = a * own_tr[:, 0] + b, a * own_te[:, 0] + b
         uv, depth, _, cams, _ = predict(model, train, train_poses)
