@@ -44,8 +44,12 @@ STRETCHES = (0.5, 0.7, 0.85, 1.0, 1.2, 1.5, 2.0, 2.5)
 def _iou(parts, gt_grid) -> tuple[float, float, float, float]:
     """(IoU, precision, recall, volume ratio) of parts against a ground-truth grid; the voxels of parts
     leaving the grid are dropped (``outside="clamp"``), as ``cerberus eval`` does."""
-    grid = voxelize(parts, frame=gt_grid.frame, check_self_intersections=False, outside="clamp")
-    pred, true = grid.occupancy, gt_grid.occupancy
+    return _scores(voxelize(parts, frame=gt_grid.frame, check_self_intersections=False, outside="clamp").occupancy,
+                   gt_grid.occupancy)
+
+
+def _scores(pred: np.ndarray, true: np.ndarray) -> tuple[float, float, float, float]:
+    """(IoU, precision, recall, volume ratio) of two occupancy grids on one lattice."""
     inter = float((pred & true).sum())
     return (inter / max(1.0, float((pred | true).sum())), inter / max(1.0, float(pred.sum())),
             inter / max(1.0, float(true.sum())), float(pred.sum()) / max(1.0, float(true.sum())))
@@ -99,12 +103,13 @@ def main(argv: list[str]) -> int:
         recon = reconstruct_batch(model.reconstruct, batch["images"], camera, "cpu")
         for b, i in enumerate(batch_idx):
             body = dataset.gt_mesh(i)
-            gt_grid = voxelize((body.vertices, body.faces), check_self_intersections=False)
             parts = [(np.asarray(v, np.float64), np.asarray(f)) for v, f in recon.index(b).part_meshes(0)]
             rot = camera.rotation[b].double().numpy()
             centre = -rot.T @ camera.translation[b].double().numpy()
-            rows.append((*_iou(parts, gt_grid), *_oracles(parts, gt_grid, centre, rot.T @ np.array([0.0, 0.0, 1.0]))))
-            grids, _ = prediction_grids(parts, (body.vertices, body.faces), "kato", 32, None, "clamp", False)
+            # each part voxelized once, in the ground truth's frame: the union scores it, the parts place its errors
+            grids, gt_grid = prediction_grids(parts, (body.vertices, body.faces), "kato", 32, None, "clamp", False)
+            rows.append((*_scores(grids.union().occupancy, gt_grid.occupancy),
+                         *_oracles(parts, gt_grid, centre, rot.T @ np.array([0.0, 0.0, 1.0]))))
             f = off_body_counts(grids.occupancy, gt_grid.occupancy)
             counts += f["counts"]
             off.append(f["off"])
