@@ -75,13 +75,36 @@ def test_initial_parts_are_visible_spread_and_near_the_origin():
 
 
 def test_no_rotation_head_fixes_world_rotation_to_identity():
-    model = small_model(num_parts=1, sphere_level=3, predict_rotation=False)
+    model = small_model(num_parts=1, sphere_level=3, rotation="none")
     cam = cameras()
     parts = model.reconstruct(torch.rand(2, 3, 32, 32), cam)
     assert parts.posed().shape == (2, 1, 642, 3)
     torch.testing.assert_close(parts.rotations, torch.eye(3).expand(2, 1, 3, 3))
     parts_cam = model.pose(model(torch.rand(2, 3, 32, 32)), cam, frame="camera")
     torch.testing.assert_close(parts_cam.rotations, cam.rotation.unsqueeze(1))
+
+
+def test_world_rotation_head_starts_at_the_identity_and_turns_parts_alike_in_every_view():
+    """``model.rotation: world``: the head's rotation is the part's world rotation, so an untrained model's parts are
+    unturned whatever the camera (the paper's camera-relative head turns them with the camera), and two views that
+    predict the same quaternion place the same world part; the camera frame follows from the world one."""
+    images, cam = torch.rand(2, 3, 32, 32), cameras()  # azimuths 0 and 120
+    world = small_model(rotation="world")
+    torch.testing.assert_close(world.reconstruct(images, cam).rotations, torch.eye(3).expand(2, 9, 3, 3),
+                               atol=0.1, rtol=0)  # the head starts near the identity quaternion
+    camera = small_model(rotation="camera")
+    turned = camera.reconstruct(images, cam).rotations
+    assert (turned[0] - turned[1]).abs().amax() > 0.5  # the camera-relative head turns the parts with the camera
+    with torch.no_grad():
+        world.rotation.linear.weight.zero_()
+        world.rotation.linear.bias.copy_(torch.randn(9 * 4))
+    pred = world(images)
+    parts, parts_cam = world.pose(pred, cam), world.pose(pred, cam, frame="camera")
+    torch.testing.assert_close(parts.rotations[0], parts.rotations[1])
+    torch.testing.assert_close(parts.rotations, pred.rotations)
+    torch.testing.assert_close(parts_cam.rotations, cam.rotation.unsqueeze(1) @ parts.rotations)
+    parts.posed().sum().backward()  # the head learns from the world-frame parts
+    assert world.rotation.linear.bias.grad.abs().sum() > 0
 
 
 def test_forward_mixer_replaces_the_render_latent_only():

@@ -1,6 +1,7 @@
 """Training configs: presets, files with ``extends``, ``--set`` overrides, validation messages."""
 
 import pytest
+import yaml
 
 from cerberus_core.config import parse_overrides
 from cerberus_core.errors import ConfigError
@@ -28,7 +29,7 @@ def test_variant_presets_differ_from_paper_only_where_the_variant_says():
     paper = load_config(preset="paper")
     assert config_diff(paper, load_config(preset="free_cerberus")) == ["losses.pose_consistency"]
     nmrr = load_config(preset="nmrr")
-    assert (nmrr.model.num_parts, nmrr.model.sphere_level, nmrr.model.predict_rotation) == (1, 3, False)
+    assert (nmrr.model.num_parts, nmrr.model.sphere_level, nmrr.model.rotation) == (1, 3, "none")
     assert nmrr.model.vertex_bound == 0.5 and load_config(preset="paper").model.vertex_bound is None
     assert not nmrr.losses.pose_consistency and nmrr.losses.smoothness > 0
     assert all(k.startswith(("model.", "losses.")) for k in config_diff(paper, nmrr))
@@ -172,7 +173,24 @@ def test_the_own_cross_view_must_start_before_the_end():
         c = load_config(preset=preset)
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
         assert (c.losses.consensus_coverage, c.losses.separation, c.losses.relocation, c.model.recentre,
-                c.model.deformation_warmup) == (0, 0, 0, False, 0)  # issue 38's
+                c.model.deformation_warmup, c.model.rotation) == (0, 0, 0, False, 0, "camera")  # issue 38's
+
+
+def test_a_renamed_key_is_read_from_a_saved_config_and_named_in_a_new_one():
+    """``model.predict_rotation`` became ``model.rotation`` (issue 38): what an earlier version saved (a run's
+    config.yaml, a checkpoint, a model file) still reads, with the same meaning; a config written now is told the
+    new key and its value."""
+    saved = TrainConfig().to_dict()
+    del saved["model"]["rotation"]
+    for old, new in ((True, "camera"), (False, "none")):
+        saved["model"]["predict_rotation"] = old
+        assert TrainConfig.from_yaml(yaml.safe_dump(saved), "config.yaml").model.rotation == new
+    saved["model"]["rotation"] = "world"  # both keys: the new one wins, the old one is then unknown
+    with pytest.raises(ConfigError, match="model.predict_rotation became model.rotation"):
+        TrainConfig.from_yaml(yaml.safe_dump(saved), "config.yaml")
+    with pytest.raises(ConfigError, match=r"model.predict_rotation became model.rotation \(true → camera, "
+                                          r"false → none\); write `model.rotation=VALUE`"):
+        load_config(preset="tiny", overrides=["model.predict_rotation=false"])
 
 
 def test_a_resume_without_config_yaml_continues_with_the_checkpoints_config(tiny_config, tmp_path):

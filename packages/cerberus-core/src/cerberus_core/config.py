@@ -33,7 +33,7 @@ from cerberus_core.errors import ConfigError, shown
 from cerberus_core.plumbing.names import did_you_mean
 
 __all__ = ["Presets", "build", "deep_merge", "flatten", "load_raw", "load_yaml", "omit_defaults",
-           "parse_overrides"]
+           "parse_overrides", "upgrade"]
 
 
 # ------------------------------------------------------------------ mappings
@@ -367,6 +367,30 @@ def coerce(value: Any, hint: Any, key: str) -> Any:
     return value
 
 
+def upgrade(cls: type, d: Any) -> Any:
+    """A saved mapping of ``cls`` with the keys an earlier version wrote under other names converted (each
+    section's ``RENAMED`` table, :class:`~cerberus_core.fields.Checked`); anything else is left for
+    :func:`build` to judge.
+
+    Example:
+        >>> from cerberus_core.train.settings import TrainConfig
+        >>> upgrade(TrainConfig, {"model": {"predict_rotation": False, "num_parts": 4}})
+        {'model': {'rotation': 'none', 'num_parts': 4}}
+    """
+    if not isinstance(d, Mapping):
+        return d
+    hints = typing.get_type_hints(cls)
+    renamed = getattr(cls, "RENAMED", {})
+    out: dict[Any, Any] = {}
+    for key, value in d.items():
+        if key in renamed and renamed[key][0] not in d:
+            new, values = renamed[key]
+            out[new] = values.get(value, value) if isinstance(value, typing.Hashable) else value
+        else:
+            out[key] = upgrade(hints[key], value) if key in hints and is_dataclass(hints[key]) else value
+    return out
+
+
 def build(cls: type, d: Any, prefix: str = "") -> Any:
     """The dataclass ``cls`` from a plain mapping, every value checked against its type hint.
 
@@ -381,6 +405,12 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     hints = typing.get_type_hints(cls)
     known = [f.name for f in fields(cls) if f.init]
     unknown = sorted(set(d) - set(known), key=str)  # a YAML key may be a number
+    renamed = getattr(cls, "RENAMED", {})
+    if retired := [k for k in unknown if k in renamed]:
+        new, values = renamed[retired[0]]
+        conversions = ", ".join(f"{str(a).lower() if isinstance(a, bool) else a} → {b}" for a, b in values.items())
+        raise ConfigError(f"{prefix}{retired[0]} became {prefix}{new} ({conversions}); write "
+                          f"`{prefix}{new}=VALUE`", key=prefix + str(retired[0]))
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
                           f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "

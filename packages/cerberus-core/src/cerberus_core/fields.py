@@ -168,6 +168,10 @@ class Checked:
     SECTION: ClassVar[str] = ""
     FIX: ClassVar[str] = "`{key}=VALUE`"
     """How a message says to fix a field (``{key}``: the dotted key, ``{cls}``: the class name)."""
+    RENAMED: ClassVar[dict[str, tuple[str, dict[Any, Any]]]] = {}
+    """Keys an earlier version wrote: ``old → (new, {old value: new value})``. A saved config (a run's
+    ``config.yaml``, a checkpoint, a model file) is read with them converted
+    (:func:`cerberus_core.config.upgrade`); a config someone writes now is told the new key."""
 
     def __post_init__(self) -> None:
         self.check()

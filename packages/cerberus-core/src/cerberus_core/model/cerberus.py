@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import torch
 from torch import nn
@@ -65,9 +66,15 @@ class ModelConfig(Checked):
             anchor (beyond the paper, which leaves the initialisation open).
         depth_offset: initial depth of every part (world units); ``"auto"`` in a config means the
             dataset's camera distance, resolved by the trainer before the model is built.
-        predict_rotation: predict a rotation per part (Cerberus). ``False`` fixes every part's
-            world rotation to the identity (the NMR baseline, which deforms one sphere in the
-            world frame).
+        rotation: what each part's rotation is. ``"camera"`` (the paper, section 3): the rotation head's quaternion
+            is the part's rotation relative to the camera, so its world rotation is ``R^T Q``, and a part whose head
+            still says "identity" is turned with the camera. ``"none"``: every part's world rotation is the identity
+            (the NMR baseline, which deforms one sphere in the world frame). ``"world"`` (beyond the paper, issue 38):
+            the same head's quaternion is the part's world rotation, so the model starts as ``"none"`` and turns a
+            part only where the images ask for it; the network then reads a part's orientation in the world from the
+            image, as NMR's world-frame deformation does (the bodies of a dataset share one world frame: the
+            generator's bodies stand up +Y and face +Z). Saved configs of earlier versions hold
+            ``predict_rotation: true / false``, read as ``"camera"`` / ``"none"``.
         body_depth: ``false`` (the paper: each part's depth is read from the features under its keypoint) or
             ``true``: one depth shift per image, a linear map of the image's global latent (zero at the start), is
             added to every part's depth, so the whole body's distance is read from the whole image (beyond the
@@ -76,6 +83,7 @@ class ModelConfig(Checked):
     """
 
     SECTION = "model"
+    RENAMED = {"predict_rotation": ("rotation", {True: "camera", False: "none"})}
 
     num_parts: int = ranged(9, ge=1, le=64)
     sphere_level: int = ranged(2, ge=0, le=5)
@@ -89,7 +97,7 @@ class ModelConfig(Checked):
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
     anchor_width: float | None = ranged(None, gt=0, integer=False)
     depth_offset: float | str = "auto"
-    predict_rotation: bool = True
+    rotation: Literal["camera", "world", "none"] = "camera"
     body_depth: bool = False
 
     def validate(self) -> None:
@@ -113,8 +121,9 @@ class Predictions:
         render_latent: ``(B, S)`` the shape latent the meshes were built from (``shape_latent``
             unless a pose-consistency mixer replaced it, equation 3).
         local_vertices: ``(B, N, V, 3)`` deformed part templates in the parts' local frames.
-        quaternions: ``(B, N, 4)`` unit quaternions ``(w, x, y, z)`` relative to the camera.
-        rotations_cam: ``(B, N, 3, 3)`` the rotation matrices of ``quaternions``.
+        quaternions: ``(B, N, 4)`` the rotation head's unit quaternions ``(w, x, y, z)``, relative to the camera
+            (``model.rotation: camera``) or to the world (``world``); unused with ``none``.
+        rotations: ``(B, N, 3, 3)`` the rotation matrices of ``quaternions``.
         maps: per-part probability and depth maps and their expectations.
     """
 
@@ -123,7 +132,7 @@ class Predictions:
     render_latent: Tensor
     local_vertices: Tensor
     quaternions: Tensor
-    rotations_cam: Tensor
+    rotations: Tensor
     maps: KeypointMaps
 
 
@@ -243,12 +252,14 @@ class Cerberus(nn.Module):
         """
         t_cam = unproject_expectation(pred.maps, camera, to_world=False)
         t_world = camera.camera_to_world(t_cam)
-        if self.config.predict_rotation:
-            r_cam = pred.rotations_cam
-            r_world = camera.rotation_to_world(r_cam)
+        if self.config.rotation == "camera":
+            r_cam = pred.rotations
+            return camera.rotation_to_world(r_cam), t_world, r_cam, t_cam
+        if self.config.rotation == "world":
+            r_world = pred.rotations
         else:
-            r_world = torch.eye(3, dtype=t_cam.dtype, device=t_cam.device).expand_as(pred.rotations_cam)
-            r_cam = camera.rotation.unsqueeze(1) @ r_world
+            r_world = torch.eye(3, dtype=t_cam.dtype, device=t_cam.device).expand_as(pred.rotations)
+        r_cam = camera.rotation.unsqueeze(1) @ r_world
         return r_world, t_world, r_cam, t_cam
 
     def pose(self, pred: Predictions, camera: Camera, frame: str = "world") -> PartSet:

@@ -23,7 +23,7 @@ from typing import Any, Literal
 
 import yaml
 
-from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, load_yaml, parse_overrides
+from cerberus_core.config import Presets, build, deep_merge, flatten, load_raw, load_yaml, parse_overrides, upgrade
 from cerberus_core.datasets.looks import InputLook
 from cerberus_core.devices import is_device_name
 from cerberus_core.errors import ConfigError
@@ -256,9 +256,10 @@ class TrainConfig(Checked):
             source: the file it came from, named in messages.
         Raises:
             ConfigError: the text is not valid YAML (``SOURCE:LINE``), or holds a key or value this version does
-                not take.
+                not take (a key an earlier version wrote under another name is read as its new one:
+                :func:`cerberus_core.config.upgrade`).
         """
-        raw = load_yaml(text, source, "the saved config is damaged")
+        raw = upgrade(cls, load_yaml(text, source, "the saved config is damaged"))
         return cls.from_dict(deep_merge(raw or {}, parse_overrides(overrides)) if overrides else raw)
 
 
