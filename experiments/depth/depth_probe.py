@@ -76,22 +76,19 @@ def offsets(camera: Camera, points: torch.Tensor) -> torch.Tensor:
     return torch.cat([(depth[:, 0] - depth[:, 1]).unsqueeze(-1), uv[:, 0] - uv[:, 1]], -1)
 
 
-def gt_targets(dataset, indices: list[int]) -> np.ndarray:
-    """``(M, 3)`` the ground truth's :data:`TARGETS` for the views ``indices`` of a split."""
-    out = []
-    for idx, _, camera in iterate_batches(dataset, indices, 64):
+def views(dataset, indices: list[int]) -> tuple[torch.Tensor, np.ndarray]:
+    """The views ``indices`` of a split, read once: their input images ``(M, 3, H, W)`` and the ground truth's
+    :data:`TARGETS` ``(M, 3)``."""
+    pictures, out = [], []
+    for idx, batch, camera in iterate_batches(dataset, indices, 64):
         centres = []
         for i in idx:
             body = dataset.gt_mesh(i)
             centres.append(surface_centroid(torch.as_tensor(np.asarray(body.vertices), dtype=torch.float32),
                                             torch.as_tensor(np.asarray(body.faces), dtype=torch.long)))
+        pictures.append(batch["images"])
         out.append(offsets(camera, torch.stack(centres)))
-    return torch.cat(out).numpy()
-
-
-def images(dataset, indices: list[int]) -> torch.Tensor:
-    """``(M, 3, H, W)`` the input images of the views ``indices``."""
-    return torch.cat([batch["images"] for _, batch, _ in iterate_batches(dataset, indices, 256)])
+    return torch.cat(pictures), torch.cat(out).numpy()
 
 
 def probe_net(channels: int, outputs: int, size: int) -> nn.Sequential:
@@ -205,8 +202,7 @@ def main(argv: list[str]) -> int:
     train_poses, test_poses = views_by_pose(train, args.poses), views_by_pose(test, args.limit)
     tr = [i for v in train_poses for i in v]
     te = [i for v in test_poses for i in v]
-    y_tr, y_te = gt_targets(train, tr), gt_targets(test, te)
-    x_tr, x_te = images(train, tr), images(test, te)
+    (x_tr, y_tr), (x_te, y_te) = views(train, tr), views(test, te)
     columns = list(TARGETS)
     if args.run:
         model = Run.load(args.run).model.eval()
