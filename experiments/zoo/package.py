@@ -100,7 +100,9 @@ def main() -> None:
                                      config.losses.cross_view == "own"),
                                     (f"reprojection term {config.losses.reprojection:g}", config.losses.reprojection > 0),
                                     ("the pulls on the cross view too", config.losses.cross_pulls),
-                                    (f"bfloat16 network ({config.speed.autocast})", config.speed.autocast)) if on]
+                                    (f"bfloat16 network ({config.speed.autocast})", config.speed.autocast),
+                                    ("the rotation head's quaternion read as each part's world rotation "
+                                     "(model.rotation: world)", config.model.rotation == "world")) if on]
     recipe = "the paper's losses and renderer" if not extras else "the paper's losses plus " + ", ".join(extras)
     scene, supersample = manifest.scene, manifest.config.supersample
     look = (f"{'black' if scene.background == (0.0, 0.0, 0.0) else 'white'} background, "

@@ -109,7 +109,8 @@ CASES = [
     ("train-set-type", "train --preset tiny --set optim.lr=fast --out {root}/new", "optim.lr: expected a number"),
     ("train-set-unknown", "train --preset tiny --set optim.lrr=1 --out {root}/new", "unknown config key"),
     ("train-set-renamed", "train --preset tiny --set model.predict_rotation=false --out {root}/new",
-     "model.predict_rotation became model.rotation (true → camera, false → none); write --set model.rotation=VALUE"),
+     "model.predict_rotation became model.rotation (true → camera, false → none); remove model.predict_rotation "
+     "and write --set model.rotation=VALUE in its place"),
     ("train-set-nan", "train --preset tiny --set data.root={data} --set losses.smoothness=.nan --out {root}/new",
      "losses.smoothness = nan: must be a finite number"),
     ("train-set-inf", "train --preset tiny --set data.root={data} --set optim.lr=.inf --out {root}/new", "finite"),

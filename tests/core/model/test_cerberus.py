@@ -41,8 +41,9 @@ def test_reconstruct_shapes_of_every_output():
         model.pose(pred, cam, frame="screen")
 
 
-def test_world_and_camera_frames_agree():
-    model = small_model()
+@pytest.mark.parametrize("rotation", ["camera", "world", "none"])
+def test_world_and_camera_frames_agree(rotation):
+    model = small_model(rotation=rotation)
     with torch.no_grad():
         model.rotation.linear.weight.normal_()  # non-trivial rotations
     cam = cameras()

@@ -185,11 +185,15 @@ def test_a_renamed_key_is_read_from_a_saved_config_and_named_in_a_new_one():
     for old, new in ((True, "camera"), (False, "none")):
         saved["model"]["predict_rotation"] = old
         assert TrainConfig.from_yaml(yaml.safe_dump(saved), "config.yaml").model.rotation == new
-    saved["model"]["rotation"] = "world"  # both keys: the new one wins, the old one is then unknown
-    with pytest.raises(ConfigError, match="model.predict_rotation became model.rotation"):
-        TrainConfig.from_yaml(yaml.safe_dump(saved), "config.yaml")
+    for odd in ({"rotation": "world", "predict_rotation": True}, {"predict_rotation": 1}, {"predict_rotation": "yes"},
+                {"predict_rotation": [True]}):  # both keys, or a value the table does not list: refused, named
+        with pytest.raises(ConfigError, match="model.predict_rotation became model.rotation"):
+            TrainConfig.from_yaml(yaml.safe_dump(saved | {"model": {**saved["model"], **odd}}), "config.yaml")
+    del saved["model"]["predict_rotation"]
+    assert TrainConfig.from_yaml(yaml.safe_dump(saved), "config.yaml") == TrainConfig()  # today's: untouched
     with pytest.raises(ConfigError, match=r"model.predict_rotation became model.rotation \(true → camera, "
-                                          r"false → none\); write `model.rotation=VALUE`"):
+                                          r"false → none\); remove model.predict_rotation and write "
+                                          r"`model.rotation=VALUE` in its place"):
         load_config(preset="tiny", overrides=["model.predict_rotation=false"])
 
 

@@ -32,6 +32,22 @@ def _fake_zoo(tmp_path, monkeypatch, tamper=False):
     return model
 
 
+def test_a_model_file_of_an_earlier_version_loads_with_its_renamed_keys(tmp_path):
+    """A model file whose config says ``model.predict_rotation: false`` (written before it became ``model.rotation``)
+    loads as ``rotation: none``, with the same weights."""
+    config = TrainConfig()
+    config.model = ModelConfig(width=8, shape_latent_dim=16, depth_offset=2.5, num_parts=1, rotation="none")
+    torch.manual_seed(0)
+    model = Cerberus(config.model)
+    saved = config.to_dict()
+    saved["model"]["predict_rotation"] = saved["model"].pop("rotation") != "none"  # False
+    export_weights(model, tmp_path / "old.safetensors", yaml.safe_dump(saved), 7)
+    run = Run.load(tmp_path / "old.safetensors")
+    assert run.config.model.rotation == "none" and run.config.model.num_parts == 1
+    for (k, a), (_, b) in zip(run.model.state_dict().items(), model.state_dict().items(), strict=True):
+        assert torch.equal(a, b), k
+
+
 def test_a_shipped_name_loads_verified_weights_and_its_scene(tmp_path, monkeypatch):
     ref = _fake_zoo(tmp_path, monkeypatch)
     assert list(zoo.available()) == ["tiny"]

@@ -369,8 +369,9 @@ def coerce(value: Any, hint: Any, key: str) -> Any:
 
 def upgrade(cls: type, d: Any) -> Any:
     """A saved mapping of ``cls`` with the keys an earlier version wrote under other names converted (each
-    section's ``RENAMED`` table, :class:`~cerberus_core.fields.Checked`); anything else is left for
-    :func:`build` to judge.
+    section's ``RENAMED`` table, :class:`~cerberus_core.fields.Checked`, in every section that is a dataclass);
+    anything else is left for :func:`build` to judge (an old key beside its new one, or with a value the table does
+    not list, stays, and :func:`build` names it).
 
     Example:
         >>> from cerberus_core.train.settings import TrainConfig
@@ -383,10 +384,11 @@ def upgrade(cls: type, d: Any) -> Any:
     renamed = getattr(cls, "RENAMED", {})
     out: dict[Any, Any] = {}
     for key, value in d.items():
-        if key in renamed and renamed[key][0] not in d:
-            new, values = renamed[key]
-            out[new] = values.get(value, value) if isinstance(value, typing.Hashable) else value
-        else:
+        new, values = renamed.get(key, (None, {}))
+        match = [b for a, b in values.items() if type(value) is type(a) and value == a]  # 1 is not True
+        if new is not None and new not in d and match:
+            out[new] = match[0]
+        else:  # an old key beside its new one, or with a value the table does not know: build names it
             out[key] = upgrade(hints[key], value) if key in hints and is_dataclass(hints[key]) else value
     return out
 
@@ -409,8 +411,8 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
     if retired := [k for k in unknown if k in renamed]:
         new, values = renamed[retired[0]]
         conversions = ", ".join(f"{str(a).lower() if isinstance(a, bool) else a} → {b}" for a, b in values.items())
-        raise ConfigError(f"{prefix}{retired[0]} became {prefix}{new} ({conversions}); write "
-                          f"`{prefix}{new}=VALUE`", key=prefix + str(retired[0]))
+        raise ConfigError(f"{prefix}{retired[0]} became {prefix}{new} ({conversions}); remove {prefix}{retired[0]} "
+                          f"and write `{prefix}{new}=VALUE` in its place", key=prefix + str(retired[0]))
     if unknown:
         raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
                           f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "

@@ -2,12 +2,14 @@
 
 ``Cerberus.forward(images)`` runs the down-sampling network, the up-sampling network and the three
 heads and returns camera-independent :class:`Predictions`; :meth:`Cerberus.pose` places the parts
-with the known camera (rotation and translation predicted relative to the camera, expressed in the
-world frame); :meth:`Cerberus.reconstruct` does both and returns a :class:`~cerberus_core.parts.PartSet`.
+with the known camera (translation predicted relative to the camera, rotation relative to the camera or, with
+``model.rotation: world``, to the world; both expressed in the world frame); :meth:`Cerberus.reconstruct` does
+both and returns a :class:`~cerberus_core.parts.PartSet`.
 
 Frames: a part's local vertices ``x`` (deformed sphere) map to the camera frame as
 ``R_cam x + T_cam`` and to the world as ``R_world x + T_world`` with ``R_world = R^T R_cam`` and
-``T_world`` the world-space unprojection (``R``: the camera's world→camera rotation).
+``T_world`` the world-space unprojection (``R``: the camera's world→camera rotation); the rotation head's matrix
+is ``R_cam`` (``model.rotation: camera``, the paper) or ``R_world`` (``world``), and ``none`` fixes ``R_world = I``.
 """
 from __future__ import annotations
 
