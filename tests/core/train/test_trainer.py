@@ -338,9 +338,14 @@ def test_a_checkpoint_written_before_issue_40_loads_and_resumes_with_the_same_co
     config = TrainConfig.from_yaml(payload["config"], last)
     import yaml
 
+    from cerberus_core.config import upgrade
+
     def holds(new, old):  # every setting the old config had, with its value (later settings may be added)
         return all(holds(new[k], v) if isinstance(v, dict) else new.get(k) == v for k, v in old.items())
-    assert holds(yaml.safe_load(config.to_yaml()), yaml.safe_load(payload["config"])) and config.losses.coverage == 0.5
+    old = yaml.safe_load(payload["config"])  # renamed keys under their new names (model.predict_rotation: true)
+    assert old["model"]["predict_rotation"] is True and "rotation" not in old["model"]
+    assert holds(yaml.safe_load(config.to_yaml()), upgrade(TrainConfig, old)) and config.losses.coverage == 0.5
+    assert config.model.rotation == "camera"
     assert config_diff(config, TrainConfig.from_yaml(config.to_yaml(), "again")) == []
     assert prepare_run_dir(run_dir, True, config)["step"] == 3
     run = Run.load(last)
