@@ -56,6 +56,7 @@ import torch
 
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.allocation import silhouette_centroids
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.eval.depth import coverage_masks, mask_iou
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
@@ -161,11 +162,15 @@ def readout(model, data: str, train_poses: int, test_x: np.ndarray, test_y: np.n
 
 
 def paired_gain(x: list[float] | np.ndarray, base: np.ndarray) -> dict:
-    """The mean IoU of a variant ``x`` ``(M,)`` and its paired difference to ``base`` ``(M,)`` (the prediction's):
-    ``iou``, ``gain`` ± ``gain_se`` (0 for one image), and the images ``improved``."""
-    dx = np.asarray(x) - base
-    return {"iou": float(np.mean(x)), "gain": float(dx.mean()),
-            "gain_se": float(dx.std(ddof=1) / np.sqrt(len(dx))) if len(dx) > 1 else 0.0, "improved": int((dx > 0).sum())}
+    """The mean IoU of a variant ``x`` ``(M,)`` and its paired difference to ``base`` ``(M,)`` (the prediction's,
+    :func:`~cerberus_core.eval.compare.paired_difference`): ``iou``, ``gain`` ± ``gain_se`` (0 for one image), and
+    the images ``improved``."""
+    d = paired_difference([{"index": i, "iou": float(v)} for i, v in enumerate(x)],
+                          [{"index": i, "iou": float(v)} for i, v in enumerate(base)])
+    if d is None:  # one image: its difference, no spread
+        gain = float(np.asarray(x)[0] - np.asarray(base)[0])
+        return {"iou": float(np.mean(x)), "gain": gain, "gain_se": 0.0, "improved": int(gain > 0)}
+    return {"iou": float(np.mean(x)), "gain": d.mean, "gain_se": d.sem, "improved": d.better}
 
 
 def shift_search(scorer: VoxelScorer, renderer: Renderer, one: PartSet, camera: Camera, depth: torch.Tensor, gt: tuple,

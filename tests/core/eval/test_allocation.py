@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import torch
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.eval.allocation import (
     Allocation,
     ImageAllocation,
@@ -135,3 +136,13 @@ def test_allocation_takes_a_batch_of_bodies_with_different_vertex_layouts(tmp_pa
     assert [r["keypoints"] for r in together.records] == [r["keypoints"] for r in alone.records]
     assert [r["unique_coverage"] for r in together.records] == [r["unique_coverage"] for r in alone.records]
     assert together.diagnostics["allocation"] == alone.diagnostics["allocation"] is not None
+
+
+def test_adding_by_hand_needs_the_vocabulary():
+    batch = ImageAllocation(keypoints=np.zeros((1, 2, 2)), centroid=np.zeros((1, 2)), segments=np.zeros((1, 1, 2)),
+                            unique=np.zeros((1, 2)))
+    with pytest.raises(ConfigError, match=r"segments: Allocation.add needs .*`Allocation\(segments=\[...\], num_parts=P\)`"):
+        Allocation().add(batch)
+    acc = Allocation(segments=["body"], num_parts=2)
+    acc.add(batch)
+    assert acc.summary()["segment_to_keypoint"] == {"body": 0.0}  # no segment labels: the whole body's centroid

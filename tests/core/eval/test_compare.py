@@ -9,6 +9,7 @@ import sys
 
 import pytest
 
+from cerberus_core.errors import DatasetError
 from cerberus_core.eval.compare import PairedDifference, paired_difference
 
 
@@ -85,3 +86,13 @@ def test_importing_it_loads_no_torch():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "False"
+
+
+def test_records_of_different_test_sets_are_refused():
+    a = [{"index": 0, "iou": 0.5, "subject": "s1", "pose": 0, "view": 0},
+         {"index": 1, "iou": 0.6, "subject": "s1", "pose": 0, "view": 1}]
+    b = [dict(a[0], iou=0.4), dict(a[1], iou=0.5, pose=3)]  # index 1 is another image there
+    with pytest.raises(DatasetError, match="image 1 is pose 0 in one evaluation and 3 in the other"):
+        paired_difference(a, b)
+    assert paired_difference(a, [dict(b[0]), dict(a[1], iou=0.5)]).n == 2  # the same images pair
+    assert paired_difference(a, _results({0: 0.4, 1: 0.5})).n == 2  # records that do not name their image pair

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from cerberus_core.errors import ConfigError
 from cerberus_core.eval.part_quality import (
     PartQuality,
     assign_to_parts,
@@ -174,3 +175,12 @@ def test_merged_sides_score_a_model_that_follows_the_image_not_the_body(primitiv
     acc = PartQuality(num_parts=2, gt_part_names=["a", "b"])
     acc.add(np.eye(2))
     assert acc.merged_sides() is None and acc.summary()["sides_merged"] is None
+
+
+def test_adding_by_hand_needs_the_vocabulary():
+    with pytest.raises(ConfigError, match=r"gt_part_names: PartQuality.add needs .*`PartQuality\(gt_part_names=\[...\], "
+                                          r"num_parts=P\)`"):
+        PartQuality().add(np.ones((2, 3)))
+    acc = PartQuality(num_parts=2, gt_part_names=["a", "b", "c"])
+    acc.add(np.ones((2, 3)))
+    assert len(acc.overlaps) == 1

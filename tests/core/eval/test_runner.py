@@ -7,9 +7,11 @@ import json
 import numpy as np
 import pytest
 
+from cerberus_core.errors import ConfigError, DatasetError
+from cerberus_core.eval.diagnostics import diagnostic_names
 from cerberus_core.eval.report import markdown_report, write_json
-from cerberus_core.eval.runner import evaluate_dataset
-from cerberus_core.eval.standard import VoxelScorer
+from cerberus_core.eval.runner import batch_result, evaluate_dataset, iterate_batches
+from cerberus_core.eval.standard import GroundTruthMemo, VoxelScorer
 from tests.support.oracle import IMAGE_SIZE, OracleModel
 
 
@@ -117,3 +119,46 @@ def test_model_output_is_checked(tiny_dataset, iou_scorer):
     with pytest.raises(TypeError, match="PartSet"):
         evaluate_dataset(tiny_dataset, lambda images, camera: images, skip=("hard",),
                          scorer=VoxelScorer(factory=iou_scorer), progress=False)
+
+
+def test_the_result_answers_in_and_names_a_wrong_entry(tiny_dataset, iou_scorer):
+    res = evaluate_dataset(tiny_dataset, OracleModel(tiny_dataset), indices=[3], skip=tuple(diagnostic_names()),
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    assert "hard" in res and "allocation" in res and "hrad" not in res and res["hard"] is None
+    with pytest.raises(KeyError, match="no entry 'hrad' \\(did you mean 'hard'\\?\\); its entries: hard, canonical"):
+        res["hrad"]
+
+
+def test_a_misspelt_option_is_named_before_anything_runs(tiny_dataset, iou_scorer):
+    model = OracleModel(tiny_dataset)
+    with pytest.raises(ConfigError, match="skipp = .*not a setting of EvalConfig \\(did you mean 'skip'\\?\\)"):
+        evaluate_dataset(tiny_dataset, model, skipp=("hard",), scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    assert model.calls == 0
+
+
+def test_a_batch_without_a_pose_is_named(tiny_dataset, iou_scorer):
+    class NoPose:  # the tiny set without its items' pose field
+        def __init__(self, ds):
+            self.ds = ds
+
+        def __len__(self):
+            return len(self.ds)
+
+        def __getitem__(self, i):
+            return {k: v for k, v in self.ds[i].items() if k != "pose"}
+
+        def __getattr__(self, name):
+            return getattr(self.ds, name)
+
+    with pytest.raises(DatasetError, match="dataset item 3 lacks the field pose; the evaluation needs subject, pose"):
+        evaluate_dataset(NoPose(tiny_dataset), OracleModel(tiny_dataset), indices=[3], skip=tuple(diagnostic_names()),
+                         scorer=VoxelScorer(factory=iou_scorer), progress=False)
+
+
+def test_a_batch_keeps_each_scorers_voxels_apart(tiny_dataset, iou_scorer):
+    (idx, batch, camera), = iterate_batches(tiny_dataset, [3], 1)
+    recon = OracleModel(tiny_dataset)(batch["images"], camera)
+    result = batch_result(tiny_dataset, batch, idx, recon, camera, GroundTruthMemo(tiny_dataset.gt_mesh))
+    coarse, fine = VoxelScorer(resolution=8, factory=iou_scorer), VoxelScorer(resolution=32, factory=iou_scorer)
+    assert result.voxels(0, coarse).gt.shape[0] <= 8 < result.voxels(0, fine).gt.shape[0]
+    assert result.voxels(0, coarse) is result.voxels(0, coarse)  # once per batch and scorer

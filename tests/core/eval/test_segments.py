@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from cerberus_core.errors import ConfigError, DatasetError
 from cerberus_core.eval.segments import (
     SPARE_LOSS,
     BodySegments,
@@ -13,6 +14,7 @@ from cerberus_core.eval.segments import (
     deletion_losses,
     group_by_body,
     image_segments,
+    one_vocabulary,
     segments_line,
 )
 from cerberus_core.eval.standard import VoxelScorer
@@ -139,3 +141,17 @@ def test_data_without_segment_labels_says_so_and_still_counts_spare_parts(primit
 def test_views_of_one_pose_share_one_render():
     a, b = object(), object()
     assert group_by_body([a, a, b, a, b]) == [[0, 1, 3], [2, 4]]
+
+
+def test_adding_by_hand_needs_the_vocabulary_and_update_needs_one(primitive_bodies, iou_scorer):
+    scorer = VoxelScorer(factory=iou_scorer)
+    body = primitive_bodies[0]
+    image = image_segments(scorer.voxels(body_parts(body).part_meshes(0), (body.vertices, body.faces)), body.vertices,
+                           body.vertex_parts, len(body.part_names))
+    with pytest.raises(ConfigError, match=r"segments: BodySegments.add needs .*`BodySegments\(segments=\[...\]"):
+        BodySegments().add(image)
+    with pytest.raises(ConfigError, match="num_parts: BodySegments.add needs"):
+        BodySegments(segments=list(body.part_names)).add(image)
+    assert one_vocabulary(None, 0, body.part_names, "body segments") == list(body.part_names)
+    with pytest.raises(DatasetError, match="item 7: ground-truth segments \\['body'\\] differ .*; body segments needs"):
+        one_vocabulary(list(body.part_names), 7, ["body"], "body segments")

@@ -241,6 +241,14 @@ class ManifestFormatError(DatasetError):
     type); the reader that catches it names the manifest and the fix (:mod:`cerberus_core.datasets.manifest`)."""
 
 
+class UnknownEntryError(CerberusError, KeyError):
+    """A result read by a name it has no entry of (``result["hrad"]`` of
+    :class:`cerberus_core.eval.runner.EvaluationResult`); a ``KeyError`` too, as a mapping's lookup raises."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0])
+
+
 class UnknownSubjectError(CerberusError, KeyError):
     """The Hard Human test was asked to pose a subject it has no canonical image of
     (:meth:`cerberus_core.eval.hard.CanonicalParts.pose`); a ``KeyError`` too, as it was."""
@@ -254,4 +262,4 @@ __all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "Con
            "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError",
            "NonFiniteError", "OutputError", "PluginError", "PluginLoadError", "ReleaseMismatchError",
            "RenderInputError", "RunExistsError", "ShapeError", "TextFormatError", "TrainingDatasetError",
-           "UnknownPluginError", "UnknownSubjectError", "ZooError", "shown"]
+           "UnknownEntryError", "UnknownPluginError", "UnknownSubjectError", "ZooError", "shown"]

@@ -307,8 +307,8 @@ class Run:
                  verbose: bool = True) -> Evaluation:
         """Score the run on a split and write the results folder: what ``cerberus eval`` does.
 
-        Voxel IoU, the Hard Human test, part quality, part visibility and depth across views in one
-        pass (:func:`~cerberus_core.eval.runner.evaluate_dataset`), then ``results.json``,
+        Voxel IoU and every diagnostic of :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` that ``settings``
+        does not skip in one pass (:func:`~cerberus_core.eval.runner.evaluate_dataset`), then ``results.json``,
         ``results.md``, the figure ``table2.png`` and ``pictures/`` (with the 3D viewer), all replacing
         ``out`` in one step once written (an error leaves it as it was).
 

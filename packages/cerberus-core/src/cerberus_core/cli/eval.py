@@ -1,5 +1,5 @@
-"""``cerberus eval``: score a trained run on a test split (voxel IoU, Hard Human, part quality):
-:meth:`cerberus_core.run.Run.evaluate`."""
+"""``cerberus eval``: score a trained run on a test split (voxel IoU and every diagnostic of
+:data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`): :meth:`cerberus_core.run.Run.evaluate`."""
 from __future__ import annotations
 
 import argparse
@@ -13,15 +13,14 @@ from cerberus_core.eval.diagnostics import DIAGNOSTICS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    diagnostics = "; ".join(f"{row.about} [{skip_flag(row.name)}]" for row in DIAGNOSTICS)
     p = sub.add_parser(
-        "eval", help="evaluate a trained run on a test split: voxel IoU, Hard Human, part quality, figure",
+        "eval", help="evaluate a trained run on a test split: voxel IoU, the diagnostics, figures",
         description="Evaluate a trained model (a run folder, model.safetensors or checkpoint .pt) on the test split of "
         "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
-        "entry point, 'kato' protocol), per image and per subject; the Hard Human test (parts from each subject's "
-        "canonical image, posed by every other image); part quality against the ground-truth semantic parts that "
-        "training never saw; how often each learned part is wholly hidden in its input view; per ground-truth body "
-        "segment (head, lower arms, shins...), its voxel recall, its share of the off-body voxels and its coverage in "
-        "the input view, and per learned part the IoU lost when it is deleted (spare parts). Writes results.json, "
+        f"entry point, 'kato' protocol), per image and per subject; and the diagnostics, each skipped by the flag "
+        f"beside it: {diagnostics}. "
+        "Writes results.json, "
         "results.md, a Table-2-like figure (table2.png, with the voxels missed and off the body seen from the "
         "front and the side) and, for the same images, the pictures of the paper's "
         "Figure 1 (pictures/: input, output, parts, new lighting, turntable, new pose), with their meshes (GLB: reconstruction, ground truth, new pose) and pictures/index.html, an "
@@ -50,8 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure (default: 5)")
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="figure images in the interactive 3D viewer pictures/index.html (default: up to 12; 0: none)")
-    p.add_argument("--renderer", help="renderer backend for the figure and the part-visibility render "
-                   "(default: the run's)")
+    p.add_argument("--renderer", help="renderer backend of every render in the input views (part visibility, "
+                   "depth, body segments, allocation) and of the figures (default: the run's)")
     p.add_argument("--device", default="cpu", help="device for the model (default: cpu)")
     p.add_argument("--input-look", default=None, choices=INPUT_LOOKS,
                    help="show the model the test images in this look: shaded (as stored), flat (each body's mask "

@@ -54,7 +54,7 @@ class BatchResult:
     bodies: list[PosedBody]
     records: list[dict[str, Any]]
     singles: list[PartSet] = field(init=False)
-    _voxels: dict[int, Voxels] = field(init=False, default_factory=dict)
+    _voxels: dict[tuple[int, int], Voxels] = field(init=False, default_factory=dict)
     _part_id: dict[int, torch.Tensor] = field(init=False, default_factory=dict)
     _foreground: dict[int, torch.Tensor] = field(init=False, default_factory=dict)
 
@@ -62,11 +62,12 @@ class BatchResult:
         self.singles = [self.recon.index(b) for b in range(len(self.items))]
 
     def voxels(self, b: int, scorer: VoxelScorer) -> Voxels:
-        """Image ``b``'s voxels, scored by ``scorer`` (:meth:`VoxelScorer.voxels`), once per batch."""
-        if b not in self._voxels:
+        """Image ``b``'s voxels, scored by ``scorer`` (:meth:`VoxelScorer.voxels`), once per batch and scorer."""
+        key = (id(scorer), b)
+        if key not in self._voxels:
             body = self.bodies[b]
-            self._voxels[b] = scorer.voxels(self.singles[b].part_meshes(0), (body.vertices, body.faces))
-        return self._voxels[b]
+            self._voxels[key] = scorer.voxels(self.singles[b].part_meshes(0), (body.vertices, body.faces))
+        return self._voxels[key]
 
     def part_id(self, renderer: Renderer) -> torch.Tensor:
         """``(B, H, W)`` the part in front at each pixel of the input views (-1: none), rendered once per

@@ -15,7 +15,8 @@ reach the limbs by stretching. Three numbers per test set tell the two apart, al
   The same spread of each ground-truth segment's projected centroid is reported beside it, for scale.
 * **Segment → keypoint** per ground-truth segment (:func:`nearest_keypoint_distances`): the median over
   images of the distance from the segment's vertex centroid (the mean of its vertices, projected with
-  the input camera) to the nearest keypoint, in pixels.
+  the input camera) to the nearest keypoint, in pixels. Without segment labels (a mesh folder without
+  ``parts.npy``) the one segment ``body`` is the whole body: allocation needs no labels.
 * **Unique coverage** per learned part (:func:`unique_coverage`): the share of the ground truth's
   foreground pixels that this part alone covers in the input view (each part rendered on its own: a
   pixel counts when its silhouette holds it and no other part's does, hidden or not), mean over images.
@@ -33,9 +34,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.errors import DatasetError, ShapeError
+from cerberus_core.errors import ShapeError
 from cerberus_core.eval.depth import coverage_masks
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
+from cerberus_core.eval.segments import one_vocabulary, vocabulary_set
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
@@ -258,13 +260,9 @@ class Allocation:
         """Measure the batch; every body must share the first one's segments (one body source), else a
         :class:`DatasetError`. Bodies of different vertex layouts (animals of several species) are measured a
         layout at a time and put back in the batch's order."""
-        if self.segments is None:
-            self.segments, self.num_parts = list(batch.bodies[0].part_names), batch.recon.num_parts
         for item, body in zip(batch.items, batch.bodies, strict=True):
-            if list(body.part_names) != self.segments:
-                raise DatasetError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
-                                   f"item's {self.segments}; allocation needs one vocabulary of segments: evaluate a "
-                                   "dataset of one body source")
+            self.segments = one_vocabulary(self.segments, item.index, body.part_names, "allocation")
+        self.num_parts = batch.recon.num_parts if self.num_parts is None else self.num_parts
         foreground = batch.gt_foreground(self.renderer)
         layouts: dict[tuple[int, bytes], list[int]] = {}
         for b, body in enumerate(batch.bodies):
@@ -286,6 +284,7 @@ class Allocation:
 
     def add(self, batch: ImageAllocation) -> None:
         """Record a batch's measurements (:func:`measure_allocation`)."""
+        vocabulary_set("Allocation", self.segments, self.num_parts)
         check_shapes("Allocation.add", keypoints=(batch.keypoints, f"B {self.num_parts} 2"),
                      segments=(batch.segments, f"B {len(self.segments)} 2"), unique=(batch.unique, f"B {self.num_parts}"))
         self.batches.append(batch)

@@ -2,7 +2,8 @@
 
 Two ``cerberus eval`` results of the same test set (``results.json``, or
 :attr:`~cerberus_core.eval.runner.EvaluationResult.records`) score the same images, so their difference is
-best read per image: the images are matched by their record's ``index``, and :func:`paired_difference`
+best read per image: the images are matched by their record's ``index`` (and must agree on ``subject``, ``pose``
+and ``view`` where both records have them), and :func:`paired_difference`
 gives the mean of ``a - b`` over the images both scored, its standard error and how many images favour
 ``a`` (:class:`PairedDifference`). Pairing removes what the images share (a hard pose is hard for both
 models), so its standard error is usually much smaller than either mean's own. Any per-image value of the
@@ -17,6 +18,8 @@ import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
+
+from cerberus_core.errors import DatasetError
 
 #: A ``results.json`` dict (its ``records``) or the records themselves: one dict per image, with its ``index``.
 Evaluation = Mapping[str, Any] | Sequence[Mapping[str, Any]]
@@ -44,6 +47,21 @@ class PairedDifference:
         return f"{self.mean:+.3f} ± {self.sem:.3f} ({self.better} / {self.n})"
 
 
+IDENTITY = ("subject", "pose", "view")
+"""The fields of a record that name its image besides ``index``: two records paired by ``index`` must agree on
+those both have."""
+
+
+def _same_image(ra: Mapping[str, Any], rb: Mapping[str, Any]) -> None:
+    """Two records paired by ``index`` are of one image: a :class:`DatasetError` where they differ in a field of
+    :data:`IDENTITY` both have (two evaluations of different test sets or splits)."""
+    for name in IDENTITY:
+        if name in ra and name in rb and ra[name] != rb[name]:
+            raise DatasetError(f"image {ra['index']} is {name} {ra[name]!r} in one evaluation and {rb[name]!r} in the "
+                               "other: they scored different test sets; compare two evaluations of the same dataset "
+                               "and split")
+
+
 def _records(evaluation: Evaluation) -> Sequence[Mapping[str, Any]]:
     return evaluation.get("records", []) if isinstance(evaluation, Mapping) else evaluation
 
@@ -54,7 +72,9 @@ def paired_difference(a: Evaluation | None, b: Evaluation | None, key_a: str = "
 
     Args:
         a, b: two evaluations of the same test set: a ``results.json`` dict (its ``records``) or the records,
-            one dict per image with its ``index``; in any order, and either may lack images.
+            one dict per image with its ``index``; in any order, and either may lack images. Records paired by
+            ``index`` that both name their image (``subject``, ``pose``, ``view``) must name the same one, else a
+            :class:`~cerberus_core.errors.DatasetError` (evaluations of different test sets).
         key_a: the per-image value of ``a`` (``"iou"``, ``"hard_iou"``...).
         key_b: that of ``b``; ``key_a`` if None.
     Returns:
@@ -77,8 +97,13 @@ def paired_difference(a: Evaluation | None, b: Evaluation | None, key_a: str = "
         return None
     key_b = key_a if key_b is None else key_b
     rb = {r["index"]: r for r in _records(b)}
-    d = [r[key_a] - rb[r["index"]][key_b] for r in _records(a)
-         if r.get(key_a) is not None and rb.get(r["index"], {}).get(key_b) is not None]
+    d = []
+    for r in _records(a):
+        other = rb.get(r["index"], {})
+        if r.get(key_a) is None or other.get(key_b) is None:
+            continue
+        _same_image(r, other)
+        d.append(r[key_a] - other[key_b])
     if len(d) < 2:
         return None
     return PairedDifference(statistics.mean(d), statistics.stdev(d) / len(d) ** 0.5, sum(x > 0 for x in d), len(d))

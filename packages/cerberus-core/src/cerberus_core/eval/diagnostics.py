@@ -109,7 +109,7 @@ DIAGNOSTICS: list[Diagnostic] = [
                frozenset({"renderer", "scipy", "segments"}), line=segments_line, section=segments_section),
     Diagnostic("allocation", Allocation, "the allocation diagnostics (per learned part its keypoint's spread around "
                "the silhouette centroid and the foreground it alone covers; per segment the nearest keypoint)",
-               frozenset({"renderer", "segments"}), line=allocation_line, section=allocation_section),
+               frozenset({"renderer"}), line=allocation_line, section=allocation_section),
 ]
 """Every evaluation diagnostic, in the order they report (see the module docstring); they run in this order too,
 the rows marked :attr:`Diagnostic.first` before the others."""

@@ -9,7 +9,7 @@ Layout for an image exported under ``stem`` into ``out_dir``::
     out_dir/stem_parts/part_00.obj   each part alone, vertex-coloured
 
 Coordinates are the world frame of the dataset (+Y up, normalised units). Every file is written to a
-temporary name and renamed (:func:`cerberus_core.datasets.format.atomic_write`), so an interrupted export
+temporary name and renamed (:func:`cerberus_core.plumbing.atomic.atomic_write`), so an interrupted export
 never leaves a truncated mesh.
 """
 from __future__ import annotations

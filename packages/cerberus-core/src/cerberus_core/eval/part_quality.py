@@ -48,8 +48,9 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from cerberus_core.errors import ConfigError, DatasetError, MeshError, MissingPackageError
+from cerberus_core.errors import ConfigError, MeshError, MissingPackageError
 from cerberus_core.eval.markdown import fmt, markdown_table
+from cerberus_core.eval.segments import one_vocabulary, vocabulary_set
 from cerberus_core.eval.visibility import visibility_cells, visibility_header, visibility_sentence
 from cerberus_core.shapes import check_shapes
 
@@ -218,17 +219,14 @@ class PartQuality:
         faces = batch.recon.faces.numpy()
         for b, item, one, _, _ in batch.scored():
             body = batch.bodies[b]
-            if self.gt_part_names is None:
-                self.num_parts, self.gt_part_names = batch.recon.num_parts, list(body.part_names)
-            elif list(body.part_names) != self.gt_part_names:
-                raise DatasetError(f"item {item.index}: ground-truth part names {body.part_names} differ from the "
-                                   f"first item's {self.gt_part_names}; part quality needs one part "
-                                   "vocabulary: evaluate a dataset of one body source")
+            self.gt_part_names = one_vocabulary(self.gt_part_names, item.index, body.part_names, "part quality")
+            self.num_parts = batch.recon.num_parts if self.num_parts is None else self.num_parts
             self.add(image_overlap(one.posed()[0].numpy(), faces, body.vertices, body.faces, body.vertex_parts,
                                    len(body.part_names), weighting=self.weighting, density=self.density), item.subject)
 
     def add(self, overlap: np.ndarray, group: str = "") -> None:
         """Record one image's ``(P, K)`` overlap matrix; ``group`` is its subject or species."""
+        vocabulary_set("PartQuality", self.gt_part_names, self.num_parts, key="gt_part_names")
         m = np.asarray(overlap, dtype=np.float64)
         check_shapes("PartQuality.add", overlap=(m, f"{self.num_parts} {self.num_gt_parts}"))
         self.overlaps.append(m)

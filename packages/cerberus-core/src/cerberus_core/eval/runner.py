@@ -20,21 +20,22 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
-from cerberus_core.errors import DatasetError, InputTypeError, ShapeError
+from cerberus_core.errors import ConfigError, DatasetError, InputTypeError, ShapeError, UnknownEntryError
 from cerberus_core.eval.accumulators import BatchResult, EvalContext, StandardIoU
-from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_skip, needed, running
+from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages, check_skip, needed, running
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
 from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import PartSet
 from cerberus_core.plumbing.machine import MAX_WORKERS, capped_to_cores
+from cerberus_core.plumbing.names import did_you_mean
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
@@ -72,9 +73,14 @@ def dataset_metadata(dataset: Any) -> list[ItemMeta]:
             out.append(ItemMeta(i, subject_label(dataset, item["subject"]), int(item["pose"]), int(item["view"]),
                                 bool(item.get("is_canonical", False))))
         except KeyError as exc:
-            raise DatasetError(f"dataset item {i} lacks the field {exc}; the evaluation needs subject, pose, view "
-                           "(and is_canonical for the Hard Human test)") from None
+            raise missing_fields(i, [str(exc.args[0])]) from None
     return out
+
+
+def missing_fields(index: int, names: Sequence[str]) -> DatasetError:
+    """The error of a dataset item (``index``) that lacks the fields ``names`` the evaluation reads."""
+    return DatasetError(f"dataset item {index} lacks the field{'s' if len(names) > 1 else ''} {', '.join(names)}; the "
+                        "evaluation needs subject, pose, view (and is_canonical for the Hard Human test)")
 
 
 def collate(items: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
@@ -142,10 +148,16 @@ class EvaluationResult:
     seconds: float = 0.0
 
     def __getitem__(self, key: str) -> Any:
-        """A diagnostic's entry (``result["hard"]``, ``result["segments"]``), ``None`` when it was skipped."""
+        """A diagnostic's entry (``result["hard"]``, ``result["segments"]``), ``None`` when it was skipped; an
+        :class:`~cerberus_core.errors.UnknownEntryError` (a ``KeyError``) naming the entries for another key."""
         if key not in self.diagnostics:
-            raise DatasetError(f"EvaluationResult has no entry {key!r}; its entries: {', '.join(self.diagnostics)}")
+            raise UnknownEntryError(f"EvaluationResult has no entry {key!r}" + did_you_mean(str(key), self.diagnostics)
+                                    + f"; its entries: {', '.join(self.diagnostics)}")
         return self.diagnostics[key]
+
+    def __contains__(self, key: object) -> bool:
+        """Whether the result has the entry ``key`` (a diagnostic's, skipped or not: ``"hard" in result``)."""
+        return key in self.diagnostics
 
     def part_labels(self) -> list[str | None] | None:
         """Each learned part's label (the ground-truth part it covers most over the images scored; ``None`` where
@@ -232,6 +244,9 @@ def batch_result(dataset: Any, batch: dict[str, Any], batch_idx: list[int], reco
                  gt_memo: GroundTruthMemo) -> BatchResult:
     """What every metric needs of one batch: each image's identity, ground truth and record."""
     flags = batch.get("is_canonical", [False] * len(batch_idx))
+    missing = [k for k in ("subject", "pose", "view") if k not in batch]
+    if missing:
+        raise missing_fields(batch_idx[0], missing)
     items = [ItemMeta(idx, subject_label(dataset, batch["subject"][b]), int(batch["pose"][b]), int(batch["view"][b]),
                       bool(flags[b])) for b, idx in enumerate(batch_idx)]
     bodies = [gt_memo.get((m.subject, m.pose), m.index) for m in items]
@@ -255,10 +270,20 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
             up in the whole dataset.
         device: the model's device.
         scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
-        options: :class:`EvalConfig` fields that replace ``config``'s (``skip=("hard",)``, ``batch_size=6``...).
+        options: :class:`EvalConfig` fields that replace ``config``'s (``skip=("hard",)``, ``batch_size=6``...);
+            another name is a :class:`~cerberus_core.errors.ConfigError` (with "did you mean").
+    Raises:
+        MissingPackageError: before anything runs, when a diagnostic that runs needs a package that is not
+            installed (:func:`~cerberus_core.eval.diagnostics.check_eval_packages`).
     """
     t0 = time.perf_counter()
+    settings = [f.name for f in fields(EvalConfig)]
+    for key in options:
+        if key not in settings:
+            raise ConfigError.about(key, options[key], "is not a setting of EvalConfig" + did_you_mean(key, settings)
+                                    + f"; its settings: {', '.join(settings)}")
     config = replace(config or EvalConfig(), **options)
+    check_eval_packages(config.skip)  # before any image is reconstructed
     scorer = scorer or VoxelScorer(config.protocol, config.resolution)
     indices = list(range(len(dataset))) if indices is None else [int(i) for i in indices]
     if not indices:

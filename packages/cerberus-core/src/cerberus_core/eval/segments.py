@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cerberus_core.errors import DatasetError, MissingPackageError
+from cerberus_core.errors import ConfigError, DatasetError, MissingPackageError
 from cerberus_core.eval.markdown import fmt, markdown_table, part_labels, sentence
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.render.camera import Camera
@@ -207,12 +207,8 @@ class BodySegments:
         coverage = self._coverage(batch) if self.renderer is not None else [None] * len(batch.items)
         for b, item, one, _, rec in batch.scored():
             body = batch.bodies[b]
-            if self.segments is None:
-                self.segments, self.num_parts = list(body.part_names), one.num_parts
-            elif list(body.part_names) != self.segments:
-                raise DatasetError(f"item {item.index}: ground-truth segments {body.part_names} differ from the first "
-                                   f"item's {self.segments}; body segments need one vocabulary: evaluate a "
-                                   "dataset of one body source")
+            self.segments = one_vocabulary(self.segments, item.index, body.part_names, "body segments")
+            self.num_parts = one.num_parts if self.num_parts is None else self.num_parts
             image = image_segments(batch.voxels(b, self.scorer), body.vertices, body.vertex_parts,
                                    len(body.part_names), coverage[b])
             self.add(image)
@@ -237,6 +233,7 @@ class BodySegments:
 
     def add(self, image: ImageSegments) -> None:
         """Record one image's counts (:func:`image_segments`)."""
+        vocabulary_set("BodySegments", self.segments, self.num_parts)
         check_shapes("BodySegments.add", gt_voxels=(image.gt_voxels, f"{len(self.segments)}"),
                      deletion_loss=(image.deletion_loss, f"{self.num_parts}"))
         self.images.append(image)
@@ -304,6 +301,37 @@ def segments_line(summary: dict[str, Any], lowest: int = 4) -> str:
     best = order[-1]
     return ("voxel recall by body segment: lowest " + ", ".join(f"{k} {recall[k]:.2f}" for k in order[:lowest])
             + f" (highest {best} {recall[best]:.2f}); {spare}")
+
+
+def one_vocabulary(known: list[str] | None, index: int, names: Sequence[str], who: str) -> list[str]:
+    """The ground-truth segment names an accumulator keeps: image ``index``'s ``names`` when it has none yet
+    (``known`` is ``None``), else ``known`` when ``names`` equal them, else a :class:`DatasetError` naming the
+    item (``who``: the diagnostic, e.g. ``"part quality"``). Part quality, body segments and allocation count per
+    segment, so every image they score must share one vocabulary (one body source).
+
+    >>> one_vocabulary(None, 0, ("head", "torso"), "allocation")
+    ['head', 'torso']
+    >>> one_vocabulary(["head", "torso"], 5, ("body",), "allocation")
+    Traceback (most recent call last):
+    ...
+    cerberus_core.errors.DatasetError: item 5: ground-truth segments ['body'] differ from the first item's ['head', 'torso']; allocation needs one vocabulary of segments: evaluate a dataset of one body source
+    """
+    if known is None:
+        return list(names)
+    if list(names) != known:
+        raise DatasetError(f"item {index}: ground-truth segments {list(names)} differ from the first item's {known}; "
+                           f"{who} needs one vocabulary of segments: evaluate a dataset of one body source")
+    return known
+
+
+def vocabulary_set(who: str, segments: list[str] | None, num_parts: int | None, key: str = "segments") -> None:
+    """Before :meth:`add` of an accumulator that counts per segment and part: both set (:meth:`update` sets them
+    from the first image), else a :class:`ConfigError` naming the fix."""
+    if segments is None or num_parts is None:
+        raise ConfigError.about(key if segments is None else "num_parts", None,
+                                f"{who}.add needs the ground-truth segment names and the learned part count; "
+                                f"update() takes them from the first batch; to add by hand, make it with "
+                                f"`{who}({key}=[...], num_parts=P)`")
 
 
 def group_by_body(bodies: Sequence[Any]) -> list[list[int]]:

@@ -141,8 +141,8 @@ def visibility_line(summary: dict[str, Any]) -> str:
 
 
 def visibility_sentence(vis: Mapping[str, Any]) -> str:
-    h, w = vis["image_size"]
     """The report's sentence on part visibility (its JSON form)."""
+    h, w = vis["image_size"]
     return (f"Part visibility in the input view ({h}x{w} renders of the reconstruction, {vis['images']} images): "
             f"{visibility_line(vis)}. *Hidden*: the fraction of images where no pixel shows the part (it gets no "
             "gradient from the paper's renderer there); *silhouette share*: its mean share of the rendered "
