@@ -145,13 +145,15 @@ def needed(skip: Sequence[str], need: str) -> bool:
     return any(need in d.needs for d in running(skip))
 
 
-def check_eval_packages(skip: Sequence[str] = ()) -> None:
+def check_eval_packages(skip: Sequence[str] = (), metric: bool = True) -> None:
     """Before an evaluation starts: every optional package it needs is installed (cerberus-metrics, through its
-    metric entry point; scipy, for the rows that need it and ``skip`` does not name), else one
-    :class:`MissingPackageError` naming them all and the extra that brings them, ``cerberus-core[eval]``."""
+    metric entry point, unless ``metric`` is false: the caller brings its own scorer; scipy, for the rows that need
+    it and ``skip`` does not name), else one :class:`MissingPackageError` naming them all and the extra that brings
+    them, ``cerberus-core[eval]``."""
     missing = []
     try:
-        get_metric(SCORER_ENTRY_POINT)
+        if metric:
+            get_metric(SCORER_ENTRY_POINT)
     except UnknownPluginError:
         missing.append("cerberus-metrics")
     if needed(skip, "scipy") and find_spec("scipy") is None:

@@ -283,7 +283,7 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
             raise ConfigError.about(key, options[key], "is not a setting of EvalConfig" + did_you_mean(key, settings)
                                     + f"; its settings: {', '.join(settings)}")
     config = replace(config or EvalConfig(), **options)
-    check_eval_packages(config.skip)  # before any image is reconstructed
+    check_eval_packages(config.skip, metric=scorer is None)  # before any image is reconstructed
     scorer = scorer or VoxelScorer(config.protocol, config.resolution)
     indices = list(range(len(dataset))) if indices is None else [int(i) for i in indices]
     if not indices:
