@@ -131,7 +131,8 @@ def test_the_result_answers_in_and_names_a_wrong_entry(tiny_dataset, iou_scorer)
 
 def test_a_misspelt_option_is_named_before_anything_runs(tiny_dataset, iou_scorer):
     model = OracleModel(tiny_dataset)
-    with pytest.raises(ConfigError, match="skipp = .*not a setting of EvalConfig \\(did you mean 'skip'\\?\\)"):
+    with pytest.raises(ConfigError, match="unknown config key\\(s\\) \\['skipp'\\] \\(did you mean 'skip'\\?\\); "
+                                          "valid keys here: \\['batch_size', 'canonical_view'"):
         evaluate_dataset(tiny_dataset, model, skipp=("hard",), scorer=VoxelScorer(factory=iou_scorer), progress=False)
     assert model.calls == 0
 

@@ -393,6 +393,23 @@ def upgrade(cls: type, d: Any) -> Any:
     return out
 
 
+def check_known(keys: Iterable[Any], known: Iterable[str], prefix: str = "") -> None:
+    """Every one of ``keys`` is one of ``known`` (the settings of one section, said under ``prefix``), else a
+    :class:`ConfigError` naming the unknown ones, the closest valid key and the valid keys.
+
+    >>> check_known(["skipp"], ["skip", "limit"])
+    Traceback (most recent call last):
+    ...
+    cerberus_core.errors.ConfigError: unknown config key(s) ['skipp'] (did you mean 'skip'?); valid keys here: ['limit', 'skip']
+    """
+    known = list(known)
+    unknown = sorted(set(keys) - set(known), key=str)  # a YAML key may be a number
+    if unknown:
+        raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
+                          f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
+                          f"valid keys here: {sorted(prefix + k for k in known)}", key=prefix + str(unknown[0]))
+
+
 def build(cls: type, d: Any, prefix: str = "") -> Any:
     """The dataclass ``cls`` from a plain mapping, every value checked against its type hint.
 
@@ -413,10 +430,7 @@ def build(cls: type, d: Any, prefix: str = "") -> Any:
         conversions = ", ".join(f"{str(a).lower() if isinstance(a, bool) else a} → {b}" for a, b in values.items())
         raise ConfigError(f"{prefix}{retired[0]} became {prefix}{new} ({conversions}); remove {prefix}{retired[0]} "
                           f"and write `{prefix}{new}=VALUE` in its place", key=prefix + str(retired[0]))
-    if unknown:
-        raise ConfigError(f"unknown config key(s) {[prefix + str(k) for k in unknown]}"
-                          f"{did_you_mean(prefix + str(unknown[0]), [prefix + k for k in known])}; "
-                          f"valid keys here: {sorted(prefix + k for k in known)}", key=prefix + str(unknown[0]))
+    check_known(d, known, prefix)
     missing = [f.name for f in fields(cls)
                if f.init and f.name not in d and f.default is MISSING and f.default_factory is MISSING]
     if missing:

@@ -151,11 +151,11 @@ def check_eval_packages(skip: Sequence[str] = (), metric: bool = True) -> None:
     it and ``skip`` does not name), else one :class:`MissingPackageError` naming them all and the extra that brings
     them, ``cerberus-core[eval]``."""
     missing = []
-    try:
-        if metric:
+    if metric:
+        try:
             get_metric(SCORER_ENTRY_POINT)
-    except UnknownPluginError:
-        missing.append("cerberus-metrics")
+        except UnknownPluginError:
+            missing.append("cerberus-metrics")
     if needed(skip, "scipy") and find_spec("scipy") is None:
         missing.append("scipy")
     if missing:

@@ -27,7 +27,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from cerberus_core.errors import ConfigError, DatasetError, InputTypeError, ShapeError, UnknownEntryError
+from cerberus_core.config import check_known
+from cerberus_core.errors import DatasetError, InputTypeError, ShapeError, UnknownEntryError
 from cerberus_core.eval.accumulators import BatchResult, EvalContext, StandardIoU
 from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages, check_skip, needed, running
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
@@ -271,17 +272,13 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
         device: the model's device.
         scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
         options: :class:`EvalConfig` fields that replace ``config``'s (``skip=("hard",)``, ``batch_size=6``...);
-            another name is a :class:`~cerberus_core.errors.ConfigError` (with "did you mean").
+            another name is a :class:`~cerberus_core.errors.ConfigError` (:func:`~cerberus_core.config.check_known`).
     Raises:
         MissingPackageError: before anything runs, when a diagnostic that runs needs a package that is not
             installed (:func:`~cerberus_core.eval.diagnostics.check_eval_packages`).
     """
     t0 = time.perf_counter()
-    settings = [f.name for f in fields(EvalConfig)]
-    for key in options:
-        if key not in settings:
-            raise ConfigError.about(key, options[key], "is not a setting of EvalConfig" + did_you_mean(key, settings)
-                                    + f"; its settings: {', '.join(settings)}")
+    check_known(options, (f.name for f in fields(EvalConfig)))
     config = replace(config or EvalConfig(), **options)
     check_eval_packages(config.skip, metric=scorer is None)  # before any image is reconstructed
     scorer = scorer or VoxelScorer(config.protocol, config.resolution)
