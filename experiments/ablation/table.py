@@ -12,19 +12,17 @@ steps per second. A variant that is missing shows ``-``.
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import load_evaluation, paired_difference
 from cerberus_core.train.logs import TrainingTime, training_time
 
 LIMBS = ("head", "upper_arm", "lower_arm", "thigh", "shin")
 
 
 def load(run: Path) -> tuple[dict | None, TrainingTime | None]:
-    res = run / "eval" / "results.json"
-    return json.loads(res.read_text()) if res.is_file() else None, training_time(run / "metrics.csv")
+    return load_evaluation(run, missing_ok=True), training_time(run / "metrics.csv")
 
 
 def limb_parts(pq: dict) -> str:

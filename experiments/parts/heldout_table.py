@@ -10,13 +10,12 @@ the canonical views.
 """
 from __future__ import annotations
 
-import json
 import sys
 
 import numpy as np
 
 from cerberus_core.bodies.human_heldout import FAMILIES, family_of, is_heldout_id
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import load_evaluation, paired_difference
 
 
 def _values(res: dict, key: str) -> np.ndarray:
@@ -28,7 +27,7 @@ def main(argv: list[str]) -> None:
     if not argv or any("=" not in a for a in argv):
         raise SystemExit("usage: heldout_table.py NAME=EVALDIR [NAME=EVALDIR ...] (EVALDIR: a `cerberus eval --out` folder)")
     runs = [a.split("=", 1) for a in argv]
-    res = {name: json.loads(open(f"{folder}/results.json").read()) for name, folder in runs}
+    res = {name: load_evaluation(folder) for name, folder in runs}
     first = runs[0][0]
     keys = [(r["subject"], r["pose"], r["view"]) for r in res[first]["records"]]
     for name, folder in runs:

@@ -14,18 +14,17 @@ IoU against its Hard Human IoU (the trade between fitting each image and parts t
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import load_evaluation, paired_difference
 from cerberus_core.train.logs import training_time
 
 LIMBS = ("head", "thigh", "shin", "lower_arm")
 
 
 def row(name: str, run: Path, base: dict | None) -> str:
-    res = json.loads((run / "eval" / "results.json").read_text())
+    res = load_evaluation(run)
     seg = (res.get("segments") or {})
     recall = seg.get("recall") or {}
     alloc = res.get("allocation") or {}
@@ -82,19 +81,17 @@ def main(argv: list[str]) -> int:
         print(__doc__, file=sys.stderr)
         return 2
     runs = [(a.split("=", 1)[0], Path(a.split("=", 1)[1])) for a in argv]
-    base = json.loads((runs[0][1] / "eval" / "results.json").read_text())
+    base = load_evaluation(runs[0][1])
     print("| row | IoU | vs first | Hard | spare | lower arm / shin recall | keypoint spread, top 4 (px) | "
           "forearm / shin → keypoint (px) | translation disagreement | merged labels ≥ 0.5 | minutes |")
     print("| --- | ---: | ---: | ---: | ---: | --- | --- | --- | ---: | --- | ---: |")
     for name, run in runs:
-        res_path = run / "eval" / "results.json"
-        if not res_path.is_file():
-            print(f"| {name} | - | not evaluated ({res_path}) |")
+        if load_evaluation(run, missing_ok=True) is None:
+            print(f"| {name} | - | not evaluated ({run / 'eval' / 'results.json'}) |")
             continue
         print(row(name, run, None if run == runs[0][1] else base))
     if plot is not None:
-        results = {name: json.loads((run / "eval" / "results.json").read_text()) for name, run in runs
-                   if (run / "eval" / "results.json").is_file()}
+        results = {name: r for name, run in runs if (r := load_evaluation(run, missing_ok=True)) is not None}
         plot_trade({name: (r["standard"]["mean"], r["hard"]["mean"]) for name, r in results.items()
                     if (r.get("hard") or {}).get("mean") is not None}, plot)
         print(f"wrote {plot}")

@@ -15,12 +15,11 @@ Hard Human test and the 3D viewer are skipped: the curve needs the IoU only. ``-
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 from pathlib import Path
 
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import load_evaluation, paired_difference
 
 
 def score(ckpt: Path, data: str, out: Path, extra: list[str]) -> float:
@@ -32,7 +31,7 @@ def score(ckpt: Path, data: str, out: Path, extra: list[str]) -> float:
         done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         if done.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr[-2000:]}")
-    return json.loads(results.read_text())["standard"]["mean"]
+    return load_evaluation(results)["standard"]["mean"]
 
 
 def curve(run: Path, test: str, train: str, limit: int) -> list[tuple[int, float, float]]:
@@ -96,8 +95,7 @@ def main(argv: list[str]) -> int:
     for pair in args.pair:
         a, _, b = pair.partition("-")
         for step in sorted({r[0] for r in curves[a]} & {r[0] for r in curves[b]}):
-            res = [json.loads((Path(paths[n]) / "curve" / f"step_{step:07d}" / "test" / "results.json").read_text())
-                   for n in (a, b)]
+            res = [load_evaluation(Path(paths[n]) / "curve" / f"step_{step:07d}" / "test") for n in (a, b)]
             d = paired_difference(*res)
             print(f"{a} - {b} at step {step:,}: " + (f"{d.mean:+.4f} ± {d.sem:.4f} ({d.better} / {d.n} images favour {a})"
                                                     if d else "fewer than 2 test images scored by both"))

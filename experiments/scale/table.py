@@ -13,20 +13,15 @@ and, if it was measured, ``eval_train/results.json`` (``cerberus eval RUN --data
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import load_evaluation, paired_difference
 from cerberus_core.train.logs import training_time
 
 
-def load(path: Path) -> dict | None:
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
 def summary(run: Path) -> dict:
-    test, train = load(run / "eval" / "results.json"), load(run / "eval_train" / "results.json")
+    test, train = load_evaluation(run / "eval", missing_ok=True), load_evaluation(run / "eval_train", missing_ok=True)
     trained = training_time(run / "metrics.csv")
     pq = (test or {}).get("part_quality") or {}
     vis = (test or {}).get("part_visibility") or {}

@@ -10,11 +10,10 @@ training cost. A run that is missing shows ``-``.
 from __future__ import annotations
 
 import csv
-import json
 import sys
 from pathlib import Path
 
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import load_evaluation, paired_difference
 from cerberus_core.eval.markdown import markdown_table
 from cerberus_core.eval.report import comparison_table
 from cerberus_core.train.logs import TrainingTime, training_time
@@ -31,8 +30,7 @@ def load(runs: Path, dataset: str, variant: str) -> tuple[dict | None, list[dict
     """The run's ``results.json`` (or None), its ``metrics.csv`` rows (or []) and its training steps and time
     summed over the sittings (:func:`~cerberus_core.train.logs.training_time`; None without a log)."""
     run = runs / f"{dataset}_{variant}"
-    res = run / "eval" / "results.json"
-    results = json.loads(res.read_text()) if res.is_file() else None
+    results = load_evaluation(run, missing_ok=True)
     log = run / "metrics.csv"
     rows = list(csv.DictReader(log.open())) if log.is_file() else []
     return results, rows, training_time(log)

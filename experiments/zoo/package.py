@@ -18,6 +18,7 @@ from pathlib import Path
 import yaml
 
 from cerberus_core.datasets.manifest import Manifest
+from cerberus_core.eval.compare import load_evaluation
 from cerberus_core.plumbing.atomic import atomic_write_text
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
@@ -63,12 +64,12 @@ def main() -> None:
     train_split = trained.config.splits.get("train")
     counts = ", ".join(f"{getattr(train_split, k):,} {k}" for k in ("pairs", "subjects")
                        if train_split is not None and getattr(train_split, k))
-    results = json.loads(((args.eval or args.run / "eval") / "results.json").read_text())
+    results = load_evaluation(args.eval or args.run / "eval")
     input_look = results.get("input_look", "shaded")
     compared = []
     for item in args.compare:
         label, _, folder = item.partition("=")
-        other = json.loads((Path(folder) / "results.json").read_text())
+        other = load_evaluation(folder)
         hard = f", Hard Human {other['hard']['mean']:.4f}" if other.get("hard") else ""
         compared.append(f"| voxel IoU, {label} ({other['standard']['count']} images, {other.get('input_look', 'shaded')} "
                         f"input look) | {other['standard']['mean']:.4f}{hard} |")

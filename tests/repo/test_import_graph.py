@@ -168,7 +168,8 @@ def test_the_direction_check_sees_an_upward_import():
 #: import lazily, so here function-local imports count too.
 CLI_LAYERS: list[tuple[str, ...]] = [
     ("cerberus_core.cli.flags", "cerberus_core.cli.checks", "cerberus_core.cli.tables", "cerberus_core.cli.datasets"),
-    ("cerberus_core.cli.data", "cerberus_core.cli.demo", "cerberus_core.cli.eval", "cerberus_core.cli.models",
+    ("cerberus_core.cli.compare", "cerberus_core.cli.data", "cerberus_core.cli.demo", "cerberus_core.cli.eval",
+     "cerberus_core.cli.models",
      "cerberus_core.cli.reconstruct", "cerberus_core.cli.renderers", "cerberus_core.cli.train"),
     ("cerberus_core.cli", "cerberus_core.cli.__main__"),
 ]

@@ -96,3 +96,90 @@ def test_records_of_different_test_sets_are_refused():
         paired_difference(a, b)
     assert paired_difference(a, [dict(b[0]), dict(a[1], iou=0.5)]).n == 2  # the same images pair
     assert paired_difference(a, _results({0: 0.4, 1: 0.5})).n == 2  # records that do not name their image pair
+
+
+# ----------------------------------------------------------------------------- reading and comparing evaluations
+def _write(folder, evaluation) -> None:
+    import json
+
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "results.json").write_text(json.dumps(evaluation))
+
+
+def test_an_evaluation_is_found_as_a_file_its_folder_or_a_run(tmp_path):
+    from cerberus_core.eval.compare import evaluation_file, evaluation_name, load_evaluation
+
+    evaluation = _results({0: 0.5, 1: 0.6})
+    _write(tmp_path / "runs" / "cpu" / "eval", evaluation)
+    _write(tmp_path / "heldout", evaluation)
+    for path in (tmp_path / "runs" / "cpu", tmp_path / "runs" / "cpu" / "eval",
+                 tmp_path / "runs" / "cpu" / "eval" / "results.json"):
+        assert evaluation_file(path) == tmp_path / "runs" / "cpu" / "eval" / "results.json"
+        assert load_evaluation(path) == evaluation and evaluation_name(path) == "cpu"
+    assert load_evaluation(tmp_path / "heldout") == evaluation and evaluation_name(tmp_path / "heldout") == "heldout"
+
+
+def test_what_is_not_an_evaluation_is_named(tmp_path):
+    from cerberus_core.errors import NoEvaluationError
+    from cerberus_core.eval.compare import load_evaluation
+
+    with pytest.raises(NoEvaluationError, match="does not exist"):
+        load_evaluation(tmp_path / "nothere")
+    (tmp_path / "run").mkdir()
+    with pytest.raises(NoEvaluationError, match=r"neither .*run/results.json nor .*run/eval/results.json.*cerberus eval"):
+        load_evaluation(tmp_path / "run")
+    (tmp_path / "bad.json").write_text("{not json")
+    with pytest.raises(DatasetError, match="bad.json is not JSON"):
+        load_evaluation(tmp_path / "bad.json")
+    (tmp_path / "other.json").write_text('{"standard": {"mean": 0.5}}')
+    with pytest.raises(DatasetError, match="no list of per-image 'records'"):
+        load_evaluation(tmp_path / "other.json")
+
+
+def test_rows_pair_each_evaluation_with_the_first():
+    from cerberus_core.eval.compare import comparison_rows
+
+    base = _results({0: 0.5, 1: 0.6, 2: 0.7}) | {"standard": {"mean": 0.6}}
+    new = {"standard": {"mean": 0.65}, "hard": {"mean": 0.55},
+           "records": [{"index": i, "iou": v, "hard_iou": v - 0.1} for i, v in enumerate((0.55, 0.62, 0.78))]}
+    header, rows = comparison_rows({"base": base, "new": new})
+    assert header == ["model", "images", "voxel IoU", "Δ voxel IoU", "Hard Human", "Δ Hard Human"]  # no precision
+    assert rows[0] == ["base", 3, 0.6, None, None, None]
+    assert rows[1][:3] == ["new", 3, 0.65] and rows[1][3] == paired_difference(new, base)
+    assert rows[1][3].better == 3 and rows[1][4] == 0.55 and rows[1][5] is None  # the base has no Hard Human
+    moved = {"standard": {"mean": 0.6}, "records": [{"index": 0, "subject": "s1", "iou": 0.5},
+                                                    {"index": 1, "subject": "s1", "iou": 0.5}]}
+    other = {"standard": {"mean": 0.6}, "records": [{"index": 0, "subject": "s2", "iou": 0.5},
+                                                    {"index": 1, "subject": "s2", "iou": 0.5}]}
+    with pytest.raises(DatasetError, match="different test sets"):
+        comparison_rows({"a": moved, "b": other})
+
+
+def test_the_paired_plot_puts_a_better_model_above_the_diagonal(tmp_path):
+    from collections import Counter
+
+    from PIL import Image
+
+    from cerberus_core.eval.figures import paired_plot
+
+    base = _results({i: 0.3 + 0.05 * i for i in range(10)})
+    better = _results({i: 0.4 + 0.05 * i for i in range(10)})
+    worse = _results({i: 0.2 + 0.05 * i for i in range(10)})
+    image = Image.open(paired_plot({"base": base, "better": better, "worse": worse}, tmp_path / "p.png")).convert("RGB")
+    width, height = image.size
+
+    def saturated(ys: range) -> list[tuple[int, int, int]]:  # the coloured pixels of rows ys, most common first
+        count = Counter(image.getpixel((x, y)) for x in range(width) for y in ys)
+        return [c for c, _ in count.most_common() if max(c) - min(c) > 60]
+
+    marks = saturated(range(36, height))[:2]  # below the two legend lines: each model's points, one exact colour
+    sums = []
+    for line in (0, 1):  # legend line i names model i in its colour (its text blended at the edges: match the hue)
+        hue = max(range(3), key=saturated(range(16 * line, 16 + 16 * line))[0].__getitem__)
+        colour = next(c for c in marks if max(range(3), key=c.__getitem__) == hue)
+        points = [(x, y) for x in range(width) for y in range(36, height) if image.getpixel((x, y)) == colour]
+        assert len(points) >= 10 * 9 // 2  # ten points of 3 x 3 px, some overlapping each other
+        sums.append(sum(x + y for x, y in points) / len(points))  # the diagonal runs up to the right: x + y smaller above
+    assert sums[0] < sums[1] - 50  # the better model above, the worse below
+    with pytest.raises(DatasetError, match="two evaluations or more"):
+        paired_plot({"base": base}, tmp_path / "one.png")

@@ -13,7 +13,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _worker(rank: int, world: int, port: int, root: str, run_dir: str, out: str) -> None:
+def _worker(rank: int, world: int, port: int, root: str, run_dir: str, out: str, extra: tuple[str, ...]) -> None:
     import os
 
     os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE=str(world),
@@ -23,19 +23,21 @@ def _worker(rank: int, world: int, port: int, root: str, run_dir: str, out: str)
 
     cfg = load_config(preset="tiny", overrides=[f"data.root={root}", "train.tensorboard=false", "train.steps=3",
                                                 "train.batch_size=4", "train.image_every=0",
-                                                "train.on_nonfinite=skip", "debug.poison_steps=[1]"])
+                                                "train.on_nonfinite=skip", "debug.poison_steps=[1]", *extra])
     result = train(cfg, run_dir)
     params = {k: v.detach().clone() for k, v in result.model.named_parameters()}
     torch.save({"params": params, "step": result.step, "skipped": result.skipped}, f"{out}/rank{rank}.pt")
 
 
 @pytest.mark.slow
-def test_two_processes_keep_identical_weights(tiny_root, tmp_path):
+@pytest.mark.parametrize("extra", [(), ("model.rotation=none",)], ids=["camera", "rotation_none"])
+def test_two_processes_keep_identical_weights(tiny_root, tmp_path, extra):
+    """``rotation: none`` leaves the rotation head without gradient: DDP must be told to look for it."""
     from cerberus_core.model import Cerberus
     from cerberus_core.run import Run
     from cerberus_core.train import load_config
 
-    mp.start_processes(_worker, args=(2, _free_port(), str(tiny_root), str(tmp_path / "run"), str(tmp_path)),
+    mp.start_processes(_worker, args=(2, _free_port(), str(tiny_root), str(tmp_path / "run"), str(tmp_path), extra),
                        nprocs=2, join=True, start_method="spawn")
     a = torch.load(tmp_path / "rank0.pt", weights_only=True)
     b = torch.load(tmp_path / "rank1.pt", weights_only=True)
@@ -51,6 +53,8 @@ def test_two_processes_keep_identical_weights(tiny_root, tmp_path):
     torch.manual_seed(cfg.seed)
     init = dict(Cerberus(cfg.model).named_parameters())
     assert not torch.equal(init["shape.to_displacement.weight"], a["params"]["shape.to_displacement.weight"])
+    # without rotations the head is not run: it keeps its initial weights
+    assert torch.equal(init["rotation.linear.weight"], a["params"]["rotation.linear.weight"]) == bool(extra)
 
 
 @pytest.mark.parametrize(("env", "words"), [

@@ -213,6 +213,11 @@ class NoCheckpointError(CerberusError, FileNotFoundError):
     """``resume=True`` but the run folder has no checkpoint."""
 
 
+class NoEvaluationError(CerberusError, FileNotFoundError):
+    """A path that holds no evaluation: neither a ``results.json`` nor a folder with one (an evaluation's own, or a
+    run's ``eval/``); the message names the path and how to make one (:mod:`cerberus_core.eval.compare`)."""
+
+
 class CheckpointError(CerberusError, ValueError):
     """A model file or run folder cannot be loaded; the message names the file and what to pass instead."""
 
@@ -259,7 +264,7 @@ class UnknownSubjectError(CerberusError, KeyError):
 
 __all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "ConfigError", "DatasetError", "DeviceError",
            "DuplicatePluginError", "ImageInputError", "IncompleteDatasetError", "InputTypeError",
-           "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError",
+           "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError", "NoEvaluationError",
            "NonFiniteError", "OutputError", "PluginError", "PluginLoadError", "ReleaseMismatchError",
            "RenderInputError", "RunExistsError", "ShapeError", "TextFormatError", "TrainingDatasetError",
            "UnknownEntryError", "UnknownPluginError", "UnknownSubjectError", "ZooError", "shown"]

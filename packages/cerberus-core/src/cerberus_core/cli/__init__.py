@@ -41,6 +41,7 @@ COMMAND_MODULES = [
     "cerberus_core.cli.data",
     "cerberus_core.cli.train",
     "cerberus_core.cli.eval",
+    "cerberus_core.cli.compare",
     "cerberus_core.cli.reconstruct",
     "cerberus_core.cli.models",
 ]
@@ -57,7 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
         prog="cerberus",
         description="Cerberus: a multi-headed derenderer. Learn 3D part-based models of articulated bodies "
         "from images alone: generate data, train, evaluate, reconstruct.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     from cerberus_core.release import VERSION
 

@@ -49,8 +49,7 @@ def _add_generate(dsub: argparse._SubParsersAction) -> None:
     options, then how to run it."""
     from cerberus_core.datasets.settings import GenerationConfig
 
-    g = dsub.add_parser("generate", help="generate (or resume) a dataset", description=GENERATE_HELP,
-                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    g = dsub.add_parser("generate", help="generate (or resume) a dataset", description=GENERATE_HELP)
     _add_what(g)
     options = _add_source_options(g.add_argument_group("body source options", "a source's own flags (the folder "
                                                       "source's); any source's option is --option KEY=VALUE"))

@@ -13,7 +13,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "were trained on, their test figures and their model card. Use a name wherever a run folder is taken: "
         "`cerberus reconstruct --model human photo.png`, `cerberus eval human --data DATASET`, or "
         "`Run.load(\"human\")` in Python.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  cerberus models\n  cerberus models --json\n"
         "  cerberus reconstruct --model human person.png --out recon/")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")

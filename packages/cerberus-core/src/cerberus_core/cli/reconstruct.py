@@ -31,7 +31,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "The results replace --out whole, in one step, when they are all written: an error or Ctrl-C leaves --out "
         "as it was. --out may be new, empty or earlier results of cerberus reconstruct; a folder holding anything "
         "else (or an input) is refused, --overwrite or not (docs/outputs.md).",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  cerberus reconstruct --model human person.png          # a shipped model (cerberus models)\n"
         "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run\n"
         "  cerberus reconstruct ./human a.png                       # a run folder called human (not the model)\n"

@@ -43,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "train", help="train Cerberus (or a baseline) on a quadruplet dataset",
         description="Train the Cerberus derenderer: predict part meshes from single images and learn from the "
         "rendering error, with pose and viewpoint consistency (Deng et al., sections 3-5).",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=EPILOG)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--config", type=Path, metavar="FILE", help="YAML training config")
     src.add_argument("--preset", choices=preset_names(), action="append", metavar="NAME",

@@ -10,16 +10,27 @@ models), so its standard error is usually much smaller than either mean's own. A
 records compares: ``iou``, ``hard_iou``, or one value against another of the same evaluation (Human
 against Hard Human).
 
+:func:`load_evaluation` reads an evaluation from wherever ``cerberus eval`` left it (the file, its folder, or the
+run folder whose ``eval/`` it is); :func:`comparison_rows` puts several side by side, each paired with the first
+(``cerberus compare``; :func:`cerberus_core.eval.figures.paired_plot` draws the per-image pairs).
+
 Nothing here needs torch: the experiments' tables import it to read ``results.json`` files.
 """
 from __future__ import annotations
 
+import json
+import math
 import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from cerberus_core.errors import DatasetError
+from cerberus_core.errors import DatasetError, NoEvaluationError
+from cerberus_core.plumbing.names import printable
+
+#: The file ``cerberus eval`` writes its scores and per-image records to.
+RESULTS = "results.json"
 
 #: A ``results.json`` dict (its ``records``) or the records themselves: one dict per image, with its ``index``.
 Evaluation = Mapping[str, Any] | Sequence[Mapping[str, Any]]
@@ -107,3 +118,118 @@ def paired_difference(a: Evaluation | None, b: Evaluation | None, key_a: str = "
     if len(d) < 2:
         return None
     return PairedDifference(statistics.mean(d), statistics.stdev(d) / len(d) ** 0.5, sum(x > 0 for x in d), len(d))
+
+
+def evaluation_file(path: str | Path) -> Path:
+    """The ``results.json`` an evaluation path means: the file itself, ``PATH/results.json`` (a ``cerberus eval``
+    output folder) or ``PATH/eval/results.json`` (a run folder evaluated into its default place).
+
+    Raises:
+        NoEvaluationError: none of the three is a file; the message names the places looked at.
+    """
+    p = Path(path)
+    for candidate in (p, p / RESULTS, p / "eval" / RESULTS):
+        if candidate.is_file():
+            return candidate
+    where = f"{printable(p)} does not exist" if not p.exists() else (
+        f"neither {printable(p / RESULTS)} nor {printable(p / 'eval' / RESULTS)} is a file")
+    raise NoEvaluationError(f"no evaluation at {printable(p)}: {where}; pass a results.json, the folder an evaluation "
+                            "was written to, or a run folder evaluated into its eval/ (`cerberus eval RUN`, or "
+                            "`Run.evaluate` in Python)")
+
+
+def load_evaluation(path: str | Path, *, missing_ok: bool = False) -> dict[str, Any] | None:
+    """An evaluation's ``results.json`` as a dict (``standard``, the diagnostics, ``records``...), found by
+    :func:`evaluation_file`; ``None`` where there is none and ``missing_ok`` (a run not evaluated yet).
+
+    Raises:
+        NoEvaluationError: no ``results.json`` there (without ``missing_ok``).
+        DatasetError: the file is not JSON, or not an evaluation (no ``records`` list).
+
+    Example:
+        >>> import json, tempfile
+        >>> run = Path(tempfile.mkdtemp())
+        >>> (run / "eval").mkdir()
+        >>> _ = (run / "eval" / RESULTS).write_text(json.dumps({"standard": {"mean": 0.5}, "records": []}))
+        >>> load_evaluation(run)["standard"], load_evaluation(run / "other", missing_ok=True)
+        ({'mean': 0.5}, None)
+    """
+    try:
+        file = evaluation_file(path)
+    except NoEvaluationError:
+        if missing_ok:
+            return None
+        raise
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(f"{printable(file)} is not JSON ({exc}); pass the results.json an evaluation wrote") from exc
+    if not isinstance(data, dict) or not isinstance(data.get("records"), list):
+        raise DatasetError(f"{printable(file)} is not an evaluation's results.json (it has no list of per-image "
+                           "'records'); pass the results.json an evaluation wrote")
+    return data
+
+
+def evaluation_name(path: str | Path) -> str:
+    """A short name for the evaluation at ``path``: the run's folder for ``RUN``, ``RUN/eval`` and
+    ``RUN/eval/results.json``, else the folder the results are in.
+
+    >>> evaluation_name("runs/cpu"), evaluation_name("runs/cpu/eval/results.json"), evaluation_name("out/heldout")
+    ('cpu', 'cpu', 'heldout')
+    """
+    p = Path(path)
+    if p.name == RESULTS:
+        p = p.parent
+    return p.parent.name if p.name == "eval" and p.parent.name else p.name
+
+
+#: The per-image values :func:`comparison_rows` pairs: ``(column, record key, the result's summary of it)``.
+PAIRED_VALUES = (("voxel IoU", "iou", ("standard", "mean")),
+                 ("Hard Human", "hard_iou", ("hard", "mean")),
+                 ("precision", "voxel_precision", ("segments", "voxel_precision")),
+                 ("recall", "voxel_recall", ("segments", "voxel_recall")))
+
+
+def _summary(evaluation: Mapping[str, Any], where: tuple[str, str]) -> float | None:
+    value = (evaluation.get(where[0]) or {}).get(where[1])
+    return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
+
+
+def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]]) -> tuple[list[str], list[list[Any]]]:
+    """Several evaluations of one test set side by side, each paired image by image with the first.
+
+    Args:
+        evaluations: ``{name: results.json dict}`` (:func:`load_evaluation`), the baseline first.
+    Returns:
+        ``(header, rows)`` for :func:`~cerberus_core.eval.markdown.markdown_table`: per evaluation its name, the
+        images it scored and, for each of :data:`PAIRED_VALUES` that some evaluation has, its mean and (column
+        ``Δ ...``) its :func:`paired_difference` to the first (``None`` for the first itself, or where either
+        lacks it).
+
+    Raises:
+        DatasetError: two evaluations scored different images under one index (different test sets).
+
+    Example:
+        >>> a = {"standard": {"mean": 0.55}, "records": [{"index": i, "iou": 0.5 + 0.05 * i} for i in range(3)]}
+        >>> b = {"standard": {"mean": 0.58}, "records": [{"index": i, "iou": 0.52 + 0.06 * i} for i in range(3)]}
+        >>> header, rows = comparison_rows({"base": a, "new": b})
+        >>> header
+        ['model', 'images', 'voxel IoU', 'Δ voxel IoU']
+        >>> rows[1][:3], str(rows[1][3])
+        (['new', 3, 0.58], '+0.030 ± 0.006 (3 / 3)')
+    """
+    names = list(evaluations)
+    first = evaluations[names[0]] if names else None
+    shown = [(column, key, where) for column, key, where in PAIRED_VALUES
+             if any(_summary(e, where) is not None for e in evaluations.values())]
+    header = ["model", "images"]
+    for column, _, _ in shown:
+        header += [column, f"Δ {column}"]
+    rows = []
+    for name, evaluation in evaluations.items():
+        row: list[Any] = [name, len(evaluation.get("records", []))]
+        for _, key, where in shown:
+            row += [_summary(evaluation, where),
+                    None if evaluation is first else paired_difference(evaluation, first, key)]
+        rows.append(row)
+    return header, rows

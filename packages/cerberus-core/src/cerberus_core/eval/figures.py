@@ -11,30 +11,45 @@ Table 2 columns: input, keypoints (each part's keypoint on the input, in its par
 translation head put it; :mod:`cerberus_core.eval.allocation`), any number of baselines, ours, parts, turn
 (ours from another azimuth); the
 figure ``cerberus eval`` writes adds the voxels the IoU scores, seen from the front and the side
-(:func:`voxel_views`: hits grey, missed voxels red, off-body voxels blue).
+(:func:`voxel_views`: hits grey, missed voxels red, off-body voxels blue). :func:`paired_plot` draws two or more
+evaluations of one test set image by image (``cerberus compare --plot``).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
-from cerberus_core.errors import ConfigError, ShapeError
+from cerberus_core.errors import ConfigError, DatasetError, ShapeError
 from cerberus_core.eval.allocation import keypoints
+from cerberus_core.eval.compare import paired_difference
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
 from cerberus_core.parts import PartSet, pose_donors, transfer_pose
+from cerberus_core.plumbing.names import printable
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION, Light
 from cerberus_core.shapes import check_shapes
-from cerberus_core.viz import atomic_save_png, draw_text, figure_font, part_colors, text_width, to_uint8, wrap_text
+from cerberus_core.viz import (
+    INK,
+    atomic_save_png,
+    chart_frame,
+    draw_text,
+    figure_font,
+    part_colors,
+    text_width,
+    to_uint8,
+    wrap_text,
+)
 
 Tensor = torch.Tensor
 RGB = tuple[float, float, float]
@@ -485,3 +500,46 @@ def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: P
     write_reconstruction_viewer(out / "pictures", images, ours, camera, stems, page,
                                 CardDetails(bodies=bodies, ious=[(ious or {}).get(i) for i in idx]))
     return save_png(fig, out / "table2.png")
+
+
+def paired_plot(evaluations: Mapping[str, Mapping[str, Any]], path: str | Path, key: str = "iou",
+                size: tuple[int, int] = (560, 560)) -> Path:
+    """Each image's ``key`` (voxel IoU) of every evaluation (up) against the first's (across): points above the
+    diagonal are images the evaluation scores better; one colour per evaluation, its paired difference in the
+    legend. Written atomically as a PNG.
+
+    Args:
+        evaluations: ``{name: results.json dict}``, the baseline first (at least two).
+        path: the PNG to write.
+        key: the per-image value of the records (``"iou"``, ``"hard_iou"``...).
+    Returns:
+        ``path``.
+    """
+    names = list(evaluations)
+    if len(names) < 2:
+        raise DatasetError(f"a paired plot needs two evaluations or more, got {len(names)}; pass the baseline first")
+    base = {r["index"]: r.get(key) for r in evaluations[names[0]]["records"] if r.get(key) is not None}
+    pairs = {name: [(base[r["index"]], r[key]) for r in evaluations[name]["records"]
+                    if r.get(key) is not None and r["index"] in base] for name in names[1:]}
+    values = [v for points in pairs.values() for xy in points for v in xy]
+    lo, hi = (math.floor(min(values) * 10) / 10, math.ceil(max(values) * 10) / 10) if values else (0.0, 1.0)
+    hi = hi if hi > lo else lo + 0.1
+    legend = 16 * (len(names) - 1)
+    chart = chart_frame((size[0], size[1] + legend), margins=(48, 16, 16 + legend, 40), x_range=(lo, hi),
+                        y_range=(lo, hi))
+    ticks = [lo + k * 0.1 for k in range(round((hi - lo) / 0.1) + 1)]
+    chart.grid_x(ticks, "{:.1f}".format)
+    chart.grid_y(ticks, "{:.1f}".format)
+    chart.draw.line([chart.x_px(lo), chart.y_px(lo), chart.x_px(hi), chart.y_px(hi)], fill=INK)
+    what = "voxel IoU" if key == "iou" else key
+    chart.axis_titles(x=f"{printable(names[0])}: {what} per image", y=f"the others' {what} (above the line: better)")
+    colors = [tuple(int(200 * c) for c in rgb) for rgb in part_colors(len(names) - 1).tolist()]
+    font = figure_font(11)
+    for i, (name, points) in enumerate(pairs.items()):
+        for x, y in points:
+            px, py = chart.x_px(x), chart.y_px(y)
+            chart.draw.rectangle([px - 1, py - 1, px + 1, py + 1], fill=colors[i])
+        d = paired_difference(evaluations[name], evaluations[names[0]], key)
+        draw_text(chart.draw, (chart.left, 4 + 16 * i), f"{printable(name)}: "
+                  f"{d if d is not None else 'fewer than 2 images in common'}", font=font, fill=colors[i])
+    return chart.save(path)

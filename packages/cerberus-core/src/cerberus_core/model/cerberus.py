@@ -71,7 +71,8 @@ class ModelConfig(Checked):
         rotation: what each part's rotation is. ``"camera"`` (the paper, section 3): the rotation head's quaternion
             is the part's rotation relative to the camera, so its world rotation is ``R^T Q``, and a part whose head
             still says "identity" is turned with the camera. ``"none"``: every part's world rotation is the identity
-            (the NMR baseline, which deforms one sphere in the world frame). ``"world"`` (beyond the paper, issue 38):
+            (the NMR baseline, which deforms one sphere in the world frame; the head is not run,
+            :attr:`Cerberus.trains_every_parameter`). ``"world"`` (beyond the paper, issue 38):
             the same head's quaternion is the part's world rotation, so the model starts as ``"none"`` and turns a
             part only where the images ask for it; the network then reads a part's orientation in the world from the
             image, as NMR's world-frame deformation does (the bodies of a dataset share one world frame: the
@@ -202,6 +203,14 @@ class Cerberus(nn.Module):
     def num_parts(self) -> int:
         return self.config.num_parts
 
+    @property
+    def trains_every_parameter(self) -> bool:
+        """Whether every parameter takes part in :meth:`forward`. ``False`` with ``model.rotation: none``: the
+        rotation head is built, so that the models of every setting hold the same tensors and load alike, but it
+        is not run (its parameters keep their initial values and get no gradient; data-parallel training must
+        then look for parameters without one, ``find_unused_parameters``)."""
+        return self.config.rotation != "none"
+
     def deformation_gain(self, step: int | None) -> float:
         """The share of the vertex displacements used at training step ``step`` (``model.deformation_warmup: S``): 0
         before step ``S``, 1 from it on; 1 without a hold and outside training (``step=None``).
@@ -231,7 +240,8 @@ class Cerberus(nn.Module):
         shape_latent = self.shape.latent(object_latent)
         render_latent = shape_latent if mix is None else mix(shape_latent)
         local = self.shape.deform(render_latent, self.deformation_gain(step))
-        quats, rot_cam = self.rotation(object_latent)
+        quats, rot_cam = self.rotation.identity(object_latent) if not self.trains_every_parameter \
+            else self.rotation(object_latent)
         maps = self.translation(features, tuple(images.shape[-2:]), object_latent)
         return Predictions(object_latent, shape_latent, render_latent, local, quats, rot_cam, maps)
 

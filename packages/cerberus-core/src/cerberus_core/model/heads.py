@@ -125,6 +125,18 @@ class RotationHead(nn.Module):
         q = nn.functional.normalize(q, dim=-1, eps=1e-8)
         return q, quaternion_to_rotation_matrix(q)
 
+    def identity(self, object_latent: Tensor) -> tuple[Tensor, Tensor]:
+        """What :meth:`forward` returns for ``model.rotation: none``, without running the layer: identity
+        quaternions ``(B, N, 4)`` and rotations ``(B, N, 3, 3)``, constants (no parameter takes part).
+
+        >>> q, r = RotationHead(8, 2).identity(torch.zeros(3, 8))
+        >>> q.shape, r.shape, bool((r == torch.eye(3)).all())
+        (torch.Size([3, 2, 4]), torch.Size([3, 2, 3, 3]), True)
+        """
+        b, like = object_latent.shape[0], self.linear.bias
+        q = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=like.dtype, device=like.device).expand(b, self.num_parts, 4)
+        return q, torch.eye(3, dtype=like.dtype, device=like.device).expand(b, self.num_parts, 3, 3)
+
 
 @dataclass
 class KeypointMaps:

@@ -401,7 +401,8 @@ class _Trainer:
         self.net: torch.nn.Module = self.model
         if self.info.enabled:
             ids = [self.device.index] if self.device.type == "cuda" else None
-            self.net = DistributedDataParallel(self.model, device_ids=ids)
+            self.net = DistributedDataParallel(self.model, device_ids=ids,
+                                               find_unused_parameters=not self.model.trains_every_parameter)
         return start
 
     def _checkpoint(self, step: int) -> None:

@@ -1,0 +1,50 @@
+"""``cerberus compare``: evaluations side by side, each paired with the first; what is not one is named."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from cerberus_core.cli import main
+
+
+def _evaluation(folder, values, hard=None):
+    folder.mkdir(parents=True)
+    records = [{"index": i, "subject": "s", "iou": v} | ({} if hard is None else {"hard_iou": v + hard})
+               for i, v in enumerate(values)]
+    result = {"standard": {"mean": sum(values) / len(values)}, "hard": None if hard is None else {"mean": 0.5},
+              "records": records}
+    (folder / "results.json").write_text(json.dumps(result))
+    return folder
+
+
+def test_two_runs_side_by_side_with_the_plot(tmp_path, capsys):
+    base = _evaluation(tmp_path / "runs" / "base" / "eval", [0.5, 0.6, 0.7])
+    new = _evaluation(tmp_path / "eval_new", [0.55, 0.62, 0.69], hard=-0.1)
+    plot = tmp_path / "figs" / "pairs.png"
+    assert main(["compare", str(base.parent), f"ours={new}", "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split("|")[1:-1] == [" model ", " images ", " voxel IoU ", " Δ voxel IoU ", " Hard Human ",
+                                        " Δ Hard Human "]
+    assert out[2].startswith("| base | 3 | 0.6000 | - |")
+    assert out[3].startswith("| ours | 3 | 0.6200 | +0.020 ± 0.017 (2 / 3) | 0.5000 | - |")
+    assert "paired difference to base" in out[5] and out[6] == f"plot: {plot}" and plot.stat().st_size > 0
+
+
+@pytest.mark.parametrize(("argv", "words"), [
+    (["RUN"], "EVAL base: compare needs two evaluations or more, the baseline first"),
+    (["RUN", "RUN/eval"], "a second evaluation named 'base'; name each one: NAME=PATH"),
+    (["RUN", "nothere"], "no evaluation at nothere: nothere does not exist"),
+    (["RUN", "RUN", "--plot", "figs"], "--plot figs: is a folder; pass a file path"),
+    (["RUN", "RUN", "--plot", "RUN/eval/results.json"], "writing it would replace it; choose another --plot"),
+])
+def test_what_cannot_be_compared_is_one_line(tmp_path, capsys, monkeypatch, argv, words):
+    _evaluation(tmp_path / "base" / "eval", [0.5, 0.6])
+    (tmp_path / "figs").mkdir()
+    monkeypatch.chdir(tmp_path)
+    args = ["compare", *(a.replace("RUN", "base") for a in argv)]
+    if args[1:3] == ["base", "base"]:
+        args[2] = "other=base"
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1 and words in captured.err
