@@ -26,6 +26,7 @@ from cerberus_core.datasets.looks import InputLook, LookedViews
 from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
+from cerberus_core.eval.compare import RESULTS
 from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages
 from cerberus_core.eval.figures import FigureModels, evaluation_figures
 from cerberus_core.eval.markdown import md_text
@@ -422,7 +423,7 @@ class Run:
                                         "computed_with": {"renderer": backend.name, "device": str(self.device),
                                                           "dtype": str(next(self.model.parameters()).dtype)},
                                         "input_look": input_look}
-        write_json(record, folder / "results.json")
+        write_json(record, folder / RESULTS)
         look = "" if input_look == "shaded" else f" ({input_look} input look)"
         report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}{look}")
         if weights.stale_warning():
