@@ -57,7 +57,8 @@ import torch
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.allocation import silhouette_centroids
 from cerberus_core.eval.compare import paired_difference
-from cerberus_core.eval.depth import coverage_masks, mask_iou
+from cerberus_core.eval.depth import coverage_masks
+from cerberus_core.eval.masks import mask_iou
 from cerberus_core.eval.runner import iterate_batches
 from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.parts import PartSet
@@ -185,7 +186,7 @@ def shift_search(scorer: VoxelScorer, renderer: Renderer, one: PartSet, camera: 
     sil_iou, cen_err = torch.zeros(len(GRID)), torch.zeros(len(GRID))
     for cam, mask in zip(others, truths, strict=True):
         seen = coverage_masks(renderer, shifted, one.faces, cam.index([0] * len(GRID)))  # (G, H, W)
-        sil_iou += mask_iou(seen, mask)
+        sil_iou += mask_iou(seen, mask.expand_as(seen)).nan_to_num(0.0)  # an empty pair (NaN): no evidence
         cen_err += (silhouette_centroids(seen) - silhouette_centroids(mask[None])).norm(dim=-1).nan_to_num(1e3)
     posed = one.posed()[0].flatten(0, 1)
     box = (posed.amax(0) + posed.amin(0)).view(1, 1, 3) / 2  # the data centres every pose's box on the origin

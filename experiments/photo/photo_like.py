@@ -40,8 +40,15 @@ from cerberus_core import Run
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.compare import paired_difference
 from cerberus_core.eval.figures import render_reconstruction
+from cerberus_core.eval.masks import mask_iou
 from cerberus_core.eval.runner import evaluate_dataset
-from cerberus_core.photo_mask import AUTO, person_mask, rendered_silhouette, segmenter_available, silhouette_iou
+from cerberus_core.photo_mask import (
+    AUTO,
+    SILHOUETTE_THRESHOLD,
+    person_mask,
+    rendered_silhouette,
+    segmenter_available,
+)
 from cerberus_core.reconstruct.fit import FitSettings, fit_silhouette
 from cerberus_core.reconstruct.input_domain import prepare_input
 from cerberus_core.render.api import render
@@ -187,7 +194,7 @@ def main() -> int:
     renderer = make_renderer("auto")
     inputs: dict[str, dict[int, torch.Tensor]] = {m: {} for m in masks}
     sil: dict[str, list[np.ndarray]] = {m: [] for m in masks}
-    mask_iou, sheet = [], []
+    auto_ious, sheet = [], []
     for i in tqdm(indices, desc="photos", unit="img"):
         rng = np.random.default_rng([args.seed, i])
         item = views[i]
@@ -197,7 +204,7 @@ def main() -> int:
         if AUTO in masks:
             found = person_mask(photo)
             Image.fromarray(u8(found)).save(photos / f"{i:04d}_auto.png")
-            mask_iou.append(silhouette_iou(found, alpha))
+            auto_ious.append(float(mask_iou(found >= SILHOUETTE_THRESHOLD, alpha >= SILHOUETTE_THRESHOLD)))
         for m in masks:
             loaded = prepare_input(photos / f"{i:04d}.png", size, scene,
                                    AUTO if m == AUTO else photos / f"{i:04d}_exact.png",
@@ -208,9 +215,9 @@ def main() -> int:
                 sheet.append((photo, found if m == AUTO else alpha, loaded.image, i))
     results: dict = {"run": str(args.run), "data": str(args.data), "images": len(indices), "size": args.size,
                      "seed": args.seed}
-    if mask_iou:
-        results["auto_mask_iou"] = {"mean": float(np.nanmean(mask_iou)), "min": float(np.nanmin(mask_iou)),
-                                    "below_0.5": int(np.sum(np.asarray(mask_iou) < 0.5))}
+    if auto_ious:  # NaN-aware: an empty pair (no person in the photo nor found) has no IoU
+        results["auto_mask_iou"] = {"mean": float(np.nanmean(auto_ious)), "min": float(np.nanmin(auto_ious)),
+                                    "below_0.5": int(np.sum(np.asarray(auto_ious) < 0.5))}
     fits = [(m, 0) for m in masks] + ([(m, args.fit) for m in masks] if args.fit > 0 else [])
     evaluations = {}
     for m, steps in fits:
@@ -221,13 +228,14 @@ def main() -> int:
         evaluations[name] = evaluate_dataset(PhotoViews(views, inputs[m]), reconstruct, indices=indices,
                                              skip=("hard", "part_quality", "visibility", "depth", "segments",
                                                    "allocation"), progress=False)
-        coverage = [silhouette_iou(rendered_silhouette(renderer, made[key(inputs[m][i])],
-                                                       scene.cameras([float(views[i]["azimuth"])], size)), sil[m][k])
+        coverage = [float(mask_iou(rendered_silhouette(renderer, made[key(inputs[m][i])],
+                                                       scene.cameras([float(views[i]["azimuth"])], size))
+                                   >= SILHOUETTE_THRESHOLD, sil[m][k] >= SILHOUETTE_THRESHOLD))
                     for k, i in enumerate(indices)]
-        mean = evaluations[name].standard.mean
-        results[name] = {"voxel_iou": mean, "silhouette_iou": float(np.mean(coverage)),
+        mean, covered = evaluations[name].standard.mean, float(np.nanmean(coverage))  # NaN-aware: empty pairs out
+        results[name] = {"voxel_iou": mean, "silhouette_iou": covered,
                          "per_image": evaluations[name].image_ious()} | ({"fit_steps": steps} if steps else {})
-        print(f"{name} mask: voxel IoU {mean:.4f}, silhouette IoU {np.mean(coverage):.3f}")
+        print(f"{name} mask: voxel IoU {mean:.4f}, silhouette IoU {covered:.3f}")
     for m in masks if args.fit > 0 else ():
         diff = paired_difference(evaluations[f"{m}_fit"].records, evaluations[m].records)
         if diff is not None:
@@ -235,7 +243,7 @@ def main() -> int:
                                                          "images": diff.n}
             print(f"{m}: fitted - unfitted voxel IoU {diff.mean:+.4f} +- {diff.sem:.4f} "
                   f"(better on {diff.better} of {diff.n})")
-    if mask_iou:
+    if auto_ious:
         print(f"automatic mask against the exact one: IoU {results['auto_mask_iou']['mean']:.3f} (min "
               f"{results['auto_mask_iou']['min']:.3f}, {results['auto_mask_iou']['below_0.5']} below 0.5)")
     rows = []

@@ -131,3 +131,26 @@ def test_every_command_with_out_links_what_it_may_replace(command, capsys) -> No
     assert exit_.value.code == 0
     assert "docs/outputs.md" in " ".join(capsys.readouterr().out.split())
     assert (Path(__file__).parents[3] / "docs" / "outputs.md").is_file()
+
+
+def test_help_version_and_compare_import_no_torch(tmp_path):
+    """Only the command that runs has its module imported: ``cerberus --help``, ``--version`` and ``cerberus
+    compare`` (the evaluations it reads are JSON) answer without torch, kornia or trimesh."""
+    code = ("import sys\nfrom cerberus_core.cli import main\n"
+            "for argv in (['--help'], ['--version']):\n"
+            "    try:\n        main(argv)\n    except SystemExit as e:\n        assert e.code == 0, e.code\n"
+            f"assert main(['compare', {str(tmp_path / 'none')!r}]) == 2\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'torch', 'kornia', 'trimesh'}))")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "[]"
+    assert "compare" in res.stdout and "reconstruct" in res.stdout  # --help lists every command
+
+
+def test_every_command_is_listed_and_builds():
+    from cerberus_core.cli import COMMANDS, build_parser
+
+    for name, _, line in COMMANDS:
+        help_text = build_parser(name)._subparsers._group_actions[0].choices[name].format_help()
+        assert f"cerberus {name}" in help_text and len(help_text) > len(line)

@@ -129,11 +129,42 @@ def test_what_is_not_an_evaluation_is_named(tmp_path):
     with pytest.raises(NoEvaluationError, match=r"neither .*run/results.json nor .*run/eval/results.json.*cerberus eval"):
         load_evaluation(tmp_path / "run")
     (tmp_path / "bad.json").write_text("{not json")
-    with pytest.raises(DatasetError, match="bad.json is not JSON"):
+    with pytest.raises(DatasetError, match="bad.json cannot be read as JSON"):
         load_evaluation(tmp_path / "bad.json")
     (tmp_path / "other.json").write_text('{"standard": {"mean": 0.5}}')
     with pytest.raises(DatasetError, match="no list of per-image 'records'"):
         load_evaluation(tmp_path / "other.json")
+
+
+@pytest.mark.parametrize(("text", "problem"), [
+    ("[" * 100_000 + "]" * 100_000, "nested too deeply"),  # json.loads: a RecursionError
+    ('{"records": [], "n": ' + "9" * 5000 + "}", "a number of more than"),  # json.loads: a bare ValueError
+    (b"\xff\xfe{}", "can't decode byte"),  # not UTF-8
+])
+def test_an_unreadable_evaluation_is_a_dataset_error_naming_the_file_and_the_fix(tmp_path, text, problem):
+    from cerberus_core.eval.compare import load_evaluation
+
+    path = tmp_path / "eval" / "results.json"
+    path.parent.mkdir()
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(DatasetError, match=r"eval/results.json cannot be read as JSON \(.*") as caught:
+        load_evaluation(tmp_path)
+    assert problem in str(caught.value) and "pass the results.json an evaluation wrote" in str(caught.value)
+
+
+def test_an_evaluation_that_cannot_be_opened_is_a_dataset_error(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from cerberus_core.eval.compare import load_evaluation
+
+    _write(tmp_path, _results({0: 0.5}))
+
+    def refused(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "read_text", refused)
+    with pytest.raises(DatasetError, match="results.json cannot be read .*Permission denied.*make it readable"):
+        load_evaluation(tmp_path)
 
 
 def test_rows_pair_each_evaluation_with_the_first():
@@ -144,9 +175,10 @@ def test_rows_pair_each_evaluation_with_the_first():
            "records": [{"index": i, "iou": v, "hard_iou": v - 0.1} for i, v in enumerate((0.55, 0.62, 0.78))]}
     header, rows = comparison_rows({"base": base, "new": new})
     assert header == ["model", "images", "voxel IoU", "Δ voxel IoU", "Hard Human", "Δ Hard Human"]  # no precision
-    assert rows[0] == ["base", 3, 0.6, None, None, None]
-    assert rows[1][:3] == ["new", 3, 0.65] and rows[1][3] == paired_difference(new, base)
-    assert rows[1][3].better == 3 and rows[1][4] == 0.55 and rows[1][5] is None  # the base has no Hard Human
+    assert rows[0] == ["base", 3, pytest.approx(0.6), None, None, None]
+    assert rows[1][:3] == ["new", 3, pytest.approx(0.65)] and rows[1][3] == paired_difference(new, base)
+    assert rows[1][3].better == 3 and rows[1][4] == pytest.approx(0.55)
+    assert rows[1][5] is None  # the base has no Hard Human
     moved = {"standard": {"mean": 0.6}, "records": [{"index": 0, "subject": "s1", "iou": 0.5},
                                                     {"index": 1, "subject": "s1", "iou": 0.5}]}
     other = {"standard": {"mean": 0.6}, "records": [{"index": 0, "subject": "s2", "iou": 0.5},
@@ -183,3 +215,48 @@ def test_the_paired_plot_puts_a_better_model_above_the_diagonal(tmp_path):
     assert sums[0] < sums[1] - 50  # the better model above, the worse below
     with pytest.raises(DatasetError, match="two evaluations or more"):
         paired_plot({"base": base}, tmp_path / "one.png")
+
+
+def test_precision_and_recall_are_the_per_image_means_their_difference_pairs():
+    from cerberus_core.eval.compare import comparison_rows
+
+    def evaluation(precision, recall, pooled):  # the segments summary pools the voxels: not the per-image mean
+        records = [{"index": i, "iou": 0.5, "voxel_precision": p, "voxel_recall": r}
+                   for i, (p, r) in enumerate(zip(precision, recall, strict=True))]
+        return {"standard": {"mean": 0.5}, "segments": {"voxel_precision": pooled, "voxel_recall": pooled},
+                "records": records}
+
+    base = evaluation([0.6, 0.8, 0.7], [0.9, 0.8, None], pooled=0.99)
+    new = evaluation([0.7, 0.8, 0.9], [0.95, 0.85, 0.5], pooled=0.01)
+    header, rows = comparison_rows({"base": base, "new": new})
+    assert header[4:] == ["precision", "Δ precision", "recall", "Δ recall"]
+    assert rows[0][4] == pytest.approx(0.7) and rows[1][4] == pytest.approx(0.8)  # not 0.99, 0.01
+    assert rows[1][5].mean == pytest.approx(rows[1][4] - rows[0][4])  # the same images: Δ is the columns' difference
+    assert rows[0][6] == pytest.approx(0.85) and rows[1][6] == pytest.approx(0.7667, abs=1e-4)  # over its own images
+    assert rows[1][7].n == 2 and rows[1][7].mean == pytest.approx(0.05)  # Δ over the two images both scored
+
+
+def test_the_paired_plot_refuses_different_test_sets_as_the_table_does(tmp_path):
+    from cerberus_core.eval.compare import comparison_rows
+    from cerberus_core.eval.figures import paired_plot
+
+    base = {"records": [{"index": i, "subject": "s1", "pose": 0, "view": i, "iou": 0.5} for i in range(3)]}
+    other = {"records": [dict(r, pose=1, iou=0.6) for r in base["records"]]}
+    same = {"records": [dict(r, iou=0.6) for r in base["records"]]}
+    for draw in (lambda e: comparison_rows(e), lambda e: paired_plot(e, tmp_path / "p.png")):
+        with pytest.raises(DatasetError, match="image 0 is pose 1 in one evaluation and 0 in the other: they scored "
+                                               "different test sets"):
+            draw({"base": base, "same": same, "other": other})
+    assert not (tmp_path / "p.png").exists()  # refused before anything is drawn
+    assert paired_plot({"base": base, "same": same}, tmp_path / "p.png").is_file()
+
+
+def test_image_pairs_is_the_pairing_of_the_difference():
+    from cerberus_core.eval.compare import image_pairs
+
+    a = _results({0: 0.5, 1: 0.6, 2: 0.9, 5: 0.4, 7: None})
+    b = _results({1: 0.5, 2: 0.6, 7: 0.3, 9: 0.1, 0: None})
+    assert image_pairs(a, b) == [(0.6, 0.5), (0.9, 0.6)]  # a's order, only the images both scored
+    d = paired_difference(a, b)
+    assert d.n == 2 and d.mean == pytest.approx(sum(x - y for x, y in image_pairs(a, b)) / 2)
+    assert image_pairs(a, {"standard": {}}) == []

@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from cerberus_core.datasets.scene import SceneSetup
-from cerberus_core.eval.depth import mask_iou, translation_disagreement, turned_view_ious
+from cerberus_core.eval import depth
+from cerberus_core.eval.depth import DepthAccumulator, _PoseViews, translation_disagreement, turned_view_ious
 from cerberus_core.parts import PartSet
 from cerberus_core.render.backends import make_renderer
 from cerberus_core.render.templates import icosphere
@@ -17,14 +18,6 @@ def test_translation_disagreement_is_the_mean_pairwise_distance_per_part():
     torch.testing.assert_close(translation_disagreement(t), torch.tensor([0.2, 0.0]))
     with pytest.raises(ValueError, match="at least 2 views"):
         translation_disagreement(t[:1])
-
-
-def test_mask_iou():
-    a = torch.zeros(2, 4, 4, dtype=torch.bool)
-    b = torch.zeros(2, 4, 4, dtype=torch.bool)
-    a[0, :2] = True
-    b[0, 1:3] = True  # 4 shared pixels of 12
-    torch.testing.assert_close(mask_iou(a, b), torch.tensor([4 / 12, 1.0]))  # both empty: 1
 
 
 def _scene(shift: float):
@@ -52,3 +45,18 @@ def test_turned_view_iou_sees_a_depth_error_the_input_view_cannot():
     assert wrong[1, 2] > 0.97 and wrong[2, 1] > 0.97  # the consistent views still agree
     off = ~torch.eye(3, dtype=torch.bool)
     assert float(wrong.diagonal().mean() - wrong[off].mean()) > float(right.diagonal().mean() - right[off].mean())
+
+
+def test_the_summary_means_leave_out_an_empty_pair(monkeypatch):
+    """A pair of silhouettes both empty (a body and a reconstruction out of the camera) has no IoU (NaN): the
+    summary's means leave it out instead of counting it as a perfect 1 or turning the figure into NaN."""
+    parts, cams, body = _scene(0.0)
+    acc = DepthAccumulator(make_renderer("torch"))
+    acc.poses[("subject", 0)] = _PoseViews([parts.index([k]) for k in range(3)], [cams.index([k]) for k in range(3)],
+                                           body)
+    nan = float("nan")
+    ious = torch.tensor([[0.9, nan, 0.5], [0.7, 0.8, 0.6], [nan, 0.4, 1.0]], dtype=torch.float64)
+    monkeypatch.setattr(depth, "turned_view_ious", lambda *args: ious)
+    s = acc.summary()
+    assert s["input_view_silhouette_iou"] == pytest.approx(0.9)
+    assert s["turned_view_silhouette_iou"] == pytest.approx((0.5 + 0.7 + 0.6 + 0.4) / 4)

@@ -6,6 +6,7 @@ import pytest
 import torch
 from PIL import Image
 
+from cerberus_core.errors import ShapeError
 from cerberus_core.eval import figures
 from cerberus_core.eval.allocation import keypoints
 from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
@@ -69,14 +70,14 @@ def test_save_image_pictures_writes_pngs_of_expected_size(tmp_path, renderer, pr
     assert len({tuple(p) for p in png.reshape(-1, 3)}) > 10  # coloured parts, not a blank tile
 
 
-def test_comparison_figure_columns(renderer, primitive_bodies):
+def test_table2_columns(renderer, primitive_bodies):
     bodies = primitive_bodies[:3]
     ours = PartSet.cat([body_parts(b) for b in bodies])
     cams = Camera.cat([_camera(az) for az in (0.0, 45.0, 90.0)])
     images = figures.render_reconstruction(renderer, ours, cams)
     blob = PartSet.from_posed(torch.as_tensor(bodies[0].vertices)[None].expand(3, -1, -1),
                                          torch.as_tensor(bodies[0].faces))
-    titles, rows = figures.comparison_rows(renderer, images, cams, ours, {"NMR": blob, "NMRs": blob})
+    titles, rows = figures.table2_rows(renderer, images, cams, ours, {"NMR": blob, "NMRs": blob})
     assert titles == ["Input", "Keypoints", "NMR", "NMRs", "Ours", "Parts", "Turn"]
     assert len(rows) == 3 and all(len(r) == 7 for r in rows)
     torch.testing.assert_close(rows[1][4], images[1])
@@ -85,10 +86,8 @@ def test_comparison_figure_columns(renderer, primitive_bodies):
     col, row = (int(x) for x in uv[1, -1].floor())  # the last part is drawn over the others
     assert rows[1][1][:, row, col].tolist() == part_colors(ours.num_parts)[-1].tolist()
     assert (rows[1][1] != images[1]).any(dim=0).sum() <= 5 * ours.num_parts
-    img = figures.comparison_figure(renderer, images, cams, ours, {"NMR": blob}, scale=1)
-    assert img.size == (6 * (H + PAD) + PAD, TITLE_HEIGHT + 3 * (H + PAD) + PAD)
-    with pytest.raises(ValueError, match="reconstructions for 3 images"):
-        figures.comparison_rows(renderer, images, cams, ours.index([0, 1]))
+    with pytest.raises(ShapeError, match="table2_rows: ours has 2 reconstructions for 3 images"):
+        figures.table2_rows(renderer, images, cams, ours.index([0, 1]))
 
 
 @pytest.mark.parametrize("size", [16, 32, 64])

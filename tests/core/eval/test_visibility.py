@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from cerberus_core.eval.visibility import PartVisibility, visibility_line, visible_pixels
+from cerberus_core.eval.visibility import PartVisibility, visibility_line, visibility_sentence, visible_pixels
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -84,3 +84,18 @@ def test_single_mesh_is_never_hidden_and_summary_edge_cases(renderer):
         some.add(np.zeros((1, 3)))
     with pytest.raises(ValueError, match="2 reconstructions but 3 cameras"):
         visible_pixels(renderer, spheres([FRONT]), cams)
+
+
+def test_counts_added_without_an_image_size_summarise_with_a_null_size():
+    """The documented direct use (``add`` of :func:`visible_pixels` counts, no ``image_size=``): the summary
+    records ``None`` for the size, and the report's sentence leaves the size out."""
+    acc = PartVisibility()
+    acc.add(np.array([[120, 0], [80, 40]]))
+    s = acc.summary()
+    assert s["image_size"] is None and s["images"] == 2 and s["hidden_fraction"] == [0.0, 0.5]
+    assert visibility_sentence(s).startswith("Part visibility in the input view (renders of the reconstruction, "
+                                             "2 images): ")
+    sized = PartVisibility(image_size=(32, 48))
+    sized.add(np.array([[1, 2]]))
+    assert sized.summary()["image_size"] == [32, 48]
+    assert visibility_sentence(sized.summary()).startswith("Part visibility in the input view (32x48 renders")

@@ -8,8 +8,9 @@ import torch
 
 from cerberus_core.datasets.scene import SceneSetup
 from cerberus_core.errors import ConfigError, InputTypeError, ShapeError
+from cerberus_core.eval.masks import mask_iou
 from cerberus_core.parts import PartSet
-from cerberus_core.photo_mask import rendered_silhouette, silhouette_iou
+from cerberus_core.photo_mask import SILHOUETTE_THRESHOLD, rendered_silhouette
 from cerberus_core.reconstruct.fit import FitSettings, fit_silhouette, fit_silhouettes
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import make_renderer
@@ -35,8 +36,9 @@ def test_the_fit_moves_the_outline_onto_the_mask(backend):
     guess, _ = two_balls(0.0)
     fitted = fit_silhouette(renderer, guess, camera, torch.as_tensor(target)[None], dihedral,
                             FitSettings(steps=80, lr=0.005, anchor=0.0))
-    before = silhouette_iou(rendered_silhouette(renderer, guess, camera), target)
-    after = silhouette_iou(rendered_silhouette(renderer, fitted, camera), target)
+    on = target >= SILHOUETTE_THRESHOLD
+    before = float(mask_iou(rendered_silhouette(renderer, guess, camera) >= SILHOUETTE_THRESHOLD, on))
+    after = float(mask_iou(rendered_silhouette(renderer, fitted, camera) >= SILHOUETTE_THRESHOLD, on))
     assert after > before + 0.1 and after > 0.9
     moved = (fitted.translations - guess.translations)[0, :, 0]
     assert moved[1] > 0.03 and abs(float(moved[0])) < moved[1] / 3  # the shifted part moved right, the other hardly

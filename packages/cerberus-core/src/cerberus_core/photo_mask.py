@@ -27,6 +27,7 @@ from PIL import Image, ImageDraw
 
 from cerberus_core.errors import MissingPackageError
 from cerberus_core.eval.figures import render_reconstruction
+from cerberus_core.eval.masks import mask_iou
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -45,6 +46,9 @@ AUTO = "auto"
 
 MIN_PERSON_PIXELS = 0.002
 """A mask covering less than this fraction of the photo (0.2 %) is no person found."""
+
+SILHOUETTE_THRESHOLD = 0.5
+"""A pixel of a soft silhouette (a rendered alpha, a person mask, in [0, 1]) is on it at this value or more."""
 
 
 def segmenter_available() -> bool:
@@ -93,30 +97,12 @@ def person_mask(rgb: np.ndarray) -> np.ndarray:
     return mask if (mask >= 0.5).mean() >= MIN_PERSON_PIXELS else np.zeros_like(mask)
 
 
-def silhouette_iou(rendered: np.ndarray, mask: np.ndarray, threshold: float = 0.5) -> float:
-    """How well a reconstruction's rendered silhouette covers a person mask: intersection over union.
-
-    Args:
-        rendered: ``(H, W)`` the reconstruction's coverage (alpha) rendered from the input camera, in [0, 1].
-        mask: ``(H, W)`` the person mask in the same frame, in [0, 1].
-        threshold: a pixel is on a silhouette at this value or more.
-    Returns:
-        IoU in [0, 1]; ``nan`` when both silhouettes are empty.
-
-    >>> import numpy as np
-    >>> a = np.zeros((4, 4)); a[:2] = 1
-    >>> b = np.zeros((4, 4)); b[1:3] = 1
-    >>> silhouette_iou(a, b)
-    0.3333333333333333
-    """
-    check_shapes("silhouette_iou", rendered=(np.asarray(rendered), "H W"), mask=(np.asarray(mask), "H W"))
-    r, m = np.asarray(rendered) >= threshold, np.asarray(mask) >= threshold
-    union = int((r | m).sum())
-    return float((r & m).sum() / union) if union else float("nan")
-
-
 def rendered_silhouette(renderer: Renderer, recon: PartSet, camera: Camera) -> np.ndarray:
-    """``(H, W)`` the coverage (alpha, in [0, 1]) of one reconstruction's parts seen from its input camera."""
+    """``(H, W)`` the coverage (alpha, in [0, 1]) of one reconstruction's parts seen from its input camera.
+
+    Its IoU against a mask: :func:`~cerberus_core.eval.masks.mask_iou` of the two thresholded at
+    :data:`SILHOUETTE_THRESHOLD` (NaN when both are empty), as :func:`silhouette_ious` scores it.
+    """
     with torch.no_grad():
         out = render_parts(renderer, recon.posed().to(camera.device), recon.faces.to(camera.device), camera)
     return out.alpha[0, 0].float().cpu().numpy()
@@ -135,7 +121,7 @@ def _square(rgb: np.ndarray, side: int, fill: Sequence[float] = (1.0, 1.0, 1.0))
     return np.asarray(canvas)
 
 
-def overlap_picture(rendered: np.ndarray, mask: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+def overlap_picture(rendered: np.ndarray, mask: np.ndarray, threshold: float = SILHOUETTE_THRESHOLD) -> np.ndarray:
     """``(H, W, 3)`` uint8: grey where the rendered silhouette and the mask agree on the body, red where only the
     mask is (the body the reconstruction misses), blue where only the rendering is (off the body), white
     elsewhere; the colours of the voxel views (:func:`cerberus_core.eval.figures.voxel_views`)."""
@@ -176,11 +162,15 @@ def steps_picture(photo: np.ndarray, mask: np.ndarray, framed: torch.Tensor, par
 
 def silhouette_ious(renderer: Renderer, recon: PartSet, camera: Camera, silhouettes: Sequence[np.ndarray | None]
                     ) -> list[float | None]:
-    """Per image, :func:`silhouette_iou` of ``recon``'s rendered silhouette against its silhouette (``(S, S)``
-    in [0, 1], :attr:`LoadedImage.silhouette <cerberus_core.reconstruct.images.LoadedImage.silhouette>`);
-    ``None`` for an image without one."""
-    return [None if s is None else silhouette_iou(rendered_silhouette(renderer, recon.index([i]), camera.index([i])), s)
-            for i, s in enumerate(silhouettes)]
+    """Per image, the IoU of ``recon``'s rendered silhouette against its silhouette (``(S, S)`` in [0, 1],
+    :attr:`LoadedImage.silhouette <cerberus_core.reconstruct.images.LoadedImage.silhouette>`), both on at
+    :data:`SILHOUETTE_THRESHOLD` (:func:`~cerberus_core.eval.masks.mask_iou`: NaN when both are empty); ``None``
+    for an image without one."""
+    on = SILHOUETTE_THRESHOLD
+    rendered = [None if s is None else rendered_silhouette(renderer, recon.index([i]), camera.index([i]))
+                for i, s in enumerate(silhouettes)]
+    return [None if s is None else float(mask_iou(r >= on, np.asarray(s) >= on))
+            for r, s in zip(rendered, silhouettes, strict=True)]
 
 
 def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, loaded: Sequence, stems: Sequence[str],
@@ -193,7 +183,7 @@ def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, load
     (:func:`silhouette_ious` before :func:`cerberus_core.reconstruct.fit.fit_silhouettes`); the pictures give both.
 
     Returns:
-        The files written, and each input's silhouette IoU (:func:`silhouette_iou` of the rendered silhouette
+        The files written, and each input's silhouette IoU (as :func:`silhouette_ious`: the rendered silhouette
         against the framed mask; ``None`` for an input without a silhouette).
     """
     written: list[Path] = []
@@ -204,7 +194,7 @@ def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, load
             continue
         one, cam = recon.index([i]), camera.index([i])
         rendered = rendered_silhouette(renderer, one, cam)
-        iou = silhouette_iou(rendered, item.silhouette)
+        iou = float(mask_iou(rendered >= SILHOUETTE_THRESHOLD, np.asarray(item.silhouette) >= SILHOUETTE_THRESHOLD))
         ious.append(iou)
         if item.auto_mask:
             path = out / f"{stem}_mask.png"

@@ -161,7 +161,8 @@ class Evaluation:
                 line += f"; {self.canonical_hint}"
             line += ")"
         lines = [line]
-        lines += [row.line(result[row.key]) for row in DIAGNOSTICS if row.line is not None and result[row.key] is not None]
+        record = to_jsonable(result)  # each diagnostic's line reads its summary's JSON form, as results.md does
+        lines += [row.line(record[row.key]) for row in DIAGNOSTICS if row.line is not None and record.get(row.key) is not None]
         if weights.stale_warning():  # said again under the scores, where it is read
             lines.append(f"note: these scores are for step {weights.step}; the run has a newer checkpoint "
                          f"{printable(weights.newer)} (step {weights.newer_step})")

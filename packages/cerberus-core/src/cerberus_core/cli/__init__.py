@@ -1,5 +1,7 @@
-"""The ``cerberus`` command. Each sub-command lives beside the code it drives and contributes an
-``add_parser(subparsers)`` function; this module only assembles them and owns the one error path:
+"""The ``cerberus`` command. Each sub-command lives beside the code it drives and contributes a
+``configure(parser)`` function (its arguments, description and examples); this module lists them in
+:data:`COMMANDS`, imports only the one that runs (``cerberus --help``, ``--version`` and ``cerberus compare`` do
+not import torch), and owns the one error path:
 
 * a typed error (:class:`cerberus_core.errors.CerberusError`, a plugin error) → one line
   ``cerberus COMMAND: message`` on standard error, exit status 2 (or the error's ``exit_code``), said in
@@ -34,16 +36,17 @@ from cerberus_core.cli.flags import FlagNames, typed_flags
 from cerberus_core.errors import CerberusError, IncompleteDatasetError
 from cerberus_core.plumbing.signals import Terminated
 
-#: Modules that contribute sub-commands, in the order ``--help`` lists them.
-COMMAND_MODULES = [
-    "cerberus_core.cli.renderers",
-    "cerberus_core.cli.demo",
-    "cerberus_core.cli.data",
-    "cerberus_core.cli.train",
-    "cerberus_core.cli.eval",
-    "cerberus_core.cli.compare",
-    "cerberus_core.cli.reconstruct",
-    "cerberus_core.cli.models",
+#: The sub-commands in the order ``--help`` lists them: the name, the module whose ``configure(parser)`` builds
+#: its parser (imported only when that command runs) and the line ``cerberus --help`` shows for it.
+COMMANDS = [
+    ("renderers", "cerberus_core.cli.renderers", "list installed renderer backends (and metrics) with their versions"),
+    ("demo", "cerberus_core.cli.demo", "render a demo scene with every installed renderer backend"),
+    ("data", "cerberus_core.cli.data", "generate, check and show training/test datasets"),
+    ("train", "cerberus_core.cli.train", "train Cerberus (or a baseline) on a quadruplet dataset"),
+    ("eval", "cerberus_core.cli.eval", "evaluate a trained run on a test split: voxel IoU, the diagnostics, figures"),
+    ("compare", "cerberus_core.cli.compare", "compare evaluations of one test set, paired image by image with the first"),
+    ("reconstruct", "cerberus_core.cli.reconstruct", "3D part meshes (GLB, OBJ) and pictures from one or more images"),
+    ("models", "cerberus_core.cli.models", "list the pretrained models shipped with the toolkit"),
 ]
 
 EXIT_ERROR = 2
@@ -51,7 +54,9 @@ EXIT_SIGINT = 128 + signal.SIGINT  # 130
 EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``cerberus`` parser. Every sub-command is listed; only ``command``'s module is imported and its parser
+    built (all of them when ``command`` is None: the documentation's tests read every flag)."""
     from cerberus_core.cli.checks import OneLineParser
 
     parser = OneLineParser(
@@ -64,8 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"cerberus {VERSION}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).add_parser(sub)
+    for name, module, line in COMMANDS:
+        p = sub.add_parser(name, help=line)
+        if command is None or command == name:
+            importlib.import_module(module).configure(p)
     return parser
 
 
@@ -140,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGINT, on_int)
         signal.signal(signal.SIGTERM, on_term)
     try:
-        parser = build_parser()
+        parser = build_parser(command)
         args = parser.parse_args(argv)
         command = args.command
         names = dataclasses.replace(getattr(args, "flag_names", names), typed=typed_flags(words))

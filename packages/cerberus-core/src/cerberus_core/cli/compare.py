@@ -13,16 +13,17 @@ EXAMPLES = """examples:
   cerberus compare runs/a/eval/results.json runs/b/eval/results.json"""
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "compare", help="compare evaluations of one test set, paired image by image with the first",
-        description="Is one model better than another on the same test images? Reads the results.json of each "
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus compare`` (:data:`cerberus_core.cli.COMMANDS`)."""
+    p.description = ("Is one model better than another on the same test images? Reads the results.json of each "
         "evaluation (`cerberus eval`) and prints a Markdown table: per evaluation the images it scored, its mean "
-        "voxel IoU and, where the evaluations have them, Hard Human and the voxel precision and recall, each beside "
-        "its paired difference to the first evaluation: the mean over the images both scored of the per-image "
-        "difference, its standard error, and how many images it is better on (`mean ± s.e. (better / images)`). "
+        "voxel IoU and, where the evaluations have them, Hard Human and the voxel precision and recall (each the "
+        "mean over its images of the per-image value), each beside its paired difference to the first evaluation: "
+        "the mean over the images both scored of the per-image difference, its standard error, and how many images "
+        "it is better on (`mean ± s.e. (better / images)`). "
         "Pairing removes what the images share (a hard pose is hard for both models), so two models a few "
-        "thousandths apart can be told apart. Evaluations of different test sets are refused.", epilog=EXAMPLES)
+        "thousandths apart can be told apart. Evaluations of different test sets are refused.")
+    p.epilog = EXAMPLES
     p.add_argument("evaluations", nargs="+", metavar="[NAME=]EVAL",
                    help="an evaluation: a results.json, the folder cerberus eval wrote it to (--out), or a run folder "
                         "evaluated into its eval/; NAME (default: the run's folder name) labels its row. The first "
@@ -54,7 +55,6 @@ def _named(items: list[str]) -> dict[str, Path]:
 def run(args: argparse.Namespace) -> int:
     from cerberus_core.errors import ConfigError
     from cerberus_core.eval.compare import comparison_rows, evaluation_file, load_evaluation
-    from cerberus_core.eval.figures import paired_plot
     from cerberus_core.eval.markdown import markdown_table
     from cerberus_core.plumbing.outputs import output_file
 
@@ -68,8 +68,14 @@ def run(args: argparse.Namespace) -> int:
     header, rows = comparison_rows(evaluations)
     print(markdown_table(header, rows))
     first = next(iter(evaluations))
-    print(f"\nΔ: the paired difference to {first}, the mean over the images both scored of each image's difference, "
-          "± its standard error (images where it is higher / images both scored)")
+    pooled = (" (precision and recall too, not the figures pooled over all voxels of its results.md)"
+              if "precision" in header or "recall" in header else "")
+    print(f"\nEach value: the mean over the evaluation's images of the per-image value{pooled}. Δ: the paired "
+          f"difference to {first}, the mean over the images both scored of each image's difference (of the same "
+          "images, the difference of the two means), ± its standard error (images where it is higher / images both "
+          "scored)")
     if args.plot is not None:
+        from cerberus_core.eval.figures import paired_plot  # torch and the renderer: only for a plot
+
         print(f"plot: {paired_plot(evaluations, args.plot)}")
     return 0

@@ -32,9 +32,9 @@ folder holding anything else is refused, --overwrite or not (what --out may repl
 splits.<split>.<field>, e.g. --set splits.train.pairs=2000 --set scene.elevation=20"""
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("data", help="generate, check and show training/test datasets",
-                       description="Render the paper's datasets on this machine (nothing is downloaded): "
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus data`` (:data:`cerberus_core.cli.COMMANDS`)."""
+    p.description = ("Render the paper's datasets on this machine (nothing is downloaded): "
                        "quadruplets of one body in 2 poses from 2 viewpoints for training, single views with "
                        "ground-truth meshes and part labels for testing.")
     dsub = p.add_subparsers(dest="data_command", metavar="ACTION")

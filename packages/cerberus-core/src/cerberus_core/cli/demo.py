@@ -19,9 +19,9 @@ from cerberus_core.viz import part_colors, save_image_grid
 MAX_IMAGE_SIZE = 2048
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="render a demo scene with every installed renderer backend",
-                       description="Render a stick figure of 9 deformed sphere parts from 4 viewpoints with each "
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus demo`` (:data:`cerberus_core.cli.COMMANDS`)."""
+    p.description = ("Render a stick figure of 9 deformed sphere parts from 4 viewpoints with each "
                        "installed renderer backend (or the one named) and write shaded and part-coloured PNGs.")
     p.add_argument("--out", type=Path, default=Path("out/demo"),
                    help=f"output folder, replaced whole (default: out/demo); {OVERWRITE_HELP}")

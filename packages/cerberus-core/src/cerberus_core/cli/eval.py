@@ -12,11 +12,10 @@ from cerberus_core.errors import ConfigError
 from cerberus_core.eval.diagnostics import DIAGNOSTICS
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus eval`` (:data:`cerberus_core.cli.COMMANDS`)."""
     diagnostics = "; ".join(f"{row.about} [{skip_flag(row.name)}]" for row in DIAGNOSTICS)
-    p = sub.add_parser(
-        "eval", help="evaluate a trained run on a test split: voxel IoU, the diagnostics, figures",
-        description="Evaluate a trained model (a run folder, model.safetensors or checkpoint .pt) on the test split of "
+    p.description = ("Evaluate a trained model (a run folder, model.safetensors or checkpoint .pt) on the test split of "
         "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
         f"entry point, 'kato' protocol), per image and per subject; and the diagnostics, each skipped by the flag "
         f"beside it: {diagnostics}. "
@@ -46,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
-    p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure (default: 5)")
+    p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure, spread over the images scored (default: 5)")
     p.add_argument("--viewer-images", type=int, default=12, metavar="N",
                    help="figure images in the interactive 3D viewer pictures/index.html (default: up to 12; 0: none)")
     p.add_argument("--renderer", help="renderer backend of every render in the input views (part visibility, "

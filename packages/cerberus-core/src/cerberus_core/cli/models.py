@@ -6,14 +6,13 @@ import json
 from dataclasses import asdict
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "models", help="list the pretrained models shipped with the toolkit",
-        description="List the pretrained models that ship inside cerberus-core (no download): their name, what they "
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus models`` (:data:`cerberus_core.cli.COMMANDS`)."""
+    p.description = ("List the pretrained models that ship inside cerberus-core (no download): their name, what they "
         "were trained on, their test figures and their model card. Use a name wherever a run folder is taken: "
         "`cerberus reconstruct --model human photo.png`, `cerberus eval human --data DATASET`, or "
-        "`Run.load(\"human\")` in Python.",
-        epilog="examples:\n  cerberus models\n  cerberus models --json\n"
+        "`Run.load(\"human\")` in Python.")
+    p.epilog = ("examples:\n  cerberus models\n  cerberus models --json\n"
         "  cerberus reconstruct --model human person.png --out recon/")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)

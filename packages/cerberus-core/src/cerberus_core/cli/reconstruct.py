@@ -11,10 +11,9 @@ from cerberus_core.errors import ConfigError
 from cerberus_core.plumbing.names import printable
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "reconstruct", help="3D part meshes (GLB, OBJ) and pictures from one or more images",
-        description="Run a trained model on images. For each image writes the posed part meshes as one GLB (parts "
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus reconstruct`` (:data:`cerberus_core.cli.COMMANDS`)."""
+    p.description = ("Run a trained model on images. For each image writes the posed part meshes as one GLB (parts "
         "as named nodes, each a distinct colour) and OBJ files, and PNGs: the input, the reconstruction, the parts "
         "in colours, a turntable, a new lighting direction, and a new pose (this image's parts posed with the "
         "rotations and translations predicted from the next image), and index.html, an interactive 3D viewer of "
@@ -30,8 +29,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "network's); the silhouette IoU of both is printed.\n\n"
         "The results replace --out whole, in one step, when they are all written: an error or Ctrl-C leaves --out "
         "as it was. --out may be new, empty or earlier results of cerberus reconstruct; a folder holding anything "
-        "else (or an input) is refused, --overwrite or not (docs/outputs.md).",
-        epilog="examples:\n  cerberus reconstruct --model human person.png          # a shipped model (cerberus models)\n"
+        "else (or an input) is refused, --overwrite or not (docs/outputs.md).")
+    p.epilog = ("examples:\n  cerberus reconstruct --model human person.png          # a shipped model (cerberus models)\n"
         "  cerberus reconstruct runs/cpu a.png b.png --out recon/   # your own run\n"
         "  cerberus reconstruct ./human a.png                       # a run folder called human (not the model)\n"
         "  cerberus reconstruct --model human a.jpg --mask a_mask.png   # a photo and its silhouette\n"

@@ -9,9 +9,9 @@ from cerberus_core.errors import PluginError
 from cerberus_core.plugins import METRIC_GROUP, RENDERER_GROUP, plugin_table
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("renderers", help="list installed renderer backends (and metrics) with their versions",
-                       description="List the renderer backends found through the 'cerberus.renderers' entry-point "
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus renderers`` (:data:`cerberus_core.cli.COMMANDS`)."""
+    p.description = ("List the renderer backends found through the 'cerberus.renderers' entry-point "
                        "group, and the metrics found through 'cerberus.metrics', with package, version and status. "
                        "A backend that fails to import is listed with its error; the others keep working. The "
                        "table fits the terminal's width: long names and errors wrap in their column.")

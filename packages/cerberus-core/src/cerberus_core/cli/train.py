@@ -36,14 +36,13 @@ with --resume. Errors print one line and exit 2 (3: stopped on a non-finite loss
 """
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def configure(p: argparse.ArgumentParser) -> None:
+    """The arguments, description and examples of ``cerberus train`` (:data:`cerberus_core.cli.COMMANDS`)."""
     from cerberus_core.train.settings import TrainConfig, preset_names
 
-    p = sub.add_parser(
-        "train", help="train Cerberus (or a baseline) on a quadruplet dataset",
-        description="Train the Cerberus derenderer: predict part meshes from single images and learn from the "
-        "rendering error, with pose and viewpoint consistency (Deng et al., sections 3-5).",
-        epilog=EPILOG)
+    p.description = ("Train the Cerberus derenderer: predict part meshes from single images and learn from the "
+        "rendering error, with pose and viewpoint consistency (Deng et al., sections 3-5).")
+    p.epilog = EPILOG
     src = p.add_mutually_exclusive_group()
     src.add_argument("--config", type=Path, metavar="FILE", help="YAML training config")
     src.add_argument("--preset", choices=preset_names(), action="append", metavar="NAME",

@@ -9,6 +9,7 @@
   :mod:`.part_quality` (the parts against the ground-truth semantic parts), :mod:`.visibility` (how often each
   part is hidden in its input view), :mod:`.depth` (depth across the views of a pose), :mod:`.segments` (per
   ground-truth body segment), :mod:`.allocation` (where the parts' keypoints go).
+* :mod:`.masks` — :func:`~.masks.mask_iou`, the one mask IoU they (and :mod:`cerberus_core.photo_mask`) score with.
 * :mod:`.report`, :mod:`.markdown` — JSON and Markdown.
 * :mod:`.compare` — two evaluations compared image by image (:func:`paired_difference`).
 * :mod:`.export` — GLB / OBJ files of posed parts; :mod:`.figures` — Figure 1 (b)-(f), Table 2, turntables;

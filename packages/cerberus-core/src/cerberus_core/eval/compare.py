@@ -3,7 +3,7 @@
 Two ``cerberus eval`` results of the same test set (``results.json``, or
 :attr:`~cerberus_core.eval.runner.EvaluationResult.records`) score the same images, so their difference is
 best read per image: the images are matched by their record's ``index`` (and must agree on ``subject``, ``pose``
-and ``view`` where both records have them), and :func:`paired_difference`
+and ``view`` where both records have them: :func:`image_pairs`), and :func:`paired_difference`
 gives the mean of ``a - b`` over the images both scored, its standard error and how many images favour
 ``a`` (:class:`PairedDifference`). Pairing removes what the images share (a hard pose is hard for both
 models), so its standard error is usually much smaller than either mean's own. Any per-image value of the
@@ -18,8 +18,6 @@ Nothing here needs torch: the experiments' tables import it to read ``results.js
 """
 from __future__ import annotations
 
-import json
-import math
 import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -27,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from cerberus_core.errors import DatasetError, NoEvaluationError
+from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.names import printable
 
 #: The file ``cerberus eval`` writes its scores and per-image records to.
@@ -77,9 +76,49 @@ def _records(evaluation: Evaluation) -> Sequence[Mapping[str, Any]]:
     return evaluation.get("records", []) if isinstance(evaluation, Mapping) else evaluation
 
 
+def image_pairs(a: Evaluation, b: Evaluation, key_a: str = "iou",
+                key_b: str | None = None) -> list[tuple[float, float]]:
+    """The images two evaluations both scored, as ``(a[key_a], b[key_b])`` per image: the one pairing of this
+    module (:func:`paired_difference`, :func:`comparison_rows`,
+    :func:`cerberus_core.eval.figures.paired_plot`).
+
+    Args:
+        a, b: two evaluations of the same test set: a ``results.json`` dict (its ``records``) or the records,
+            one dict per image with its ``index``; in any order, and either may lack images.
+        key_a: the per-image value of ``a`` (``"iou"``, ``"hard_iou"``...).
+        key_b: that of ``b``; ``key_a`` if None.
+    Returns:
+        One ``(value in a, value in b)`` per image of ``a`` whose ``key_a`` is set and whose ``index`` has a
+        record in ``b`` with ``key_b`` set, in ``a``'s order (empty where none is shared).
+
+    Raises:
+        DatasetError: two records paired by ``index`` name different images (they differ in a field of
+            :data:`IDENTITY` both have): the evaluations scored different test sets.
+
+    Example:
+        >>> a = [{"index": 0, "iou": 0.5, "subject": "s1"}, {"index": 1, "iou": 0.6}, {"index": 2, "iou": None}]
+        >>> image_pairs(a, [{"index": 2, "iou": 0.4}, {"index": 0, "iou": 0.45, "subject": "s1"}])
+        [(0.5, 0.45)]
+        >>> image_pairs(a, [{"index": 0, "iou": 0.45, "subject": "s2"}])
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.DatasetError: image 0 is subject 's1' in one evaluation and 's2' in the other: ...
+    """
+    key_b = key_a if key_b is None else key_b
+    rb = {r["index"]: r for r in _records(b)}
+    pairs = []
+    for r in _records(a):
+        other = rb.get(r["index"], {})
+        if r.get(key_a) is None or other.get(key_b) is None:
+            continue
+        _same_image(r, other)
+        pairs.append((r[key_a], other[key_b]))
+    return pairs
+
+
 def paired_difference(a: Evaluation | None, b: Evaluation | None, key_a: str = "iou",
                       key_b: str | None = None) -> PairedDifference | None:
-    """The paired difference ``a[key_a] - b[key_b]`` per image, over the images both scored.
+    """The paired difference ``a[key_a] - b[key_b]`` per image, over the images both scored (:func:`image_pairs`).
 
     Args:
         a, b: two evaluations of the same test set: a ``results.json`` dict (its ``records``) or the records,
@@ -106,15 +145,7 @@ def paired_difference(a: Evaluation | None, b: Evaluation | None, key_a: str = "
     """
     if a is None or b is None:
         return None
-    key_b = key_a if key_b is None else key_b
-    rb = {r["index"]: r for r in _records(b)}
-    d = []
-    for r in _records(a):
-        other = rb.get(r["index"], {})
-        if r.get(key_a) is None or other.get(key_b) is None:
-            continue
-        _same_image(r, other)
-        d.append(r[key_a] - other[key_b])
+    d = [x - y for x, y in image_pairs(a, b, key_a, key_b)]
     if len(d) < 2:
         return None
     return PairedDifference(statistics.mean(d), statistics.stdev(d) / len(d) ** 0.5, sum(x > 0 for x in d), len(d))
@@ -144,7 +175,9 @@ def load_evaluation(path: str | Path, *, missing_ok: bool = False) -> dict[str, 
 
     Raises:
         NoEvaluationError: no ``results.json`` there (without ``missing_ok``).
-        DatasetError: the file is not JSON, or not an evaluation (no ``records`` list).
+        DatasetError: the file cannot be read, is not JSON (malformed, not UTF-8, a number too long or nesting too
+            deep to read: :func:`cerberus_core.plumbing.jsontext.loads`), or is not an evaluation (no ``records``
+            list).
 
     Example:
         >>> import json, tempfile
@@ -161,9 +194,13 @@ def load_evaluation(path: str | Path, *, missing_ok: bool = False) -> dict[str, 
             return None
         raise
     try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DatasetError(f"{printable(file)} is not JSON ({exc}); pass the results.json an evaluation wrote") from exc
+        data = jsontext.loads(file.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise DatasetError(f"{printable(file)} cannot be read ({exc}); make it readable, or pass another "
+                           "evaluation's results.json") from exc
+    except ValueError as exc:  # malformed or not UTF-8 (its decode error), too long a number or too deep a nesting
+        raise DatasetError(f"{printable(file)} cannot be read as JSON ({exc}); pass the results.json an evaluation "
+                           "wrote, or evaluate again to rewrite it") from exc
     if not isinstance(data, dict) or not isinstance(data.get("records"), list):
         raise DatasetError(f"{printable(file)} is not an evaluation's results.json (it has no list of per-image "
                            "'records'); pass the results.json an evaluation wrote")
@@ -183,16 +220,26 @@ def evaluation_name(path: str | Path) -> str:
     return p.parent.name if p.name == "eval" and p.parent.name else p.name
 
 
-#: The per-image values :func:`comparison_rows` pairs: ``(column, record key, the result's summary of it)``.
-PAIRED_VALUES = (("voxel IoU", "iou", ("standard", "mean")),
-                 ("Hard Human", "hard_iou", ("hard", "mean")),
-                 ("precision", "voxel_precision", ("segments", "voxel_precision")),
-                 ("recall", "voxel_recall", ("segments", "voxel_recall")))
+#: The per-image values :func:`comparison_rows` shows: ``(column, record key)``. Each column is the mean over the
+#: evaluation's images of the record's value, the statistic its ``Δ`` column pairs: voxel IoU and Hard Human are
+#: then the ``standard`` and ``hard`` means of ``results.json``, but precision and recall are not its
+#: ``segments`` figures, which pool the voxels of every image before dividing.
+PAIRED_VALUES = (("voxel IoU", "iou"), ("Hard Human", "hard_iou"), ("precision", "voxel_precision"),
+                 ("recall", "voxel_recall"))
 
 
-def _summary(evaluation: Mapping[str, Any], where: tuple[str, str]) -> float | None:
-    value = (evaluation.get(where[0]) or {}).get(where[1])
-    return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
+def image_mean(evaluation: Evaluation, key: str) -> float | None:
+    """The mean over an evaluation's images of the per-image value ``key`` (voxel IoU, 0 to 1, for ``"iou"``), over
+    the records where it is set; ``None`` where none is. Where two evaluations scored the same images, their
+    :func:`paired_difference` has this mean's difference as its mean.
+
+    >>> image_mean([{"index": 0, "iou": 0.5}, {"index": 1, "iou": 0.7}, {"index": 2, "iou": None}], "iou")
+    0.6
+    >>> print(image_mean({"records": [{"index": 0, "iou": 0.5}]}, "hard_iou"))
+    None
+    """
+    values = [r[key] for r in _records(evaluation) if r.get(key) is not None]
+    return statistics.fmean(values) if values else None
 
 
 def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]]) -> tuple[list[str], list[list[Any]]]:
@@ -202,34 +249,35 @@ def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]]) -> tuple[list[
         evaluations: ``{name: results.json dict}`` (:func:`load_evaluation`), the baseline first.
     Returns:
         ``(header, rows)`` for :func:`~cerberus_core.eval.markdown.markdown_table`: per evaluation its name, the
-        images it scored and, for each of :data:`PAIRED_VALUES` that some evaluation has, its mean and (column
-        ``Δ ...``) its :func:`paired_difference` to the first (``None`` for the first itself, or where either
-        lacks it).
+        images it scored and, for each of :data:`PAIRED_VALUES` that some evaluation's records have, the mean over
+        its images of the per-image value (:func:`image_mean`; precision and recall too, not the pooled figures of
+        its ``segments`` summary) and (column ``Δ ...``) its :func:`paired_difference` to the first (``None`` for
+        the first itself, or where either lacks it): of two evaluations of the same images, the difference of
+        their means.
 
     Raises:
         DatasetError: two evaluations scored different images under one index (different test sets).
 
     Example:
-        >>> a = {"standard": {"mean": 0.55}, "records": [{"index": i, "iou": 0.5 + 0.05 * i} for i in range(3)]}
-        >>> b = {"standard": {"mean": 0.58}, "records": [{"index": i, "iou": 0.52 + 0.06 * i} for i in range(3)]}
+        >>> a = {"records": [{"index": i, "iou": 0.5 + 0.05 * i} for i in range(3)]}
+        >>> b = {"records": [{"index": i, "iou": 0.52 + 0.06 * i} for i in range(3)]}
         >>> header, rows = comparison_rows({"base": a, "new": b})
         >>> header
         ['model', 'images', 'voxel IoU', 'Δ voxel IoU']
-        >>> rows[1][:3], str(rows[1][3])
-        (['new', 3, 0.58], '+0.030 ± 0.006 (3 / 3)')
+        >>> rows[1][:2], round(rows[1][2], 4), str(rows[1][3])
+        (['new', 3], 0.58, '+0.030 ± 0.006 (3 / 3)')
     """
     names = list(evaluations)
     first = evaluations[names[0]] if names else None
-    shown = [(column, key, where) for column, key, where in PAIRED_VALUES
-             if any(_summary(e, where) is not None for e in evaluations.values())]
+    means = {name: {key: image_mean(e, key) for _, key in PAIRED_VALUES} for name, e in evaluations.items()}
+    shown = [(column, key) for column, key in PAIRED_VALUES if any(m[key] is not None for m in means.values())]
     header = ["model", "images"]
-    for column, _, _ in shown:
+    for column, _ in shown:
         header += [column, f"Δ {column}"]
     rows = []
     for name, evaluation in evaluations.items():
         row: list[Any] = [name, len(evaluation.get("records", []))]
-        for _, key, where in shown:
-            row += [_summary(evaluation, where),
-                    None if evaluation is first else paired_difference(evaluation, first, key)]
+        for _, key in shown:
+            row += [means[name][key], None if evaluation is first else paired_difference(evaluation, first, key)]
         rows.append(row)
     return header, rows

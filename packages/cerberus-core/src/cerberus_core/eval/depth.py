@@ -27,6 +27,7 @@ import torch
 
 from cerberus_core.errors import ShapeError
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
+from cerberus_core.eval.masks import mask_iou
 from cerberus_core.parts import PartSet
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
@@ -52,13 +53,6 @@ def translation_disagreement(translations: Tensor) -> Tensor:
                          "pass (K, N, 3) with K >= 2")
     pairs = torch.tensor(list(combinations(range(k), 2)))
     return (translations[pairs[:, 0]] - translations[pairs[:, 1]]).norm(dim=-1).mean(0)
-
-
-def mask_iou(a: Tensor, b: Tensor) -> Tensor:
-    """``(...)`` intersection over union of two boolean masks ``(..., H, W)`` (1 where both are empty)."""
-    inter = (a & b).flatten(-2).sum(-1).float()
-    union = (a | b).flatten(-2).sum(-1).float()
-    return torch.where(union > 0, inter / union.clamp(min=1), torch.ones_like(union))
 
 
 def coverage_masks(renderer: Renderer, posed: Tensor, faces: Tensor, cameras: Camera) -> Tensor:
@@ -90,8 +84,9 @@ def turned_view_ious(renderer: Renderer, parts: PartSet, cameras: Camera, body: 
         cameras: the ``K`` views' cameras.
         body: the pose's ground-truth mesh ``(vertices (Vg, 3), faces (Fg, 3))``, world frame.
     Returns:
-        ``(K, K)``: entry ``[x, y]`` is reconstruction ``x`` rendered by camera ``y`` against the body's
-        silhouette in camera ``y`` (the diagonal: the input views).
+        ``(K, K)`` float64: entry ``[x, y]`` is reconstruction ``x`` rendered by camera ``y`` against the body's
+        silhouette in camera ``y`` (the diagonal: the input views), :func:`~cerberus_core.eval.masks.mask_iou`
+        (NaN where both silhouettes are empty: the body out of camera ``y`` and the reconstruction too).
     """
     k = parts.batch_size
     if cameras.batch_size != k:
@@ -113,7 +108,8 @@ class DepthAccumulator:
     ``None`` when no pose has two views, else a dict with ``poses`` (the poses measured),
     ``translation_disagreement`` (per part, world units, mean over poses), ``mean_translation_disagreement``,
     ``input_view_silhouette_iou`` and ``turned_view_silhouette_iou`` (means over images and, for the
-    second, over every other view of the image's pose).
+    second, over every other view of the image's pose; a pair where the body and the reconstruction are both out
+    of the camera has no IoU and is left out: NaN-aware means).
     """
 
     def __init__(self, renderer: Renderer) -> None:
@@ -151,8 +147,8 @@ class DepthAccumulator:
         return {"poses": len(disagreement),
                 "translation_disagreement": [round(float(v), 5) for v in per_part],
                 "mean_translation_disagreement": float(per_part.mean()),
-                "input_view_silhouette_iou": float(torch.cat(own).mean()),
-                "turned_view_silhouette_iou": float(torch.cat(turned).mean())}
+                "input_view_silhouette_iou": float(torch.cat(own).nanmean()),
+                "turned_view_silhouette_iou": float(torch.cat(turned).nanmean())}
 
 
 def depth_line(depth: dict[str, Any]) -> str:

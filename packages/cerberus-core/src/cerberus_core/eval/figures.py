@@ -28,7 +28,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from cerberus_core.errors import ConfigError, DatasetError, ShapeError
 from cerberus_core.eval.allocation import keypoints
-from cerberus_core.eval.compare import paired_difference
+from cerberus_core.eval.compare import image_pairs, paired_difference
 from cerberus_core.eval.runner import collate
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
@@ -298,9 +298,9 @@ def draw_keypoints(images: Tensor, points: Tensor) -> Tensor:
     return out
 
 
-def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSet,
-                    baselines: Mapping[str, PartSet] | None = None, *, turn_deg: float = 90.0,
-                    background: RGB = DEFAULT_BACKGROUND) -> tuple[list[str], list[list[Tensor]]]:
+def table2_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSet,
+                baselines: Mapping[str, PartSet] | None = None, *, turn_deg: float = 90.0,
+                background: RGB = DEFAULT_BACKGROUND) -> tuple[list[str], list[list[Tensor]]]:
     """The cells of a Table-2 figure: for each image, input | keypoints | baselines... | ours | parts | turn.
 
     Args:
@@ -310,13 +310,14 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
             one-part reconstruction (:meth:`PartSet.from_posed`). Rendered shaded grey.
         turn_deg: azimuth change of the "Turn" column.
     Returns:
-        ``(column titles, rows of (3, H, W) cells)``.
+        ``(column titles, rows of (3, H, W) cells)``, for :func:`labelled_grid` (:func:`evaluation_figures` adds
+        two columns of voxels).
     """
     baselines = dict(baselines or {})
     n = images.shape[0]
     for name, rec in [("ours", ours), *baselines.items()]:
         if rec.batch_size != n:
-            raise ShapeError(f"comparison_rows: {name} has {rec.batch_size} reconstructions for {n} images; pass one "
+            raise ShapeError(f"table2_rows: {name} has {rec.batch_size} reconstructions for {n} images; pass one "
                              "reconstruction per image for every baseline")
     columns = {"Input": images.detach().float().cpu().clamp(0, 1)}
     columns["Keypoints"] = draw_keypoints(columns["Input"], keypoints(ours, camera))
@@ -328,14 +329,6 @@ def comparison_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: Pa
     columns["Turn"] = render_reconstruction(renderer, ours, turned, background=background).cpu()
     titles = list(columns)
     return titles, [[columns[t][i] for t in titles] for i in range(n)]
-
-
-def comparison_figure(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSet,
-                      baselines: Mapping[str, PartSet] | None = None, *, turn_deg: float = 90.0,
-                      scale: int = 2, background: RGB = DEFAULT_BACKGROUND) -> Image.Image:
-    """A Table-2-like figure (see :func:`comparison_rows`) as one picture."""
-    titles, rows = comparison_rows(renderer, images, camera, ours, baselines, turn_deg=turn_deg, background=background)
-    return labelled_grid(rows, titles, scale=scale)
 
 
 # ------------------------------------------------------------------ voxels: hits, missed, off the body
@@ -464,13 +457,15 @@ def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: P
         page: the viewer's title, number of images (``limit``, 0: none) and part labels (:class:`ViewerPage`;
             its background is the dataset's).
         ious: ``{dataset index: voxel IoU}`` the evaluation computed
-            (:meth:`~cerberus_core.eval.runner.EvaluationResult.image_ious`), shown on the viewer's cards.
+            (:meth:`~cerberus_core.eval.runner.EvaluationResult.image_ious`), shown on the viewer's cards; the
+            pictured images are spread over these images (default: over the whole dataset), so each card has one.
     Returns:
         The path of the Table-2 figure.
     """
     out = Path(out)
-    n = min(n_images, len(dataset))
-    idx = torch.linspace(0, len(dataset) - 1, n).round().long().unique().tolist()
+    scored = sorted(ious) if ious else list(range(len(dataset)))
+    n = min(n_images, len(scored))
+    idx = [scored[k] for k in torch.linspace(0, len(scored) - 1, n).round().long().unique().tolist()]
     batch = collate([dataset[i] for i in idx])
     camera = dataset.cameras(batch)
     images = batch["images"]
@@ -479,7 +474,7 @@ def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: P
         ours = models.ours.reconstruct(dev_images, dev_camera).to("cpu")
         others = {name: other.reconstruct(dev_images, dev_camera).to("cpu") for name, other in models.baselines.items()}
     background = tuple(dataset.scene.background)
-    titles, rows = comparison_rows(renderer, images, camera, ours, others, background=background)
+    titles, rows = table2_rows(renderer, images, camera, ours, others, background=background)
     bodies = [dataset.gt_mesh(i) for i in idx]
     scorer = scorer or VoxelScorer()
     for k, (row, body) in enumerate(zip(rows, bodies, strict=True)):
@@ -509,18 +504,22 @@ def paired_plot(evaluations: Mapping[str, Mapping[str, Any]], path: str | Path, 
     legend. Written atomically as a PNG.
 
     Args:
-        evaluations: ``{name: results.json dict}``, the baseline first (at least two).
+        evaluations: ``{name: results.json dict}``, the baseline first (at least two); the images are paired as
+            ``cerberus compare``'s table pairs them (:func:`~cerberus_core.eval.compare.image_pairs`).
         path: the PNG to write.
         key: the per-image value of the records (``"iou"``, ``"hard_iou"``...).
     Returns:
         ``path``.
+
+    Raises:
+        DatasetError: fewer than two evaluations, or two that scored different images under one index (different
+            test sets); nothing is written then.
     """
     names = list(evaluations)
     if len(names) < 2:
         raise DatasetError(f"a paired plot needs two evaluations or more, got {len(names)}; pass the baseline first")
-    base = {r["index"]: r.get(key) for r in evaluations[names[0]]["records"] if r.get(key) is not None}
-    pairs = {name: [(base[r["index"]], r[key]) for r in evaluations[name]["records"]
-                    if r.get(key) is not None and r["index"] in base] for name in names[1:]}
+    base = evaluations[names[0]]
+    pairs = {name: image_pairs(evaluations[name], base, key) for name in names[1:]}  # (its, base's): as the table
     values = [v for points in pairs.values() for xy in points for v in xy]
     lo, hi = (math.floor(min(values) * 10) / 10, math.ceil(max(values) * 10) / 10) if values else (0.0, 1.0)
     hi = hi if hi > lo else lo + 0.1
@@ -536,10 +535,10 @@ def paired_plot(evaluations: Mapping[str, Mapping[str, Any]], path: str | Path, 
     colors = [tuple(int(200 * c) for c in rgb) for rgb in part_colors(len(names) - 1).tolist()]
     font = figure_font(11)
     for i, (name, points) in enumerate(pairs.items()):
-        for x, y in points:
+        for y, x in points:  # the base's value across, its own up
             px, py = chart.x_px(x), chart.y_px(y)
             chart.draw.rectangle([px - 1, py - 1, px + 1, py + 1], fill=colors[i])
-        d = paired_difference(evaluations[name], evaluations[names[0]], key)
+        d = paired_difference(evaluations[name], base, key)
         draw_text(chart.draw, (chart.left, 4 + 16 * i), f"{printable(name)}: "
                   f"{d if d is not None else 'fewer than 2 images in common'}", font=font, fill=colors[i])
     return chart.save(path)

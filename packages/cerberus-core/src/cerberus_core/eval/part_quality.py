@@ -20,7 +20,8 @@ the parts Cerberus discovered.
 4. **Segmentation IoU.** Predicted parts are renamed to their labels (several may map to one ground-
    truth part; a ground-truth part nobody maps to scores 0), and per ground-truth part
    ``IoU_k = |pred = k and gt = k| / |pred = k or gt = k|`` is accumulated (by area) over the whole
-   test set; the mean over ground-truth parts is reported.
+   test set (:func:`segmentation_iou`); the mean over ground-truth parts is reported, leaving out a part
+   with no area on either side (its IoU is NaN: nothing to score).
 
 5. **Left and right merged.** Beside the per-side labels, everything above is scored again with the
    two sides of each ground-truth part as one (:func:`merge_sides`: ``shin.L`` and ``shin.R`` →
@@ -50,6 +51,7 @@ import trimesh
 
 from cerberus_core.errors import ConfigError, MeshError, MissingPackageError
 from cerberus_core.eval.markdown import fmt, markdown_table
+from cerberus_core.eval.masks import mask_iou
 from cerberus_core.eval.segments import one_vocabulary, vocabulary_set
 from cerberus_core.eval.visibility import visibility_cells, visibility_header, visibility_sentence
 from cerberus_core.shapes import check_shapes
@@ -181,6 +183,34 @@ def _entropy_bits(counts: Sequence[int]) -> float:
     return float(-sum((c / total) * math.log2(c / total) for c in counts if c > 0)) + 0.0 if total else 0.0
 
 
+def segmentation_iou(overlap: np.ndarray, labels: np.ndarray, names: Sequence[str]) -> dict[str, float]:
+    """Per ground-truth part, the IoU of the learned parts renamed to it against it, by area (step 4 of the module
+    docstring).
+
+    Args:
+        overlap: ``(P, K)`` the overlap matrices summed over the images (:func:`overlap_matrix`: the area, or
+            vertex count, of ground-truth part ``k`` assigned to learned part ``p``).
+        labels: ``(P,)`` each learned part's label, an index into ``names`` (-1: never used, renamed to none).
+        names: the ``K`` ground-truth part names.
+    Returns:
+        ``{name: IoU}`` in [0, 1]: :func:`~cerberus_core.eval.masks.mask_iou` over the ``P x K`` cells of
+        ``overlap``, each weighted by its area, of the cells of the learned parts labelled ``k`` against the
+        cells of ground-truth part ``k``; NaN for a part with no area on either side (nothing to score).
+
+    Example:
+        >>> overlap = np.array([[3.0, 1.0, 0.0], [0.0, 2.0, 0.0], [1.0, 0.0, 0.0]])  # 3 learned, 3 gt parts
+        >>> segmentation_iou(overlap, np.array([0, 1, 0]), ["head", "body", "tail"])  # head: 4 of 3 + 1 + 1
+        {'head': 0.8, 'body': 0.666..., 'tail': nan}
+    """
+    check_shapes("segmentation_iou", overlap=(np.asarray(overlap), f"P {len(names)}"), labels=(np.asarray(labels), "P"))
+    k = np.arange(len(names))[:, None, None]  # one grid of (P, K) cells per ground-truth part
+    shape = (len(names), *np.shape(overlap))
+    renamed = np.broadcast_to(np.asarray(labels)[None, :, None] == k, shape).copy()  # the cells of parts labelled k
+    truth = np.broadcast_to(np.arange(len(names))[None, None, :] == k, shape).copy()  # the cells of gt part k
+    ious = mask_iou(renamed, truth, weights=np.asarray(overlap, dtype=np.float64))
+    return dict(zip(names, ious.tolist(), strict=True))
+
+
 @dataclass
 class PartQuality:
     """The learned parts against the ground-truth semantic parts over a test set: the accumulator of the
@@ -297,17 +327,8 @@ class PartQuality:
             parts.append(row)
         used_rows = [r for r in parts if r["label"] is not None]
 
-        # Segmentation IoU after renaming predicted parts to their labels.
-        total = stack.sum(0)  # (P, K)
-        iou = {}
-        for k, name in enumerate(names):
-            mapped = labels == k
-            inter = total[mapped, k].sum()
-            pred = total[mapped].sum()
-            gt = total[:, k].sum()
-            union = pred + gt - inter
-            iou[name] = float(inter / union) if union > 0 else float("nan")
-        valid = [v for v in iou.values() if not math.isnan(v)]
+        iou = segmentation_iou(stack.sum(0), labels, names)
+        valid = [v for v in iou.values() if not math.isnan(v)]  # a part with no area on either side has no IoU
         return {
             "images": len(self.overlaps),
             "gt_parts": list(names),

@@ -89,21 +89,15 @@ class VoxelScorer:
         self.cache = self.scorer.cache
 
     def __call__(self, parts: list[MeshPair], gt: MeshPair) -> Score:
-        """Score one prediction (list of part meshes) against one ground truth."""
-        try:
-            iou, clipped = self.scorer(parts, gt)
-        except Exception as exc:  # noqa: BLE001 - a rejected prediction scores 0, see module docstring
-            # If the ground truth alone fails too, that is a data error, not a score: let it raise.
-            self.scorer([gt], gt)
-            return Score(0.0, 0, f"{type(exc).__name__}: {exc}")
-        return Score(iou, int(clipped))
+        """Score one prediction (list of part meshes) against one ground truth: :meth:`voxels`'s score."""
+        return self.voxels(parts, gt).score
 
     def voxels(self, parts: list[MeshPair], gt: MeshPair) -> Voxels:
-        """Score one prediction like :meth:`__call__` and keep its voxels, part by part (the metric's
-        ``scorer.grids``: the same voxelization, so ``voxels(...).score == self(...)``)."""
+        """Score one prediction and keep its voxels, part by part (the metric's ``scorer.grids``). A prediction the
+        metric rejects scores 0 with the reason (module docstring); a ground truth it rejects raises."""
         try:
             grids = self.scorer.grids(parts, gt)
-        except Exception as exc:  # noqa: BLE001 - a rejected prediction scores 0, as in __call__
+        except Exception as exc:  # noqa: BLE001 - a rejected prediction scores 0
             truth = self.scorer.grids([gt], gt)  # a ground truth the metric refuses raises here
             return Voxels(np.zeros_like(truth.parts[:1]).repeat(len(parts), 0), truth.gt,
                           Score(0.0, 0, f"{type(exc).__name__}: {exc}"), truth.centers)

@@ -75,7 +75,15 @@ class PartVisibility:
     Args:
         renderer: the backend of the input-view render (what :meth:`update` needs).
         num_parts: learned parts ``P`` (``None``: those of the first counts added).
-        image_size: ``(H, W)`` of the renders, for the record (``None``: the first batch's cameras').
+        image_size: ``(H, W)`` of the renders, for the record (``None``: the first batch's cameras' in
+            :meth:`update`; with :meth:`add` alone it stays ``None`` and :meth:`summary` records ``None``).
+
+    Example:
+        >>> vis = PartVisibility()
+        >>> vis.add(np.array([[120, 0], [80, 40]]))  # 2 images, 2 parts: part 1 hidden in the first
+        >>> s = vis.summary()
+        >>> s["hidden_fraction"], s["image_size"]
+        ([0.0, 0.5], None)
     """
 
     renderer: Renderer | None = None
@@ -105,7 +113,9 @@ class PartVisibility:
         self.counts.extend(c)
 
     def summary(self) -> dict[str, Any] | None:
-        """Per-part visibility over every image added (see the module docstring); ``None`` when none was."""
+        """Per-part visibility over every image added (see the module docstring); ``None`` when none was.
+        ``image_size`` is ``[H, W]``, or ``None`` when it was neither given nor seen (counts given to :meth:`add`
+        alone)."""
         if not self.counts:
             return None
         stack = np.stack(self.counts).astype(np.float64)  # (N, P)
@@ -116,7 +126,7 @@ class PartVisibility:
         most = [p for p in range(self.num_parts) if hidden[p] > 0.5]
         return {
             "images": len(self.counts),
-            "image_size": list(self.image_size),
+            "image_size": None if self.image_size is None else list(self.image_size),
             "hidden_fraction": hidden.tolist(),
             "mean_visible_pixels": stack.mean(0).tolist(),
             "mean_silhouette_share": share.tolist(),
@@ -141,9 +151,9 @@ def visibility_line(summary: dict[str, Any]) -> str:
 
 
 def visibility_sentence(vis: Mapping[str, Any]) -> str:
-    """The report's sentence on part visibility (its JSON form)."""
-    h, w = vis["image_size"]
-    return (f"Part visibility in the input view ({h}x{w} renders of the reconstruction, {vis['images']} images): "
+    """The report's sentence on part visibility (its JSON form; the render size left out where it is ``None``)."""
+    size = "" if vis.get("image_size") is None else "{}x{} ".format(*vis["image_size"])
+    return (f"Part visibility in the input view ({size}renders of the reconstruction, {vis['images']} images): "
             f"{visibility_line(vis)}. *Hidden*: the fraction of images where no pixel shows the part (it gets no "
             "gradient from the paper's renderer there); *silhouette share*: its mean share of the rendered "
             "silhouette.")

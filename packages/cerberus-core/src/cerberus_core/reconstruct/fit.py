@@ -77,14 +77,16 @@ def fit_silhouette(renderer: Renderer, parts: PartSet, camera: Camera, silhouett
         >>> from cerberus_core.render.backends import make_renderer
         >>> from cerberus_core.render.templates import icosphere
         >>> from cerberus_core.datasets.scene import SceneSetup
-        >>> from cerberus_core.photo_mask import rendered_silhouette, silhouette_iou
+        >>> from cerberus_core.eval.masks import mask_iou
+        >>> from cerberus_core.photo_mask import rendered_silhouette
         >>> t = icosphere(1); cam = SceneSetup().cameras([0.0], 32); r = make_renderer("torch")
         >>> ball = PartSet.from_posed(0.12 * t.vertices[None, None], t.faces)
         >>> target = render_parts(r, (0.2 * t.vertices + torch.tensor([0.05, 0.0, 0.0]))[None, None], t.faces,
         ...                       cam, antialias=True).alpha
         >>> fitted = fit_silhouette(r, ball, cam, target, t.dihedral, FitSettings(steps=60, lr=0.01, anchor=0.0))
-        >>> before = silhouette_iou(rendered_silhouette(r, ball, cam), target[0, 0].numpy())
-        >>> after = silhouette_iou(rendered_silhouette(r, fitted, cam), target[0, 0].numpy())
+        >>> on = target[0, 0] >= 0.5
+        >>> before = mask_iou(rendered_silhouette(r, ball, cam) >= 0.5, on)
+        >>> after = mask_iou(rendered_silhouette(r, fitted, cam) >= 0.5, on)
         >>> bool(after > 0.9 > before)
         True
     """

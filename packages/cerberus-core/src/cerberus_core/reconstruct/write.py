@@ -130,7 +130,8 @@ class Reconstruction:
         renamed: ``"INPUT -> NAME"`` for inputs whose outputs could not take the input's own name.
         notes: each input's out-of-domain note (``""`` when in the training domain).
         silhouette_ious: per input, how well the reconstruction's rendered silhouette covers its mask or alpha
-            (:func:`cerberus_core.photo_mask.silhouette_iou`); ``None`` for an input without one.
+            (:func:`cerberus_core.photo_mask.silhouette_ious`; NaN when both are empty); ``None`` for an input
+            without one.
         network_ious: the same for the network's prediction before it was fitted to the silhouettes
             (:mod:`cerberus_core.reconstruct.fit`); equal to ``silhouette_ious`` when nothing was fitted.
         fit_steps: the steps of that fit (0: none).
