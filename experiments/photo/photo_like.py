@@ -40,15 +40,8 @@ from cerberus_core import Run
 from cerberus_core.datasets.dataset import Dataset
 from cerberus_core.eval.compare import paired_difference
 from cerberus_core.eval.figures import render_reconstruction
-from cerberus_core.eval.masks import mask_iou
 from cerberus_core.eval.runner import evaluate_dataset
-from cerberus_core.photo_mask import (
-    AUTO,
-    SILHOUETTE_THRESHOLD,
-    person_mask,
-    rendered_silhouette,
-    segmenter_available,
-)
+from cerberus_core.photo_mask import AUTO, person_mask, rendered_silhouette, segmenter_available, silhouette_iou
 from cerberus_core.reconstruct.fit import FitSettings, fit_silhouette
 from cerberus_core.reconstruct.input_domain import prepare_input
 from cerberus_core.render.api import render
@@ -204,7 +197,7 @@ def main() -> int:
         if AUTO in masks:
             found = person_mask(photo)
             Image.fromarray(u8(found)).save(photos / f"{i:04d}_auto.png")
-            auto_ious.append(float(mask_iou(found >= SILHOUETTE_THRESHOLD, alpha >= SILHOUETTE_THRESHOLD)))
+            auto_ious.append(silhouette_iou(found, alpha))
         for m in masks:
             loaded = prepare_input(photos / f"{i:04d}.png", size, scene,
                                    AUTO if m == AUTO else photos / f"{i:04d}_exact.png",
@@ -228,9 +221,8 @@ def main() -> int:
         evaluations[name] = evaluate_dataset(PhotoViews(views, inputs[m]), reconstruct, indices=indices,
                                              skip=("hard", "part_quality", "visibility", "depth", "segments",
                                                    "allocation"), progress=False)
-        coverage = [float(mask_iou(rendered_silhouette(renderer, made[key(inputs[m][i])],
-                                                       scene.cameras([float(views[i]["azimuth"])], size))
-                                   >= SILHOUETTE_THRESHOLD, sil[m][k] >= SILHOUETTE_THRESHOLD))
+        coverage = [silhouette_iou(rendered_silhouette(renderer, made[key(inputs[m][i])],
+                                                       scene.cameras([float(views[i]["azimuth"])], size)), sil[m][k])
                     for k, i in enumerate(indices)]
         mean, covered = evaluations[name].standard.mean, float(np.nanmean(coverage))  # NaN-aware: empty pairs out
         results[name] = {"voxel_iou": mean, "silhouette_iou": covered,

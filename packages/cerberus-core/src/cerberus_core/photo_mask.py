@@ -97,12 +97,22 @@ def person_mask(rgb: np.ndarray) -> np.ndarray:
     return mask if (mask >= 0.5).mean() >= MIN_PERSON_PIXELS else np.zeros_like(mask)
 
 
-def rendered_silhouette(renderer: Renderer, recon: PartSet, camera: Camera) -> np.ndarray:
-    """``(H, W)`` the coverage (alpha, in [0, 1]) of one reconstruction's parts seen from its input camera.
+def silhouette_iou(rendered: np.ndarray, mask: np.ndarray) -> float:
+    """How well a rendered silhouette covers a mask, both soft (``(H, W)`` in [0, 1]): the
+    :func:`~cerberus_core.eval.masks.mask_iou` of the two on at :data:`SILHOUETTE_THRESHOLD` (NaN when both are
+    empty).
 
-    Its IoU against a mask: :func:`~cerberus_core.eval.masks.mask_iou` of the two thresholded at
-    :data:`SILHOUETTE_THRESHOLD` (NaN when both are empty), as :func:`silhouette_ious` scores it.
+    >>> a = np.zeros((4, 4)); a[:2] = 1
+    >>> b = np.zeros((4, 4)); b[1:3] = 0.8
+    >>> silhouette_iou(a, b)
+    0.3333333333333333
     """
+    return float(mask_iou(np.asarray(rendered) >= SILHOUETTE_THRESHOLD, np.asarray(mask) >= SILHOUETTE_THRESHOLD))
+
+
+def rendered_silhouette(renderer: Renderer, recon: PartSet, camera: Camera) -> np.ndarray:
+    """``(H, W)`` the coverage (alpha, in [0, 1]) of one reconstruction's parts seen from its input camera (its IoU
+    against a mask: :func:`silhouette_iou`)."""
     with torch.no_grad():
         out = render_parts(renderer, recon.posed().to(camera.device), recon.faces.to(camera.device), camera)
     return out.alpha[0, 0].float().cpu().numpy()
@@ -164,13 +174,10 @@ def silhouette_ious(renderer: Renderer, recon: PartSet, camera: Camera, silhouet
                     ) -> list[float | None]:
     """Per image, the IoU of ``recon``'s rendered silhouette against its silhouette (``(S, S)`` in [0, 1],
     :attr:`LoadedImage.silhouette <cerberus_core.reconstruct.images.LoadedImage.silhouette>`), both on at
-    :data:`SILHOUETTE_THRESHOLD` (:func:`~cerberus_core.eval.masks.mask_iou`: NaN when both are empty); ``None``
-    for an image without one."""
-    on = SILHOUETTE_THRESHOLD
-    rendered = [None if s is None else rendered_silhouette(renderer, recon.index([i]), camera.index([i]))
-                for i, s in enumerate(silhouettes)]
-    return [None if s is None else float(mask_iou(r >= on, np.asarray(s) >= on))
-            for r, s in zip(rendered, silhouettes, strict=True)]
+    :data:`SILHOUETTE_THRESHOLD` (:func:`silhouette_iou`: NaN when both are empty); ``None`` for an image without
+    one."""
+    return [None if s is None else silhouette_iou(rendered_silhouette(renderer, recon.index([i]), camera.index([i])), s)
+            for i, s in enumerate(silhouettes)]
 
 
 def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, loaded: Sequence, stems: Sequence[str],
@@ -194,7 +201,7 @@ def write_mask_pictures(renderer: Renderer, recon: PartSet, camera: Camera, load
             continue
         one, cam = recon.index([i]), camera.index([i])
         rendered = rendered_silhouette(renderer, one, cam)
-        iou = float(mask_iou(rendered >= SILHOUETTE_THRESHOLD, np.asarray(item.silhouette) >= SILHOUETTE_THRESHOLD))
+        iou = silhouette_iou(rendered, item.silhouette)
         ious.append(iou)
         if item.auto_mask:
             path = out / f"{stem}_mask.png"
