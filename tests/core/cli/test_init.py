@@ -60,6 +60,65 @@ def test_any_os_error_is_one_line(tmp_path, capsys, monkeypatch):
     assert err == ["cerberus models: No such file or directory: /proc/x"]
 
 
+_SIGNALLING_MODULE = """
+import os, signal, sys, time
+try:
+    os.kill(os.getpid(), signal.{sig})
+    time.sleep(0.3)  # the signal is handled in here, inside the import
+except BaseException as exc:
+    print("raised inside the import:", type(exc).__name__, flush=True)
+    raise
+print("import finished", flush=True)
+def configure(p):
+    p.set_defaults(func=run)
+def run(args):
+    import slow_import
+    time.sleep(2)  # work after the import: the signal stops it (within 50 ms of the import's end)
+    print("run went on", flush=True)
+    return 0
+"""
+
+
+def _run_command_module(tmp_path: Path, command_sig: str | None, import_sig: str | None) -> subprocess.CompletedProcess:
+    """``cerberus cmd`` with a command module that sends itself ``command_sig`` while it imports, and whose
+    ``run`` imports a module that sends itself ``import_sig`` while it imports (None: no signal)."""
+    quiet = _SIGNALLING_MODULE.replace("os.kill(os.getpid(), signal.{sig})", "pass")
+    (tmp_path / "cmd_module.py").write_text(_SIGNALLING_MODULE.format(sig=command_sig) if command_sig else quiet)
+    (tmp_path / "slow_import.py").write_text(_SIGNALLING_MODULE.format(sig=import_sig) if import_sig else quiet)
+    code = ("import sys, cerberus_core.cli as c; c.COMMANDS.append(('cmd', 'cmd_module', 'a test command')); "
+            "sys.exit(c.main(['cmd']))")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
+
+
+def test_importing_is_true_only_inside_an_import(tmp_path, monkeypatch):
+    from cerberus_core.plumbing.signals import importing
+
+    (tmp_path / "looks_at_its_stack.py").write_text(
+        "import sys\nfrom cerberus_core.plumbing.signals import importing\nINSIDE = importing(sys._getframe())\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import looks_at_its_stack
+
+    assert looks_at_its_stack.INSIDE is True and importing(sys._getframe()) is False
+
+
+def test_a_signal_while_the_command_imports_exits_at_once_without_raising_in_the_import(tmp_path):
+    # An exception raised in an import can cross a C++ module's initialisation and abort (-6): CI saw
+    # "terminate called after throwing an instance of 'pybind11::error_already_set'" with torch.
+    for sig, status, line in (("SIGINT", 130, "cerberus cmd: interrupted"),
+                              ("SIGTERM", 143, "cerberus cmd: terminated (SIGTERM)")):
+        proc = _run_command_module(tmp_path, sig, None)
+        assert (proc.returncode, proc.stderr.strip(), proc.stdout) == (status, line, ""), sig
+
+
+def test_a_signal_inside_an_import_the_command_makes_waits_for_the_import_then_stops_it(tmp_path):
+    proc = _run_command_module(tmp_path, None, "SIGTERM")
+    assert proc.stdout.splitlines() == ["import finished", "import finished"]  # the command's, then its own
+    assert (proc.returncode, proc.stderr.strip()) == (143, "cerberus cmd: terminated (SIGTERM)")
+    proc = _run_command_module(tmp_path, None, None)
+    assert (proc.returncode, proc.stdout.splitlines()[-1]) == (0, "run went on")
+
+
 @pytest.mark.slow
 def test_ctrl_c_while_the_command_is_still_importing_exits_130_without_a_traceback():
     for delay in (0.3, 0.6, 1.0, 1.5):
@@ -101,10 +160,10 @@ def test_a_warning_is_said_in_the_command_flags():
     its flag, on one line."""
     import warnings
 
-    from cerberus_core.cli import _cli_environment
+    from cerberus_core.cli import _one_line_warnings
     from cerberus_core.cli.flags import FlagNames
 
-    with _cli_environment("data", FlagNames({"up_axis": "--up-axis"})):
+    with _one_line_warnings("data", FlagNames({"up_axis": "--up-axis"})):
         line = warnings.formatwarning("they are z-up:\npass `up_axis=+z`", UserWarning, "folder.py", 1)
     assert line == "cerberus data: warning: they are z-up:; pass --up-axis +z\n"
 

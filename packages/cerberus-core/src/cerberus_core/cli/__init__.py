@@ -9,7 +9,7 @@ not import torch), and owns the one error path:
 * any other ``OSError`` (a full disk, a read-only or missing folder, whatever its errno) → one line
   naming the path and the system's reason, exit 2;
 * Ctrl-C (SIGINT) at any moment, imports included → exit 130; SIGTERM → exit 143 (a training writes
-  its checkpoint first);
+  its checkpoint first); never as an exception inside an import (:class:`~cerberus_core.plumbing.signals.CommandSignals`);
 * warnings → one line ``cerberus COMMAND: warning: message``, without Python source lines, in this
   command's flags too.
 
@@ -34,7 +34,7 @@ from collections.abc import Iterator
 
 from cerberus_core.cli.flags import FlagNames, typed_flags
 from cerberus_core.errors import CerberusError, IncompleteDatasetError
-from cerberus_core.plumbing.signals import Terminated
+from cerberus_core.plumbing.signals import CommandSignals, Terminated, exit_at_once
 
 #: The sub-commands in the order ``--help`` lists them: the name, the module whose ``configure(parser)`` builds
 #: its parser (imported only when that command runs) and the line ``cerberus --help`` shows for it.
@@ -52,6 +52,8 @@ COMMANDS = [
 EXIT_ERROR = 2
 EXIT_SIGINT = 128 + signal.SIGINT  # 130
 EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
+#: What the one line says for each signal.
+_SIGNAL_LINES = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated (SIGTERM)"}
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -85,23 +87,14 @@ def one_line(text: object) -> str:
 
 
 @contextlib.contextmanager
-def _cli_environment(command: str, names: FlagNames) -> Iterator[None]:
-    """SIGTERM raises :class:`Terminated`; warnings print as one line, in the command's flags. Both restored
-    on exit."""
-    def on_term(signum, frame):  # noqa: ARG001
-        raise Terminated()
-
-    previous = None
-    with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
-        previous = signal.signal(signal.SIGTERM, on_term)
+def _one_line_warnings(command: str, names: FlagNames) -> Iterator[None]:
+    """Warnings print as one line, in the command's flags; restored on exit."""
     saved_format = warnings.formatwarning
     warnings.formatwarning = lambda message, *a, **k: f"cerberus {command}: warning: {one_line(names.text(str(message)))}\n"
     try:
         yield
     finally:
         warnings.formatwarning = saved_format
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _os_error_line(exc: OSError) -> str:
@@ -127,15 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command. Every way out is one line on standard error and an exit status: a typed error or
     any OSError (2), Ctrl-C at any moment, even while the command's modules are still importing (130),
     SIGTERM (143)."""
-    interrupted = []
-    previous, previous_term = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
-
-    def on_term(signum, frame):  # noqa: ARG001 - SIGTERM while the command's modules import: one line too
-        raise Terminated()
-
-    def on_int(signum, frame):  # noqa: ARG001 - remember it: an import it cut short may fail later otherwise
-        interrupted.append(True)
-        raise KeyboardInterrupt
+    def exit_now(signum: int) -> None:  # a signal while the command's modules import: nothing is written yet
+        exit_at_once(f"cerberus {command}: {_SIGNAL_LINES[signum]}", 128 + signum)
 
     from cerberus_core.plumbing.stdio import printable_streams
 
@@ -143,37 +129,27 @@ def main(argv: list[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else argv
     command = next((a for a in words if not a.startswith("-")), "")
     names = FlagNames()
-    with contextlib.suppress(ValueError):  # not the main thread: leave signals alone
-        signal.signal(signal.SIGINT, on_int)
-        signal.signal(signal.SIGTERM, on_term)
-    try:
-        parser = build_parser(command)
-        args = parser.parse_args(argv)
-        command = args.command
-        names = dataclasses.replace(getattr(args, "flag_names", names), typed=typed_flags(words))
-        with _cli_environment(command, names):
-            return int(args.func(args) or 0)
-    except CerberusError as exc:  # every typed error, plugin and dataset errors included
-        print(f"cerberus {command}: {one_line(_said(exc, names))}", file=sys.stderr)
-        return int(getattr(exc, "exit_code", EXIT_ERROR))
-    except Terminated:
-        print(f"cerberus {command}: terminated (SIGTERM)", file=sys.stderr)
-        return EXIT_SIGTERM
-    except KeyboardInterrupt:
-        print(f"cerberus {command}: interrupted", file=sys.stderr)
-        return EXIT_SIGINT
-    except OSError as exc:
-        print(f"cerberus {command}: {one_line(_os_error_line(exc))}", file=sys.stderr)
-        return EXIT_ERROR
-    except Exception:
-        if interrupted:  # e.g. a module whose import Ctrl-C cut short, failing later: it was the interrupt
-            print(f"cerberus {command}: interrupted", file=sys.stderr)
+    with CommandSignals(exit_now) as signals:
+        try:
+            parser = build_parser(command)
+            args = parser.parse_args(argv)
+            signals.started = True
+            command = args.command
+            names = dataclasses.replace(getattr(args, "flag_names", names), typed=typed_flags(words))
+            with _one_line_warnings(command, names):
+                return int(args.func(args) or 0)
+        except CerberusError as exc:  # every typed error, plugin and dataset errors included
+            print(f"cerberus {command}: {one_line(_said(exc, names))}", file=sys.stderr)
+            return int(getattr(exc, "exit_code", EXIT_ERROR))
+        except Terminated:
+            print(f"cerberus {command}: {_SIGNAL_LINES[signal.SIGTERM]}", file=sys.stderr)
+            return EXIT_SIGTERM
+        except KeyboardInterrupt:
+            print(f"cerberus {command}: {_SIGNAL_LINES[signal.SIGINT]}", file=sys.stderr)
             return EXIT_SIGINT
-        raise
-    finally:
-        with contextlib.suppress(ValueError, TypeError):
-            signal.signal(signal.SIGINT, previous)
-            signal.signal(signal.SIGTERM, previous_term)
+        except OSError as exc:
+            print(f"cerberus {command}: {one_line(_os_error_line(exc))}", file=sys.stderr)
+            return EXIT_ERROR
 
 
 if __name__ == "__main__":
