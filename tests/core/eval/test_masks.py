@@ -21,13 +21,11 @@ def test_mask_iou_counts_pixels_per_pair_and_an_empty_pair_is_nan():
     assert float(mask_iou(a[1], b[0])) == 0.0  # empty against a mask: no overlap
 
 
-def test_numpy_masks_and_weights():
+def test_numpy_masks():
     a, b = np.zeros((4, 4), bool), np.zeros((4, 4), bool)
     a[:2], b[1:3] = True, True
     assert float(mask_iou(a, b)) == pytest.approx(1 / 3)
-    rows = np.repeat(np.array([[3.0], [1.0], [1.0], [1.0]]), 4, axis=1)  # row 0 counts three times
-    assert float(mask_iou(a, b, weights=rows)) == pytest.approx(4 / 20)
-    assert np.isnan(float(mask_iou(a, b, weights=np.zeros((4, 4)))))  # only weight 0 under the union
+    assert np.isnan(float(mask_iou(a & ~a, b & ~b)))
 
 
 def test_bad_masks_are_named():
@@ -36,5 +34,3 @@ def test_bad_masks_are_named():
         mask_iou(a.float(), a)
     with pytest.raises(ShapeError, match=r"b must be \(\.\.\., H, W\)"):
         mask_iou(a, torch.zeros(4, 5, dtype=torch.bool))
-    with pytest.raises(ShapeError, match="weights must be >= 0"):
-        mask_iou(a, a, weights=-torch.ones(4, 4))

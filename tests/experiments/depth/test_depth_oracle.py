@@ -28,7 +28,7 @@ def test_along_rays_keeps_each_keypoint_in_view_and_reaches_the_new_depth():
 def test_shift_search_finds_the_depth_a_sphere_was_pushed_away_by_from_each_signal():
     import trimesh
 
-    from cerberus_core.eval.depth import coverage_masks
+    from cerberus_core.eval.masks import coverage_masks
     from cerberus_core.eval.standard import VoxelScorer
     from cerberus_core.parts import PartSet
     from cerberus_core.render.backends import make_renderer

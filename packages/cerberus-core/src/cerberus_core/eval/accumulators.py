@@ -26,11 +26,11 @@ import torch
 
 from cerberus_core.bodies.body import PosedBody
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta
+from cerberus_core.eval.masks import coverage_masks
 from cerberus_core.eval.segments import group_by_body
 from cerberus_core.eval.standard import IoUSummary, Score, Voxels, VoxelScorer, summarize
 from cerberus_core.eval.visibility import input_view_part_id
 from cerberus_core.parts import PartSet
-from cerberus_core.render.api import render
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 
@@ -77,19 +77,17 @@ class BatchResult:
         return self._part_id[id(renderer)]
 
     def gt_foreground(self, renderer: Renderer) -> torch.Tensor:
-        """``(B, H, W)`` bool: where each image's ground-truth body covers its input view (the body's own
-        render, one per body for all its views in the batch), rendered once per batch and renderer, on
-        the CPU."""
+        """``(B, H, W)`` bool: where each image's ground-truth body covers its input view
+        (:func:`~cerberus_core.eval.masks.coverage_masks`, one render per body for all its views in the batch),
+        once per batch and renderer, on the CPU."""
         key = id(renderer)
         if key not in self._foreground:
             out = torch.zeros(len(self.items), self.camera.height, self.camera.width, dtype=torch.bool)
             for group in group_by_body(self.bodies):
                 body = self.bodies[group[0]]
-                verts = torch.as_tensor(body.vertices, dtype=torch.float32).expand(len(group), -1, -1)
-                with torch.no_grad():
-                    own = render(renderer, verts.to(self.camera.device).contiguous(), torch.as_tensor(body.faces),
-                                 self.camera.index(group)).part_id.cpu() >= 0
-                out[group] = own
+                verts = torch.as_tensor(body.vertices, dtype=torch.float32).expand(len(group), 1, -1, -1)
+                out[group] = coverage_masks(renderer, verts.to(self.camera.device), torch.as_tensor(body.faces),
+                                            self.camera.index(group)).cpu()
             self._foreground[key] = out
         return self._foreground[key]
 

@@ -35,8 +35,8 @@ import numpy as np
 import torch
 
 from cerberus_core.errors import ShapeError
-from cerberus_core.eval.depth import coverage_masks
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
+from cerberus_core.eval.masks import coverage_masks
 from cerberus_core.eval.segments import one_vocabulary, vocabulary_set
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera

@@ -27,9 +27,8 @@ import torch
 
 from cerberus_core.errors import ShapeError
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
-from cerberus_core.eval.masks import mask_iou
+from cerberus_core.eval.masks import coverage_masks, mask_iou
 from cerberus_core.parts import PartSet
-from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.shapes import check_shapes
@@ -53,17 +52,6 @@ def translation_disagreement(translations: Tensor) -> Tensor:
                          "pass (K, N, 3) with K >= 2")
     pairs = torch.tensor(list(combinations(range(k), 2)))
     return (translations[pairs[:, 0]] - translations[pairs[:, 1]]).norm(dim=-1).mean(0)
-
-
-def coverage_masks(renderer: Renderer, posed: Tensor, faces: Tensor, cameras: Camera) -> Tensor:
-    """Where each of ``B`` scenes covers its camera's image: ``(B, H, W)`` bool, no gradient.
-
-    Args:
-        renderer: a backend; posed: ``(B, N, V, 3)`` world-frame vertices of ``N`` meshes per scene (parts, or
-        one ground-truth body with ``N = 1``); faces: ``(F, 3)`` shared by every mesh; cameras: ``B`` cameras.
-    """
-    with torch.no_grad():
-        return render_parts(renderer, posed.contiguous(), faces, cameras).part_id >= 0
 
 
 @dataclass

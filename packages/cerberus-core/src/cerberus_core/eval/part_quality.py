@@ -51,7 +51,6 @@ import trimesh
 
 from cerberus_core.errors import ConfigError, MeshError, MissingPackageError
 from cerberus_core.eval.markdown import fmt, markdown_table
-from cerberus_core.eval.masks import mask_iou
 from cerberus_core.eval.segments import one_vocabulary, vocabulary_set
 from cerberus_core.eval.visibility import visibility_cells, visibility_header, visibility_sentence
 from cerberus_core.shapes import check_shapes
@@ -193,21 +192,23 @@ def segmentation_iou(overlap: np.ndarray, labels: np.ndarray, names: Sequence[st
         labels: ``(P,)`` each learned part's label, an index into ``names`` (-1: never used, renamed to none).
         names: the ``K`` ground-truth part names.
     Returns:
-        ``{name: IoU}`` in [0, 1]: :func:`~cerberus_core.eval.masks.mask_iou` over the ``P x K`` cells of
-        ``overlap``, each weighted by its area, of the cells of the learned parts labelled ``k`` against the
-        cells of ground-truth part ``k``; NaN for a part with no area on either side (nothing to score).
+        ``{name: IoU}`` in [0, 1], by area: of ground-truth part ``k`` against the learned parts labelled ``k``, the
+        area they share (``overlap[p, k]`` over those parts) over the area of either (their rows' totals plus
+        column ``k``'s, less the shared); NaN for a part with no area on either side (nothing to score, as
+        :func:`~cerberus_core.eval.masks.mask_iou` says of two empty masks).
 
     Example:
         >>> overlap = np.array([[3.0, 1.0, 0.0], [0.0, 2.0, 0.0], [1.0, 0.0, 0.0]])  # 3 learned, 3 gt parts
         >>> segmentation_iou(overlap, np.array([0, 1, 0]), ["head", "body", "tail"])  # head: 4 of 3 + 1 + 1
         {'head': 0.8, 'body': 0.666..., 'tail': nan}
     """
-    check_shapes("segmentation_iou", overlap=(np.asarray(overlap), f"P {len(names)}"), labels=(np.asarray(labels), "P"))
-    k = np.arange(len(names))[:, None, None]  # one grid of (P, K) cells per ground-truth part
-    shape = (len(names), *np.shape(overlap))
-    renamed = np.broadcast_to(np.asarray(labels)[None, :, None] == k, shape).copy()  # the cells of parts labelled k
-    truth = np.broadcast_to(np.arange(len(names))[None, None, :] == k, shape).copy()  # the cells of gt part k
-    ious = mask_iou(renamed, truth, weights=np.asarray(overlap, dtype=np.float64))
+    overlap, labels = np.asarray(overlap, dtype=np.float64), np.asarray(labels)
+    check_shapes("segmentation_iou", overlap=(overlap, f"P {len(names)}"), labels=(labels, "P"))
+    renamed = labels[:, None] == np.arange(len(names))[None, :]  # (P, K): part p is labelled k
+    shared = (overlap * renamed).sum(0)  # (K,)
+    either = (overlap.sum(1, keepdims=True) * renamed).sum(0) + overlap.sum(0) - shared
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ious = np.where(either > 0, shared / either, np.nan)
     return dict(zip(names, ious.tolist(), strict=True))
 
 
