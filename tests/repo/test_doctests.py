@@ -26,7 +26,9 @@ MODULES = _modules_with_examples()
 
 def test_the_docstring_examples_are_found():
     assert {"cerberus_core.render.ops", "cerberus_core.render.api", "cerberus_core.shapes", "cerberus_core.run",
-            "cerberus_core.weights", "cerberus_metrics.api"} <= set(MODULES)
+            "cerberus_core.weights", "cerberus_metrics.api", "cerberus_metrics.scoring", "cerberus_core.eval.standard",
+            "cerberus_core.eval.hard", "cerberus_core.eval.report", "cerberus_core.eval.markdown",
+            "cerberus_core.eval.runner"} <= set(MODULES)
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -64,6 +64,26 @@ class VoxelIoUScorer:
             (shared by processes); default: a memory cache.
     Attributes:
         cache: the grid cache (``hits`` / ``misses`` count ground-truth look-ups).
+
+    Example: a cube of side 0.5 (mesh units), the same cube moved by half its side, and a cube of side
+    1.1 that reaches outside the ``kato`` grid (``[-16/31, 16/31]^3``) on every side:
+
+    >>> import trimesh
+    >>> box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    >>> cube, moved = (box.vertices, box.faces), (box.vertices + [0.25, 0, 0], box.faces)
+    >>> big = (box.vertices * 2.2, box.faces)
+    >>> scorer = VoxelIoUScorer()  # kato, 32^3
+    >>> iou, clamped = scorer([moved], cube)  # a third of the union is shared
+    >>> round(iou, 4), clamped
+    (0.3431, 0)
+    >>> scorer([big], cube)  # clamped to the whole grid: 32^3 voxels against the cube's 16^3
+    (0.125, 1)
+    >>> scorer.cache.misses, scorer.cache.hits  # the ground truth was voxelized once
+    (1, 1)
+    >>> VoxelIoUScorer(resolution=1)
+    Traceback (most recent call last):
+    ...
+    cerberus_metrics.io.MeshInputError: resolution must be an integer in [2, 1024] (e.g. 32, 64, 128), got 1
     """
 
     def __init__(self, protocol: str = "kato", resolution: int = 32,
@@ -88,7 +108,21 @@ class VoxelIoUScorer:
     def grids(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> ScoredGrids:
         """The voxels behind ``self(pred_parts, gt)``, each prediction part's apart, on one box that holds
         the prediction and the ground truth (for per-part and per-region figures scored exactly like
-        the IoU). Raises as :meth:`__call__` does."""
+        the IoU). Raises as :meth:`__call__` does.
+
+        Example: two parts, the cube and the cube moved by half its side, against the cube (``kato``, 32^3):
+
+        >>> import trimesh
+        >>> box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+        >>> cube, moved = (box.vertices, box.faces), (box.vertices + [0.25, 0, 0], box.faces)
+        >>> g = VoxelIoUScorer().grids([cube, moved], cube)
+        >>> g.parts.shape, g.gt.shape, g.origin  # (P, nx, ny, nz), (nx, ny, nz): here the whole grid
+        ((2, 32, 32, 32), (32, 32, 32), (0, 0, 0))
+        >>> int(g.gt.sum()), int(g.parts.any(axis=0).sum()), round(g.iou, 4)  # 4096 / 6144
+        (4096, 6144, 0.6667)
+        >>> g.centers([[0, 0, 0]])  # voxel [0, 0, 0]'s centre, mesh units
+        array([[-0.5, -0.5, -0.5]])
+        """
         parts, truth = self._voxelize(pred_parts, gt)
         lo = np.minimum(parts.origin, truth.origin)
         hi = np.maximum(np.add(parts.origin, parts.occupancy.shape[1:]), np.add(truth.origin, truth.occupancy.shape))

@@ -10,15 +10,16 @@ from cerberus_core.cli.flags import FlagNames
 from cerberus_core.datasets.looks import INPUT_LOOKS
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.diagnostics import DIAGNOSTICS
+from cerberus_core.eval.standard import SCORER_ENTRY_POINT
 
 
 def configure(p: argparse.ArgumentParser) -> None:
     """The arguments, description and examples of ``cerberus eval`` (:data:`cerberus_core.cli.COMMANDS`)."""
     diagnostics = "; ".join(f"{row.about} [{skip_flag(row.name)}]" for row in DIAGNOSTICS)
     p.description = ("Evaluate a trained model (a run folder, model.safetensors or checkpoint .pt) on the test split of "
-        "a dataset: 32^3 voxel IoU of the union of parts (metric 'voxel_iou' found through the cerberus.metrics "
-        f"entry point, 'kato' protocol), per image and per subject; and the diagnostics, each skipped by the flag "
-        f"beside it: {diagnostics}. "
+        "a dataset: 32^3 voxel IoU of the union of parts (scored by the cerberus.metrics entry point "
+        f"'{SCORER_ENTRY_POINT}' of cerberus-metrics, 'kato' protocol), per image and per subject; and the "
+        f"diagnostics, each skipped by the flag beside it: {diagnostics}. "
         "Writes results.json, "
         "results.md, a Table-2-like figure (table2.png, with the voxels missed and off the body seen from the "
         "front and the side) and, for the same images, the pictures of the paper's "

@@ -39,6 +39,14 @@ def select_canonical(items: Sequence[ItemMeta], view: int | None = None) -> dict
         view: use this view of the canonical pose (default: the lowest view present).
     Returns:
         ``{subject: index}``; subjects without a canonical image (or without that view) are absent.
+
+    Example:
+        >>> items = [ItemMeta(index=0, subject="s1", pose=0, view=2, is_canonical=True),
+        ...          ItemMeta(index=1, subject="s1", pose=0, view=1, is_canonical=True),
+        ...          ItemMeta(index=2, subject="s1", pose=1, view=0, is_canonical=False),
+        ...          ItemMeta(index=3, subject="s2", pose=1, view=0, is_canonical=False)]
+        >>> select_canonical(items), select_canonical(items, view=2)  # s2 has no canonical image
+        ({'s1': 1}, {'s1': 0})
     """
     best: dict[str, ItemMeta] = {}
     for it in items:
@@ -56,6 +64,29 @@ class CanonicalParts:
     Args:
         shapes: ``{subject: reconstruction of batch 1}`` of the canonical images.
         indices: ``{subject: dataset index}`` of those images.
+    Raises:
+        ConfigError: a subject of ``indices`` has no shapes.
+        ShapeError: a reconstruction of ``shapes`` is not of batch 1.
+
+    Example: subject ``s1``'s one part (a tetrahedron with unit edges along the axes, normalised units), posed by
+    two images whose predicted translations are 0 and 0.5 along x:
+
+        >>> import torch
+        >>> from cerberus_core.parts import PartSet
+        >>> tet = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+        >>> faces = torch.tensor([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        >>> canonical = CanonicalParts({"s1": PartSet.from_posed(tet[None, None], faces)}, {"s1": 0})
+        >>> poses = PartSet(torch.zeros(2, 1, 4, 3), faces, torch.eye(3).expand(2, 1, 3, 3),
+        ...                 torch.tensor([[[0.0, 0, 0]], [[0.5, 0, 0]]]))
+        >>> posed = canonical.pose("s1", poses).posed()
+        >>> tuple(posed.shape), posed[1, 0, 1].tolist()  # (B, P, V, 3); vertex 1 moved by 0.5
+        ((2, 1, 4, 3), [1.5, 0.0, 0.0])
+        >>> canonical.applies_to(ItemMeta(0, "s1", 0, 0, True)), canonical.applies_to(ItemMeta(3, "s1", 0, 1, True))
+        (False, True)
+        >>> CanonicalParts({}, {"s1": 0})
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ConfigError: CanonicalParts: no shapes for subjects ['s1']; ...
     """
 
     def __init__(self, shapes: dict[str, PartSet], indices: dict[str, int]) -> None:

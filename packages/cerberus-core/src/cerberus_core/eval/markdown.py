@@ -28,7 +28,12 @@ def md_text(text: object) -> str:
 
 def fmt(v: Any, digits: int = 4) -> str:
     """A table cell: a float with ``digits`` decimals, ``-`` for ``None``/NaN/infinity, else the text
-    (:func:`md_text`)."""
+    (:func:`md_text`).
+
+    Example:
+        >>> fmt(0.123456), fmt(0.5, digits=2), fmt(None), fmt(float("nan")), fmt(3), fmt("s|1")
+        ('0.1235', '0.50', '-', '-', '3', 's\\\\|1')
+    """
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     if isinstance(v, float):
@@ -37,7 +42,15 @@ def fmt(v: Any, digits: int = 4) -> str:
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]], digits: int = 4) -> str:
-    """A GitHub-flavoured Markdown table; floats get ``digits`` decimals, ``None``/NaN show as ``-``."""
+    """A GitHub-flavoured Markdown table; floats get ``digits`` decimals, ``None``/NaN show as ``-``.
+
+    Example:
+        >>> print(markdown_table(["Subject", "IoU"], [["s|1", 0.5], ["s2", None]]))
+        | Subject | IoU |
+        |:---|---:|
+        | s\\|1 | 0.5000 |
+        | s2 | - |
+    """
     lines = ["| " + " | ".join(md_text(h) for h in header) + " |",
              "|" + "|".join(":---" if i == 0 else "---:" for i in range(len(header))) + "|"]
     lines += ["| " + " | ".join(fmt(v, digits) for v in row) + " |" for row in rows]
@@ -56,6 +69,13 @@ def scored_part_quality(result: Mapping[str, Any]) -> Mapping[str, Any] | None:
 
 
 def part_labels(result: Mapping[str, Any]) -> dict[int, str | None]:
-    """``{learned part: its majority ground-truth part}`` from a result's part quality (empty when not scored)."""
+    """``{learned part: its majority ground-truth part}`` from a result's part quality (empty when not scored).
+
+    Example:
+        >>> parts = [{"part": 0, "label": "head"}, {"part": 1, "label": None}]
+        >>> scored = {"part_quality": {"part_labels": True, "parts": parts}}
+        >>> part_labels(scored), part_labels({"part_quality": {"part_labels": False, "parts": []}}), part_labels({})
+        ({0: 'head', 1: None}, {}, {})
+    """
     pq = scored_part_quality(result)
     return {p["part"]: p["label"] for p in pq["parts"]} if pq else {}

@@ -32,12 +32,30 @@ def _finite(obj: Any) -> Any:
 
 
 def to_jsonable(result: EvaluationResult | Mapping[str, Any]) -> dict[str, Any]:
-    """The JSON-ready dict of a result (or of a dict already in that form)."""
+    """The JSON-ready dict of a result (or of a dict already in that form): NaN and infinity become ``None``.
+
+    Example:
+        >>> to_jsonable({"standard": {"mean": float("nan"), "count": 0}, "seconds": float("inf"), "resolution": 32})
+        {'standard': {'mean': None, 'count': 0}, 'seconds': None, 'resolution': 32}
+    """
     return _finite(result.to_dict() if isinstance(result, EvaluationResult) else dict(result))
 
 
 def write_json(result: EvaluationResult | Mapping[str, Any], path: str | Path) -> Path:
-    """Write ``result`` as indented, strict JSON, atomically."""
+    """Write ``result`` as indented, strict JSON, atomically (NaN and infinity as ``null``); returns the path.
+
+    Example:
+        >>> import tempfile
+        >>> folder = Path(tempfile.mkdtemp())
+        >>> path = write_json({"standard": {"mean": float("nan"), "count": 0}}, folder / "results.json")
+        >>> print(path.read_text(), end="")
+        {
+          "standard": {
+            "mean": null,
+            "count": 0
+          }
+        }
+    """
     return write_text(json.dumps(to_jsonable(result), indent=2, allow_nan=False) + "\n", path)
 
 
@@ -53,6 +71,13 @@ def comparison_table(results: Mapping[str, Mapping[str, float | None]], columns:
     Args:
         results: ``{model: {column: value}}``, e.g. ``{"Cerberus": {"Human": 0.497, "Hard Human": 0.473}}``.
         columns: column order (default: first-seen order over the models).
+
+    Example:
+        >>> print(comparison_table({"Cerberus": {"Human": 0.497, "Hard Human": 0.473}, "NMR": {"Human": 0.41}}))
+        | Model | Human | Hard Human |
+        |:---|---:|---:|
+        | Cerberus | 0.4970 | 0.4730 |
+        | NMR | 0.4100 | - |
     """
     if columns is None:
         columns = list(dict.fromkeys(c for row in results.values() for c in row))
@@ -63,7 +88,28 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
     """A readable summary: voxel IoU overall and per subject (standard and Hard Human), then each
     diagnostic's section in :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` order (those that ran
     and have one: part quality with each part's visibility, or part visibility alone; depth across
-    views; body segments; allocation)."""
+    views; body segments; allocation).
+
+    Example: from a results.json dict with no diagnostic (each one skipped: ``null``):
+
+        >>> std = {"mean": 0.5, "count": 2, "per_group": {"s1": 0.4, "s2": 0.6}, "clipped": 1, "failed": 0}
+        >>> print(markdown_report({"protocol": "kato", "resolution": 32, "standard": std, "hard": None,
+        ...                        "seconds": 12.3, "records": []}, title="Demo"))
+        # Demo
+        <BLANKLINE>
+        Voxel IoU, protocol `kato` at 32^3, union of parts; 2 images (12 s).
+        <BLANKLINE>
+        ## Voxel IoU
+        <BLANKLINE>
+        | Subject | Standard | Hard Human |
+        |:---|---:|---:|
+        | all | 0.5000 | - |
+        | s1 | 0.4000 | - |
+        | s2 | 0.6000 | - |
+        <BLANKLINE>
+        - standard: 1 predictions clamped into the grid, 0 rejected by the metric (scored 0).
+        <BLANKLINE>
+    """
     r = to_jsonable(result)
     std, hard = r["standard"], r.get("hard")
     out = [f"# {md_text(title)}", "",

@@ -47,7 +47,14 @@ Reconstructor = Callable[[Tensor, Camera], PartSet]
 
 # ------------------------------------------------------------------ batches and cameras
 def subject_label(dataset: Any, value: Any) -> str:
-    """A subject's name: integer subject ids are looked up in ``dataset.subject_names`` if it has them."""
+    """A subject's name: integer subject ids are looked up in ``dataset.subject_names`` if it has them.
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> views = SimpleNamespace(subject_names=["alice", "bob"])
+        >>> subject_label(views, torch.tensor(1)), subject_label(views, 0), subject_label(views, "carol")
+        ('bob', 'alice', 'carol')
+    """
     if isinstance(value, Tensor):
         value = value.item()
     names = getattr(dataset, "subject_names", None)
@@ -85,7 +92,15 @@ def missing_fields(index: int, names: Sequence[str]) -> DatasetError:
 
 
 def collate(items: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """``default_collate``, with ``images`` as float32 in [0, 1] (uint8 images are divided by 255)."""
+    """``default_collate``, with ``images`` as float32 in [0, 1] (uint8 images are divided by 255).
+
+    Example: two ``(3, H, W)`` uint8 images, one white, one black, become a ``(B, 3, H, W)`` float batch:
+
+        >>> white, black = torch.full((3, 2, 2), 255, dtype=torch.uint8), torch.zeros(3, 2, 2, dtype=torch.uint8)
+        >>> batch = collate([{"images": white, "pose": 0}, {"images": black, "pose": 4}])
+        >>> tuple(batch["images"].shape), batch["images"].dtype, batch["images"].amax().item(), batch["pose"].tolist()
+        ((2, 3, 2, 2), torch.float32, 1.0, [0, 4])
+    """
     batch = torch.utils.data.default_collate(list(items))
     images = batch["images"]
     batch["images"] = images.float() / 255.0 if images.dtype == torch.uint8 else images.float()
@@ -139,6 +154,21 @@ class EvaluationResult:
         records: one dict per image: index, subject, pose, view, iou, clipped, error, then each
             diagnostic's fields (visible_pixels, hard_iou, ..., deletion_loss, keypoints, unique_coverage).
         seconds: wall time.
+
+    Example: a result made by hand (:func:`evaluate_dataset` makes them), the Hard Human test skipped:
+
+        >>> records = [{"index": 0, "subject": "s1", "iou": 0.4}, {"index": 7, "subject": "s1", "iou": 0.6}]
+        >>> result = EvaluationResult("kato", 32, IoUSummary(0.5, 2, {"s1": 0.5}), {"hard": None, "canonical": {}},
+        ...                           records, seconds=1.23456)
+        >>> result.image_ious(), "hard" in result, result["hard"]
+        ({0: 0.4, 7: 0.6}, True, None)
+        >>> d = result.to_dict()  # the JSON form (results.json); seconds rounded to ms
+        >>> list(d), d["standard"]["per_group"], d["seconds"]
+        (['protocol', 'resolution', 'standard', 'hard', 'canonical', 'seconds', 'records'], {'s1': 0.5}, 1.235)
+        >>> result["hrad"]
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.UnknownEntryError: EvaluationResult has no entry 'hrad' (did you mean 'hard'?); ...
     """
 
     protocol: str
@@ -205,6 +235,21 @@ class EvalConfig(Checked):
         density: part-quality surface lattice steps per predicted triangle edge (see
             :mod:`cerberus_core.eval.part_quality`).
         progress: show a progress bar.
+    Raises:
+        ConfigError: a field out of its range, or a name in ``skip`` that is not a diagnostic.
+
+    Example:
+        >>> config = EvalConfig(skip=("hard", "depth"), batch_size=4)
+        >>> config.protocol, config.resolution, config.skip, config.batch_size
+        ('kato', 32, ('hard', 'depth'), 4)
+        >>> EvalConfig(batch_size=0)
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ConfigError: batch_size = 0: must be an integer >= 1 (EvalConfig(batch_size=...))
+        >>> EvalConfig(skip=("hardd",))
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ConfigError: skip = 'hardd': is not a diagnostic (did you mean 'hard'?); ...
     """
 
     FIX = "{cls}({key}=...)"

@@ -78,6 +78,25 @@ class VoxelScorer:
             ground-truth grids); default the scorer's memory cache.
     Attributes:
         cache: the scorer's ground-truth grid cache (``hits`` / ``misses``).
+
+    Example (needs cerberus-metrics): a cube of side 0.5 (mesh units, ``(V, 3)`` vertices and ``(F, 3)``
+    faces), the same cube moved by half its side, and a cube of side 1.1 that leaves the ``kato`` grid:
+
+        >>> import numpy as np
+        >>> corners = np.array([[x, y, z] for x in (-0.25, 0.25) for y in (-0.25, 0.25) for z in (-0.25, 0.25)])
+        >>> faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+        ...                   [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+        >>> cube, moved, big = (corners, faces), (corners + [0.25, 0, 0], faces), (corners * 2.2, faces)
+        >>> scorer = VoxelScorer()  # the paper's protocol: kato, 32^3
+        >>> scorer([moved], cube)  # a third of the union is shared
+        Score(iou=0.343..., clipped=0, error=None)
+        >>> scorer([big], cube)  # clamped to the whole grid: 32^3 voxels against the cube's 16^3
+        Score(iou=0.125, clipped=1, error=None)
+        >>> v = scorer.voxels([cube, moved], cube)
+        >>> v.parts.shape, int(v.gt.sum()), int(v.union.sum()), round(v.score.iou, 4)  # (P, X, Y, Z)
+        ((2, 32, 32, 32), 4096, 6144, 0.6667)
+        >>> scorer.cache.misses, scorer.cache.hits  # the ground truth was voxelized once
+        (1, 2)
     """
 
     def __init__(self, protocol: str = "kato", resolution: int = 32, factory: Callable[..., Any] | None = None,
@@ -106,7 +125,18 @@ class VoxelScorer:
 
 def check_scorer(protocol: str, resolution: int) -> None:
     """The voxel-IoU protocol and resolution must be ones the metric takes (checked through its entry point, before
-    anything runs: the metric's bounds are the only ones; a missing cerberus-metrics is named as such)."""
+    anything runs: the metric's bounds are the only ones; a missing cerberus-metrics is named as such).
+
+    Raises:
+        ConfigError: the metric refuses ``protocol`` or ``resolution`` (its message says why).
+
+    Example (needs cerberus-metrics):
+        >>> check_scorer("kato", 64)
+        >>> check_scorer("kato", 1)
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ConfigError: resolution = 1: resolution must be an integer in [2, 1024] ...
+    """
     factory = get_metric(SCORER_ENTRY_POINT)
     for key, value, tried in (("protocol", protocol, {"resolution": 32}), ("resolution", resolution, {})):
         try:
@@ -121,6 +151,16 @@ class GroundTruthMemo:
     Args:
         loader: ``index -> PosedBody`` (e.g. ``dataset.gt_mesh``).
         size: meshes kept (the views of a pose are usually consecutive; a few suffice).
+
+    Example:
+        >>> loaded = []
+        >>> memo = GroundTruthMemo(lambda i: loaded.append(i) or f"mesh of image {i}", size=1)
+        >>> memo.get(("s1", 0), 0), memo.get(("s1", 0), 1)  # two views of pose 0: one load
+        ('mesh of image 0', 'mesh of image 0')
+        >>> memo.get(("s1", 1), 2), memo.get(("s1", 0), 3)  # size 1: pose 0 was dropped, loaded again
+        ('mesh of image 2', 'mesh of image 3')
+        >>> loaded
+        [0, 2, 3]
     """
 
     def __init__(self, loader: Callable[[int], Any], size: int = 8) -> None:
@@ -161,7 +201,27 @@ class IoUSummary:
 
 
 def summarize(scores: list[Score], groups: list[str]) -> IoUSummary:
-    """Average scores overall and per group (the order of ``groups`` matches ``scores``)."""
+    """Average scores overall and per group (the order of ``groups`` matches ``scores``).
+
+    Args:
+        scores: one :class:`Score` per prediction (image).
+        groups: each score's group (subject or species), as long as ``scores``.
+    Returns:
+        An :class:`IoUSummary` (``mean`` NaN and ``count`` 0 for no score).
+    Raises:
+        ShapeError: ``scores`` and ``groups`` differ in length.
+
+    Example:
+        >>> s = summarize([Score(0.5), Score(0.7, clipped=2), Score(0.0, error="MeshInputError: ...")], ["a", "a", "b"])
+        >>> round(s.mean, 4), s.count, s.per_group
+        (0.4, 3, {'a': 0.6, 'b': 0.0})
+        >>> s.clipped, s.clipped_parts, s.failed  # images with a part clamped, parts clamped, images rejected
+        (1, 2, 1)
+        >>> summarize([Score(0.5)], [])
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ShapeError: summarize: one group per score is needed; ...
+    """
     if len(scores) != len(groups):
         raise ShapeError("summarize: one group per score is needed; pass `groups` as long as `scores`")
     if not scores:
