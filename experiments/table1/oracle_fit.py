@@ -66,7 +66,7 @@ from cerberus_core.eval.standard import VoxelScorer
 from cerberus_core.losses import dihedral_cosines, smoothness_loss
 from cerberus_core.render import render
 from cerberus_core.render.templates import MeshTemplate, icosphere
-from cerberus_core.viz import part_colors, save_image_grid
+from cerberus_core.viz import atomic_save_png, image_grid, part_colors
 from cerberus_metrics.api import voxelize
 
 Tensor = torch.Tensor
@@ -285,8 +285,8 @@ def picture(bodies: list[tuple[np.ndarray, np.ndarray, Tensor, float, str]], fac
         col = part_colors(pv.shape[0])
         fit = render_parts(renderer, pv[None].expand(2, -1, -1, -1), faces, cam, albedo=col).image
         rows.append(torch.cat([gt[:1], fit[:1], gt[1:], fit[1:]]))
-        titles.append(f"{label} {iou:.2f}"[:10])
-    return save_image_grid(rows, path, titles)
+        titles.append(f"{label} {iou:.2f}")
+    return atomic_save_png(image_grid(rows, row_titles=titles), path)
 
 
 # ------------------------------------------------------------------ main

@@ -1,5 +1,6 @@
 """Text in the pictures (cerberus_core.viz): words drawn apart, lines wrapped to a width; the chart frame's map
-from data to pixels and its gridlines.
+from data to pixels and its gridlines; the one image grid (batches or lists of images, blank cells, titles fitted
+to their cells, inputs checked).
 
 Issue 34: the warning drawn above ``*_figure1.png`` read "its border is notthe training background": Pillow's
 default font advances a space by 2 px at 11 px, no more than the gap between two letters.
@@ -8,17 +9,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image, ImageDraw
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.eval.figures import note_banner
 from cerberus_core.viz import (
     GRID,
+    GRID_PAD,
     INK,
+    ROW_LABEL_WIDTH,
+    TITLE_HEIGHT,
     WORD_GAP,
     chart_frame,
     draw_text,
     figure_font,
+    image_grid,
     text_width,
     word_positions,
     wrap_text,
@@ -112,3 +118,63 @@ def test_the_gridlines_land_on_their_values_and_keep_the_frame():
 def test_a_chart_axis_needs_two_different_ends(x_range, y_range):
     with pytest.raises(ConfigError, match="two different finite ends"):
         chart_frame((100, 100), margins=(10, 10, 10, 10), x_range=x_range, y_range=y_range)
+
+
+def _batch(n=3, size=8, channels=3):
+    """``(n, channels, size, size)`` images, image ``k`` filled with ``(k + 1) / (n + 1)``."""
+    return torch.arange(1, n + 1, dtype=torch.float32).div(n + 1).view(n, 1, 1, 1).expand(n, channels, size, size)
+
+
+def test_a_batch_row_draws_as_its_list_of_images():
+    batch = _batch()
+    as_batch = image_grid([batch, batch[:2]], row_titles=["one", "two"], scale=2)
+    as_lists = image_grid([list(batch), [batch[0], batch[1]]], row_titles=["one", "two"], scale=2)
+    assert np.array_equal(np.asarray(as_batch), np.asarray(as_lists))
+    cell = 2 * 8 + GRID_PAD
+    assert as_batch.size == (ROW_LABEL_WIDTH + 3 * cell + GRID_PAD, 2 * cell + GRID_PAD)
+    x, y = ROW_LABEL_WIDTH + GRID_PAD + 2 * cell, GRID_PAD + cell  # the missing third cell of the short row
+    assert as_batch.getpixel((x + 8, y + 8)) == (255, 255, 255)
+    assert as_batch.getpixel((x + 8, y + 8 - cell)) == (191, 191, 191)  # image 3 of 3: 0.75
+
+
+def test_none_cells_stay_blank_and_grey_images_are_grey():
+    grey = _batch(2, channels=1)
+    picture = image_grid([[grey[0], None], [None, grey[1]]], column_titles=["a", "b"])
+    cell = 8 + GRID_PAD
+    assert picture.size == (2 * cell + GRID_PAD, TITLE_HEIGHT + 2 * cell + GRID_PAD)
+    at = lambda r, c: picture.getpixel((GRID_PAD + c * cell + 4, TITLE_HEIGHT + GRID_PAD + r * cell + 4))  # noqa: E731
+    assert (at(0, 0), at(0, 1), at(1, 0), at(1, 1)) == ((85, 85, 85), (255,) * 3, (255,) * 3, (170, 170, 170))
+
+
+def test_a_long_row_title_is_fitted_into_its_column():
+    """The row titles used to be cut at 10 characters whatever their width; now a title that is too wide is set
+    smaller, then on two lines, then cut: no ink runs into the cells."""
+    for title in ("s12 1234/5678", "subject 3 pose 1234567890 0.53", "W" * 40):
+        picture = np.asarray(image_grid([_batch(1, size=32)], row_titles=[title]).convert("L"))
+        label = picture[:, :ROW_LABEL_WIDTH + GRID_PAD]
+        assert (label < 128).any(), title
+        assert (label[:, ROW_LABEL_WIDTH - 2:] == 255).all(), f"{title!r} runs into the cells"
+
+
+@pytest.mark.parametrize("rows, options, error, match", [
+    ([], {}, ConfigError, "no images"),
+    ([[None, None]], {}, ConfigError, "no images"),
+    ([_batch()[0]], {}, ShapeError, r"row 0 is a tensor of shape \(3, 8, 8\); pass a \(B, C, H, W\) batch"),
+    ([[torch.zeros(2, 8, 8)]], {}, ShapeError, "C = 1 .grey. or 3"),
+    ([[np.zeros((3, 8, 8))]], {}, ShapeError, "ndarray"),
+    ([[_batch(1)[0], _batch(1, size=4)[0]]], {}, ShapeError, "resize them to one"),
+    ([_batch(2)], {"column_titles": ["a"]}, ShapeError, "1 column titles for 2 columns"),
+    ([_batch(2)], {"row_titles": ["a", "b"]}, ShapeError, "2 row titles for 1 rows"),
+    ([_batch(2)], {"scale": 0}, ConfigError, "scale = 0: image_grid: the upscaling is a whole number"),
+    ([_batch(2)], {"scale": 1.5}, ConfigError, "whole number"),
+])
+def test_image_grid_says_what_is_wrong(rows, options, error, match):
+    with pytest.raises(error, match=match):
+        image_grid(rows, **options)
+
+
+def test_titles_are_keywords():
+    """The row titles were the second positional argument of the old grid, the column titles of the other one:
+    the titles are named, never guessed from a position."""
+    with pytest.raises(TypeError):
+        image_grid([_batch()], ["a", "b", "c"])  # type: ignore[misc]

@@ -9,10 +9,9 @@ from PIL import Image
 from cerberus_core.errors import ShapeError
 from cerberus_core.eval import figures
 from cerberus_core.eval.allocation import keypoints
-from cerberus_core.eval.figures import PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera
-from cerberus_core.viz import part_colors
+from cerberus_core.viz import GRID_PAD, ROW_LABEL_WIDTH, TITLE_HEIGHT, part_colors
 from tests.support.oracle import body_parts
 
 H = 40
@@ -63,9 +62,9 @@ def test_save_image_pictures_writes_pngs_of_expected_size(tmp_path, renderer, pr
     sizes = {p.name: Image.open(p).size for p in paths}
     for name in ("input", "reconstruction", "parts", "new_lighting", "new_pose"):
         assert sizes[f"x_{name}.png"] == (H, H)
-    cell = 2 * H + PAD
-    assert sizes["x_turntable.png"] == (ROW_LABEL_WIDTH + 8 * cell + PAD, TITLE_HEIGHT + 2 * cell + PAD)
-    assert sizes["x_figure1.png"] == (3 * cell + PAD, 2 * (TITLE_HEIGHT + cell + PAD))
+    cell = 2 * H + GRID_PAD
+    assert sizes["x_turntable.png"] == (ROW_LABEL_WIDTH + 8 * cell + GRID_PAD, TITLE_HEIGHT + 2 * cell + GRID_PAD)
+    assert sizes["x_figure1.png"] == (3 * cell + GRID_PAD, 2 * (TITLE_HEIGHT + cell + GRID_PAD))
     png = np.asarray(Image.open(tmp_path / "x_parts.png"))
     assert len({tuple(p) for p in png.reshape(-1, 3)}) > 10  # coloured parts, not a blank tile
 
@@ -96,13 +95,13 @@ def test_figure_one_titles_stay_inside_their_columns(size):
     column: the title band is white where two columns meet, and every caption left some ink."""
     panels = {k: torch.full((3, size, size), 0.5) for k in figures.FIGURE_ONE_TITLES}
     picture = np.asarray(figures.figure_one(panels, scale=1, columns=3).convert("L"))
-    cell = size + PAD
+    cell = size + GRID_PAD
     for row in range(2):
-        band = picture[row * (TITLE_HEIGHT + cell + PAD):][:TITLE_HEIGHT]
+        band = picture[row * (TITLE_HEIGHT + cell + GRID_PAD):][:TITLE_HEIGHT]
         for c in range(3):
-            x0 = PAD + c * cell
-            assert (band[:, x0 - PAD // 2] == 255).all(), f"a caption crosses the left edge of column {c}"
-            assert (band[:, x0 + size - 1 + PAD // 2] == 255).all(), f"a caption crosses the right edge of column {c}"
+            x0 = GRID_PAD + c * cell
+            assert (band[:, x0 - GRID_PAD // 2] == 255).all(), f"a caption crosses the left edge of column {c}"
+            assert (band[:, x0 + size - 1 + GRID_PAD // 2] == 255).all(), f"a caption crosses the right edge of column {c}"
             assert (band[:, x0:x0 + size] < 128).any(), f"caption {c} of row {row} drew nothing"
 
 
@@ -132,4 +131,4 @@ def test_voxel_views_show_the_kind_most_voxels_on_a_line_are_front_and_side():
     assert {k: at(0, *k) for k in front} == front
     assert {k: at(1, *k) for k in side} == side
     assert torch.equal(views[:, :, 0::2, 0::2], views[:, :, 1::2, 1::2])  # nearest upscaling
-    assert figures.voxel_legend(300).size == (300, 16 + PAD)
+    assert figures.voxel_legend(300).size == (300, 16 + GRID_PAD)

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
-from cerberus_core.errors import ConfigError
+from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.plumbing.atomic import atomic_write
 
 Tensor = torch.Tensor
@@ -99,9 +99,11 @@ def to_uint8(images: Tensor) -> np.ndarray:
     return (x[:, :3].permute(0, 2, 3, 1) * 255 + 0.5).to(torch.uint8).numpy()
 
 
-def atomic_save_png(img: Image.Image, path: str | Path) -> None:
-    """Write a PNG atomically (:func:`cerberus_core.plumbing.atomic.atomic_write`): a reader never sees half a file."""
+def atomic_save_png(img: Image.Image, path: str | Path) -> Path:
+    """Write a PNG atomically (:func:`cerberus_core.plumbing.atomic.atomic_write`): a reader never sees half a file.
+    Returns ``path``."""
     atomic_write(Path(path), lambda fh: img.save(fh, format="PNG"))
+    return Path(path)
 
 
 @dataclass(frozen=True)
@@ -173,8 +175,7 @@ class ChartFrame:
 
     def save(self, path: str | Path) -> Path:
         """The canvas written atomically to ``path`` (:func:`atomic_save_png`, which makes the folder)."""
-        atomic_save_png(self.image, path)
-        return Path(path)
+        return atomic_save_png(self.image, path)
 
     def _frame(self) -> None:
         self.draw.rectangle([self.left, self.top, self.right, self.bottom], outline=INK)
@@ -198,33 +199,129 @@ def chart_frame(size: tuple[int, int], *, margins: tuple[int, int, int, int], x_
     return chart
 
 
-def image_grid(rows: Sequence[Tensor], titles: Sequence[str] | None = None, scale: int = 1, pad: int = 2) -> Image.Image:
-    """Lay out rows of image batches as one picture.
+#: Gap between the cells of an :func:`image_grid` and around them, px (the margin of the evaluation figures'
+#: banners and keys too, :mod:`cerberus_core.eval.figures`).
+GRID_PAD = 4
+#: Height of an :func:`image_grid`'s band of column titles, px (none without column titles).
+TITLE_HEIGHT = 18
+#: Width of an :func:`image_grid`'s column of row titles, px (none without row titles).
+ROW_LABEL_WIDTH = 90
+
+
+def _fit_title(text: str, width: float, height: float) -> tuple[list[str], ImageFont.ImageFont]:
+    """``text`` fitted into a ``width x height`` px box as lines drawn with :func:`draw_text`: a smaller font (12 px
+    down to 7), else two lines, else cut with '…' (the titles of small cells would otherwise run into each
+    other)."""
+    for size in range(12, 6, -1):
+        font = figure_font(size)
+        if text_width(text, font) <= width:
+            return [text], font
+    words = text.split()
+    for size in range(10, 6, -1):
+        font = figure_font(size)
+        if 2 * (size + 1) > height:
+            continue
+        for cut in range(len(words) - 1, 0, -1):
+            lines = [" ".join(words[:cut]), " ".join(words[cut:])]
+            if all(text_width(line, font) <= width for line in lines):
+                return lines, font
+    font = figure_font(7)
+    while len(text) > 1 and text_width(text + "…", font) > width:
+        text = text[:-1]
+    return [text + "…"], font
+
+
+def _draw_title(draw: ImageDraw.ImageDraw, text: str, xy: tuple[float, float], box: tuple[float, float],
+                anchor: str) -> None:
+    """``text`` fitted into ``box = (width, height)`` px (:func:`_fit_title`), its lines one step apart and centred
+    as a block on the y of ``xy``; ``anchor`` as :func:`draw_text`'s."""
+    lines, font = _fit_title(text, *box)
+    step = font.size + 1 if hasattr(font, "size") else 11
+    for k, line in enumerate(lines):
+        draw_text(draw, (xy[0], xy[1] + (k - (len(lines) - 1) / 2) * step), line, font=font, fill=INK, anchor=anchor)
+
+
+def _grid_cells(rows: Sequence[Tensor | Sequence[Tensor | None]]) -> tuple[list[list[Tensor | None]], int, int]:
+    """The cells of :func:`image_grid`'s ``rows`` as lists of ``(C, H, W)`` images or ``None``, and their shared
+    ``H, W``; the checks of its ``Raises``."""
+    out: list[list[Tensor | None]] = []
+    for r, row in enumerate(rows):
+        if isinstance(row, Tensor) and row.ndim != 4:
+            raise ShapeError(f"image_grid: row {r} is a tensor of shape {tuple(row.shape)}; pass a (B, C, H, W) batch "
+                             "or a list of (C, H, W) images (one image: `[image]`)")
+        out.append(list(row))
+    cells = [c for row in out for c in row if c is not None]
+    if not cells:
+        raise ConfigError("image_grid: no images; pass at least one row with one image", key="rows")
+    bad = next((c for c in cells if not isinstance(c, Tensor) or c.ndim != 3 or c.shape[0] not in (1, 3)), None)
+    if bad is not None:
+        raise ShapeError(f"image_grid: a cell of shape {tuple(getattr(bad, 'shape', ()))} ({type(bad).__name__}); "
+                         "each image is a (C, H, W) tensor with C = 1 (grey) or 3 (RGB), or None for a blank cell")
+    h, w = cells[0].shape[-2:]
+    sizes = sorted({tuple(c.shape[-2:]) for c in cells})
+    if len(sizes) > 1:
+        raise ShapeError(f"image_grid: images of sizes {sizes} (H, W); resize them to one (H, W)")
+    return out, h, w
+
+
+def image_grid(rows: Sequence[Tensor | Sequence[Tensor | None]], *, column_titles: Sequence[str] | None = None,
+               row_titles: Sequence[str] | None = None, scale: int = 1) -> Image.Image:
+    """Images laid out as one picture: a table of cells, with optional titles above the columns and left of the rows.
 
     Args:
-        rows: each ``(B, C, H, W)`` in [0, 1]; all rows share ``H, W`` (B may differ).
-        titles: optional label drawn at the left of each row.
-        scale: nearest-neighbour upscaling factor.
+        rows: each row a ``(B, C, H, W)`` batch, or a sequence of ``(C, H, W)`` images or ``None`` (a blank cell);
+            values in [0, 1] (clamped), ``C`` 1 (grey) or 3 (RGB), ``H, W`` in px and the same for every image.
+            Rows may differ in length: the table is as wide as the longest, a shorter row ends blank.
+        column_titles: one per column, centred above it in a :data:`TITLE_HEIGHT` px band; a title wider than its
+            cell is set smaller, then on two lines, then cut with '…'.
+        row_titles: one per row, at the left in a :data:`ROW_LABEL_WIDTH` px column, fitted the same way.
+        scale: nearest-neighbour upscaling of every cell, a whole number (a cell is ``H * scale x W * scale`` px).
+    Returns:
+        An RGB picture of ``R`` rows of at most ``K`` cells, white around and between them: ``L + K * (W * scale +
+        GRID_PAD) + GRID_PAD`` px wide and ``T + R * (H * scale + GRID_PAD) + GRID_PAD`` px high, ``T`` being
+        :data:`TITLE_HEIGHT` with column titles (else 0) and ``L`` :data:`ROW_LABEL_WIDTH` with row titles (else 0).
+
+    Raises:
+        ConfigError: no image at all (``key="rows"``), or ``scale`` not a whole number of at least 1.
+        ShapeError: a row that is a tensor but not ``(B, C, H, W)``; a cell that is not a ``(C, H, W)`` tensor
+            with ``C`` 1 or 3; images of different sizes; titles that are not one per column, or one per row.
+
+    >>> two = torch.rand(2, 3, 8, 8)  # a batch of two 8 x 8 px images: one row
+    >>> image_grid([two]).size  # (width, height) in px: 2 * (8 + 4) + 4, (8 + 4) + 4
+    (28, 16)
+    >>> grid = image_grid([[two[0], None], [None, two[1]]], column_titles=["a", "b"], row_titles=["x", "y"], scale=2)
+    >>> grid.size  # 90 + 2 * (16 + 4) + 4, 18 + 2 * (16 + 4) + 4
+    (134, 62)
     """
-    arrays = [to_uint8(r) for r in rows]
-    h, w = arrays[0].shape[1:3]
-    label_w = 60 if titles else 0
-    ncols = max(a.shape[0] for a in arrays)
-    canvas = Image.new("RGB", (label_w + ncols * (w * scale + pad) + pad, len(arrays) * (h * scale + pad) + pad), "white")
+    cells, h, w = _grid_cells(rows)
+    if isinstance(scale, bool) or not isinstance(scale, int) or scale < 1:
+        raise ConfigError.about("scale", scale, "image_grid: the upscaling is a whole number of at least 1",
+                                "`scale=1` or more")
+    ncols = max(len(row) for row in cells)
+    if column_titles is not None and len(column_titles) != ncols:
+        raise ShapeError(f"image_grid: {len(column_titles)} column titles for {ncols} columns; pass one title "
+                         "per column, or `column_titles=None`")
+    if row_titles is not None and len(row_titles) != len(cells):
+        raise ShapeError(f"image_grid: {len(row_titles)} row titles for {len(cells)} rows; pass one title per row, "
+                         "or `row_titles=None`")
+    top = TITLE_HEIGHT if column_titles else 0
+    left = ROW_LABEL_WIDTH if row_titles else 0
+    cw, ch = w * scale, h * scale
+    canvas = Image.new("RGB", (left + ncols * (cw + GRID_PAD) + GRID_PAD, top + len(cells) * (ch + GRID_PAD) + GRID_PAD),
+                       "white")
     draw = ImageDraw.Draw(canvas)
-    for r, arr in enumerate(arrays):
-        y = pad + r * (h * scale + pad)
-        if titles:
-            draw_text(draw, (4, y + h * scale // 2), titles[r][:10], font=figure_font(10), fill=(0, 0, 0), anchor="lm")
-        for c, im in enumerate(arr):
-            tile = Image.fromarray(im)
+    for c, title in enumerate(column_titles or []):
+        x = left + GRID_PAD + c * (cw + GRID_PAD)
+        _draw_title(draw, title, (x + cw / 2, top / 2 + 1), (cw + GRID_PAD - 2, top - 2), "mm")
+    for r, row in enumerate(cells):
+        y = top + GRID_PAD + r * (ch + GRID_PAD)
+        if row_titles:
+            _draw_title(draw, row_titles[r], (4, y + ch / 2), (left - 6, ch), "lm")
+        for c, cell in enumerate(row):
+            if cell is None:
+                continue
+            tile = Image.fromarray(to_uint8(cell.unsqueeze(0))[0])
             if scale != 1:
-                tile = tile.resize((w * scale, h * scale), Image.NEAREST)
-            canvas.paste(tile, (label_w + pad + c * (w * scale + pad), y))
+                tile = tile.resize((cw, ch), Image.NEAREST)
+            canvas.paste(tile, (left + GRID_PAD + c * (cw + GRID_PAD), y))
     return canvas
-
-
-def save_image_grid(rows: Sequence[Tensor], path: str | Path, titles: Sequence[str] | None = None, scale: int = 1) -> Path:
-    """:func:`image_grid` written atomically to ``path``."""
-    atomic_save_png(image_grid(rows, titles, scale), path)
-    return Path(path)

@@ -13,7 +13,7 @@ from cerberus_core.render.api import render_parts
 from cerberus_core.render.backends import available_renderers, make_renderer
 from cerberus_core.render.demo import demo_scene
 from cerberus_core.render.light import Light
-from cerberus_core.viz import part_colors, save_image_grid
+from cerberus_core.viz import atomic_save_png, image_grid, part_colors
 
 #: Largest --image-size (4 views of it are rendered per backend).
 MAX_IMAGE_SIZE = 2048
@@ -51,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
             shaded = render_parts(renderer, parts, faces, camera, light, background=(1.0, 1.0, 1.0))
             coloured = render_parts(renderer, parts, faces, camera, light, albedo=colours, background=(1.0, 1.0, 1.0))
             ms = (time.perf_counter() - t0) * 1000
-            save_image_grid([shaded.image, coloured.image], tmp / f"demo_{name}.png", titles=["shaded", "parts"])
+            grid = image_grid([shaded.image, coloured.image], row_titles=["shaded", "parts"])
+            atomic_save_png(grid, tmp / f"demo_{name}.png")
             lines.append(f"{name:<8} {ms:8.1f} ms  -> {out / f'demo_{name}.png'}")
     print("\n".join(lines))
     return 0

@@ -38,7 +38,8 @@ def _evenly(n_items: int, count: int) -> list[int]:
 
 
 TITLE_CHARS = 14
-"""The longest row title that fits a row of 64 px tiles at the default scale."""
+"""The longest row title kept whole: 14 characters fit :func:`~cerberus_core.viz.image_grid`'s row-title column
+at 11 px; a longer one names the quadruplet instead."""
 
 
 def contact_sheet(views: ViewDataset, quads: QuadrupletDataset | None = None, *, count: int = 8,
@@ -88,7 +89,7 @@ def contact_sheet(views: ViewDataset, quads: QuadrupletDataset | None = None, *,
     if not rows:
         raise DatasetError(f"{views.root}: split {views.split!r} has no finished shard to show yet; let its "
                            "generation finish a shard first")
-    return image_grid(rows, titles, scale=scale)
+    return image_grid(rows, row_titles=titles, scale=scale)
 
 
 def save_contact_sheet(views: ViewDataset, out: str | Path, manifest: Manifest, **options) -> Path:

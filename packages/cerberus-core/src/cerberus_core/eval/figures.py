@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw
 
 from cerberus_core.errors import ConfigError, DatasetError, ShapeError
 from cerberus_core.eval.allocation import keypoints
@@ -40,11 +40,13 @@ from cerberus_core.render.interface import Renderer
 from cerberus_core.render.light import NEW_LIGHT_CAMERA_DIRECTION, Light
 from cerberus_core.shapes import check_shapes
 from cerberus_core.viz import (
+    GRID_PAD,
     INK,
     atomic_save_png,
     chart_frame,
     draw_text,
     figure_font,
+    image_grid,
     part_colors,
     text_width,
     to_uint8,
@@ -58,11 +60,6 @@ RGB = tuple[float, float, float]
 DEFAULT_ALBEDO: RGB = (0.8, 0.8, 0.8)
 #: Figure background (the datasets render on white).
 DEFAULT_BACKGROUND: RGB = (1.0, 1.0, 1.0)
-
-PAD = 4
-TITLE_HEIGHT = 18
-ROW_LABEL_WIDTH = 90
-
 
 # ------------------------------------------------------------------ lights
 def camera_relative_light(camera: Camera, direction_cam: Sequence[float] = NEW_LIGHT_CAMERA_DIRECTION,
@@ -115,90 +112,12 @@ def reposed(renderer: Renderer, shapes: PartSet, poses: PartSet, camera: Camera,
     return render_reconstruction(renderer, transfer_pose(shapes, poses), camera, parts=parts, background=background)
 
 
-# ------------------------------------------------------------------ layout
-def _fit_title(text: str, width: float, height: float) -> tuple[list[str], ImageFont.ImageFont]:
-    """``text`` fitted into a ``width x height`` box as lines drawn with :func:`~cerberus_core.viz.draw_text`: a
-    smaller font, else two lines, else cut with '…' (column titles of small cells would otherwise run into
-    each other)."""
-    for size in range(12, 6, -1):
-        font = figure_font(size)
-        if text_width(text, font) <= width:
-            return [text], font
-    words = text.split()
-    for size in range(10, 6, -1):
-        font = figure_font(size)
-        if 2 * (size + 1) > height:
-            continue
-        for cut in range(len(words) - 1, 0, -1):
-            lines = [" ".join(words[:cut]), " ".join(words[cut:])]
-            if all(text_width(line, font) <= width for line in lines):
-                return lines, font
-    font = figure_font(7)
-    while len(text) > 1 and text_width(text + "…", font) > width:
-        text = text[:-1]
-    return [text + "…"], font
-
-
-def labelled_grid(rows: Sequence[Sequence[Tensor | None]], column_titles: Sequence[str] | None = None,
-                  row_titles: Sequence[str] | None = None, scale: int = 1) -> Image.Image:
-    """A table of images with optional column and row titles.
-
-    Args:
-        rows: ``rows[r][c]`` a ``(3, H, W)`` image in [0, 1] or ``None`` (left blank); all share ``H, W``.
-        column_titles, row_titles: text above the columns / left of the rows.
-        scale: nearest-neighbour upscaling of every cell.
-    Returns:
-        An RGB image of width ``L + C * (W * scale + PAD) + PAD`` and height
-        ``T + R * (H * scale + PAD) + PAD``, with ``T = TITLE_HEIGHT`` if column titles are given
-        (else 0) and ``L = ROW_LABEL_WIDTH`` if row titles are given (else 0).
-    """
-    cells = [c for row in rows for c in row if c is not None]
-    if not cells:
-        raise ConfigError("labelled_grid: no images; pass at least one row with one image", key="rows")
-    h, w = cells[0].shape[-2:]
-    if any(c.shape[-2:] != (h, w) for c in cells):
-        raise ShapeError("labelled_grid: all images must share one size; resize them to one (H, W)")
-    ncols = max(len(r) for r in rows)
-    if column_titles is not None and len(column_titles) != ncols:
-        raise ShapeError(f"labelled_grid: {len(column_titles)} column titles for {ncols} columns; pass one title "
-                         "per column, or `column_titles=None`")
-    if row_titles is not None and len(row_titles) != len(rows):
-        raise ShapeError(f"labelled_grid: {len(row_titles)} row titles for {len(rows)} rows; pass one title per row, "
-                         "or `row_titles=None`")
-    top = TITLE_HEIGHT if column_titles else 0
-    left = ROW_LABEL_WIDTH if row_titles else 0
-    cw, ch = w * scale, h * scale
-    canvas = Image.new("RGB", (left + ncols * (cw + PAD) + PAD, top + len(rows) * (ch + PAD) + PAD), "white")
-    draw = ImageDraw.Draw(canvas)
-    font = figure_font()
-    for c, title in enumerate(column_titles or []):
-        x = left + PAD + c * (cw + PAD)
-        lines, title_font = _fit_title(title, cw + PAD - 2, top - 2)
-        step = title_font.size + 1 if hasattr(title_font, "size") else 11
-        for k, line in enumerate(lines):  # the lines centred on the title row, one step apart
-            draw_text(draw, (x + cw / 2, top / 2 + 1 + (k - (len(lines) - 1) / 2) * step), line,
-                      font=title_font, fill=(0, 0, 0), anchor="mm")
-    for r, row in enumerate(rows):
-        y = top + PAD + r * (ch + PAD)
-        if row_titles:
-            draw_text(draw, (4, y + ch / 2), row_titles[r], font=font, fill=(0, 0, 0), anchor="lm")
-        for c, cell in enumerate(row):
-            if cell is None:
-                continue
-            tile = Image.fromarray(to_uint8(cell.unsqueeze(0))[0])
-            if scale != 1:
-                tile = tile.resize((cw, ch), Image.NEAREST)
-            canvas.paste(tile, (left + PAD + c * (cw + PAD), y))
-    return canvas
-
-
+# ------------------------------------------------------------------ files
 def save_png(image: Image.Image | Tensor, path: str | Path) -> Path:
-    """Write a PIL image or a ``(3, H, W)`` / ``(N, 3, H, W)`` tensor (a row of N) as PNG, atomically."""
+    """Write a PIL image or a ``(3, H, W)`` tensor in [0, 1] as PNG, atomically."""
     if isinstance(image, Tensor):
-        batch = image.unsqueeze(0) if image.ndim == 3 else image
-        image = labelled_grid([list(batch)]) if batch.shape[0] > 1 else Image.fromarray(to_uint8(batch)[0])
-    atomic_save_png(image, path)
-    return Path(path)
+        image = Image.fromarray(to_uint8(image[None])[0])
+    return atomic_save_png(image, path)
 
 
 # ------------------------------------------------------------------ Figure 1
@@ -239,11 +158,11 @@ def figure_one_panels(renderer: Renderer, image: Tensor, recon: PartSet, camera:
 def note_banner(text: str, width: int) -> Image.Image:
     """``text`` in dark red on white, wrapped to ``width`` pixels (a warning above a figure)."""
     font = figure_font(11)
-    lines = wrap_text(text, font, width - 2 * PAD)
-    out = Image.new("RGB", (width, 14 * len(lines) + PAD), "white")
+    lines = wrap_text(text, font, width - 2 * GRID_PAD)
+    out = Image.new("RGB", (width, 14 * len(lines) + GRID_PAD), "white")
     draw = ImageDraw.Draw(out)
     for k, text_line in enumerate(lines):
-        draw_text(draw, (PAD, PAD // 2 + 14 * k), text_line, font=font, fill=(160, 0, 0))
+        draw_text(draw, (GRID_PAD, GRID_PAD // 2 + 14 * k), text_line, font=font, fill=(160, 0, 0))
     return out
 
 
@@ -252,8 +171,8 @@ def figure_one(panels: Mapping[str, Tensor], scale: int = 2, columns: int = 3, n
     ``note`` (e.g. that the input is out of the training domain) in red above them all."""
     keys = [k for k in FIGURE_ONE_TITLES if k in panels]
     rows = [keys[i:i + columns] for i in range(0, len(keys), columns)]
-    images = [labelled_grid([[panels[k] for k in row]], [FIGURE_ONE_TITLES[k] for k in row], scale=scale)
-              for row in rows]
+    images = [image_grid([[panels[k] for k in row]], column_titles=[FIGURE_ONE_TITLES[k] for k in row],
+                         scale=scale) for row in rows]
     if note:
         images.insert(0, note_banner(note, max(im.width for im in images)))
     width = max(im.width for im in images)
@@ -310,8 +229,8 @@ def table2_rows(renderer: Renderer, images: Tensor, camera: Camera, ours: PartSe
             one-part reconstruction (:meth:`PartSet.from_posed`). Rendered shaded grey.
         turn_deg: azimuth change of the "Turn" column.
     Returns:
-        ``(column titles, rows of (3, H, W) cells)``, for :func:`labelled_grid` (:func:`evaluation_figures` adds
-        two columns of voxels).
+        ``(column titles, rows of (3, H, W) cells)``, for :func:`~cerberus_core.viz.image_grid`
+        (:func:`evaluation_figures` adds two columns of voxels).
     """
     baselines = dict(baselines or {})
     n = images.shape[0]
@@ -372,15 +291,15 @@ def voxel_views(voxels: Voxels, size: int, background: RGB = DEFAULT_BACKGROUND)
 def voxel_legend(width: int) -> Image.Image:
     """A one-line key to :data:`VOXEL_COLOURS`, ``width`` pixels wide."""
     font = figure_font(11)
-    out = Image.new("RGB", (width, 16 + PAD), "white")
+    out = Image.new("RGB", (width, 16 + GRID_PAD), "white")
     draw = ImageDraw.Draw(out)
-    x = PAD
+    x = GRID_PAD
     labels = {"hit": "voxels both have", "missed": "missed (ground truth only)",
               "off-body": "off the body (prediction only)"}
     for kind in ("hit", "missed", "off-body"):
-        draw.rectangle((x, PAD, x + 10, PAD + 10), fill=tuple(round(255 * c) for c in VOXEL_COLOURS[kind]))
-        draw_text(draw, (x + 14, PAD - 1), labels[kind], font=font, fill=(0, 0, 0))
-        x += 14 + int(text_width(labels[kind], font)) + 3 * PAD
+        draw.rectangle((x, GRID_PAD, x + 10, GRID_PAD + 10), fill=tuple(round(255 * c) for c in VOXEL_COLOURS[kind]))
+        draw_text(draw, (x + 14, GRID_PAD - 1), labels[kind], font=font, fill=(0, 0, 0))
+        x += 14 + int(text_width(labels[kind], font)) + 3 * GRID_PAD
     return out
 
 
@@ -420,7 +339,7 @@ def save_image_pictures(style: PictureStyle, image: Tensor, recon: PartSet, came
     shaded = turntable(renderer, recon, camera, n_views, background=background).cpu()
     coloured = turntable(renderer, recon, camera, n_views, parts=True, background=background).cpu()
     titles = [f"{round(k * 360 / n_views)}°" for k in range(n_views)]
-    grid = labelled_grid([list(shaded), list(coloured)], titles, ["shaded", "parts"], scale=scale)
+    grid = image_grid([shaded, coloured], column_titles=titles, row_titles=["shaded", "parts"], scale=scale)
     written.append(save_png(grid, out_dir / f"{stem}_turntable.png"))
     written.append(save_png(figure_one(panels, scale=scale, note=note), out_dir / f"{stem}_figure1.png"))
     return written
@@ -480,7 +399,7 @@ def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: P
     for k, (row, body) in enumerate(zip(rows, bodies, strict=True)):
         row.extend(voxel_views(scorer.voxels(ours.index([k]).part_meshes(0), (body.vertices, body.faces)),
                                images.shape[-1]))
-    grid = labelled_grid(rows, [*titles, "Voxels: front", "Voxels: side"], scale=2)
+    grid = image_grid(rows, column_titles=[*titles, "Voxels: front", "Voxels: side"], scale=2)
     legend = voxel_legend(grid.width)
     fig = Image.new("RGB", (grid.width, grid.height + legend.height), "white")
     fig.paste(grid, (0, 0))

@@ -30,7 +30,7 @@ from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
 from cerberus_core.train.objective import TERMS
-from cerberus_core.viz import chart_frame, draw_text, figure_font, part_colors, save_image_grid
+from cerberus_core.viz import atomic_save_png, chart_frame, draw_text, figure_font, image_grid, part_colors
 
 Tensor = torch.Tensor
 
@@ -200,7 +200,8 @@ def save_progress_grid(path: str | Path, renderer: Renderer, images: Tensor, ren
     coloured = render_parts(renderer, parts[:k], faces, cam, scene.light(cam), albedo=colours,
                             background=scene.background).image
     scale = max(1, 128 // images.shape[-1])
-    return save_image_grid([images[:k], renders[:k], coloured], path, titles=["input", "recon", "parts"], scale=scale)
+    grid = image_grid([images[:k], renders[:k], coloured], row_titles=["input", "recon", "parts"], scale=scale)
+    return atomic_save_png(grid, path)
 
 
 def plot_loss_curves(csv_path: str | Path, png_path: str | Path,
