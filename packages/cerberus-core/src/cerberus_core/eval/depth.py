@@ -10,8 +10,8 @@ views (:class:`DepthAccumulator`):
   placed at the same 3D point from every view; a depth error shows up here as the views disagree);
 * **turned-view silhouette IoU**: each image's reconstruction rendered from the cameras of the *other*
   views of its pose, against the ground-truth body's silhouette there, beside the same IoU in the
-  input view. A model right in its input view and wrong in depth scores high on the second and low on
-  the first.
+  input view. A model right in its input view and wrong in depth scores high in the input view and low
+  in the turned views.
 
 ``experiments/depth/depth_oracle.py`` goes one step further and moves each part along its own ray to
 the depth its keypoints triangulate to, which bounds what better depth alone would add to the IoU.
@@ -44,6 +44,19 @@ def translation_disagreement(translations: Tensor) -> Tensor:
     Returns:
         ``(N,)`` per part, the mean over the ``K (K - 1) / 2`` pairs of views of ``||T^x - T^y||``
         (world units).
+    Raises:
+        ShapeError: ``translations`` not ``(K, N, 3)``, or fewer than 2 views.
+
+    Example: three views of a pose, two parts; view 1 places part 0 0.3 further along x:
+
+        >>> t = torch.zeros(3, 2, 3)  # (K views, N parts, xyz), world units
+        >>> t[1, 0, 0] = 0.3  # pairs (0, 1) and (1, 2) differ by 0.3, pair (0, 2) agrees
+        >>> translation_disagreement(t)
+        tensor([0.2000, 0.0000])
+        >>> translation_disagreement(t[:1])
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ShapeError: translation_disagreement: needs the translations of at least 2 views ...
     """
     check_shapes("translation_disagreement", translations=(translations, "K N 3"))
     k = translations.shape[0]
@@ -75,6 +88,22 @@ def turned_view_ious(renderer: Renderer, parts: PartSet, cameras: Camera, body: 
         ``(K, K)`` float64: entry ``[x, y]`` is reconstruction ``x`` rendered by camera ``y`` against the body's
         silhouette in camera ``y`` (the diagonal: the input views), :func:`~cerberus_core.eval.masks.mask_iou`
         (NaN where both silhouettes are empty: the body out of camera ``y`` and the reconstruction too).
+
+    Example: the body is a ball of radius 0.35 at the origin, seen from the front (camera 0, on +z) and the side
+    (camera 1, on +x). View 0's reconstruction is the ball slid 0.4 toward its camera and shrunk to look the same
+    there (right in its input view, wrong in depth); view 1's is the ball itself:
+
+        >>> from cerberus_core import make_renderer, icosphere
+        >>> ball = icosphere(1, radius=0.35)
+        >>> cams = Camera.look_at(torch.tensor([0.0, 90.0]), 0.0, 2.5, image_size=32)  # K = 2 views, 32 x 32 pixels
+        >>> parts = PartSet.from_posed(ball.vertices.expand(2, 1, -1, 3).clone(), ball.faces)  # (K, N = 1, V, 3)
+        >>> parts.local_vertices[0] *= (2.5 - 0.4) / 2.5
+        >>> parts.translations[0, 0] = torch.tensor([0.0, 0.0, 0.4])  # along camera 0's ray
+        >>> translation_disagreement(parts.translations)  # world units
+        tensor([0.4000])
+        >>> ious = turned_view_ious(make_renderer("torch"), parts, cams, (ball.vertices, ball.faces))
+        >>> ious.round(decimals=2).tolist()  # [x, y]: reconstruction x seen by camera y; [0, 1] sees the error
+        [[1.0, 0.13], [1.0, 1.0]]
     """
     k = parts.batch_size
     if cameras.batch_size != k:

@@ -67,6 +67,15 @@ class Diagnostic:
         first: it runs before the rows not so marked, so its fields come first in each image's record (right
             after the standard IoU's); its entries, section and line keep its place in the table. Part
             visibility's ``visible_pixels`` is so placed, as in every ``results.json`` since it was added.
+
+    Example: a row is looked up by its name; part visibility writes its summary under a key of its own and
+    runs first:
+
+        >>> row = next(d for d in DIAGNOSTICS if d.name == "visibility")
+        >>> row.accumulator.__name__, row.key, sorted(row.needs), row.first
+        ('PartVisibility', 'part_visibility', ['renderer'], True)
+        >>> row.results(None)  # skipped: its entry is None
+        {'part_visibility': None}
     """
 
     name: str
@@ -116,13 +125,27 @@ the rows marked :attr:`Diagnostic.first` before the others."""
 
 
 def diagnostic_names() -> list[str]:
-    """The switches of :data:`DIAGNOSTICS`, in order."""
+    """The switches of :data:`DIAGNOSTICS`, in order.
+
+    Example:
+        >>> diagnostic_names()
+        ['hard', 'part_quality', 'visibility', 'depth', 'segments', 'allocation']
+    """
     return [d.name for d in DIAGNOSTICS]
 
 
 def check_skip(skip: Sequence[str]) -> tuple[str, ...]:
     """``skip`` as a tuple of diagnostic names, every one a row of :data:`DIAGNOSTICS`, else a
-    :class:`ConfigError` naming it (with "did you mean")."""
+    :class:`ConfigError` naming it (with "did you mean").
+
+    Example:
+        >>> check_skip(["depth", "hard"])
+        ('depth', 'hard')
+        >>> check_skip(["deph"])
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ConfigError: skip = 'deph': is not a diagnostic (did you mean 'depth'?); ...
+    """
     if isinstance(skip, str):
         raise ConfigError.about("skip", skip, "must be a sequence of diagnostic names, not one string",
                                 f"`skip=({skip!r},)`")
@@ -136,12 +159,25 @@ def check_skip(skip: Sequence[str]) -> tuple[str, ...]:
 
 def running(skip: Sequence[str]) -> list[Diagnostic]:
     """The rows that run when ``skip`` names the others, in the order they run: those marked
-    :attr:`Diagnostic.first`, then the others, each in table order."""
+    :attr:`Diagnostic.first`, then the others, each in table order.
+
+    Example:
+        >>> [d.name for d in running(skip=("hard", "segments"))]  # visibility is marked first
+        ['visibility', 'part_quality', 'depth', 'allocation']
+    """
     return sorted((d for d in DIAGNOSTICS if d.name not in skip), key=lambda d: not d.first)
 
 
 def needed(skip: Sequence[str], need: str) -> bool:
-    """Whether a row that runs needs ``need`` (a key of :data:`NEEDS`)."""
+    """Whether a row that runs needs ``need`` (a key of :data:`NEEDS`).
+
+    Example: every row that needs a renderer skipped, then all but one:
+
+        >>> needed(("visibility", "depth", "segments", "allocation"), "renderer")
+        False
+        >>> needed(("visibility", "depth", "segments"), "renderer")  # allocation renders
+        True
+    """
     return any(need in d.needs for d in running(skip))
 
 

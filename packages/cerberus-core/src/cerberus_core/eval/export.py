@@ -31,7 +31,12 @@ FORMATS = ("glb", "obj")
 
 
 def part_name(k: int) -> str:
-    """Node / file name of part ``k``: ``part_00``, ``part_01``, ..."""
+    """Node / file name of part ``k``: ``part_00``, ``part_01``, ...
+
+    Example:
+        >>> part_name(3), part_name(120)
+        ('part_03', 'part_120')
+    """
     return f"part_{k:02d}"
 
 
@@ -112,6 +117,23 @@ def export_parts(part_vertices: np.ndarray, faces: np.ndarray, out_dir: str | Pa
         colors: ``(P, 3)`` part colours (default :func:`cerberus_core.viz.part_colors`).
     Returns:
         The paths written.
+
+    Example: two tetrahedra (``(P, V, 3) = (2, 4, 3)``, world units) written to a temporary folder:
+
+        >>> import tempfile
+        >>> corners = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]) * 0.1
+        >>> faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> written = export_parts(np.stack([corners, corners + [0.2, 0.0, 0.0]]), faces, tmp.name, "recon")
+        >>> [p.relative_to(tmp.name).as_posix() for p in written]
+        ['recon.glb', 'recon.obj', 'recon_parts/part_00.obj', 'recon_parts/part_01.obj']
+        >>> obj = written[1].read_text().splitlines()
+        >>> obj[1:4], sum(line.startswith("f ") for line in obj)  # part 0's object, group, first vertex (xyz rgb)
+        (['o part_00', 'g part_00', 'v 0 0 0 0.949 0.3333 0.3333'], 8)
+        >>> glb = trimesh.load(written[0])  # one node per part
+        >>> sorted(glb.geometry), glb.bounds.round(2).tolist()
+        (['part_00', 'part_01'], [[0.0, 0.0, 0.0], [0.3, 0.1, 0.1]])
+        >>> tmp.cleanup()
     """
     unknown = set(formats) - set(FORMATS)
     if unknown:
@@ -136,11 +158,29 @@ def export_parts(part_vertices: np.ndarray, faces: np.ndarray, out_dir: str | Pa
 
 def export_reconstruction(recon: PartSet, out_dir: str | Path, stems: Sequence[str] | None = None, *,
                           formats: Sequence[str] = FORMATS) -> list[Path]:
-    """Export every image of a reconstruction (``stems[i]`` names image ``i``; default ``recon_000``...)."""
+    """Export every image of a reconstruction (``stems[i]`` names image ``i``; default ``recon_000``...).
+
+    Example: two images of three parts each (icospheres of 12 vertices), to a temporary folder:
+
+        >>> import tempfile
+        >>> from cerberus_core.render.templates import icosphere
+        >>> ball = icosphere(0, radius=0.1)
+        >>> recon = PartSet.from_posed(ball.vertices.expand(2, 3, -1, -1), ball.faces)  # (B, P, V, 3)
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> [p.name for p in export_reconstruction(recon, tmp.name, formats=("glb",))]
+        ['recon_000.glb', 'recon_001.glb']
+        >>> len(export_reconstruction(recon, tmp.name, ["front", "side"], formats=("obj",)))  # 2 x (1 + 3 parts)
+        8
+        >>> export_reconstruction(recon, tmp.name, ["front"])
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ShapeError: export_reconstruction: 2 reconstructions need 2 names, got 1; ...
+        >>> tmp.cleanup()
+    """
     stems = [f"recon_{i:03d}" for i in range(recon.batch_size)] if stems is None else list(stems)
     if len(stems) != recon.batch_size:
-        raise ShapeError(f"export_reconstruction: {len(stems)} names for {recon.batch_size} reconstructions; pass one "
-                         "name per reconstruction or `stems=None`")
+        raise ShapeError(f"export_reconstruction: {recon.batch_size} reconstructions need {recon.batch_size} names, "
+                         f"got {len(stems)}; pass one name per reconstruction or `stems=None`")
     posed = recon.posed().detach().cpu().numpy()
     faces = recon.faces.detach().cpu().numpy()
     written = []

@@ -64,7 +64,17 @@ def _np(x: Any, dtype=None) -> np.ndarray:
 
 def barycentric_lattice(density: int) -> np.ndarray:
     """``(M, 3)`` barycentric weights ``(i, j, k) / density`` with ``i + j + k = density``;
-    ``M = (density + 1)(density + 2) / 2``."""
+    ``M = (density + 1)(density + 2) / 2``.
+
+    Example:
+        >>> barycentric_lattice(2)  # M = 6 points: the corners and the edge midpoints
+        array([[0. , 0. , 1. ],
+               [0. , 0.5, 0.5],
+               [0. , 1. , 0. ],
+               [0.5, 0. , 0.5],
+               [0.5, 0.5, 0. ],
+               [1. , 0. , 0. ]])
+    """
     if density < 1:
         raise ConfigError.about("density", density, "must be >= 1", "`density=1` or more")
     return np.array([(i, j, density - i - j) for i in range(density + 1) for j in range(density + 1 - i)],
@@ -80,6 +90,15 @@ def surface_samples(part_vertices: np.ndarray, faces: np.ndarray, density: int =
         density: lattice steps per triangle edge.
     Returns:
         ``points`` ``(P * F * M, 3)`` and ``part`` ``(P * F * M,)`` int64.
+
+    Example: two parts of one triangle each (``F = 1``), the second one unit above the first:
+
+        >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> points, part = surface_samples(np.stack([tri, tri + [0, 0, 1]]), np.array([[0, 1, 2]]), density=2)
+        >>> points.shape, part.tolist()  # 2 parts x 1 face x 6 lattice points
+        ((12, 3), [0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1])
+        >>> points[7].tolist()  # part 1's second point: the midpoint of its edge (1, 2)
+        [0.5, 0.5, 1.0]
     """
     pv = _np(part_vertices, np.float64)
     f = _np(faces, np.int64)
@@ -99,6 +118,15 @@ def assign_to_parts(points: np.ndarray, part_vertices: np.ndarray, faces: np.nda
         density: see :func:`surface_samples`.
     Returns:
         ``(N,)`` int64 in ``[0, P)``.
+
+    Example (needs scipy): the two parts of :func:`surface_samples`' example, a triangle at ``z = 0`` and one at
+    ``z = 1``:
+
+        >>> tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> parts = np.stack([tri, tri + [0, 0, 1]])  # (P, V, 3)
+        >>> points = np.array([[0.2, 0.2, 0.1], [0.2, 0.2, 0.8], [3.0, 0.0, 0.4]])  # (N, 3)
+        >>> assign_to_parts(points, parts, np.array([[0, 1, 2]]))
+        array([0, 1, 0])
     """
     try:
         from scipy.spatial import cKDTree
@@ -112,7 +140,14 @@ def assign_to_parts(points: np.ndarray, part_vertices: np.ndarray, faces: np.nda
 
 
 def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """``(V,)`` a third of the area of every face incident to each vertex (sums to the surface area)."""
+    """``(V,)`` a third of the area of every face incident to each vertex (sums to the surface area).
+
+    Example: the unit square as two triangles sharing the diagonal from vertex 0 to vertex 2:
+
+        >>> square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> vertex_areas(square, np.array([[0, 1, 2], [0, 2, 3]])).round(4)  # the diagonal's ends touch both
+        array([0.3333, 0.1667, 0.3333, 0.1667])
+    """
     v = _np(vertices, np.float64)
     f = _np(faces, np.int64)
     area = trimesh.triangles.area(v[f])
@@ -122,7 +157,20 @@ def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def overlap_matrix(assignment: np.ndarray, gt_labels: np.ndarray, num_parts: int, num_gt_parts: int,
                    weights: np.ndarray | None = None) -> np.ndarray:
     """``(P, K)`` float64: ``M[p, k]`` = total weight of points with ground-truth label ``k`` assigned
-    to predicted part ``p`` (weights default to 1 per point)."""
+    to predicted part ``p`` (weights default to 1 per point).
+
+    Example: four points, three predicted parts, two ground-truth parts:
+
+        >>> assignment, gt = np.array([0, 0, 1, 2]), np.array([1, 1, 0, 1])
+        >>> overlap_matrix(assignment, gt, 3, 2)  # part 0 holds both points of gt part 1
+        array([[0., 2.],
+               [1., 0.],
+               [0., 1.]])
+        >>> overlap_matrix(assignment, gt, 3, 2, weights=np.array([1.0, 2.0, 3.0, 4.0]))
+        array([[0., 3.],
+               [3., 0.],
+               [0., 4.]])
+    """
     a = _np(assignment, np.int64)
     g = _np(gt_labels, np.int64)
     check_shapes("overlap_matrix", assignment=(a, "N"), gt_labels=(g, "N"))
@@ -146,6 +194,20 @@ def image_overlap(part_vertices: np.ndarray, faces: np.ndarray, gt_vertices: np.
         gt_vertices, gt_faces: the ground-truth mesh (same world frame).
         gt_labels: ``(V_gt,)`` ground-truth part of each vertex.
         weighting: ``"area"`` (vertex area, default) or ``"count"`` (one per vertex).
+
+    Example (needs scipy): the ground truth is the unit square of :func:`vertex_areas`' example, its left edge
+    labelled 0 and its right edge 1; two predicted triangles lie along those edges:
+
+        >>> square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> square_faces, labels = np.array([[0, 1, 2], [0, 2, 3]]), np.array([0, 1, 1, 0])
+        >>> tri = np.array([[-0.1, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        >>> parts, faces = np.stack([tri, tri + [1, 0, 0]]), np.array([[0, 1, 2]])  # (P, V, 3), (F, 3)
+        >>> image_overlap(parts, faces, square, square_faces, labels, 2, weighting="count")
+        array([[2., 0.],
+               [0., 2.]])
+        >>> image_overlap(parts, faces, square, square_faces, labels, 2)  # by area: the square's 1.0 in all
+        array([[0.5, 0. ],
+               [0. , 0.5]])
     """
     if weighting not in ("area", "count"):
         raise ConfigError.about("weighting", weighting, "must be 'area' or 'count'")
@@ -160,7 +222,12 @@ _SIDE_WORDS = {"l", "r", "left", "right"}
 
 def side_free(name: str) -> str:
     """A part name without its side: ``shin.L`` → ``shin``, ``front_left_leg`` → ``front_leg``,
-    ``left_hand`` → ``hand``; a name without one is returned as it is."""
+    ``left_hand`` → ``hand``; a name without one is returned as it is.
+
+    Example:
+        >>> [side_free(n) for n in ["shin.L", "front_left_leg", "left_hand", "Hand_R", "head"]]
+        ['shin', 'front_leg', 'hand', 'Hand', 'head']
+    """
     base = _SIDE_SUFFIX.sub("", name)
     words = [w for w in base.split("_") if w.lower() not in _SIDE_WORDS or w == base]
     return "_".join(words) or name
@@ -172,6 +239,10 @@ def merge_sides(names: Sequence[str]) -> tuple[list[str], np.ndarray]:
     Returns:
         ``(merged, index)``: the merged names in first-seen order and ``(K,)`` int64, each name's
         position in ``merged``.
+
+    Example:
+        >>> merge_sides(["shin.L", "shin.R", "head", "front_left_leg", "front_right_leg"])
+        (['shin', 'head', 'front_leg'], array([0, 0, 1, 2, 2]))
     """
     merged = list(dict.fromkeys(side_free(n) for n in names))
     return merged, np.array([merged.index(side_free(n)) for n in names], dtype=np.int64)
@@ -226,6 +297,20 @@ class PartQuality:
             per predicted triangle edge (:func:`image_overlap`).
         num_parts: predicted parts ``P`` (``None``: the first batch's).
         gt_part_names: names of the ``K`` ground-truth parts (``None``: the first image's).
+
+    Example: two learned parts, two ground-truth parts, two images' ``(P, K)`` overlap matrices added by hand
+    (areas):
+
+        >>> pq = PartQuality(num_parts=2, gt_part_names=["head", "tail"])
+        >>> pq.add(np.array([[3.0, 1.0], [0.0, 2.0]]), "s1")  # image 1: part 0 covers mostly head
+        >>> pq.add(np.array([[1.0, 2.0], [0.0, 4.0]]), "s1")  # image 2: part 0 covers mostly tail
+        >>> pq.labels()  # the majority over both images: part 0 -> head (4 of 7), part 1 -> tail
+        array([0, 1])
+        >>> s = pq.summary()
+        >>> [(p["label"], p["agreement"], p["entropy_bits"], round(p["purity"], 3)) for p in s["parts"]]
+        [('head', 0.5, 1.0, 0.571), ('tail', 1.0, 0.0, 1.0)]
+        >>> s["consistency"], s["mean_entropy_bits"], {k: round(v, 3) for k, v in s["segmentation_iou"].items()}
+        (0.75, 0.5, {'head': 0.571, 'tail': 0.667})
     """
 
     weighting: str = "area"
@@ -324,7 +409,7 @@ class PartQuality:
                 row["entropy_bits"] = _entropy_bits(list(Counter(majority.tolist()).values()))
                 row["purity"] = float(stack[:, p, labels[p]].sum() / stack[:, p].sum())
                 groups = np.asarray(self.groups)[used]
-                row["agreement_by_group"] = {g: float(agree[groups == g].mean()) for g in sorted(set(groups))}
+                row["agreement_by_group"] = {str(g): float(agree[groups == g].mean()) for g in sorted(set(groups))}
             parts.append(row)
         used_rows = [r for r in parts if r["label"] is not None]
 
