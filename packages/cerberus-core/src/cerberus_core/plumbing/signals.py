@@ -59,6 +59,7 @@ class CommandSignals:
         self.started = False
         self.received: list[int] = []
         self._previous: dict[int, object] = {}
+        self._armed = False  # our SIGALRM timer runs (a caller's own timer is left alone otherwise)
 
     def __enter__(self) -> CommandSignals:
         with contextlib.suppress(ValueError):  # not the main thread
@@ -72,16 +73,18 @@ class CommandSignals:
             raise interrupt_for(signum)
         if not self.started:
             self.exit_now(signum)
+        self._armed = True
         signal.setitimer(signal.ITIMER_REAL, _RECHECK_S)
 
     def _recheck(self, signum: int, frame: FrameType | None) -> None:  # noqa: ARG002
         if importing(frame):
             signal.setitimer(signal.ITIMER_REAL, _RECHECK_S)
         elif self.received:
+            self._armed = False
             raise interrupt_for(self.received[-1])
 
     def __exit__(self, *exc: object) -> None:
-        if self._previous:
+        if self._armed:
             signal.setitimer(signal.ITIMER_REAL, 0)
         for sig, handler in self._previous.items():
             with contextlib.suppress(ValueError, TypeError):
