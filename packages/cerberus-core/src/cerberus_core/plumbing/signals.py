@@ -50,41 +50,43 @@ class CommandSignals:
 
     Until :attr:`started` is set (the command's modules import and its arguments are read) a signal that
     lands inside an import calls ``exit_now(signum)``, which must end the process; once the command runs, the
-    exception waits for the import to finish (SIGALRM looks again every 50 ms). :attr:`received` lists
-    the signals that came. In the main thread only; elsewhere the handlers are left alone.
+    signal waits for the import to finish (a SIGALRM handler, installed then, looks again every 50 ms) and its
+    exception is raised there. In the main thread only; elsewhere the handlers are left alone.
     """
 
     def __init__(self, exit_now: Callable[[int], None]) -> None:
         self.exit_now = exit_now
         self.started = False
-        self.received: list[int] = []
+        self._pending: int | None = None  # the signal waiting for its import to end
         self._previous: dict[int, object] = {}
-        self._armed = False  # our SIGALRM timer runs (a caller's own timer is left alone otherwise)
 
     def __enter__(self) -> CommandSignals:
         with contextlib.suppress(ValueError):  # not the main thread
-            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
-                self._previous[sig] = signal.signal(sig, self._recheck if sig == signal.SIGALRM else self._handle)
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
-        self.received.append(signum)
         if not importing(frame):
             raise interrupt_for(signum)
         if not self.started:
             self.exit_now(signum)
-        self._armed = True
+        if signal.SIGALRM not in self._previous:
+            self._previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, self._recheck)
+        self._pending = signum
         signal.setitimer(signal.ITIMER_REAL, _RECHECK_S)
 
     def _recheck(self, signum: int, frame: FrameType | None) -> None:  # noqa: ARG002
+        if self._pending is None:
+            return
         if importing(frame):
             signal.setitimer(signal.ITIMER_REAL, _RECHECK_S)
-        elif self.received:
-            self._armed = False
-            raise interrupt_for(self.received[-1])
+            return
+        pending, self._pending = self._pending, None
+        raise interrupt_for(pending)
 
     def __exit__(self, *exc: object) -> None:
-        if self._armed:
+        if signal.SIGALRM in self._previous:  # our timer, not a caller's
             signal.setitimer(signal.ITIMER_REAL, 0)
         for sig, handler in self._previous.items():
             with contextlib.suppress(ValueError, TypeError):
