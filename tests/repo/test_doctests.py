@@ -29,7 +29,8 @@ def test_the_docstring_examples_are_found():
             "cerberus_core.weights", "cerberus_metrics.api", "cerberus_metrics.scoring", "cerberus_core.eval.standard",
             "cerberus_core.eval.hard", "cerberus_core.eval.report", "cerberus_core.eval.markdown",
             "cerberus_core.eval.runner", "cerberus_core.eval.depth", "cerberus_core.eval.part_quality",
-            "cerberus_core.eval.diagnostics", "cerberus_core.eval.export", "cerberus_core.eval.accumulators"} <= set(MODULES)
+            "cerberus_core.eval.diagnostics", "cerberus_core.eval.export",
+            "cerberus_core.eval.accumulators"} <= set(MODULES)
 
 
 @pytest.mark.parametrize("name", MODULES)

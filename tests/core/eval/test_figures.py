@@ -101,7 +101,8 @@ def test_figure_one_titles_stay_inside_their_columns(size):
         for c in range(3):
             x0 = GRID_PAD + c * cell
             assert (band[:, x0 - GRID_PAD // 2] == 255).all(), f"a caption crosses the left edge of column {c}"
-            assert (band[:, x0 + size - 1 + GRID_PAD // 2] == 255).all(), f"a caption crosses the right edge of column {c}"
+            assert (band[:, x0 + size - 1 + GRID_PAD // 2] == 255).all(), \
+                f"a caption crosses the right edge of column {c}"
             assert (band[:, x0:x0 + size] < 128).any(), f"caption {c} of row {row} drew nothing"
 
 

@@ -307,8 +307,8 @@ def image_grid(rows: Sequence[Tensor | Sequence[Tensor | None]], *, column_title
     top = TITLE_HEIGHT if column_titles else 0
     left = ROW_LABEL_WIDTH if row_titles else 0
     cw, ch = w * scale, h * scale
-    canvas = Image.new("RGB", (left + ncols * (cw + GRID_PAD) + GRID_PAD, top + len(cells) * (ch + GRID_PAD) + GRID_PAD),
-                       "white")
+    size = (left + ncols * (cw + GRID_PAD) + GRID_PAD, top + len(cells) * (ch + GRID_PAD) + GRID_PAD)
+    canvas = Image.new("RGB", size, "white")
     draw = ImageDraw.Draw(canvas)
     for c, title in enumerate(column_titles or []):
         x = left + GRID_PAD + c * (cw + GRID_PAD)

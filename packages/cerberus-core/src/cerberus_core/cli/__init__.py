@@ -9,7 +9,8 @@ not import torch), and owns the one error path:
 * any other ``OSError`` (a full disk, a read-only or missing folder, whatever its errno) → one line
   naming the path and the system's reason, exit 2;
 * Ctrl-C (SIGINT) at any moment, imports included → exit 130; SIGTERM → exit 143 (a training writes
-  its checkpoint first); never as an exception inside an import (:class:`~cerberus_core.plumbing.signals.CommandSignals`);
+  its checkpoint first); never as an exception inside an import
+  (:class:`~cerberus_core.plumbing.signals.CommandSignals`);
 * warnings → one line ``cerberus COMMAND: warning: message``, without Python source lines, in this
   command's flags too.
 

@@ -4,9 +4,10 @@ masks overlap and what an empty pair scores (:func:`mask_iou`).
 :func:`mask_iou` serves every mask comparison of the evaluation and of a reconstruction: the depth diagnostic's
 silhouettes in each view of a pose (:mod:`.depth`) and the rendered silhouette of a reconstruction against the mask
 of its photo (:mod:`cerberus_core.photo_mask`). Part quality's segmentation IoU, of areas rather than pixels, keeps
-its NaN rule (:func:`~cerberus_core.eval.part_quality.segmentation_iou`). Two empty masks score NaN, not 1: they have no overlap to score, so a
-mean over pairs where that can happen is a NaN-aware one (or leaves such pairs out), and says so. The voxel IoU of
-``cerberus-metrics`` (``grid_iou``) is its own package's, which imports nothing of this one.
+its NaN rule (:func:`~cerberus_core.eval.part_quality.segmentation_iou`). Two empty masks score NaN, not 1: they
+have no overlap to score, so a mean over pairs where that can happen is a NaN-aware one (or leaves such pairs out),
+and says so. The voxel IoU of ``cerberus-metrics`` (``grid_iou``) is its own package's, which imports nothing of
+this one.
 """
 from __future__ import annotations
 
