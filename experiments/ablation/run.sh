@@ -54,4 +54,7 @@ one() {  # train then evaluate one variant: NAME|DATA|TRAIN ARGS; logs in RUNS/N
 }
 export -f one; export RUNS STEPS
 xargs -d '\n' -P "$JOBS" -I{} bash -c 'one "$@"' _ {} < "$RUNS/plan.txt"  # -d: each line as it is, no quoting
-python experiments/ablation/table.py "$RUNS" | tee "$RUNS/ablation.md"
+# The table: one row per variant in plan.txt's order, each paired with the first (docs/evaluation.md, cerberus compare).
+evaluations=()
+while IFS='|' read -r name _; do evaluations+=("$name=$RUNS/$name"); done < "$RUNS/plan.txt"
+cerberus compare "${evaluations[@]}" --columns parts,depth,training | tee "$RUNS/ablation.md"

@@ -6,9 +6,10 @@ training images at every kept checkpoint of one or more runs, as a table and a p
 
 A RUN trained with ``train.keep_every`` (the ``cpu_long`` preset keeps one every 5,000 steps) holds
 ``checkpoints/step_XXXXXXX.pt``; each is scored with ``cerberus eval CKPT --data TEST_DATA`` (the
-unseen test subjects) and ``cerberus eval CKPT --data TRAIN_DATA --split train --limit K`` (its own
-first K training images), into ``RUN/curve/step_XXXXXXX/{test,train}``; scores already there are
-reused, so the script can run while a training goes on and again when it ends. Part quality, the
+unseen test subjects) and ``cerberus eval CKPT --data TRAIN_DATA --split train --limit K`` (K of its own
+training images, whole poses spread evenly over the split: docs/evaluation.md), into
+``RUN/curve/step_XXXXXXX/{test,train}``; scores already there are reused, so the script can run while a
+training goes on and again when it ends. Part quality, the
 Hard Human test and the 3D viewer are skipped: the curve needs the IoU only. ``--pair A-B`` prints
 ``A − B`` on the test images at every step both runs kept (mean ± s.e., images where A is better).
 """

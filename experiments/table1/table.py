@@ -16,7 +16,7 @@ from pathlib import Path
 from cerberus_core.eval.compare import load_evaluation, paired_difference
 from cerberus_core.eval.markdown import markdown_table
 from cerberus_core.eval.report import comparison_table
-from cerberus_core.train.logs import TrainingTime, training_time
+from cerberus_core.plumbing.metrics_csv import TrainingTime, training_time
 
 VARIANTS = {"nmrr": "NMRr", "free_cerberus": "Free Cerberus", "cerberus": "Cerberus"}
 PAPER = {  # Deng, Kornblith & Hinton, Table 1: voxel IoU on Human, Hard Human, Animal
@@ -28,7 +28,7 @@ PAPER = {  # Deng, Kornblith & Hinton, Table 1: voxel IoU on Human, Hard Human, 
 
 def load(runs: Path, dataset: str, variant: str) -> tuple[dict | None, list[dict], TrainingTime | None]:
     """The run's ``results.json`` (or None), its ``metrics.csv`` rows (or []) and its training steps and time
-    summed over the sittings (:func:`~cerberus_core.train.logs.training_time`; None without a log)."""
+    summed over the sittings (:func:`~cerberus_core.plumbing.metrics_csv.training_time`; None without a log)."""
     run = runs / f"{dataset}_{variant}"
     results = load_evaluation(run, missing_ok=True)
     log = run / "metrics.csv"

@@ -20,9 +20,9 @@ import yaml
 from cerberus_core.datasets.manifest import Manifest
 from cerberus_core.eval.compare import load_evaluation
 from cerberus_core.plumbing.atomic import atomic_write_text
+from cerberus_core.plumbing.metrics_csv import training_time
 from cerberus_core.run import Run
 from cerberus_core.train.checkpoint import export_weights
-from cerberus_core.train.logs import training_time
 from cerberus_core.zoo import ZOO_DIR, sha256_file
 
 

@@ -61,15 +61,21 @@ def test_evaluate_is_what_cerberus_eval_does(tiny_run, tiny_root, tmp_path, caps
 
     settings = EvalSettings(limit=3, skip=("part_quality",), figure_images=1, viewer_images=0, renderer="torch")
     evaluation = Run.load(tiny_run).evaluate(tiny_root, settings, tmp_path / "lib")
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
     assert printed.startswith(f"evaluating {tiny_run / 'model.safetensors'} at step 2\n")
     assert printed.endswith("\n".join(evaluation.lines()) + "\n") and evaluation.out == tmp_path / "lib"
     assert evaluation.result.standard.count == 3 and evaluation.weights.step == 2
+    assert "over 3 of 12 images: " in evaluation.lines()[0]  # the tiny test split: 1 subject x 3 poses x 4 views
+    # review of issue 43: after the evaluation's bar, depth's renders and the pictures have bars of their own
+    assert "depth: 100%" in captured.err and "figures: 100%" in captured.err
     assert main(["eval", str(tiny_run), "--data", str(tiny_root), "--out", str(tmp_path / "cli"), "--limit", "3",
                  "--no-part-quality", "--figure-images", "1", "--viewer-images", "0", "--renderer", "torch"]) == 0
     assert capsys.readouterr().out.splitlines()[-1] == printed.splitlines()[-1].replace("/lib/", "/cli/")
     lib, cli = (json.loads((tmp_path / n / "results.json").read_text()) for n in ("lib", "cli"))
-    assert lib.pop("seconds") >= 0 and cli.pop("seconds") >= 0 and lib == cli
+    for one in (lib, cli):  # the pass's time, and the whole command's (figures and pictures included) beside it
+        assert 0 <= one.pop("seconds") <= one.pop("total_seconds")
+    assert lib == cli
     assert lib["computed_with"] == {"renderer": "torch", "device": "cpu", "dtype": "torch.float32"}  # issue 34
     for name in ("results.md", "table2.png", ".cerberus-output.json"):
         assert (tmp_path / "lib" / name).is_file(), name
@@ -98,10 +104,11 @@ def test_evaluate_in_an_input_look_shows_the_model_the_test_images_so(tiny_run, 
     evaluation = run.evaluate(tiny_root, settings, tmp_path / "flat")
     assert "the test images in the flat input look" in capsys.readouterr().out.splitlines()[0]
     views = Dataset.open(tiny_root).views("test")
+    scored = [r["index"] for r in evaluation.result.records]
     flat = evaluate_dataset(views, lambda im, cam: run.model.reconstruct(flat_look(im, views.scene.background), cam),
-                            settings, indices=range(3), renderer=None)
+                            settings, indices=scored, renderer=None)
     assert [r["iou"] for r in evaluation.result.records] == [r["iou"] for r in flat.records]
-    shaded = evaluate_dataset(views, run.model.reconstruct, settings, indices=range(3))
+    shaded = evaluate_dataset(views, run.model.reconstruct, settings, indices=scored)
     assert [r["iou"] for r in flat.records] != [r["iou"] for r in shaded.records]
     assert json.loads((tmp_path / "flat" / "results.json").read_text())["input_look"] == "flat"
     assert "(flat input look)" in (tmp_path / "flat" / "results.md").read_text().splitlines()[0]
@@ -147,6 +154,38 @@ def test_evaluation_without_the_metrics_package_names_it_not_a_flag(tmp_path, mo
     with pytest.raises(MissingPackageError, match=r"needs cerberus-metrics, which is not installed: .* brings it "):
         run_module.EvalSettings(skip=("part_quality", "segments"))
 
+
+
+def test_a_limited_evaluation_spreads_and_says_which_images_of_how_many(tiny_run, tiny_root, tmp_path):
+    """Review of issue 43: ``--limit N`` scored the split's first N images (the test split is ordered subject, pose,
+    view: a few poses of one subject) and results.json recorded neither the data, the split, the limit nor which
+    images. A limit now spreads over the split (whole poses while depth runs), results.json records it under
+    ``data``, and results.md's title and the console say "N of M images". The console also says how many
+    predictions the metric rejected or clamped, which only results.md said."""
+    from cerberus_core.datasets.dataset import Dataset
+
+    run = Run.load(tiny_run)
+    settings = EvalSettings(limit=3, skip=("hard", "part_quality", "visibility", "segments", "allocation"),
+                            figure_images=1, viewer_images=0, renderer="torch", progress=False)
+    whole = run.evaluate(tiny_root, settings, tmp_path / "whole", verbose=False)
+    spread = run.evaluate(tiny_root, replace(settings, skip=(*settings.skip, "depth")), tmp_path / "spread",
+                          verbose=False)
+    root = str(Dataset.open(tiny_root).root)
+    for evaluation, indices, selection in ((whole, [0, 2, 3], "whole poses, spread evenly"),
+                                           (spread, [0, 6, 11], "spread evenly")):  # 1 subject x 3 poses x 4 views
+        record = json.loads((evaluation.out / "results.json").read_text())
+        assert [r["index"] for r in record["records"]] == indices
+        assert record["data"] == {"root": root, "split": "test", "split_images": 12, "limit": 3,
+                                  "selection": selection, "images": 3}
+        md = (evaluation.out / "results.md").read_text().splitlines()
+        assert md[0] == f"# Evaluation of {tiny_run} at step 2, 3 of 12 images"
+        assert "; 3 of 12 images (" in md[2] and " s to score, " in md[2]
+        assert evaluation.lines()[0].startswith("voxel IoU (kato, 32^3) over 3 of 12 images: ")
+    assert whole.result["depth"]["poses"] == 1 and spread.result["depth"] is None
+    assert not any("rejected" in line for line in whole.lines())
+    standard = replace(whole.result.standard, clipped=2, failed=1)
+    flagged = replace(whole, result=replace(whole.result, standard=standard))
+    assert flagged.lines()[1] == "voxel IoU: 1 rejected (scored 0), 2 clamped to the grid"
 
 
 @pytest.mark.parametrize("limit", [0, -1, 2.5, True])
@@ -209,10 +248,10 @@ def test_the_viewer_names_parts_by_their_labels_and_shows_each_scored_image_s_io
     assert labels and len(labels) == run.model.config.num_parts
     assert data["part_labels"] == {f"part_{k:02d}": label for k, label in enumerate(labels) if label}
     scored = evaluation.result.image_ious()
-    assert sorted(scored) == [0, 1, 2]
+    assert sorted(scored) == [0, 2, 3]  # 3 views of the first pose, spread (depth runs: whole poses, and 4 do not fit)
     figure = [int(e["name"].split("_")[1]) for e in data["entries"]]  # spread over the images it scored
-    assert figure == [0, 2]
-    assert [e["iou"] for e in data["entries"]] == [scored[0], scored[2]]
+    assert figure == [0, 3]
+    assert [e["iou"] for e in data["entries"]] == [scored[0], scored[3]]
 
     human = Run.load("human")
     assert human.part_labels() == ["torso", "lower_arm.L", "pelvis", "shin.R", "shin.L", "head", "torso",

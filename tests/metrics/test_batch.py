@@ -36,7 +36,8 @@ def test_folder_batch_reports_every_failure(folders, tmp_path):
     assert rows["parts"]["voxel_iou"] == 1.0
     vals = [rows[k]["voxel_iou"] for k in ("parts", "s0", "s1", "s2")]
     assert s["metrics"]["voxel_iou"]["count"] == 4
-    assert s["metrics"]["voxel_iou"]["mean"] == pytest.approx(np.mean(vals))
+    assert s["metrics"]["voxel_iou"]["mean_succeeded"] == pytest.approx(np.mean(vals))
+    assert s["metrics"]["voxel_iou"]["mean_all_pairs"] == pytest.approx(np.sum(vals) / 7)  # 3 failed, scored 0
     assert s["metrics"]["voxel_iou"]["median"] == pytest.approx(np.median(vals))
     write_results(res, tmp_path / "r.json", tmp_path / "r.csv")
     assert json.loads((tmp_path / "r.json").read_text())["summary"]["failed"] == 3
@@ -207,3 +208,58 @@ def test_a_rerun_replaces_only_results_batch_wrote(cwd_scenario, monkeypatch):
     Path("o.csv").write_text("id,pred,gt\nmine,a.obj,b.obj\n")
     assert main(args) == 2
     assert Path("o.csv").read_text() == "id,pred,gt\nmine,a.obj,b.obj\n"
+
+
+def test_the_summary_states_the_mean_over_all_pairs_beside_the_mean_over_the_succeeded(tmp_path, helpers, capsys):
+    """Before: `batch` failed a prediction past the kato grid (--outside error by default) and left it out of its
+    one `mean`: `succeeded: 1 failed: 1 ... voxel_iou: mean 1.000000 count 1`, where `cerberus eval` clamps the
+    part and reports 0.5625 (a rejected prediction counting 0). Now batch clamps by default, as the evaluation
+    does, and the summary names two means: over all pairs (failed = 0) and over the succeeded ones. The failure's
+    message names the fix as a flag (`--outside clamp`), not `protocol='gt_bbox'`."""
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    cube = helpers.box((-0.25, -0.25, -0.25), (0.25, 0.25, 0.25))
+    cube.export(tmp_path / "gt.obj")
+    cube.export(tmp_path / "same.obj")
+    big = cube.copy()
+    big.apply_scale(2.2)
+    big.export(tmp_path / "big.obj")
+    (tmp_path / "pairs.csv").write_text("id,pred,gt\nsame,same.obj,gt.obj\nbig,big.obj,gt.obj\n")
+    scorer = VoxelIoUScorer()  # what the evaluation scores with
+    as_evaluated = np.mean([scorer([(np.asarray(m.vertices), np.asarray(m.faces))],
+                                   (np.asarray(cube.vertices), np.asarray(cube.faces)))[0] for m in (cube, big)])
+    assert as_evaluated == pytest.approx(0.5625)
+    args = ["batch", "--pairs", str(tmp_path / "pairs.csv"), "--jobs", "1", "--no-progress"]
+    assert main([*args, "--out", str(tmp_path / "o.json")]) == 0
+    out = capsys.readouterr().out
+    assert "succeeded: 2  failed: 0" in out and "clamped: 1 pairs" in out
+    assert "voxel_iou: mean over all 2 pairs (failed = 0) 0.562500  mean over the 2 succeeded 0.562500" in out
+    st = json.loads((tmp_path / "o.json").read_text())["summary"]["metrics"]["voxel_iou"]
+    assert st["mean_all_pairs"] == pytest.approx(as_evaluated) and "mean" not in st
+    assert main([*args, "--outside", "error"]) == 1
+    out, err = capsys.readouterr()
+    assert "voxel_iou: mean over all 2 pairs (failed = 0) 0.500000  mean over the 1 succeeded 1.000000" in out
+    assert "FAILED big:" in err and "outside the kato grid" in err and "pass --outside clamp" in err
+    assert "gt_bbox" not in err
+    res = run_batch(pairs_from_file(tmp_path / "pairs.csv"), ["voxel_iou"], jobs=1, progress=False, outside="error")
+    error = res.rows[1]["error"]
+    assert "pass outside='clamp' to clamp it to the grid" in error and "protocol='gt_bbox'" not in error
+    assert run_batch(pairs_from_file(tmp_path / "pairs.csv"), ["voxel_iou"], jobs=1,
+                     progress=False).summary["metrics"]["voxel_iou"]["mean_all_pairs"] == pytest.approx(0.5625)
+
+
+def test_a_metric_without_a_worst_value_has_no_mean_over_failed_pairs(folders, capsys):
+    """Chamfer-L2 has no value that stands for a failure (0 is the best), so with a failed pair its mean over all
+    pairs is None, and the text summary says so; F-score, precision and recall count a failure as 0."""
+    from cerberus_metrics.cli import _print_summary
+
+    res = run_batch(pairs_from_folders(*folders), ["chamfer_l2", "fscore"], jobs=1, progress=False, n_samples=500,
+                    threshold=0.05)
+    m = res.summary["metrics"]
+    assert m["chamfer_l2"]["mean_all_pairs"] is None and m["chamfer_l2"]["mean_succeeded"] > 0
+    for name in ("fscore", "precision", "recall"):
+        assert m[name]["mean_all_pairs"] == pytest.approx(m[name]["mean_succeeded"] * 4 / 7)
+    _print_summary(res.summary, "kato")
+    out = capsys.readouterr().out
+    assert "chamfer_l2: no mean over all 7 pairs (a failed pair has no chamfer_l2)  mean over the 4 succeeded" in out
+    assert "fscore: mean over all 7 pairs (failed = 0)" in out

@@ -45,3 +45,23 @@ def test_a_damaged_cache_entry_is_a_miss_recomputed(tmp_path, box, helpers):
         entry.write_text("junk")
     fresh = GridCache(tmp_path / "grids")
     assert voxel_iou(pred, box, cache=fresh) == first and fresh.misses >= 1
+
+
+def test_a_failed_write_leaves_no_temporary_file(tmp_path, box):
+    """Before: the cache wrote `<key>.<pid>.tmp.npz` and renamed it, with no clean-up, so an error (here the
+    target name taken by a folder) left the temporary file behind; now the package's one atomic writer removes
+    it (and syncs the file before the rename)."""
+    from cerberus_metrics import voxelize
+    from cerberus_metrics.cache import CachedGrid
+
+    folder = tmp_path / "grids"
+    cache = GridCache(folder)
+    grid = voxelize(box)
+    (folder / "k.npz").mkdir()  # the entry's name is taken: os.replace fails
+    with pytest.raises(OSError):
+        cache.put("k", CachedGrid(grid, ()))
+    assert sorted(p.name for p in folder.iterdir()) == ["k.npz"]
+    cache.put("j", CachedGrid(grid, ("a note",)))  # a good write: the entry alone, readable by another process
+    assert sorted(p.name for p in folder.iterdir()) == ["j.npz", "k.npz"]
+    again = GridCache(folder).get("j")
+    assert again is not None and again.messages == ("a note",) and again.grid.count == grid.count

@@ -69,3 +69,16 @@ def test_sample_counts_are_bounded_before_the_meshes_are_read(n):
     assert MAX_SAMPLES == 10_000_000
     with pytest.raises(MeshInputError, match=r"n_samples must be an integer in \[1, 10000000\]"):
         chamfer_l2("missing_pred.obj", "missing_gt.obj", n_samples=n)
+
+
+def test_surface_buried_inside_another_part_counts_against_precision(helpers):
+    """The documented behaviour (distances.sample_surface, docs/metrics.md "Parts that overlap"): every part's
+    whole surface is sampled, also where it lies inside another part. Two boxes overlapping in [-0.1, 0.1] along x
+    make exactly the ground-truth box (voxel IoU 1), but their two faces buried in the overlap (1/6 of the
+    prediction's area) lie up to 0.2 from the ground truth's surface: at a threshold of 0.02, precision about
+    1 - 1/6 * (0.36/0.4)^2 = 0.865 (the share of the buried faces farther than 0.02 from their edges)."""
+    gt = helpers.box((-0.3, -0.2, -0.2), (0.3, 0.2, 0.2))
+    parts = [helpers.box((-0.3, -0.2, -0.2), (0.1, 0.2, 0.2)), helpers.box((-0.1, -0.2, -0.2), (0.3, 0.2, 0.2))]
+    r = evaluate_pair(parts, gt, ["voxel_iou", "fscore"], n_samples=20_000, threshold=0.02)
+    assert r["voxel_iou"] == 1.0 and r["recall"] > 0.99
+    assert r["precision"] == pytest.approx(1 - (0.36 / 0.4) ** 2 / 6, abs=0.015)

@@ -69,3 +69,62 @@ def test_scorer_grids_are_the_voxels_of_its_score_part_by_part(helpers, protocol
         assert np.count_nonzero(part) == alone.count
     centres = grids.centers(np.argwhere(grids.gt))
     assert np.allclose(centres, g.centers()) if protocol == "kato" else len(centres) == g.count
+
+
+def _sphere_and_capless():
+    """An icosphere of radius 0.4 (mesh units, closed) and the same sphere with its top cap removed (open)."""
+    s = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
+    v, f = np.asarray(s.vertices), np.asarray(s.faces)
+    return (v, f), (v, f[s.triangles_center[:, 2] < 0.3])
+
+
+def test_an_open_ground_truth_is_refused_not_scored_as_a_hollow_shell():
+    """Before: the scorer silenced the ground truth's quality warnings too, so a ground truth without its top cap
+    was scored as the shell the flood fill leaves (2,632 voxels instead of 9,448): IoU 0.2786 against the closed
+    sphere, without a word. Now it is an OpenMeshError naming the mesh, the defect and the fix; closing its holes
+    (gt_open_mesh='close') scores it as the closed sphere it was."""
+    from cerberus_metrics import MeshInputError, MeshQualityWarning, OpenMeshError
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    closed, capless = _sphere_and_capless()
+    with pytest.raises(OpenMeshError) as exc:
+        VoxelIoUScorer()([closed], capless)
+    text = str(exc.value)
+    for words in ("gt:", "not watertight", "boundary (open) edges", "hollow shell", "close the mesh",
+                  "gt_open_mesh='close'", "pymeshlab"):
+        assert words in text, words
+    assert isinstance(exc.value, MeshInputError) and exc.value.report.boundary_edges > 0
+    with pytest.warns(MeshQualityWarning, match="gt: closed holes with pymeshlab"):
+        iou, clamped = VoxelIoUScorer(gt_open_mesh="close")([closed], capless)
+    assert iou > 0.9 and clamped == 0
+    with pytest.raises(MeshInputError, match="gt_open_mesh must be one of"):
+        VoxelIoUScorer(gt_open_mesh="ignore")
+
+
+def test_predictions_keep_their_tolerance_and_ground_truth_warnings_are_raised(recwarn):
+    """The prediction is scored as before (an open part: no error, no warning); a ground-truth quality warning is
+    no longer silenced (before: a ground truth spanning less than a voxel scored without a word)."""
+    from cerberus_metrics import MeshQualityWarning
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    closed, capless = _sphere_and_capless()
+    scorer = VoxelIoUScorer()
+    iou, _ = scorer([capless], closed)  # an open prediction: its fill leaks, quietly, as before
+    assert 0.2 < iou < 0.35 and not [w for w in recwarn if issubclass(w.category, MeshQualityWarning)]
+    box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))  # 0.31 voxels at 32^3
+    with pytest.warns(MeshQualityWarning, match="gt: mesh spans only"):
+        scorer([closed], (np.asarray(box.vertices), np.asarray(box.faces)))
+
+
+def test_the_scorer_names_the_errors_of_a_rejected_prediction():
+    """``rejects``: what a caller may score 0 (the metric's input error), nothing broader."""
+    from cerberus_metrics import MeshInputError, MetricsError
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    scorer = VoxelIoUScorer()
+    assert scorer.rejects == (MeshInputError,)
+    closed, _ = _sphere_and_capless()
+    with pytest.raises(scorer.rejects, match="pred.*degenerate mesh"):
+        scorer([(np.zeros_like(closed[0]), closed[1])], closed)
+    assert not issubclass(MemoryError, scorer.rejects) and not issubclass(RecursionError, scorer.rejects)
+    assert issubclass(MeshInputError, MetricsError)

@@ -37,6 +37,9 @@ def test_two_runs_side_by_side_with_the_plot(tmp_path, capsys):
     (["RUN", "nothere"], "no evaluation at nothere: nothere does not exist"),
     (["RUN", "RUN", "--plot", "figs"], "--plot figs: is a folder; pass a file path"),
     (["RUN", "RUN", "--plot", "RUN/eval/results.json"], "writing it would replace it; choose another --plot"),
+    (["RUN", "RUN", "--trade-plot", "figs"], "--trade-plot figs: is a folder; pass a file path"),
+    (["RUN", "RUN", "--columns", "parts,bogus"], "--columns parts,bogus: no column group 'bogus'; the groups are "
+                                                 "parts, depth, training, own-images, heldout"),
 ])
 def test_what_cannot_be_compared_is_one_line(tmp_path, capsys, monkeypatch, argv, words):
     _evaluation(tmp_path / "base" / "eval", [0.5, 0.6])
@@ -48,3 +51,33 @@ def test_what_cannot_be_compared_is_one_line(tmp_path, capsys, monkeypatch, argv
     assert main(args) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err.count("\n") == 1 and words in captured.err
+
+
+def test_column_groups_of_two_runs_and_the_trade_plot(tmp_path, capsys):
+    for name, values, hard, minutes in (("a", [0.40, 0.50, 0.60], 0.05, 30), ("b", [0.42, 0.53, 0.59], -0.15, 45)):
+        folder = _evaluation(tmp_path / name / "eval", values, hard=hard)
+        results = json.loads((folder / "results.json").read_text())
+        results["depth"] = {"turned_view_silhouette_iou": 0.6 + hard, "mean_translation_disagreement": 0.02}
+        (folder / "results.json").write_text(json.dumps(results))
+        (tmp_path / name / "metrics.csv").write_text(f"step,elapsed_s\n100,30\n200,{60 * minutes}\n")
+    plot = tmp_path / "trade.png"
+    assert main(["compare", str(tmp_path / "a"), str(tmp_path / "b"), "--columns", "depth,training",
+                 "--trade-plot", str(plot)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split("|")[7:-1] == [" input-view silhouette IoU ", " turned-view silhouette IoU ",
+                                       " translation disagreement ", " steps ", " minutes ", " steps/s "]
+    assert out[2].endswith("| - | 0.650 | 0.020 | 200 | 30 | 0.11 |")
+    assert out[3].startswith("| b | 3 | 0.5133 | +0.013 ± 0.012 (2 / 3) | 0.3633 |")
+    assert out[3].endswith("| - | 0.450 | 0.020 | 200 | 45 | 0.07 |")
+    assert out[5].endswith("Then the columns of depth, training (cerberus compare --help)")
+    assert out[6] == f"trade plot: {plot}" and plot.stat().st_size > 0
+
+
+def test_the_help_says_each_column_group_in_one_line():
+    from cerberus_core.cli import build_parser
+    from cerberus_core.eval.compare import COLUMN_GROUPS
+
+    parser = build_parser("compare")._subparsers._group_actions[0].choices["compare"]
+    lines = parser.format_help().splitlines()
+    for group in COLUMN_GROUPS:
+        assert sum(line.split() == [group.name, *group.summary.split()] for line in lines) == 1, group.name

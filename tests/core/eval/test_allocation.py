@@ -146,3 +146,32 @@ def test_adding_by_hand_needs_the_vocabulary():
     acc = Allocation(segments=["body"], num_parts=2)
     acc.add(batch)
     assert acc.summary()["segment_to_keypoint"] == {"body": 0.0}  # no segment labels: the whole body's centroid
+
+
+def test_an_image_whose_body_is_out_of_view_is_left_out_of_every_figure(renderer):
+    """Review of issue 43: the unique coverage counted an image with an empty ground-truth foreground as 0 while the
+    keypoint spread left it out (no centroid); one rule now: such an image is in no allocation figure, and the
+    summary counts it apart. Two images of the same two parts, the second one's body (rendered by the renderer)
+    wholly out of its camera: the summary is the first image's alone."""
+    from dataclasses import fields
+
+    from cerberus_core.eval.allocation import measure_allocation
+    from cerberus_core.eval.masks import coverage_masks
+
+    camera = Camera.look_at(torch.tensor([0.0, 0.0]), 0.0, 3.0, image_size=32)
+    recon = PartSet.cat([spheres([[0.0, 0.15, 0.0], [0.0, -0.15, 0.0]])] * 2)
+    bodies = PartSet.cat([spheres([[0.0, 0.0, 0.0]], 0.3), spheres([[9.0, 0.0, 0.0]], 0.3)])  # the second: off-camera
+    foreground = coverage_masks(renderer, bodies.posed(), bodies.faces, camera)
+    assert foreground[0].any() and not foreground[1].any()
+    vertices = bodies.posed()[:, 0]  # (2, V, 3)
+    measured = measure_allocation(renderer, recon, camera, foreground,
+                                  (vertices, torch.zeros(vertices.shape[1], dtype=torch.long), 1))
+    assert np.isfinite(measured.unique[0]).all() and np.isnan(measured.unique[1]).all()  # no share to measure
+    both, first = Allocation(segments=["body"], num_parts=2), Allocation(segments=["body"], num_parts=2)
+    both.add(measured)
+    first.add(ImageAllocation(*(getattr(measured, f.name)[:1] for f in fields(ImageAllocation))))
+    s, alone = both.summary(), first.summary()
+    assert s["images"] == 1 and s["empty_foreground_images"] == 1 and alone["empty_foreground_images"] == 0
+    assert {k: v for k, v in s.items() if k != "empty_foreground_images"} == \
+        {k: v for k, v in alone.items() if k != "empty_foreground_images"}
+    assert 0 < sum(s["unique_coverage"]) <= 1

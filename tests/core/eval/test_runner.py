@@ -163,3 +163,70 @@ def test_a_batch_keeps_each_scorers_voxels_apart(tiny_dataset, iou_scorer):
     coarse, fine = VoxelScorer(resolution=8, factory=iou_scorer), VoxelScorer(resolution=32, factory=iou_scorer)
     assert result.voxels(0, coarse).gt.shape[0] <= 8 < result.voxels(0, fine).gt.shape[0]
     assert result.voxels(0, coarse) is result.voxels(0, coarse)  # once per batch and scorer
+
+
+def test_a_limit_spreads_over_the_split_and_keeps_a_pose_whole_for_depth(tiny_dataset, iou_scorer, renderer, capsys):
+    """Review of issue 43: ``--limit N`` scored the split's first N images (the animal test split, ordered subject, pose,
+    view, gave 2 poses of one species: 0.6453 against the whole split's 0.6997). A limit now spreads over the split
+    as the figure's images are (one rule, :func:`spread_evenly`), and keeps whole poses while depth runs, so that each
+    pose it measures is measured with all its views; depth's figures say over which images they are, and its
+    renders (after the evaluation's own bar) have a bar of their own."""
+    from cerberus_core.eval.runner import limited_indices, spread_evenly
+
+    assert len(tiny_dataset) == 12  # 2 subjects x 3 poses x 2 views, in that order
+    assert spread_evenly(12, 4) == limited_indices(tiny_dataset, 4) == [0, 4, 7, 11]
+    assert limited_indices(tiny_dataset, 4, whole_poses=True) == [0, 1, 10, 11]  # both subjects, first and last pose
+    assert limited_indices(tiny_dataset, 5, whole_poses=True) == [0, 1, 10, 11]  # 2 whole poses fit, not 3
+    assert limited_indices(tiny_dataset, 1, whole_poses=True) == [0]
+    assert limited_indices(tiny_dataset, None) == limited_indices(tiny_dataset, 12) == list(range(12))
+    indices = limited_indices(tiny_dataset, 5, whole_poses=True)
+    res = evaluate_dataset(tiny_dataset, OracleModel(tiny_dataset), indices=indices, renderer=renderer,
+                           skip=("hard", "part_quality", "visibility", "segments", "allocation"),
+                           scorer=VoxelScorer(factory=iou_scorer), progress=True)
+    assert [r["index"] for r in res.records] == indices
+    assert {r["subject"] for r in res.records} == {it["subject"] for it in tiny_dataset.items}
+    assert res["depth"]["poses"] == 2 and res["depth"]["images"] == 4
+    assert "depth: 100%" in capsys.readouterr().err  # the bar over the poses' renders
+    # A pose seen from one view among the images scored has no other view: its image is in no depth figure.
+    res = evaluate_dataset(tiny_dataset, OracleModel(tiny_dataset), indices=[0, 1, 2], renderer=renderer,
+                           skip=("hard", "part_quality", "visibility", "segments", "allocation"),
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    depth = res["depth"]
+    assert depth["poses"] == 1 and depth["images"] == 2 and res.standard.count == 3
+    md = markdown_report(res)
+    assert "Over 1 test pose seen from several views (2 images)" in md
+    assert "the reconstruction of each of those images covers" in md
+    assert "depth" not in capsys.readouterr().err  # progress=False: no bar
+
+
+def test_a_one_part_model_is_consistent_but_its_label_covers_one_part(tiny_dataset, iou_scorer, renderer):
+    """Review of issue 43: the one-part NMRr scored "Consistency 1.0000, mean entropy 0.000 bits" (Cerberus 0.8051),
+    the best possible; beside the consistency, results.json and results.md now say how many of the ground-truth
+    parts the learned parts' labels cover: 1 of 10 for one part, 10 of 10 for the oracle's capsules."""
+    from cerberus_core.parts import PartSet
+
+    oracle = OracleModel(tiny_dataset)
+
+    def one_part(images, camera):  # the oracle's reconstruction as one mesh: a single-mesh model's
+        recon = oracle(images, camera)
+        posed = recon.posed()
+        return PartSet.from_posed(posed.reshape(posed.shape[0], 1, -1, 3), _one_mesh_faces(recon))
+
+    skip = ("hard", "visibility", "depth", "segments", "allocation")
+    one = evaluate_dataset(tiny_dataset, one_part, indices=[0, 5, 11], skip=skip, renderer=renderer,
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)["part_quality"]
+    assert one["consistency"] == 1.0 and one["mean_entropy_bits"] == 0.0
+    assert one["gt_parts_covered"] == 1 and len(one["gt_parts"]) == 10
+    md = markdown_report(evaluate_dataset(tiny_dataset, oracle, indices=[0, 5, 11], skip=skip, renderer=renderer,
+                                          scorer=VoxelScorer(factory=iou_scorer), progress=False))
+    assert "the learned parts' labels cover 10 of 10 ground-truth parts" in md
+    assert "only meaningful together with that count" in md
+    assert "; the labels cover 6 of 6 ground-truth parts." in md  # left and right merged
+
+
+def _one_mesh_faces(recon):
+    """The faces of all of ``recon``'s parts as one mesh (part ``p``'s vertices follow part ``p - 1``'s)."""
+    import torch
+
+    v = recon.local_vertices.shape[2]
+    return torch.cat([recon.faces + p * v for p in range(recon.num_parts)])

@@ -155,3 +155,34 @@ def test_adding_by_hand_needs_the_vocabulary_and_update_needs_one(primitive_bodi
     assert one_vocabulary(None, 0, body.part_names, "body segments") == list(body.part_names)
     with pytest.raises(DatasetError, match="item 7: ground-truth segments \\['body'\\] differ .*; body segments needs"):
         one_vocabulary(list(body.part_names), 7, ["body"], "body segments")
+
+
+def test_pooled_voxel_figures_are_labelled_and_the_per_image_means_given(primitive_bodies, iou_scorer):
+    """Review of issue 43: results.md showed the voxel precision and recall pooled over all voxels beside per-image
+    means elsewhere, unlabelled. Two capsule figures, one without its forearms, one without its shins (a different
+    share of a different number of voxels missed): the summary keeps the pooled figures and adds the mean over the
+    images of each image's own, and results.md says which is which."""
+    from cerberus_core.eval.report import markdown_report
+
+    scorer = VoxelScorer(factory=iou_scorer)
+    acc = BodySegments()
+    records = []
+    for body, dropped in zip(primitive_bodies[:2], ({"lower_arm.L", "lower_arm.R"}, {"shin.L", "shin.R"}), strict=True):
+        recon = _drop(body_parts(body), body.part_names, dropped)
+        acc.segments, acc.num_parts = list(body.part_names), recon.num_parts
+        image = image_segments(scorer.voxels(recon.part_meshes(0), (body.vertices, body.faces)), body.vertices,
+                               body.vertex_parts, len(body.part_names))
+        acc.add(image)
+        records.append(image.record())
+    s = acc.summary()
+    recalls = [r["voxel_recall"] for r in records]
+    assert s["image_mean_voxel_recall"] == pytest.approx(np.mean(recalls))
+    assert s["image_mean_voxel_precision"] == pytest.approx(np.mean([r["voxel_precision"] for r in records]))
+    hits = sum(im.hit_voxels.sum() for im in acc.images)
+    assert s["voxel_recall"] == pytest.approx(hits / sum(im.gt_voxels.sum() for im in acc.images))  # pooled
+    assert abs(s["voxel_recall"] - s["image_mean_voxel_recall"]) > 1e-4  # two different averages
+    md = markdown_report({"protocol": "kato", "resolution": 32, "records": [], "segments": s,
+                          "standard": {"mean": 0.5, "count": 2, "per_group": {}, "clipped": 0, "failed": 0}})
+    assert (f"recall {s['voxel_recall']:.4f}, pooled over all voxels" in md
+            and f"per image, mean precision {s['image_mean_voxel_precision']:.4f} and recall "
+                f"{s['image_mean_voxel_recall']:.4f}" in md)

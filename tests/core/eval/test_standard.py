@@ -49,3 +49,37 @@ def test_scorer_clamps_escaping_predictions_and_zeroes_rejected_ones(primitive_b
     assert s.iou == 0.0 and "degenerate mesh" in s.error
     with pytest.raises(Exception, match="gt"):  # a broken ground truth is a data error, not a score
         scorer(flat, (np.zeros_like(body.vertices), body.faces))
+
+
+def test_only_the_metrics_input_error_is_a_rejected_prediction(primitive_bodies, iou_scorer):
+    """Before: ``VoxelScorer.voxels`` caught every exception as a rejected prediction scored 0, so a failure that
+    says nothing about the prediction (here Python's recursion limit, reached by a prediction nested in lists
+    deeper than it; a MemoryError or a bug alike) became an IoU of 0 among the scores. Now only the metric's input
+    error (``scorer.rejects``) scores 0; anything else propagates."""
+    body = primitive_bodies[1]
+    parts = body_parts(body).part_meshes(0)
+    gt = (body.vertices, body.faces)
+    scorer = VoxelScorer(factory=iou_scorer)
+    flat = [(np.zeros_like(v), f) for v, f in parts]
+    s = scorer(flat, gt)  # the metric's input error: still a rejected prediction
+    assert s.iou == 0.0 and s.error.startswith("MeshInputError")
+    nested: list = [parts[0]]
+    for _ in range(5000):
+        nested = [nested]
+    with pytest.raises(RecursionError):
+        scorer(nested, gt)
+
+
+def test_an_open_ground_truth_raises_instead_of_scoring_a_hollow_shell(iou_scorer):
+    """Before: a ground truth without its top cap was voxelized as the shell the flood fill leaves and scored
+    0.2786 against the closed sphere, silently. Now the metric refuses it, and the evaluation raises (a ground
+    truth the metric refuses is a data error, not a score)."""
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
+    v, f = np.asarray(s.vertices), np.asarray(s.faces)
+    capless = (v, f[s.triangles_center[:, 2] < 0.3])
+    scorer = VoxelScorer(factory=iou_scorer)
+    with pytest.raises(Exception, match=r"gt: the ground truth is not watertight .* gt_open_mesh='close'"):
+        scorer([(v, f)], capless)
+    assert scorer([(v, f)], (v, f)).iou == 1.0

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
-from cerberus_core.train.logs import MetricsLog, TrainingTime, plot_loss_curves, training_time
+from cerberus_core.plumbing.metrics_csv import TrainingTime, training_time
+from cerberus_core.train.logs import MetricsLog, plot_loss_curves
 from cerberus_core.viz import INK
 
 

@@ -14,6 +14,7 @@ does with the same call::
 """
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -27,11 +28,11 @@ from cerberus_core.datasets.scene import SceneSetup, read_scene
 from cerberus_core.devices import check_device
 from cerberus_core.errors import CerberusError, ConfigError
 from cerberus_core.eval.compare import RESULTS
-from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages
+from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages, needed
 from cerberus_core.eval.figures import FigureModels, evaluation_figures
 from cerberus_core.eval.markdown import md_text
-from cerberus_core.eval.report import markdown_report, to_jsonable, write_json, write_text
-from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset
+from cerberus_core.eval.report import images_scored, markdown_report, to_jsonable, write_json, write_text
+from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset, limited_indices
 from cerberus_core.eval.standard import VoxelScorer, check_scorer
 from cerberus_core.eval.viewer import ViewerPage
 from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
@@ -99,7 +100,9 @@ class EvalSettings(EvalConfig):
 
     Attributes:
         split: the split to score.
-        limit: only the first ``limit`` images (``None``: all).
+        limit: at most ``limit`` images, spread evenly over the split (``None``: all): whole poses while the depth
+            diagnostic runs, since it compares each pose's views
+            (:func:`~cerberus_core.eval.runner.limited_indices`); ``results.json`` records which under ``data``.
         figure_images, viewer_images: images in the figure and in the 3D viewer (0: no viewer).
         renderer: backend for the figure and the visibility render (``None``: the run's).
         input_look: the test images shown to the model in this look (:mod:`cerberus_core.datasets.looks`:
@@ -139,6 +142,8 @@ class Evaluation:
         canonical_hint: how the data's body source gives its subjects canonical poses, said when the Hard
             Human test could not run (:attr:`BodySource.canonical_hint`; "": nothing to say).
         viewer: whether ``pictures/index.html`` was written.
+        split_images: the images of the split scored from (more than those scored when ``limit`` chose some;
+            ``None``: not known).
     """
 
     result: EvaluationResult
@@ -147,11 +152,14 @@ class Evaluation:
     hard_requested: bool = True
     canonical_hint: str = ""
     viewer: bool = True
+    split_images: int | None = None
 
     def lines(self) -> list[str]:
-        """The summary ``cerberus eval`` prints: the scores, then where the results are."""
+        """The summary ``cerberus eval`` prints: the scores ("24 of 984 images" when a limit chose some), the
+        predictions the metric rejected or clamped when there are any, then where the results are."""
         result, weights, out = self.result, self.weights, self.out
-        line = (f"voxel IoU ({result.protocol}, {result.resolution}^3) over {result.standard.count} images: "
+        line = (f"voxel IoU ({result.protocol}, {result.resolution}^3) over "
+                f"{images_scored(result.standard.count, {'split_images': self.split_images})}: "
                 f"{result.standard.mean:.4f}")
         if result["hard"] is not None:
             line += f"; Hard Human: {result['hard'].mean:.4f}"
@@ -161,6 +169,9 @@ class Evaluation:
                 line += f"; {self.canonical_hint}"
             line += ")"
         lines = [line]
+        for name, summary in (("voxel IoU", result.standard), ("Hard Human", result["hard"])):
+            if summary is not None and (summary.failed or summary.clipped):
+                lines.append(f"{name}: {summary.failed} rejected (scored 0), {summary.clipped} clamped to the grid")
         record = to_jsonable(result)  # each diagnostic's line reads its summary's JSON form, as results.md does
         lines += [row.line(record[row.key]) for row in DIAGNOSTICS if row.line is not None and record.get(row.key) is not None]
         if weights.stale_warning():  # said again under the scores, where it is read
@@ -325,6 +336,7 @@ class Run:
         Raises:
             ConfigError: ``data`` is not a dataset folder (``key="data"``), or ``out`` may not be written.
         """
+        start = time.perf_counter()
         s = check_kind("settings", settings, EvalSettings, "an EvalSettings") if settings is not None else EvalSettings()
         s = s if s.input_look is not None else replace(s, input_look=self.config.data.input_look)
         for name, baseline in (baselines or {}).items():
@@ -352,19 +364,24 @@ class Run:
         if weights.stale_warning():
             warnings.warn(weights.stale_warning(), UserWarning, stacklevel=2)
         with writing_results(out, "eval") as tmp:  # out is replaced only once all is written
-            indices = range(min(s.limit, len(dataset))) if s.limit else None
+            whole_poses = needed(s.skip, "poses")  # depth compares the views of each pose: keep a pose's together
+            indices = limited_indices(dataset, s.limit, whole_poses=whole_poses)
             scorer = VoxelScorer(s.protocol, s.resolution)  # one ground-truth grid cache for scores and figure
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
                                       device=self.device, scorer=scorer)
-            self._write_report(result, tmp, at_step, backend, s.input_look)
             look = "" if s.input_look == "shaded" else f", {s.input_look} input look"
             page = ViewerPage(title=f"cerberus eval: {printable(self.source)}{at_step} ({s.split} split{look})",
                               limit=s.viewer_images, limit_hint="viewer_images",
                               part_labels=result.part_labels() or self.part_labels())
-            evaluation_figures(backend, dataset, FigureModels(self.model, baseline_models, self.device), tmp,
-                               n_images=s.figure_images, scorer=scorer, page=page, ious=result.image_ious())
+            evaluation_figures(backend, dataset, FigureModels(self.model, baseline_models, self.device, s.progress),
+                               tmp, n_images=s.figure_images, scorer=scorer, page=page, ious=result.image_ious())
+            selection = ("all" if len(indices) == len(dataset) else
+                         "whole poses, spread evenly" if whole_poses else "spread evenly")
+            scored = {"root": str(source.root), "split": s.split, "split_images": len(dataset), "limit": s.limit,
+                      "selection": selection, "images": len(indices)}
+            self._write_report(result, tmp, at_step, backend, s.input_look, scored, time.perf_counter() - start)
         evaluation = Evaluation(result, out, weights, hard_requested="hard" not in s.skip, viewer=s.viewer_images > 0,
-                                canonical_hint=_canonical_hint(source))
+                                canonical_hint=_canonical_hint(source), split_images=len(dataset))
         if verbose:
             print("\n".join(evaluation.lines()))
         return evaluation
@@ -414,19 +431,24 @@ class Run:
         return write_reconstructions(trained, ImageInputs(images, mask_list, azimuth), out, page, fit=fit)
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer,
-                      input_look: str = "shaded") -> None:
-        """``results.json`` (the scores, which weights, the input look, and where they were computed: renderer,
-        device, dtype) and ``results.md`` (with the stale warning)."""
+                      input_look: str = "shaded", data: dict | None = None, total_seconds: float | None = None) -> None:
+        """``results.json`` (the scores, which weights, the input look, where they were computed: renderer,
+        device, dtype; which images: ``data``, the dataset folder, split, limit and the images scored; and the
+        whole command's wall time, ``total_seconds``, beside the pass's ``seconds``) and ``results.md`` (with the
+        stale warning; its title says "N of M images" when a limit chose some)."""
         weights = self.weights_info
         record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
                                                   "newer_checkpoint": None if weights.newer is None else
                                                   {"path": str(weights.newer), "step": weights.newer_step}},
                                         "computed_with": {"renderer": backend.name, "device": str(self.device),
                                                           "dtype": str(next(self.model.parameters()).dtype)},
-                                        "input_look": input_look}
+                                        "input_look": input_look, "data": data,
+                                        "total_seconds": None if total_seconds is None else round(total_seconds, 3)}
         write_json(record, folder / RESULTS)
         look = "" if input_look == "shaded" else f" ({input_look} input look)"
-        report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}{look}")
+        count = len(result.records)
+        limited = f", {images_scored(count, data)}" if data and data.get("split_images", count) > count else ""
+        report = markdown_report(record, title=f"Evaluation of {self.source}{at_step}{look}{limited}")
         if weights.stale_warning():
             title, _, rest = report.partition("\n")
             report = f"{title}\n\n> **Warning:** {md_text(weights.stale_warning())}\n{rest}"

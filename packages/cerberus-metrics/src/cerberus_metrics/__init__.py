@@ -21,7 +21,7 @@ from .api import (
 )
 from .cache import GridCache
 from .errors import MeasurementError, MetricsError
-from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, load_mesh, load_parts
+from .io import Mesh, MeshInputError, MeshQualityWarning, MeshReport, OpenMeshError, load_mesh, load_parts
 from .protocols import PROTOCOLS, Frame, Protocol, get_protocol, make_frame
 from .voxelize import PartGrids, VoxelGrid, grid_iou
 
@@ -38,6 +38,7 @@ __all__ = [
     "MeshQualityWarning",
     "MeshReport",
     "MetricsError",
+    "OpenMeshError",
     "PartGrids",
     "Protocol",
     "VoxelGrid",

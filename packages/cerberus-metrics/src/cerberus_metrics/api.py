@@ -77,6 +77,15 @@ def voxelize(
     >>> grid.occupancy.shape, int(grid.occupancy.sum())
     ((32, 32, 32), 4096)
     """
+    return _grid(mesh, protocol, resolution, frame=frame, fill=fill, cache=cache,
+                 check_self_intersections=check_self_intersections, open_mesh=open_mesh, name=name, outside=outside)
+
+
+def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = None, fill: bool = True,
+          cache: GridCache | None = None, check_self_intersections: bool | str = True, open_mesh: str = "warn",
+          name: str = "mesh", outside: str = "error", ground_truth: bool = False) -> VoxelGrid:
+    """:func:`voxelize`; ``ground_truth``: the mesh is a ground truth (which is never clamped: only the fix its
+    outside-the-grid error names changes, so it is not part of the cache key)."""
     proto = get_protocol(protocol)
     key = None
     if cache is not None:
@@ -93,12 +102,12 @@ def voxelize(
         hit = cache.get(key)
         if hit is not None:
             for msg in hit.messages:
-                warnings.warn(msg, MeshQualityWarning, stacklevel=2)
+                warnings.warn(msg, MeshQualityWarning, stacklevel=3)
             return hit.grid
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshQualityWarning)
         grid = _part_grids(mesh, proto.name, resolution, frame, fill, check_self_intersections, open_mesh, name,
-                           outside).union()
+                           outside, ground_truth).union()
     messages = tuple(str(w.message) for w in caught if issubclass(w.category, MeshQualityWarning))
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -108,25 +117,27 @@ def voxelize(
 
 
 def _part_grids(mesh: Any, protocol: str, resolution: int, frame: Frame | None, fill: bool,
-                check_self_intersections: bool | str, open_mesh: str, name: str, outside: str) -> PartGrids:
+                check_self_intersections: bool | str, open_mesh: str, name: str, outside: str,
+                ground_truth: bool = False) -> PartGrids:
     """Load ``mesh``'s parts and voxelize each alone (the one voxelization path of this module)."""
     proto = get_protocol(protocol)
     parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh)
     if frame is None:
         frame = make_frame(proto, resolution, np.concatenate([p.vertices for p in parts]))
-    return voxelize_parts(parts, proto, frame, fill=fill, outside=outside)
+    return voxelize_parts(parts, proto, frame, fill=fill, outside=outside, ground_truth=ground_truth)
 
 
 def prediction_grids(pred: Any, gt: Any, protocol: str, resolution: int, cache: GridCache | None, outside: str,
-                     check_self_intersections: bool | str = True, open_mesh: str = "warn") -> tuple[PartGrids, VoxelGrid]:
+                     check_self_intersections: bool | str = True,
+                     open_mesh: str = "warn") -> tuple[PartGrids, VoxelGrid]:
     """The grids :func:`voxel_iou_clamped` scores, with the prediction kept part by part: the ground
     truth voxelized (and cached) as by :func:`voxelize`, each part of ``pred`` (one per mesh of the
     list) alone in its frame. ``grid_iou(parts.union(), gt)`` is the voxel IoU and ``parts.clamped``
     the number of parts clamped into the grid. Options as :func:`voxel_iou_clamped`'s.
     Returns ``(prediction's PartGrids, ground-truth VoxelGrid)``.
     """
-    g = voxelize(gt, protocol, resolution, cache=cache, name="gt", check_self_intersections=check_self_intersections,
-                 open_mesh=open_mesh)
+    g = _grid(gt, protocol, resolution, cache=cache, name="gt", check_self_intersections=check_self_intersections,
+              open_mesh=open_mesh, ground_truth=True)
     return _part_grids(pred, protocol, resolution, g.frame, True, check_self_intersections, open_mesh, "pred",
                        outside), g
 
@@ -201,7 +212,9 @@ def _distances(pred: Any, gt: Any, n_samples: int, seed: int, normalize: bool) -
 def chamfer_l2(pred: Any, gt: Any, n_samples: int = 100_000, seed: int = 0, normalize: bool = False) -> float:
     """Chamfer-L2: mean squared nearest distance pred->gt plus gt->pred, on sampled surfaces.
 
-    n_samples points per surface, seeds ``seed`` (pred) and ``seed + 1`` (gt).
+    n_samples points per surface, seeds ``seed`` (pred) and ``seed + 1`` (gt). A shape of parts is sampled on
+    all its parts' surfaces, also where a part lies inside another (unlike the voxel IoU, which scores the
+    union of the solids): see :func:`~cerberus_metrics.distances.sample_surface`.
     normalize: scale both by the GT bounding box (centre at 0, longest side 1) first.
     Returns mesh units squared (or GT-relative units when normalize=True).
 
@@ -223,6 +236,9 @@ def fscore(
     normalize: bool = False,
 ) -> float:
     """F-score at ``threshold`` (mesh units, or GT-relative when normalize=True) on sampled surfaces.
+
+    Sampling as :func:`chamfer_l2`'s: surface of a part buried inside another part is sampled too, so it
+    counts against precision where it lies farther than ``threshold`` from the ground truth.
 
     >>> import trimesh
     >>> box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))

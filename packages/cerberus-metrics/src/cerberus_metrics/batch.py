@@ -14,6 +14,11 @@ Folders: every mesh file of ``gt_dir`` is a ground truth; its prediction is the 
 ``pred_dir`` with the same stem, or a sub-folder of ``pred_dir`` with that name whose mesh
 files are the parts. A ground truth without prediction, or a prediction without ground
 truth, is a failed pair.
+
+Prediction parts past the ``kato`` grid are clamped to it and counted (``outside="clamp"``), as
+``cerberus eval`` scores. The summary gives each metric's mean over all pairs, a failed pair scored 0
+as ``cerberus eval`` scores a rejected prediction (``mean_all_pairs``), beside the mean over the pairs
+that succeeded (``mean_succeeded``): see :func:`summarize`.
 """
 
 from __future__ import annotations
@@ -24,9 +29,7 @@ import json
 import math
 import multiprocessing as mp
 import os
-import secrets
 import signal
-import stat
 import time
 import warnings
 from collections.abc import Iterable, Sequence
@@ -36,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ._atomic import write_atomically
 from .api import METRICS, evaluate_pair
 from .cache import GridCache
 from .io import MeshInputError, iter_mesh_files
@@ -234,10 +238,12 @@ def run_batch(
     """Evaluate all pairs with ``jobs`` worker processes (default: all cores).
 
     metrics: names from :data:`cerberus_metrics.api.METRICS`. options: keyword options of
-    :func:`cerberus_metrics.api.evaluate_pair` (protocol, resolution, n_samples, seed,
-    threshold, normalize, open_mesh, check_self_intersections). Ground-truth grids are cached
+    :func:`cerberus_metrics.api.evaluate_pair` (protocol, resolution, outside, n_samples, seed,
+    threshold, normalize, open_mesh, check_self_intersections); ``outside`` defaults to ``"clamp"``
+    here, as ``cerberus eval`` scores: a prediction part past the ``kato`` grid is clamped to it and
+    counted, not a failed pair. Ground-truth grids are cached
     per worker in memory (``use_cache``) and, with ``cache_dir``, in a folder shared by the
-    workers and by later runs. Returns rows in input order and the summary.
+    workers and by later runs. Returns rows in input order and the summary (:func:`summarize`).
     """
     metrics = list(metrics)
     unknown = sorted(set(metrics) - set(METRICS))
@@ -245,7 +251,7 @@ def run_batch(
         raise MeshInputError(f"unknown metric(s) {unknown}; choose from {list(METRICS)}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise MeshInputError(f"jobs must be a positive number of processes, got {jobs!r}; omit it for all cores")
-    options = dict(options, metrics=metrics)
+    options = {"outside": "clamp", **options, "metrics": metrics}
     jobs = max(1, min(int(jobs or os.cpu_count() or 1), max(1, len(pairs))))
     cache = None if cache_dir is None else os.path.abspath(cache_dir)
     # Same-GT pairs next to each other so a worker's in-memory cache serves them.
@@ -288,10 +294,29 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, unit="pair", desc="cerberus-metrics", dynamic_ncols=True)
 
 
+#: The metrics whose worst value a failed pair can stand for: 0 (an IoU, an F-score and its precision and
+#: recall are in [0, 1], higher is better). Chamfer-L2 has no worst value, so a failed pair gets none.
+FAILED_SCORES = {"voxel_iou": 0.0, "fscore": 0.0, "precision": 0.0, "recall": 0.0}
+
+
 def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[str, Any]:
     """Summary: pair counts, failures (id and error), clamped predictions (``pairs_clamped``: pairs
     with a prediction part clamped into the ``kato`` grid, ``parts_clamped``: such parts in all)
-    and per-metric mean/median/min/max/count."""
+    and per metric two means, named apart:
+
+    * ``mean_all_pairs``: over all pairs, a failed pair (or one without a finite value) scored as
+      :data:`FAILED_SCORES` says (0), as ``cerberus eval`` scores a rejected prediction; ``None`` for a
+      metric with no such score (``chamfer_l2``) when a pair failed;
+    * ``mean_succeeded``: over the pairs that succeeded only, with their ``median``, ``min``, ``max`` and
+      ``count``.
+
+    Example: a pair scored 1.0 and a pair that failed:
+
+    >>> s = summarize([{"id": "a", "status": "ok", "voxel_iou": 1.0},
+    ...                {"id": "b", "status": "error", "error": "MeshInputError: ..."}], ["voxel_iou"])
+    >>> s["succeeded"], s["failed"], s["metrics"]["voxel_iou"]
+    (1, 1, {'mean_all_pairs': 0.5, 'mean_succeeded': 1.0, 'median': 1.0, 'min': 1.0, 'max': 1.0, 'count': 1})
+    """
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = [r for r in rows if r.get("status") != "ok"]
     out: dict[str, Any] = {
@@ -309,8 +334,14 @@ def summarize(rows: Sequence[dict[str, Any]], metrics: Iterable[str]) -> dict[st
         names += ["precision", "recall"]
     for m in names:
         vals = np.array([r[m] for r in ok if m in r and r[m] is not None and math.isfinite(r[m])], float)
+        missing = len(rows) - vals.size
+        if not rows or (missing and m not in FAILED_SCORES):
+            mean_all = None
+        else:
+            mean_all = float((vals.sum() + missing * FAILED_SCORES.get(m, 0.0)) / len(rows))
         out["metrics"][m] = {
-            "mean": float(vals.mean()) if vals.size else None,
+            "mean_all_pairs": mean_all,
+            "mean_succeeded": float(vals.mean()) if vals.size else None,
             "median": float(np.median(vals)) if vals.size else None,
             "min": float(vals.min()) if vals.size else None,
             "max": float(vals.max()) if vals.size else None,
@@ -401,57 +432,18 @@ def _csv_text(rows: Sequence[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
-def _create_temp(target: Path) -> tuple[int, str]:
-    """Create a new temporary file beside ``target`` with the permissions ``open(target, "w")`` would
-    give: ``0o666`` less the umask (the kernel applies it) or, when ``target`` exists, its mode.
-
-    ``tempfile.mkstemp`` would create it ``0o600``, and :func:`os.replace` keeps the temporary
-    file's mode, so results would be readable by their owner only. Returns ``(fd, path)``.
-    """
-    try:
-        mode: int | None = stat.S_IMODE(os.stat(target).st_mode)
-    except OSError:
-        mode = None
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
-    for _ in range(100):
-        tmp = str(target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp")
-        try:
-            fd = os.open(tmp, flags, 0o666)
-        except FileExistsError:
-            continue
-        if mode is not None:
-            try:
-                os.fchmod(fd, mode)
-            except OSError:  # e.g. a file system without modes: keep the umask's
-                pass
-        return fd, tmp
-    raise FileExistsError(f"no free temporary file name beside '{target}'")
-
-
 def write_results(result: BatchResult, json_path: str | os.PathLike | None, csv_path: str | os.PathLike | None) -> None:
     """Write ``{"written_by", "summary", "pairs"}`` as JSON and/or the per-pair rows as CSV (warnings joined by ' | ').
 
-    Atomic: each file is written to a temporary file in its folder and moved into place only
-    when all requested files are complete, so a failure leaves no partial output. Permissions are
-    those of a plain ``open(path, "w")``: a new file gets ``0o666`` less the umask, a replaced
-    file keeps its mode.
+    UTF-8, and atomic (:func:`~cerberus_metrics._atomic.write_atomically`): each file is written to a temporary
+    file in its folder, synced, and moved into place only when all requested files are complete, so a failure
+    leaves no partial output. Permissions are those of a plain ``open(path, "w")``: a new file gets ``0o666``
+    less the umask, a replaced file keeps its mode.
     """
-    todo = []
+    todo: list[tuple[Path, bytes]] = []
     if json_path:
         record = {"written_by": WRITTEN_BY, "summary": result.summary, "pairs": result.rows}
-        todo.append((Path(json_path), json.dumps(record, indent=2)))
+        todo.append((Path(json_path), json.dumps(record, indent=2).encode("utf-8")))
     if csv_path:
-        todo.append((Path(csv_path), _csv_text(result.rows)))
-    temps: list[str] = []
-    try:
-        for target, text in todo:
-            fd, tmp = _create_temp(target)
-            temps.append(tmp)
-            with os.fdopen(fd, "w", newline="") as fh:
-                fh.write(text)
-        for (target, _), tmp in zip(todo, temps, strict=True):
-            os.replace(tmp, target)
-    finally:
-        for tmp in temps:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        todo.append((Path(csv_path), _csv_text(result.rows).encode("utf-8")))
+    write_atomically([(target, lambda fh, data=data: fh.write(data)) for target, data in todo])

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._atomic import write_atomically
 from .protocols import Frame
 from .voxelize import VoxelGrid
 
@@ -86,19 +87,19 @@ class GridCache:
 
     @staticmethod
     def _write(path: Path, item: CachedGrid) -> None:
+        """Write ``item`` to ``path`` atomically (:func:`~cerberus_metrics._atomic.write_atomically`): concurrent
+        workers never read half a file, and an error leaves no temporary file behind."""
         g = item.grid
-        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-        np.savez_compressed(
-            tmp,
-            bits=np.packbits(g.occupancy.ravel()),
-            shape=np.asarray(g.occupancy.shape),
-            origin=np.asarray(g.origin),
-            frame=np.asarray([g.frame.scale, *g.frame.shift, g.frame.resolution, g.frame.fixed], np.float64),
-            protocol=np.asarray(g.protocol),
-            messages=np.asarray(json.dumps(list(item.messages))),
-            clamped=np.asarray(g.clamped),
-        )
-        os.replace(tmp, path)  # atomic: concurrent workers never read half a file
+        arrays = {
+            "bits": np.packbits(g.occupancy.ravel()),
+            "shape": np.asarray(g.occupancy.shape),
+            "origin": np.asarray(g.origin),
+            "frame": np.asarray([g.frame.scale, *g.frame.shift, g.frame.resolution, g.frame.fixed], np.float64),
+            "protocol": np.asarray(g.protocol),
+            "messages": np.asarray(json.dumps(list(item.messages))),
+            "clamped": np.asarray(g.clamped),
+        }
+        write_atomically([(path, lambda fh: np.savez_compressed(fh, **arrays))])
 
     @staticmethod
     def _read(path: Path) -> CachedGrid | None:

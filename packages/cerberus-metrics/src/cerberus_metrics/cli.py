@@ -12,6 +12,7 @@ import contextlib
 import json
 import math
 import os
+import re
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -104,7 +105,7 @@ def _add_mesh_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_voxel_options(p: argparse.ArgumentParser) -> None:
+def _add_voxel_options(p: argparse.ArgumentParser, outside: str = "error") -> None:
     p.add_argument("--protocol", choices=list(PROTOCOLS), default="kato", help="voxel protocol (default: kato)")
     p.add_argument(
         "--resolution",
@@ -112,12 +113,15 @@ def _add_voxel_options(p: argparse.ArgumentParser) -> None:
         default=32,
         help="voxels per grid side, 2..1024 (default: 32, the paper's)",
     )
+    other = "error" if outside == "clamp" else "clamp"
+    what = {"error": "fail", "clamp": "clamp it to the grid, one rule for faces, edges and corners (its voxels "
+            "outside are dropped), and count it"}
     p.add_argument(
         "--outside",
         choices=("error", "clamp"),
-        default="error",
-        help="kato protocol, a prediction part reaching outside the grid: fail (default), or clamp it to "
-        "the grid, one rule for faces, edges and corners (its voxels outside are dropped) and count it",
+        default=outside,
+        help=f"kato protocol, a prediction part reaching outside the grid: {what[outside]} (default"
+        f"{', as cerberus eval scores' if outside == 'clamp' else ''}), or {what[other]}",
     )
 
 
@@ -233,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--metrics", default="voxel_iou", help=f"comma-separated, from {','.join(METRICS)} (default: voxel_iou)"
     )
-    _add_voxel_options(p)
+    _add_voxel_options(p, outside="clamp")
     _add_sampling_options(p, threshold=True)
     _add_mesh_options(p)
     p.add_argument("--jobs", type=_int_in(1, None, "worker processes"), default=None,
@@ -250,6 +254,18 @@ def build_parser() -> argparse.ArgumentParser:
     _sub(sub, "protocols", "list the voxel protocols", "List the voxel-IoU protocols and what each does.",
          "  cerberus-metrics protocols")
     return parser
+
+
+_OPTION = re.compile(r"\b(outside|open_mesh|protocol)='([a-z_]+)'")
+
+
+def _in_cli_terms(text: str) -> str:
+    """A library message with its options said as this command's flags (``outside='clamp'`` -> ``--outside clamp``).
+
+    >>> _in_cli_terms("pass outside='clamp' to clamp it, or use open_mesh='close'")
+    'pass --outside clamp to clamp it, or use --open-mesh close'
+    """
+    return _OPTION.sub(lambda m: f"--{m.group(1).replace('_', '-')} {m.group(2)}", text)
 
 
 def _split_pair(meshes: Sequence[str]) -> tuple[Any, str]:
@@ -276,7 +292,7 @@ def _run_pair(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshQualityWarning)
         result = evaluate_pair(pred, gt, [metric], **kwargs)
-    notes = sorted({str(w.message) for w in caught})
+    notes = sorted({_in_cli_terms(str(w.message)) for w in caught})
     for n in notes:
         print(f"warning: {n}", file=sys.stderr)
     if result.get("clamped_parts"):
@@ -356,22 +372,40 @@ def _run_batch(args: argparse.Namespace) -> int:
         normalize=args.normalize,
         **_mesh_kwargs(args),
     )
+    for row in [*result.rows, *result.summary["failures"]]:  # what a message tells to set is a flag here
+        if row.get("error"):
+            row["error"] = _in_cli_terms(row["error"])
+        if row.get("warnings"):
+            row["warnings"] = [_in_cli_terms(w) for w in row["warnings"]]
     write_results(result, out, csv_out)
     s = result.summary
     if args.json:
         print(json.dumps({"summary": s, "pairs": result.rows}, indent=2))
     else:
-        print(f"pairs: {s['pairs']}  succeeded: {s['succeeded']}  failed: {s['failed']}  "
-              f"with warnings: {s['pairs_with_warnings']}")
-        if s["pairs_clamped"]:
-            print(f"clamped: {s['pairs_clamped']} pairs ({s['parts_clamped']} prediction parts reached outside the "
-                  f"{args.protocol} grid; their voxels outside were dropped)")
-        for m, st in s["metrics"].items():
-            if st["count"]:
-                print(f"{m}: mean {st['mean']:.6f}  median {st['median']:.6f}  count {st['count']}")
-        for f in s["failures"]:
-            print(f"FAILED {f['id']}: {f['error']}", file=sys.stderr)
+        _print_summary(s, args.protocol)
     return 1 if s["failed"] else 0
+
+
+def _print_summary(s: dict[str, Any], protocol: str) -> None:
+    """The batch summary (:func:`~cerberus_metrics.batch.summarize`) as lines: each metric's mean over all pairs
+    (a failed pair scored 0) beside its mean over the pairs that succeeded, named apart; failures on stderr."""
+    print(f"pairs: {s['pairs']}  succeeded: {s['succeeded']}  failed: {s['failed']}  "
+          f"with warnings: {s['pairs_with_warnings']}")
+    if s["pairs_clamped"]:
+        print(f"clamped: {s['pairs_clamped']} pairs ({s['parts_clamped']} prediction parts reached outside the "
+              f"{protocol} grid; their voxels outside were dropped)")
+    for m, st in s["metrics"].items():
+        if st["mean_all_pairs"] is not None:
+            all_pairs = f"mean over all {s['pairs']} pairs (failed = 0) {st['mean_all_pairs']:.6f}  "
+        else:
+            all_pairs = f"no mean over all {s['pairs']} pairs (a failed pair has no {m})  "
+        if st["count"]:
+            print(f"{m}: {all_pairs}mean over the {st['count']} succeeded {st['mean_succeeded']:.6f}  "
+                  f"median {st['median']:.6f}")
+        elif st["mean_all_pairs"] is not None:
+            print(f"{m}: {all_pairs.rstrip()}")
+    for f in s["failures"]:
+        print(f"FAILED {f['id']}: {f['error']}", file=sys.stderr)
 
 
 def _one_line(text: str) -> str:
@@ -407,7 +441,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("interrupted", file=sys.stderr)
         return 130
     except MeshInputError as exc:
-        print(f"error: {_one_line(exc)}", file=sys.stderr)
+        print(f"error: {_in_cli_terms(_one_line(exc))}", file=sys.stderr)
         return 2
     except OSError as exc:
         where = f" '{exc.filename}'" if exc.filename else ""

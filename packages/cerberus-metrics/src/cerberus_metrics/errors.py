@@ -1,7 +1,8 @@
 """The errors cerberus-metrics raises on purpose: one base, :class:`MetricsError`, so a caller catches them all
 (the package stands alone, so this is not ``cerberus_core``'s ``CerberusError``); each message names the input,
 the problem and the fix. :class:`~cerberus_metrics.io.MeshInputError` (an input mesh cannot be evaluated) is
-one; :class:`MeasurementError` another."""
+one, with :class:`~cerberus_metrics.io.OpenMeshError` (a mesh that must be closed is not watertight) under it;
+:class:`MeasurementError` another."""
 from __future__ import annotations
 
 

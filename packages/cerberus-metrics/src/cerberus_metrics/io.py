@@ -36,6 +36,7 @@ from .filecheck import FileDefect, check_counts, scan_mesh_file
 
 __all__ = [
     "MeshInputError",
+    "OpenMeshError",
     "MeshQualityWarning",
     "Mesh",
     "MeshReport",
@@ -53,6 +54,15 @@ OPEN_MESH_POLICIES = ("warn", "close", "error")
 
 class MeshInputError(MetricsError, ValueError):
     """An input mesh cannot be evaluated. The message names the input, the problem and the fix."""
+
+
+class OpenMeshError(MeshInputError):
+    """A mesh that must be closed is not watertight (``open_mesh="error"``, or a ground truth of
+    :class:`~cerberus_metrics.scoring.VoxelIoUScorer`). ``report``: its :class:`MeshReport` (the defect counts)."""
+
+    def __init__(self, message: str, report: MeshReport) -> None:
+        super().__init__(message)
+        self.report = report
 
 
 class MeshQualityWarning(UserWarning):
@@ -332,9 +342,10 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
         volume=volume,
     )
     if open_mesh == "error" and not report.watertight:
-        raise MeshInputError(
+        raise OpenMeshError(
             f"{name}: mesh is not watertight ({', '.join(report.problems())}) and open_mesh='error'; "
-            "repair the mesh, or use open_mesh='warn' (evaluate as is) or 'close' (fill holes)"
+            "repair the mesh, or use open_mesh='warn' (evaluate as is) or 'close' (fill holes)",
+            report,
         )
     return Mesh(v, f, name, report)
 

@@ -15,7 +15,8 @@ Protocols (see docs/metrics.md for the full specification):
 ``kato`` (default)
     Kato et al. (Neural 3D Mesh Renderer / mesh_reconstruction) evaluation.
     Fixed frame: shapes live in ``[-0.5, 0.5]^3``; ``p = R * (v * (R - 1) / R + 0.5)``,
-    i.e. the 31/32 scaling at R = 32. Grid ``[0, R)^3``; a mesh leaving it is an error.
+    i.e. the 31/32 scaling at R = 32. Grid ``[0, R)^3``; a mesh leaving it is an error, unless a
+    prediction is clamped to it (``outside="clamp"``).
 ``gt_bbox``
     The ``surface`` rule in a frame normalised by the ground truth: the GT's bounding
     box is centred and its longest side scaled to 1, then mapped as in ``kato``
@@ -158,13 +159,16 @@ def make_frame(protocol: Protocol, resolution: int, gt_vertices: np.ndarray | No
     return Frame(scale, tuple(float(s) for s in shift), r, False)
 
 
-def lattice_box(frame: Frame, bounds: np.ndarray, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+def lattice_box(frame: Frame, bounds: np.ndarray, names: Sequence[str],
+                ground_truth: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The lattice box ``[lo, hi)`` (two (3,) int64) holding the voxels of several meshes.
 
     bounds: (P, 2, 3) per-mesh (min, max) lattice coordinates; names: P names for messages.
     Meshes within ``[0, R]^3`` give the grid ``[0, R)^3``. Otherwise fixed frames raise,
     naming the mesh (the protocol assumes normalised shapes), and other frames return the
     grid extended to the meshes plus one empty voxel of margin, so no prediction is clipped.
+    ground_truth: the meshes are a ground truth, which is never clamped: the fixed frame's error
+    then says to normalise it (or to use the ``gt_bbox`` protocol) instead of ``outside="clamp"``.
     """
     r = frame.resolution
     outside = (bounds[:, 0] < 0).any(axis=1) | (bounds[:, 1] > r).any(axis=1)
@@ -174,11 +178,17 @@ def lattice_box(frame: Frame, bounds: np.ndarray, names: Sequence[str]) -> tuple
         k = int(np.flatnonzero(outside)[0])
         g0, g1 = frame.to_mesh(np.zeros(3)), frame.to_mesh(np.full(3, float(r)))
         vmin, vmax = frame.to_mesh(bounds[k, 0]), frame.to_mesh(bounds[k, 1])
+        fix = (
+            "a ground truth is never clamped: normalise it to [-0.5, 0.5]^3, or score meshes in other coordinates "
+            "with the gt_bbox protocol (normalised by the ground truth)"
+            if ground_truth
+            else "pass outside='clamp' to clamp it to the grid (its voxels outside are dropped and the part is "
+            "counted, as evaluation does), or normalise the mesh to [-0.5, 0.5]^3"
+        )
         raise MeshInputError(
             f"{names[k]}: mesh lies (partly) outside the kato grid: coordinates must be within "
             f"[{g0.min():.4f}, {g1.max():.4f}]^3 (shapes normalised to [-0.5, 0.5]^3), found "
-            f"min {np.round(vmin, 4).tolist()} max {np.round(vmax, 4).tolist()}; normalise the mesh "
-            "to [-0.5, 0.5]^3, or use protocol='gt_bbox' for meshes in other coordinates"
+            f"min {np.round(vmin, 4).tolist()} max {np.round(vmax, 4).tolist()}; {fix}"
         )
     if not np.isfinite(bounds).all():
         raise MeshInputError(

@@ -11,7 +11,14 @@ holds what such a loop needs and what only this package knows:
   grid are dropped (a part wholly outside adds none). The scorer returns how many parts were clamped
   instead of raising;
 * quiet predictions: mesh-quality notes on predicted parts (self-intersections, open parts) would
-  flood a log, so the self-intersection check is off and quality warnings are silenced.
+  flood a log, so the self-intersection check is off and quality warnings are silenced;
+* strict ground truths: a ground truth is the reference every prediction is scored against, so its
+  quality warnings are raised (a flood fill that leaked into a closed mesh, a mesh under one voxel;
+  Python's default warning filter shows each message once), and one that is not watertight is an
+  :class:`~cerberus_metrics.io.OpenMeshError` (the flood fill would enter through its holes and score a
+  hollow shell), unless ``gt_open_mesh`` says to close its holes. Its self-intersections are not tested:
+  neither rule's solid depends on them (both take the union of overlapping regions), and the test costs
+  more than the voxelization (17.5 s for a 26,692-face human body).
 """
 
 from __future__ import annotations
@@ -23,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from .api import prediction_grids
+from .api import _grid, _part_grids
 from .cache import GridCache
-from .io import MeshQualityWarning
+from .io import OPEN_MESH_POLICIES, MeshInputError, MeshQualityWarning, OpenMeshError
 from .protocols import Frame, check_resolution, get_protocol
 from .voxelize import _paste, grid_iou
 
@@ -62,8 +69,16 @@ class VoxelIoUScorer:
         resolution: voxels per grid side (32 in the paper).
         cache: a :class:`GridCache` for ground-truth grids, or a directory for a disk-backed one
             (shared by processes); default: a memory cache.
+        gt_open_mesh: a ground truth that is not watertight: ``"error"`` (default) raises
+            :class:`~cerberus_metrics.io.OpenMeshError`; ``"close"`` closes its holes with pymeshlab
+            (``meshing_close_holes``) and warns; ``"warn"`` scores it as it is (a hollow shell where the fill
+            leaks) and warns.
     Attributes:
         cache: the grid cache (``hits`` / ``misses`` count ground-truth look-ups).
+        rejects: the errors a prediction the scorer cannot score raises (its input error,
+            :class:`~cerberus_metrics.io.MeshInputError`); a caller may score such a prediction 0. Any other
+            exception (a bug, ``MemoryError``) is not a verdict on the prediction. A ground truth the scorer
+            refuses raises a ``MeshInputError`` too: score the ground truth alone to tell the two apart.
 
     Example: a cube of side 0.5 (mesh units), the same cube moved by half its side, and a cube of side
     1.1 that reaches outside the ``kato`` grid (``[-16/31, 16/31]^3``) on every side:
@@ -80,16 +95,28 @@ class VoxelIoUScorer:
     (0.125, 1)
     >>> scorer.cache.misses, scorer.cache.hits  # the ground truth was voxelized once
     (1, 1)
+    >>> lidless = (box.vertices, box.faces[2:])  # the cube without one of its sides (two triangles): open
+    >>> scorer([cube], lidless)
+    Traceback (most recent call last):
+    ...
+    cerberus_metrics.io.OpenMeshError: gt: the ground truth is not watertight (4 boundary (open) edges), ...
+    >>> VoxelIoUScorer(gt_open_mesh="close")([cube], lidless)  # its holes closed with pymeshlab
+    (1.0, 0)
     >>> VoxelIoUScorer(resolution=1)
     Traceback (most recent call last):
     ...
     cerberus_metrics.io.MeshInputError: resolution must be an integer in [2, 1024] (e.g. 32, 64, 128), got 1
     """
 
+    rejects: tuple[type[Exception], ...] = (MeshInputError,)
+
     def __init__(self, protocol: str = "kato", resolution: int = 32,
-                 cache: GridCache | str | os.PathLike | None = None) -> None:
+                 cache: GridCache | str | os.PathLike | None = None, gt_open_mesh: str = "error") -> None:
         self.protocol = get_protocol(protocol).name  # unknown names fail here, before any work
         self.resolution = int(check_resolution(resolution))
+        if gt_open_mesh not in OPEN_MESH_POLICIES:
+            raise MeshInputError(f"gt_open_mesh must be one of {OPEN_MESH_POLICIES}, got {gt_open_mesh!r}")
+        self.gt_open_mesh = gt_open_mesh
         self.cache = cache if isinstance(cache, GridCache) else GridCache(cache)
 
     def __call__(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> tuple[float, int]:
@@ -135,7 +162,21 @@ class VoxelIoUScorer:
                            float(grid_iou(parts.union(), truth)))
 
     def _voxelize(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any):
+        """``(the prediction's PartGrids, the ground truth's VoxelGrid)``: the ground truth strict, the prediction
+        quiet and clamped (module docstring)."""
+        try:
+            truth = _grid(gt, self.protocol, self.resolution, cache=self.cache, name="gt",
+                          check_self_intersections=False, open_mesh=self.gt_open_mesh, ground_truth=True)
+        except OpenMeshError as exc:
+            raise OpenMeshError(
+                f"{exc.report.name}: the ground truth is not watertight ({', '.join(exc.report.problems())}), so "
+                "the flood fill would enter through its holes and score it as a hollow shell (its surface voxels "
+                "alone) against every prediction; close the mesh, or pass gt_open_mesh='close' to close its holes "
+                "with pymeshlab",
+                exc.report,
+            ) from None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeshQualityWarning)
-            return prediction_grids(pred_parts, gt, self.protocol, self.resolution, self.cache, "clamp",
-                                    check_self_intersections=False)
+            parts = _part_grids(pred_parts, self.protocol, self.resolution, truth.frame, True, False, "warn", "pred",
+                                "clamp")
+        return parts, truth

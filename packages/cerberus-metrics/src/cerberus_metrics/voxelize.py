@@ -475,13 +475,15 @@ def _clamp_boxes(bounds: np.ndarray, frame: Frame, names: Sequence[str]) -> tupl
 
 
 def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,
-                   outside: str = "error") -> PartGrids:
+                   outside: str = "error", ground_truth: bool = False) -> PartGrids:
     """Voxelize each of several cleaned parts alone, on one lattice box.
 
     parts: cleaned meshes in mesh coordinates. frame: from :func:`make_frame`.
     fill: False returns the ``surface`` rule's surface voxels without the flood fill.
     outside: ``"error"`` | ``"clamp"``, what a fixed frame (``kato``) does with a part reaching
     outside its grid ``[0, R)^3`` (see :data:`OUTSIDE`; other frames grow the grid instead).
+    ground_truth: the parts are a ground truth (only the fix the outside-the-grid error names changes,
+    see :func:`~cerberus_metrics.protocols.lattice_box`).
     Issues :class:`MeshQualityWarning` for open/self-intersecting parts (see docs).
     """
     if not fill and protocol.rule != "surface":
@@ -499,7 +501,7 @@ def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill
         lo, hi = np.zeros(3, np.int64), np.full(3, r, np.int64)
         keep, s_lo, s_hi = _clamp_boxes(bounds, frame, names)
     else:
-        lo, hi = lattice_box(frame, bounds, names)
+        lo, hi = lattice_box(frame, bounds, names, ground_truth)
         keep = np.ones(len(parts), bool)
         # Each part gets its own box: its bounding voxels plus one empty voxel of margin, within [lo, hi).
         s_lo = np.maximum(np.floor(bounds[:, 0]).astype(np.int64) - 1, lo)

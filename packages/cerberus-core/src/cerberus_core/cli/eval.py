@@ -43,7 +43,10 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "before anything runs")
     for row in DIAGNOSTICS:  # --no-hard, --no-part-quality, ...: one per diagnostic, from its row
         p.add_argument(skip_flag(row.name), action="store_true", dest=f"no_{row.name}", help=f"skip {row.about}")
-    p.add_argument("--limit", type=positive_int, help="evaluate only the first N >= 1 images (quick look)")
+    p.add_argument("--limit", type=positive_int, metavar="N",
+                   help="evaluate at most N >= 1 images, spread evenly over the split (a quick look that samples every "
+                   "part of it): whole poses, as many as N images hold, unless --no-depth (depth compares each pose's "
+                   "views); results.json records which under 'data'")
     p.add_argument("--baseline", action="append", default=[], metavar="NAME=RUN",
                    help="another trained run to show beside ours in the figure (repeatable), e.g. NMRr=runs/nmrr")
     p.add_argument("--figure-images", type=positive_int, default=5, help="test images in the figure, spread over the images scored (default: 5)")

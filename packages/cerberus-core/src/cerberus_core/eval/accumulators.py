@@ -92,7 +92,15 @@ class BatchResult:
         return self._foreground[key]
 
     def scored(self):
-        """``(b, item, single reconstruction, ground-truth (vertices, faces), record)`` per image."""
+        """Each image of the batch, in order, as one tuple.
+
+        Yields:
+            ``(b, item, one, (vertices, faces), record)``: its position ``b`` in the batch (int), its
+            :class:`~cerberus_core.eval.hard.ItemMeta` (dataset index, subject, pose, view, canonical flag), its
+            reconstruction alone (a :class:`PartSet` of batch 1, ``P`` parts, on the CPU, world frame), its ground
+            truth's ``vertices`` ``(V, 3)`` (world frame, mesh units) and ``faces`` ``(F, 3)`` (int), and its record
+            (the dict the metrics add their fields to; ``results.json``'s ``records``).
+        """
         for b, (item, one, body, rec) in enumerate(zip(self.items, self.singles, self.bodies, self.records,
                                                         strict=True)):
             yield b, item, one, (body.vertices, body.faces), rec

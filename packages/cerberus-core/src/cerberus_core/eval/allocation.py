@@ -22,6 +22,11 @@ reach the limbs by stretching. Three numbers per test set tell the two apart, al
   pixel counts when its silhouette holds it and no other part's does, hidden or not), mean over images.
   A part that adds almost nothing alone is spare even when it is visible.
 
+One rule for every figure over the test set (:meth:`Allocation.summary`): an image whose ground-truth foreground is
+empty (the body wholly out of its input view) has no silhouette centroid and no foreground to share, so it is left
+out of all of them (``empty_foreground_images`` counts it; its record's ``unique_coverage`` is ``null``), and
+``images`` counts the images they are over.
+
 These are the columns of the limb screen (``docs/results.md``; the lead's table in issue 38), and
 ``cerberus train`` logs the same numbers on a fixed batch of test views (``train.allocation_every``).
 """
@@ -179,8 +184,8 @@ def unique_coverage(masks: Tensor, foreground: Tensor) -> Tensor:
         masks: ``(B, P, H, W)`` bool, each part's silhouette (:func:`part_masks`).
         foreground: ``(B, H, W)`` bool, the ground truth's silhouette.
     Returns:
-        ``(B, P)`` float in [0, 1]: ``|foreground ∧ part k ∧ no other part| / |foreground|`` (0 for an
-        empty foreground).
+        ``(B, P)`` float in [0, 1]: ``|foreground ∧ part k ∧ no other part| / |foreground|`` (NaN for an
+        empty foreground: there is no share to measure).
 
     Example:
         >>> fg = torch.ones(1, 1, 4, dtype=torch.bool)
@@ -190,8 +195,9 @@ def unique_coverage(masks: Tensor, foreground: Tensor) -> Tensor:
     """
     check_shapes("unique_coverage", masks=(masks, "B P H W"), foreground=(foreground, "B H W"))
     alone = masks & (masks.sum(1, keepdim=True) == 1) & foreground[:, None]
-    area = foreground.flatten(1).sum(-1).clamp(min=1).unsqueeze(1)
-    return alone.flatten(2).sum(-1).float() / area
+    area = foreground.flatten(1).sum(-1).unsqueeze(1).float()
+    share = alone.flatten(2).sum(-1).float() / area.clamp(min=1)
+    return share.masked_fill(area == 0, float("nan"))
 
 
 @dataclass
@@ -290,30 +296,37 @@ class Allocation:
         self.batches.append(batch)
 
     def summary(self) -> dict[str, Any] | None:
-        """``None`` when no batch was added, else a dict: ``images``; per learned part (lists of ``P``) ``keypoint_spread`` (px) and
+        """``None`` when no batch was added, else a dict: ``images`` (the images every figure is over: those whose
+        ground-truth foreground is not empty) and ``empty_foreground_images`` (those left out: the module
+        docstring's rule); per learned part (lists of ``P``) ``keypoint_spread`` (px) and
         ``unique_coverage`` (mean share of the foreground), ``spare_coverage`` (the threshold of
         :data:`SPARE_COVERAGE`) and ``low_coverage_parts`` (the parts at or below it); per ground-truth
         segment (``{name: value}``) ``segment_to_keypoint`` (median px to the nearest keypoint) and
-        ``segment_spread`` (its projected centroid's spread, px, for scale)."""
+        ``segment_spread`` (its projected centroid's spread, px, for scale). Every figure is NaN when no image has
+        a foreground."""
         if not self.batches:
             return None
 
         def stack(name: str) -> np.ndarray:
             return np.concatenate([getattr(b, name) for b in self.batches])
 
-        points, centroid, segments, unique = stack("keypoints"), stack("centroid"), stack("segments"), stack("unique")
-        coverage = unique.mean(0)
+        seen = np.isfinite(stack("centroid")).all(-1)  # the images whose ground-truth foreground is not empty
+        points, centroid, segments, unique = (stack(name)[seen] for name in ("keypoints", "centroid", "segments",
+                                                                             "unique"))
+        nothing = np.full(len(self.segments), np.nan)  # no image with a foreground: no figure
+        coverage = unique.mean(0) if seen.any() else np.full(self.num_parts, np.nan)
+        spread = keypoint_spread(points, centroid) if seen.any() else np.full(self.num_parts, np.nan)
+        to_keypoint = np.nanmedian(nearest_keypoint_distances(segments, points), 0) if seen.any() else nothing
+        segment_spread = keypoint_spread(segments, centroid) if seen.any() else nothing
         return {
-            "images": len(points),
-            "keypoint_spread": [round(float(v), 4) for v in keypoint_spread(points, centroid)],
+            "images": int(seen.sum()),
+            "empty_foreground_images": int((~seen).sum()),
+            "keypoint_spread": [round(float(v), 4) for v in spread],
             "unique_coverage": [round(float(v), 5) for v in coverage],
             "spare_coverage": SPARE_COVERAGE,
             "low_coverage_parts": [p for p in range(self.num_parts) if coverage[p] <= SPARE_COVERAGE],
-            "segment_to_keypoint": {k: round(float(v), 4) for k, v in
-                                    zip(self.segments, np.nanmedian(nearest_keypoint_distances(segments, points), 0),
-                                        strict=True)},
-            "segment_spread": {k: round(float(v), 4) for k, v in
-                               zip(self.segments, keypoint_spread(segments, centroid), strict=True)},
+            "segment_to_keypoint": {k: round(float(v), 4) for k, v in zip(self.segments, to_keypoint, strict=True)},
+            "segment_spread": {k: round(float(v), 4) for k, v in zip(self.segments, segment_spread, strict=True)},
         }
 
 
@@ -331,6 +344,13 @@ def allocation_line(summary: dict[str, Any], top: int = 4) -> str:
             f"{len(summary['low_coverage_parts'])} of {len(summary['unique_coverage'])}")
 
 
+def _left_out(alloc: Mapping[str, Any]) -> str:
+    """The images left out of the allocation figures, said when there are any."""
+    empty = alloc.get("empty_foreground_images") or 0
+    return (f" ({empty} more left out: the ground-truth body is wholly out of {'its' if empty == 1 else 'their'} "
+            "input view, so there is no foreground to measure)") if empty else ""
+
+
 def allocation_section(result: Mapping[str, Any]) -> list[str]:
     """The report's allocation section from a result's JSON form: per learned part, then per ground-truth
     segment."""
@@ -341,7 +361,8 @@ def allocation_section(result: Mapping[str, Any]) -> list[str]:
             for p, spread in enumerate(alloc["keypoint_spread"])]
     srow = [[k, alloc["segment_to_keypoint"][k], alloc["segment_spread"][k]] for k in alloc["segment_to_keypoint"]]
     return ["## Allocation", "",
-            f"Where the parts go, in pixels of the input image, {alloc['images']} images. {sentence(line)}. "
+            f"Where the parts go, in pixels of the input image, {alloc['images']} images{_left_out(alloc)}. "
+            f"{sentence(line)}. "
             "*Keypoint spread*: the standard deviation over images of (keypoint − the ground-truth silhouette's "
             "centroid), RMS of the two axes; *alone covers*: the mean share of the ground-truth foreground that "
             "only this part covers (each part rendered on its own); *to nearest keypoint*: the median distance "

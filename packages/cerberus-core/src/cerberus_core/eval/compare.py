@@ -12,21 +12,31 @@ against Hard Human).
 
 :func:`load_evaluation` reads an evaluation from wherever ``cerberus eval`` left it (the file, its folder, or the
 run folder whose ``eval/`` it is); :func:`comparison_rows` puts several side by side, each paired with the first
-(``cerberus compare``; :func:`cerberus_core.eval.figures.paired_plot` draws the per-image pairs).
+(``cerberus compare``; :func:`cerberus_core.eval.figures.paired_plot` draws the per-image pairs), and adds the
+optional column groups a comparison of runs asks for, by name: :data:`COLUMN_GROUPS`, one :class:`ColumnGroup` of
+:class:`Column` s each (a header and a function of the evaluation, and of its run folder, :func:`run_folder`, for
+the training log and the evaluation on the run's own training images): ``parts`` (where the parts go and what they
+are), ``depth`` (depth across views), ``training`` (steps, minutes, steps/s), ``own-images`` (the IoU on the run's
+own training images and the gap) and ``heldout`` (per held-out pose family: :func:`group_means` by
+:func:`pose_family`). :func:`cerberus_core.eval.figures.trade_plot` draws each evaluation's voxel IoU against its
+Hard Human IoU.
 
-Nothing here needs torch: the experiments' tables import it to read ``results.json`` files.
+Nothing here needs torch: ``cerberus compare`` and the experiments read ``results.json`` files with it.
 """
 from __future__ import annotations
 
+import math
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cerberus_core.errors import DatasetError, NoEvaluationError
+from cerberus_core.bodies.human_heldout import FAMILIES, family_of, is_heldout_id
+from cerberus_core.errors import ConfigError, DatasetError, NoEvaluationError
 from cerberus_core.plumbing import jsontext
-from cerberus_core.plumbing.names import printable
+from cerberus_core.plumbing.metrics_csv import METRICS_CSV, TrainingTime, training_time
+from cerberus_core.plumbing.names import did_you_mean, printable
 
 #: The file ``cerberus eval`` writes its scores and per-image records to.
 RESULTS = "results.json"
@@ -242,21 +252,290 @@ def image_mean(evaluation: Evaluation, key: str) -> float | None:
     return statistics.fmean(values) if values else None
 
 
-def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]]) -> tuple[list[str], list[list[Any]]]:
+def group_means(evaluation: Evaluation, by: str | Callable[[Mapping[str, Any]], Hashable | None],
+                key: str = "iou") -> dict[Any, float]:
+    """The mean of the per-image value ``key`` (voxel IoU, 0 to 1, for ``"iou"``) over the images of each group.
+
+    Args:
+        evaluation: a ``results.json`` dict (its ``records``) or the records, one dict per image.
+        by: a record's group: the record's field of that name (``"subject"``), or a function of the record.
+        key: the per-image value to average.
+    Returns:
+        ``{group: mean}`` in the order the groups first appear, over the records whose group is not ``None`` and
+        whose ``key`` is set (a group with no such record is absent).
+
+    Example:
+        >>> records = [{"index": 0, "subject": "s1", "iou": 0.25}, {"index": 1, "subject": "s1", "iou": 0.75},
+        ...            {"index": 2, "subject": "s2", "iou": 0.5}, {"index": 3, "subject": "s2", "iou": None}]
+        >>> group_means(records, "subject")
+        {'s1': 0.5, 's2': 0.5}
+        >>> group_means(records, lambda r: "high" if r["iou"] and r["iou"] > 0.4 else None)
+        {'high': 0.625}
+    """
+    values: dict[Any, list[float]] = {}
+    for record in _records(evaluation):
+        group = record.get(by) if isinstance(by, str) else by(record)
+        if group is not None and record.get(key) is not None:
+            values.setdefault(group, []).append(record[key])
+    return {group: statistics.fmean(v) for group, v in values.items()}
+
+
+def run_folder(path: str | Path) -> Path | None:
+    """The run folder of the evaluation at ``path`` (:func:`evaluation_file`): ``RUN`` where the evaluation is
+    ``RUN/eval/results.json`` (``path`` is ``RUN``, ``RUN/eval`` or that file), else ``None`` (an evaluation
+    written to a folder of its own). The ``training`` and ``own-images`` columns read its ``metrics.csv`` and
+    ``eval_train/``.
+
+    Raises:
+        NoEvaluationError: no evaluation at ``path``.
+
+    Example:
+        >>> import json, tempfile
+        >>> run = Path(tempfile.mkdtemp())
+        >>> (run / "eval").mkdir()
+        >>> _ = (run / "eval" / RESULTS).write_text(json.dumps({"records": []}))
+        >>> run_folder(run / "eval") == run, run_folder(run / "eval" / RESULTS) == run
+        (True, True)
+        >>> (run / "heldout").mkdir()
+        >>> _ = (run / "heldout" / RESULTS).write_text(json.dumps({"records": []}))
+        >>> print(run_folder(run / "heldout"))
+        None
+    """
+    file = evaluation_file(path)
+    return file.parent.parent if file.parent.name == "eval" else None
+
+
+# ----------------------------------------------------------------------------- the optional columns
+#: A cell of an optional column: the text the table prints (its figures rounded as the column says), a count, or
+#: ``None`` where the evaluation or its run lacks the figure (printed ``-``).
+Cell = str | int | None
+
+#: The folder beside a run's ``eval/`` that holds its evaluation on its own training images (``cerberus eval RUN
+#: --data TRAIN --split train --out RUN/eval_train``), read by the ``own-images`` columns.
+OWN_IMAGES = "eval_train"
+
+#: The column of :data:`COLUMN_GROUPS` ``heldout`` for the images that are not of a held-out pose family.
+CANONICAL = "canonical"
+
+
+@dataclass(frozen=True)
+class Column:
+    """One optional column of :func:`comparison_rows`.
+
+    Attributes:
+        header: the column's header.
+        cell: ``(results.json dict, run folder or None) -> Cell``: the row's cell, read from the evaluation's
+            summaries and, for a few columns, the run's folder (:func:`run_folder`; ``None`` when there is none).
+    """
+
+    header: str
+    cell: Callable[[Mapping[str, Any], Path | None], Cell]
+
+
+@dataclass(frozen=True)
+class ColumnGroup:
+    """Optional columns added together by name (:func:`comparison_rows`'s ``columns``).
+
+    Attributes:
+        name: the group's name.
+        summary: what the group answers, in one line (the command's help lists it).
+        columns: its columns, in the table's order.
+    """
+
+    name: str
+    summary: str
+    columns: tuple[Column, ...]
+
+
+def _section(evaluation: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    """A summary of ``results.json`` (``segments``, ``allocation``...); empty where it was not measured."""
+    return evaluation.get(key) or {}
+
+
+def _number(value: float | None, digits: int) -> str | None:
+    """``value`` with ``digits`` decimals; ``None`` for ``None``, NaN or infinity."""
+    return None if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
+
+
+def _per_name(values: Mapping[str, float | None], digits: int) -> str | None:
+    """``{name: value}`` as ``name value, name value`` in its order (values of ``digits`` decimals, unset ones
+    left out); ``None`` when none is set."""
+    shown = [f"{name} {text}" for name, v in values.items() if (text := _number(v, digits)) is not None]
+    return ", ".join(shown) or None
+
+
+def _of_results(header: str, read: Callable[[Mapping[str, Any]], Cell]) -> Column:
+    """A column read from the evaluation alone."""
+    return Column(header, lambda evaluation, run: read(evaluation))
+
+
+def _spare_parts(evaluation: Mapping[str, Any]) -> Cell:
+    """``k of N``: the parts whose deletion costs at most ``segments.spare_threshold`` of IoU, of all parts."""
+    segments = _section(evaluation, "segments")
+    spare = segments.get("spare_count")
+    return None if spare is None else f"{spare} of {len(segments.get('deletion_loss') or []) or '?'}"
+
+
+def _top_spreads(evaluation: Mapping[str, Any]) -> Cell:
+    """The four largest keypoint spreads (px, one decimal), largest first."""
+    spreads = [s for s in _section(evaluation, "allocation").get("keypoint_spread") or [] if s is not None]
+    return " ".join(f"{s:.1f}" for s in sorted(spreads, reverse=True)[:4]) or None
+
+
+def _merged_labels(evaluation: Mapping[str, Any]) -> Cell:
+    """The labels (left and right merged) of the parts whose agreement is at least 0.5, sorted."""
+    quality = _section(evaluation, "part_quality")
+    parts = (quality.get("sides_merged") or quality).get("parts") or []
+    return ", ".join(sorted({p["label"] for p in parts if p.get("label") and (p.get("agreement") or 0) >= 0.5})) or None
+
+
+def _labels_with_agreement(evaluation: Mapping[str, Any]) -> Cell:
+    """Each labelled part's label (per side) and agreement, most consistent first."""
+    parts = [p for p in _section(evaluation, "part_quality").get("parts") or []
+             if p.get("label") and p.get("agreement") is not None]
+    return ", ".join(f"{p['label']} ({p['agreement']:.2f})" for p in sorted(parts, key=lambda p: -p["agreement"])) or None
+
+
+def _of_training(header: str, read: Callable[[TrainingTime], Cell]) -> Column:
+    """A column read from the run's ``metrics.csv`` (:func:`~cerberus_core.plumbing.metrics_csv.training_time`)."""
+    def cell(evaluation: Mapping[str, Any], run: Path | None) -> Cell:
+        trained = None if run is None else training_time(run / METRICS_CSV)
+        return None if trained is None else read(trained)
+
+    return Column(header, cell)
+
+
+def _own_images(run: Path | None) -> tuple[float | None, int]:
+    """The mean voxel IoU on the run's own training images (``RUN/eval_train``) and how many were scored;
+    ``(None, 0)`` without that evaluation."""
+    own = None if run is None else load_evaluation(run / OWN_IMAGES, missing_ok=True)
+    if own is None:
+        return None, 0
+    return image_mean(own, "iou"), sum(r.get("iou") is not None for r in _records(own))
+
+
+def _own_cell(evaluation: Mapping[str, Any], run: Path | None) -> Cell:
+    mean, n = _own_images(run)
+    return None if mean is None else f"{mean:.4f} ({n})"
+
+
+def _gap_cell(evaluation: Mapping[str, Any], run: Path | None) -> Cell:
+    own, test = _own_images(run)[0], image_mean(evaluation, "iou")
+    return None if own is None or test is None else f"{own - test:.3f}"
+
+
+def pose_family(record: Mapping[str, Any]) -> str | None:
+    """A record's held-out pose family (:func:`cerberus_core.bodies.human_heldout.family_of`), :data:`CANONICAL`
+    for another pose, ``None`` for a record without one: the groups of the ``heldout`` columns.
+
+    >>> from cerberus_core.bodies.human_heldout import heldout_pose_id
+    >>> pose_family({"pose": heldout_pose_id(1)}), pose_family({"pose": 3}), pose_family({"index": 0})
+    ('jumping_jack', 'canonical', None)
+    """
+    pose = record.get("pose")
+    if pose is None:
+        return None
+    return family_of(pose) if is_heldout_id(pose) else CANONICAL
+
+
+def _family_column(family: str) -> Column:
+    """The mean voxel IoU (three decimals) of one family's images; ``None`` for an evaluation without held-out
+    poses, whose images are all of other poses."""
+    def read(evaluation: Mapping[str, Any]) -> Cell:
+        means = group_means(evaluation, pose_family)
+        return _number(means.get(family), 3) if set(means) - {CANONICAL} else None
+
+    return _of_results(family, read)
+
+
+#: The optional column groups of :func:`comparison_rows` (``cerberus compare``), in the order they are listed.
+COLUMN_GROUPS: tuple[ColumnGroup, ...] = (
+    ColumnGroup("parts", "the parts: spares, keypoint spreads, segment → keypoint and recall, labels, consistency, "
+                "hidden", (
+        _of_results("spare parts", _spare_parts),
+        _of_results("keypoint spread, top 4 (px)", _top_spreads),
+        _of_results("segment → keypoint (px)",
+                    lambda e: _per_name(_section(e, "allocation").get("segment_to_keypoint") or {}, 1)),
+        _of_results("segment recall", lambda e: _per_name(_section(e, "segments").get("recall") or {}, 2)),
+        _of_results("part consistency", lambda e: _number(_section(e, "part_quality").get("consistency"), 3)),
+        _of_results("merged labels ≥ 0.5", _merged_labels),
+        _of_results("part labels (agreement)", _labels_with_agreement),
+        _of_results("parts hidden in most images",
+                    lambda e: _section(e, "part_visibility").get("parts_hidden_in_most_images")),
+    )),
+    ColumnGroup("depth", "depth across views: input- and turned-view silhouette IoU, mean translation disagreement "
+                "(world units)", (
+        _of_results("input-view silhouette IoU",
+                    lambda e: _number(_section(e, "depth").get("input_view_silhouette_iou"), 3)),
+        _of_results("turned-view silhouette IoU",
+                    lambda e: _number(_section(e, "depth").get("turned_view_silhouette_iou"), 3)),
+        _of_results("translation disagreement",
+                    lambda e: _number(_section(e, "depth").get("mean_translation_disagreement"), 3)),
+    )),
+    ColumnGroup("training", "from RUN/metrics.csv: steps, minutes (summed over a resumed run's sittings), "
+                "steps/s", (
+        _of_training("steps", lambda t: t.steps),
+        _of_training("minutes", lambda t: f"{t.seconds / 60:.0f}"),
+        _of_training("steps/s", lambda t: _number(t.steps / t.seconds if t.seconds > 0 else None, 2)),
+    )),
+    ColumnGroup("own-images", f"IoU on the run's own training images (RUN/{OWN_IMAGES}/results.json), its gap to "
+                "the test IoU", (
+        Column("own training images (n)", _own_cell),
+        Column("gap", _gap_cell),
+    )),
+    ColumnGroup("heldout", "mean IoU of each held-out pose family (human heldout_poses data) and of the canonical "
+                "views", tuple(_family_column(f) for f in (*FAMILIES, CANONICAL))),
+)
+
+
+def column_groups(names: str | Sequence[str]) -> tuple[ColumnGroup, ...]:
+    """The groups of :data:`COLUMN_GROUPS` that ``names`` asks for, in its order, each once.
+
+    Args:
+        names: group names, comma-separated (``"parts,depth"``) or as a sequence; empty for none.
+    Raises:
+        ConfigError: a name that is no group (key ``columns``); the message lists the groups.
+
+    Example:
+        >>> [g.name for g in column_groups("parts, depth,parts")], column_groups(())
+        (['parts', 'depth'], ())
+        >>> column_groups("bogus")
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.ConfigError: columns = 'bogus': no column group 'bogus'; the groups are parts, ...
+    """
+    wanted = [n.strip() for n in (names.split(",") if isinstance(names, str) else names) if n.strip()]
+    known = {group.name: group for group in COLUMN_GROUPS}
+    for name in wanted:
+        if name not in known:
+            raise ConfigError.about("columns", names if isinstance(names, str) else ",".join(names),
+                                    f"no column group {name!r}{did_you_mean(name, known)}; the groups are "
+                                    f"{', '.join(known)}")
+    return tuple(known[name] for name in dict.fromkeys(wanted))
+
+
+def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]], columns: str | Sequence[str] = (),
+                    runs: Mapping[str, Path | None] | None = None) -> tuple[list[str], list[list[Any]]]:
     """Several evaluations of one test set side by side, each paired image by image with the first.
 
     Args:
         evaluations: ``{name: results.json dict}`` (:func:`load_evaluation`), the baseline first.
+        columns: the optional column groups to add after the paired values, by name (:data:`COLUMN_GROUPS`;
+            ``"parts,depth"`` or ``["parts", "depth"]``); none by default.
+        runs: ``{name: run folder or None}`` (:func:`run_folder`) for the columns that read the run's folder
+            (``training``, ``own-images``); a name missing here has none, and those cells are ``None``.
     Returns:
         ``(header, rows)`` for :func:`~cerberus_core.eval.markdown.markdown_table`: per evaluation its name, the
         images it scored and, for each of :data:`PAIRED_VALUES` that some evaluation's records have, the mean over
         its images of the per-image value (:func:`image_mean`; precision and recall too, not the pooled figures of
         its ``segments`` summary) and (column ``Δ ...``) its :func:`paired_difference` to the first (``None`` for
         the first itself, or where either lacks it): of two evaluations of the same images, the difference of
-        their means.
+        their means; then the cell of each :class:`Column` of the ``columns`` groups (text, a count, or ``None``
+        where the evaluation lacks it).
 
     Raises:
         DatasetError: two evaluations scored different images under one index (different test sets).
+        ConfigError: a name of ``columns`` that is no group of :data:`COLUMN_GROUPS` (the message lists them).
 
     Example:
         >>> a = {"records": [{"index": i, "iou": 0.5 + 0.05 * i} for i in range(3)]}
@@ -267,6 +546,8 @@ def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]]) -> tuple[list[
         >>> rows[1][:2], round(rows[1][2], 4), str(rows[1][3])
         (['new', 3], 0.58, '+0.030 ± 0.006 (3 / 3)')
     """
+    extra = [column for group in column_groups(columns) for column in group.columns]
+    runs = runs or {}
     names = list(evaluations)
     first = evaluations[names[0]] if names else None
     means = {name: {key: image_mean(e, key) for _, key in PAIRED_VALUES} for name, e in evaluations.items()}
@@ -279,5 +560,5 @@ def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]]) -> tuple[list[
         row: list[Any] = [name, len(evaluation.get("records", []))]
         for _, key in shown:
             row += [means[name][key], None if evaluation is first else paired_difference(evaluation, first, key)]
-        rows.append(row)
-    return header, rows
+        rows.append(row + [column.cell(evaluation, runs.get(name)) for column in extra])
+    return header + [column.header for column in extra], rows

@@ -24,6 +24,7 @@ from itertools import combinations
 from typing import Any
 
 import torch
+from tqdm import tqdm
 
 from cerberus_core.errors import ShapeError
 from cerberus_core.eval.markdown import markdown_table, part_labels, sentence
@@ -122,21 +123,28 @@ class DepthAccumulator:
     """Collects each test image's reconstruction by pose and measures depth across its views.
 
     Feed it :class:`~cerberus_core.eval.accumulators.BatchResult` s (``update``); ``summary()``:
-    ``None`` when no pose has two views, else a dict with ``poses`` (the poses measured),
-    ``translation_disagreement`` (per part, world units, mean over poses), ``mean_translation_disagreement``,
-    ``input_view_silhouette_iou`` and ``turned_view_silhouette_iou`` (means over images and, for the
-    second, over every other view of the image's pose; a pair where the body and the reconstruction are both out
-    of the camera has no IoU and is left out: NaN-aware means).
+    ``None`` when no pose has two views, else a dict with ``poses`` (the poses measured: those with two views or
+    more among the images fed), ``images`` (their images: the only ones every figure here is over; an image whose
+    pose has no other view is left out), ``translation_disagreement`` (per part, world units, mean over poses),
+    ``mean_translation_disagreement``, ``input_view_silhouette_iou`` and ``turned_view_silhouette_iou`` (means over
+    those images and, for the second, over every other view of the image's pose; a pair where the body and the
+    reconstruction are both out of the camera has no IoU and is left out: NaN-aware means).
+
+    Args:
+        renderer: the backend of the silhouette renders.
+        progress: show a progress bar over the poses while :meth:`summary` renders them (``K x K`` renders of a
+            pose of ``K`` views, after the evaluation's own bar).
     """
 
-    def __init__(self, renderer: Renderer) -> None:
+    def __init__(self, renderer: Renderer, progress: bool = False) -> None:
         self.renderer = renderer
+        self.progress = progress
         self.poses: dict[tuple[str, int], _PoseViews] = {}
 
     @classmethod
     def for_evaluation(cls, context: Any) -> DepthAccumulator:
-        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its renderer."""
-        return cls(context.renderer)
+        """From an :class:`~cerberus_core.eval.accumulators.EvalContext`: its renderer and its config's ``progress``."""
+        return cls(context.renderer, progress=context.config.progress)
 
     def update(self, batch: Any) -> None:
         cameras = batch.camera.to("cpu")
@@ -149,9 +157,8 @@ class DepthAccumulator:
 
     def summary(self) -> dict[str, Any] | None:
         disagreement, own, turned = [], [], []
-        for views in self.poses.values():
-            if len(views.parts) < 2:
-                continue
+        measured = [views for views in self.poses.values() if len(views.parts) >= 2]
+        for views in tqdm(measured, desc="depth", unit="pose", disable=not self.progress):
             parts = PartSet.cat(views.parts)
             disagreement.append(translation_disagreement(parts.translations))
             ious = turned_view_ious(self.renderer, parts, Camera.cat(views.cameras), views.body)
@@ -161,7 +168,7 @@ class DepthAccumulator:
         if not disagreement:
             return None
         per_part = torch.stack(disagreement).mean(0)
-        return {"poses": len(disagreement),
+        return {"poses": len(disagreement), "images": sum(len(views.parts) for views in measured),
                 "translation_disagreement": [round(float(v), 5) for v in per_part],
                 "mean_translation_disagreement": float(per_part.mean()),
                 "input_view_silhouette_iou": float(torch.cat(own).nanmean()),
@@ -170,9 +177,11 @@ class DepthAccumulator:
 
 def depth_line(depth: dict[str, Any]) -> str:
     """One sentence of a :meth:`DepthAccumulator.summary` for reports."""
-    return (f"over {depth['poses']} test poses seen from several views, each part's world translation differs "
-            f"between two views of one pose by {depth['mean_translation_disagreement']:.3f} on average (world "
-            f"units); the reconstruction covers the body's silhouette with IoU "
+    images = f" ({depth['images']} images)" if depth.get("images") is not None else ""
+    poses = f"{depth['poses']} test pose{'' if depth['poses'] == 1 else 's'}"
+    return (f"over {poses} seen from several views{images}, each part's world translation "
+            f"differs between two views of one pose by {depth['mean_translation_disagreement']:.3f} on average (world "
+            f"units); the reconstruction of each of those images covers the body's silhouette with IoU "
             f"{depth['input_view_silhouette_iou']:.3f} in its input view and "
             f"{depth['turned_view_silhouette_iou']:.3f} turned to the pose's other views")
 

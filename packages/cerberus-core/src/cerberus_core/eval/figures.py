@@ -12,7 +12,8 @@ translation head put it; :mod:`cerberus_core.eval.allocation`), any number of ba
 (ours from another azimuth); the
 figure ``cerberus eval`` writes adds the voxels the IoU scores, seen from the front and the side
 (:func:`voxel_views`: hits grey, missed voxels red, off-body voxels blue). :func:`paired_plot` draws two or more
-evaluations of one test set image by image (``cerberus compare --plot``).
+evaluations of one test set image by image (``cerberus compare --plot``), :func:`trade_plot` each one's voxel IoU
+against its Hard Human IoU (``cerberus compare --trade-plot``).
 """
 from __future__ import annotations
 
@@ -25,11 +26,12 @@ from typing import Any
 import numpy as np
 import torch
 from PIL import Image, ImageDraw
+from tqdm import tqdm
 
 from cerberus_core.errors import ConfigError, DatasetError, ShapeError
 from cerberus_core.eval.allocation import keypoints
-from cerberus_core.eval.compare import image_pairs, paired_difference
-from cerberus_core.eval.runner import collate
+from cerberus_core.eval.compare import image_mean, image_pairs, paired_difference
+from cerberus_core.eval.runner import collate, spread_evenly
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
 from cerberus_core.parts import PartSet, pose_donors, transfer_pose
@@ -64,7 +66,19 @@ DEFAULT_BACKGROUND: RGB = (1.0, 1.0, 1.0)
 # ------------------------------------------------------------------ lights
 def camera_relative_light(camera: Camera, direction_cam: Sequence[float] = NEW_LIGHT_CAMERA_DIRECTION,
                           ambient: float = 0.25, diffuse: float = 0.75) -> Light:
-    """Figure 1 (d)'s new light: white, given in each camera's frame (:meth:`Light.camera_relative`)."""
+    """Figure 1 (d)'s new light: white, given in each camera's frame (:meth:`Light.camera_relative`).
+
+    Args:
+        camera: the ``B`` cameras the light is given relative to.
+        direction_cam: the direction *towards* the light in camera coordinates (+x right, +y up, +z towards the
+            viewer; any length, normalised; default :data:`~cerberus_core.render.light.NEW_LIGHT_CAMERA_DIRECTION`:
+            from the upper left, slightly in front).
+        ambient, diffuse: the white light's ambient and directional intensities (unitless, per RGB channel: a
+            surface gets ``albedo * (ambient + diffuse * max(0, n · direction))``).
+    Returns:
+        A :class:`Light` of ``B`` lights: ``direction`` ``(B, 3)`` unit vectors in world coordinates, ``ambient`` and
+        ``diffuse`` ``(B, 3)``.
+    """
     return Light.camera_relative(camera, direction_cam, ambient, diffuse)
 
 
@@ -101,14 +115,30 @@ def turntable(renderer: Renderer, recon: PartSet, camera: Camera, n_views: int =
 
 def relit(renderer: Renderer, recon: PartSet, camera: Camera, light: Light | None = None, *,
           background: RGB = DEFAULT_BACKGROUND) -> Tensor:
-    """The reconstruction under a new light (default :func:`camera_relative_light`)."""
+    """The reconstruction under a new light (default :func:`camera_relative_light`).
+
+    Args:
+        renderer: a backend; recon: ``B`` reconstructions (world frame); camera: their ``B`` cameras.
+        light: the light (default :func:`camera_relative_light` of ``camera``); background: RGB in [0, 1].
+    Returns:
+        ``(B, 3, H, W)`` float images in [0, 1] (``H x W``: the camera's size), shaded grey, on the camera's device.
+    """
     light = camera_relative_light(camera) if light is None else light
     return render_reconstruction(renderer, recon, camera, light=light, background=background)
 
 
 def reposed(renderer: Renderer, shapes: PartSet, poses: PartSet, camera: Camera, *,
             parts: bool = False, background: RGB = DEFAULT_BACKGROUND) -> Tensor:
-    """The parts of ``shapes`` with the rotations and translations of ``poses`` (Figure 1 (f))."""
+    """The parts of ``shapes`` with the rotations and translations of ``poses`` (Figure 1 (f)).
+
+    Args:
+        renderer: a backend; shapes: the reconstructions whose part shapes are shown (batch ``B``, or 1 for all);
+            poses: the ``B`` reconstructions whose rotations and translations pose them (:func:`transfer_pose`);
+            camera: ``B`` cameras.
+        parts: each part in its colour (:func:`cerberus_core.viz.part_colors`) instead of shaded grey.
+    Returns:
+        ``(B, 3, H, W)`` float images in [0, 1] (``H x W``: the camera's size), on the camera's device.
+    """
     return render_reconstruction(renderer, transfer_pose(shapes, poses), camera, parts=parts, background=background)
 
 
@@ -354,11 +384,14 @@ class FigureModels:
         ours: an object with ``reconstruct(images, camera) -> PartSet`` (a :class:`~cerberus_core.model.Cerberus`).
         baselines: more such objects by name, drawn beside ours.
         device: where they run.
+        progress: show a progress bar over the pictured images while their pictures are drawn (the slow part:
+            Figure 1's panels and two turntables per image).
     """
 
     ours: object
     baselines: Mapping[str, object] = field(default_factory=dict)
     device: str | torch.device = "cpu"
+    progress: bool = False
 
 
 def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: Path, *, n_images: int = 5,
@@ -384,7 +417,7 @@ def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: P
     out = Path(out)
     scored = sorted(ious) if ious else list(range(len(dataset)))
     n = min(n_images, len(scored))
-    idx = [scored[k] for k in torch.linspace(0, len(scored) - 1, n).round().long().unique().tolist()]
+    idx = [scored[k] for k in spread_evenly(len(scored), n)]
     batch = collate([dataset[i] for i in idx])
     camera = dataset.cameras(batch)
     images = batch["images"]
@@ -406,7 +439,8 @@ def evaluation_figures(renderer: Renderer, dataset, models: FigureModels, out: P
     fig.paste(legend, (0, grid.height))
     stems = [f"test_{i:05d}" for i in idx]
     donors = pose_donors(len(stems))  # test images are in the training domain: each borrows the next one's pose
-    for k, stem in enumerate(stems):  # Figure 1 (b)-(f) per image
+    bar = tqdm(stems, desc="figures", unit="img", disable=not models.progress)
+    for k, stem in enumerate(bar):  # Figure 1 (b)-(f) per image
         donor = None if donors[k] is None else ours.index([donors[k]])
         save_image_pictures(PictureStyle(renderer, background), images[k], ours.index([k]), camera.index([k]),
                             out / "pictures", stem, pose_donor=donor)
@@ -460,4 +494,60 @@ def paired_plot(evaluations: Mapping[str, Mapping[str, Any]], path: str | Path, 
         d = paired_difference(evaluations[name], base, key)
         draw_text(chart.draw, (chart.left, 4 + 16 * i), f"{printable(name)}: "
                   f"{d if d is not None else 'fewer than 2 images in common'}", font=font, fill=colors[i])
+    return chart.save(path)
+
+
+#: The steps :func:`trade_plot` may put its grid lines at (data units: voxel IoU): the finest that leaves ten
+#: lines or fewer.
+TRADE_GRID_STEPS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
+
+#: The colour of :func:`trade_plot`'s points (RGB).
+TRADE_POINT = (31, 119, 180)
+
+
+def _grid_around(values: Sequence[float]) -> tuple[float, float, float]:
+    """``(low, high, step)``: the grid of :data:`TRADE_GRID_STEPS` around ``values``, one step of margin on
+    each side of them, with at most ten steps (the last step's where none fits)."""
+    for step in TRADE_GRID_STEPS:
+        low, high = (math.floor(min(values) / step) - 1) * step, (math.ceil(max(values) / step) + 1) * step
+        if round((high - low) / step) <= 10:
+            break
+    return low, high, step
+
+
+def trade_plot(evaluations: Mapping[str, Mapping[str, Any]], path: str | Path,
+               size: tuple[int, int] = (620, 460)) -> Path:
+    """Each evaluation's mean voxel IoU (across) against its mean Hard Human IoU (up), one labelled point each: the
+    trade between fitting each image and parts that hold across poses (``cerberus compare --trade-plot``). Written
+    atomically as a PNG.
+
+    Args:
+        evaluations: ``{name: results.json dict}``; the means are over each one's images
+            (:func:`~cerberus_core.eval.compare.image_mean` of ``iou`` and ``hard_iou``, the columns of
+            :func:`~cerberus_core.eval.compare.comparison_rows`); one without Hard Human is left out.
+        path: the PNG to write.
+        size: ``(width, height)`` of the picture, px.
+    Returns:
+        ``path``.
+
+    Raises:
+        DatasetError: no evaluation has both values; nothing is written then.
+    """
+    points = {name: (x, y) for name, e in evaluations.items()
+              if (x := image_mean(e, "iou")) is not None and (y := image_mean(e, "hard_iou")) is not None}
+    if not points:
+        raise DatasetError(f"no evaluation ({', '.join(map(printable, evaluations))}) has both a voxel IoU and a "
+                           "Hard Human IoU per image ('iou' and 'hard_iou' of its records), so there is no trade to "
+                           "draw; Hard Human is scored on data with each subject's canonical pose")
+    x0, x1, x_step = _grid_around([x for x, _ in points.values()])
+    y0, y1, y_step = _grid_around([y for _, y in points.values()])
+    chart = chart_frame(size, margins=(56, 20, 20, 44), x_range=(x0, x1), y_range=(y0, y1))
+    chart.grid_x([x0 + k * x_step for k in range(round((x1 - x0) / x_step) + 1)], "{:.2f}".format)
+    chart.grid_y([y0 + k * y_step for k in range(round((y1 - y0) / y_step) + 1)], "{:.2f}".format)
+    chart.axis_titles(x="voxel IoU (mean over the test images)", y="Hard Human IoU (one set of parts per subject)")
+    font = figure_font(10)
+    for name, (x, y) in points.items():
+        px, py = chart.x_px(x), chart.y_px(y)
+        chart.draw.ellipse([px - 4, py - 4, px + 4, py + 4], fill=TRADE_POINT)
+        draw_text(chart.draw, (px + 7, py - 6), printable(name), font=font, fill=INK)
     return chart.save(path)

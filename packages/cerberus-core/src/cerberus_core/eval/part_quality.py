@@ -16,7 +16,10 @@ the parts Cerberus discovered.
    is its majority ground-truth part, ``argmax_k sum_images M[p, k]``. Its *agreement* is the fraction
    of images (among those where it covers anything) whose own majority ``argmax_k M_i[p, k]`` is that
    label; its *entropy* (bits) is that of the distribution of per-image majorities (0 = always the
-   same part); its *purity* is the share of all the area it covers that belongs to its label.
+   same part); its *purity* is the share of all the area it covers that belongs to its label. Beside them,
+   how many of the ``K`` ground-truth parts are some learned part's label (``gt_parts_covered``): consistency
+   and entropy only mean something with it, since a one-part model, its part labelled ``torso`` in every
+   image, is perfectly consistent (1, 0 bits) and covers 1 of ``K``.
 4. **Segmentation IoU.** Predicted parts are renamed to their labels (several may map to one ground-
    truth part; a ground-truth part nobody maps to scores 0), and per ground-truth part
    ``IoU_k = |pred = k and gt = k| / |pred = k or gt = k|`` is accumulated (by area) over the whole
@@ -370,7 +373,9 @@ class PartQuality:
         ground-truth parts carry area; ``False``: no part labels, nothing is scored), ``note`` (one
         line when ``part_labels`` is ``False``, else ``None``), ``parts`` (one dict per learned part:
         part, label, images, agreement, entropy_bits, purity, agreement_by_group), ``consistency``,
-        ``mean_entropy_bits``, ``unused_parts``, ``segmentation_iou`` ({gt part: IoU}) and
+        ``mean_entropy_bits``, ``gt_parts_covered`` (how many of the ``K`` ground-truth parts are some learned
+        part's label: consistency and entropy are only meaningful beside it, since one part labelled ``torso`` in
+        every image scores consistency 1 and entropy 0), ``unused_parts``, ``segmentation_iou`` ({gt part: IoU}) and
         ``mean_segmentation_iou`` (floats in [0, 1], entropy in bits; ``None`` without part labels),
         and ``sides_merged``: the same summary with left and right merged (:meth:`merged_sides`;
         ``None`` without part labels or when no part has a side); ``None`` when no image was added.
@@ -390,6 +395,7 @@ class PartQuality:
                 "parts": [],
                 "consistency": None,
                 "mean_entropy_bits": None,
+                "gt_parts_covered": None,
                 "unused_parts": [],
                 "segmentation_iou": {},
                 "mean_segmentation_iou": None,
@@ -423,6 +429,7 @@ class PartQuality:
             "parts": parts,
             "consistency": float(np.mean([r["agreement"] for r in used_rows])) if used_rows else float("nan"),
             "mean_entropy_bits": float(np.mean([r["entropy_bits"] for r in used_rows])) if used_rows else float("nan"),
+            "gt_parts_covered": len({int(k) for k in labels if k >= 0}),
             "unused_parts": [r["part"] for r in parts if r["label"] is None],
             "segmentation_iou": iou,
             "mean_segmentation_iou": float(np.mean(valid)) if valid else float("nan"),
@@ -440,7 +447,9 @@ def part_quality_section(result: Mapping[str, Any]) -> list[str]:
     out = ["## Part quality (ground-truth semantic parts, never seen in training)", "",
            f"Consistency (mean agreement) {fmt(pq['consistency'])}, mean entropy "
            f"{fmt(pq['mean_entropy_bits'], 3)} bits, mean segmentation IoU {fmt(pq['mean_segmentation_iou'])} "
-           f"over {pq['images']} images.", ""]
+           f"over {pq['images']} images; the learned parts' labels cover {_covered(pq)} ground-truth parts. "
+           "Consistency and entropy are only meaningful together with that count: a model whose one part is "
+           "labelled the same part in every image scores consistency 1 and entropy 0 while covering 1 of them.", ""]
     out += [visibility_sentence(vis), ""] if vis else []
     prow = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity"),
              p["images"], *visibility_cells(vis, p["part"])] for p in pq["parts"]]
@@ -451,6 +460,15 @@ def part_quality_section(result: Mapping[str, Any]) -> list[str]:
     return out + (_merged_sides(merged) if merged else [])
 
 
+def _covered(pq: Mapping[str, Any]) -> str:
+    """``"4 of 8"``: how many of the ground-truth parts the learned parts' labels cover (counted from the labels of
+    ``parts`` in a ``results.json`` written before ``gt_parts_covered`` was recorded)."""
+    covered = pq.get("gt_parts_covered")
+    if covered is None:
+        covered = len({p["label"] for p in pq["parts"] if p.get("label") is not None})
+    return f"{covered} of {len(pq['gt_parts'])}"
+
+
 def _merged_sides(merged: Mapping[str, Any]) -> list[str]:
     """The part-quality tables again, with left and right merged."""
     rows = [[p["part"], p["label"] or "(unused)", p.get("agreement"), p.get("entropy_bits"), p.get("purity")]
@@ -459,6 +477,7 @@ def _merged_sides(merged: Mapping[str, Any]) -> list[str]:
             "A grey, untextured body seen from the front or the back looks the same, so no image says which "
             "limb is the body's left: per-side agreement is capped near 0.5 by the data, not the model. "
             f"Merged: consistency {fmt(merged['consistency'])}, mean entropy {fmt(merged['mean_entropy_bits'], 3)} "
-            f"bits, mean segmentation IoU {fmt(merged['mean_segmentation_iou'])}.", "",
+            f"bits, mean segmentation IoU {fmt(merged['mean_segmentation_iou'])}; the labels cover {_covered(merged)} "
+            "ground-truth parts.", "",
             markdown_table(["Learned part", "Majority GT part", "Agreement", "Entropy (bits)", "Purity"], rows, 3), "",
             markdown_table(["GT part", "Segmentation IoU"], list(merged["segmentation_iou"].items()), 3), ""]

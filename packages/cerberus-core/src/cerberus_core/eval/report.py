@@ -84,6 +84,25 @@ def comparison_table(results: Mapping[str, Mapping[str, float | None]], columns:
     return markdown_table(["Model", *columns], [[m, *(row.get(c) for c in columns)] for m, row in results.items()])
 
 
+def images_scored(count: int, data: Mapping[str, Any] | None = None) -> str:
+    """``"24 of 984 images"`` when ``data`` (``results.json``'s ``data``: the split's ``split_images``) says the
+    split holds more than the ``count`` scored, else ``"984 images"``.
+
+    Example:
+        >>> images_scored(24, {"split_images": 984}), images_scored(984, {"split_images": 984}), images_scored(3)
+        ('24 of 984 images', '984 images', '3 images')
+    """
+    total = (data or {}).get("split_images")
+    return f"{count} of {total} images" if total is not None and total > count else f"{count} images"
+
+
+def _duration(r: Mapping[str, Any]) -> str:
+    """``"248 s"`` (the pass: ``seconds``), with the whole command's ``total_seconds`` when recorded."""
+    seconds = f"{r.get('seconds') or 0:.0f} s"
+    total = r.get("total_seconds")
+    return seconds if total is None else f"{seconds} to score, {total:.0f} s with the figures and pictures"
+
+
 def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "Evaluation") -> str:
     """A readable summary: voxel IoU overall and per subject (standard and Hard Human), then each
     diagnostic's section in :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` order (those that ran
@@ -114,7 +133,7 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
     std, hard = r["standard"], r.get("hard")
     out = [f"# {md_text(title)}", "",
            f"Voxel IoU, protocol `{r['protocol']}` at {r['resolution']}^3, union of parts; "
-           f"{std['count']} images ({r.get('seconds', 0):.0f} s).", ""]
+           f"{images_scored(std['count'], r.get('data'))} ({_duration(r)}).", ""]
     groups = sorted(set(std["per_group"]) | set((hard or {}).get("per_group", {})))
     rows = [["all", std["mean"], hard["mean"] if hard else None]]
     rows += [[g, std["per_group"].get(g), (hard or {}).get("per_group", {}).get(g)] for g in groups]

@@ -108,7 +108,18 @@ def collate(items: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
 
 
 def iterate_batches(dataset: Any, indices: Sequence[int], batch_size: int, num_workers: int = 0):
-    """Yield ``(indices, collated batch, cameras)`` in order."""
+    """The items ``indices`` of ``dataset``, in that order, ``batch_size`` at a time (the last batch may be smaller).
+
+    Args:
+        dataset: see the module docstring (it must have ``cameras(batch)``).
+        indices: the dataset indices to read; batch_size: images per batch; num_workers: data-loading workers.
+    Yields:
+        ``(batch indices, batch, cameras)``: the ``B`` dataset indices of the batch (a list of int), the items
+        collated (:func:`collate`: ``batch["images"]`` ``(B, 3, H, W)`` float32 in [0, 1], every other field
+        stacked, ``(B,)``) and the ``B`` cameras they were rendered with (:class:`Camera`, ``dataset.cameras(batch)``).
+    Raises:
+        InputTypeError: ``dataset`` has no ``cameras(batch)`` method.
+    """
     subset = torch.utils.data.Subset(dataset, list(indices))
     loader = torch.utils.data.DataLoader(subset, batch_size=batch_size, shuffle=False, num_workers=num_workers,
                                          collate_fn=collate)
@@ -137,6 +148,60 @@ def reconstruct_batch(reconstruct: Reconstructor, images: Tensor, camera: Camera
     return recon.detach().to("cpu")
 
 
+# ------------------------------------------------------------------ which images
+def spread_evenly(count: int, n: int) -> list[int]:
+    """``min(n, count)`` positions spread evenly over ``range(count)``, the first and the last included (each
+    rounded to the nearest, half to even): the one rule by which the evaluation takes a few of many images
+    (:func:`limited_indices`, the figure's images of :func:`~cerberus_core.eval.figures.evaluation_figures`).
+
+    Example:
+        >>> spread_evenly(12, 4), spread_evenly(8, 3), spread_evenly(3, 5), spread_evenly(5, 1), spread_evenly(0, 2)
+        ([0, 4, 7, 11], [0, 4, 7], [0, 1, 2], [0], [])
+    """
+    return torch.linspace(0, count - 1, min(n, count)).round().long().unique().tolist()
+
+
+def limited_indices(dataset: Any, limit: int | None, *, whole_poses: bool = False) -> list[int]:
+    """The dataset indices an evaluation of at most ``limit`` images scores.
+
+    All of them when ``limit`` is ``None`` or not below ``len(dataset)``. Else ``limit`` images spread evenly over
+    the dataset (:func:`spread_evenly`): a test split is ordered by subject, pose and view, so its first images
+    would be a few poses of one subject. With ``whole_poses`` (what the depth diagnostic needs: it compares the
+    views of each pose, :data:`~cerberus_core.eval.diagnostics.NEEDS` ``"poses"``), whole poses spread evenly over
+    the dataset's poses, as many as ``limit`` images hold (``limit // `` the most views a pose has), so every
+    pose chosen is measured as in the whole split; when not even one pose fits, ``limit`` views of the first
+    pose, spread evenly over its views. Subject and pose are read as cheaply as the dataset allows
+    (:func:`dataset_metadata`).
+
+    Example: 2 subjects x 3 poses x 2 views, in that order; 4 images, or the views of 2 poses:
+
+        >>> class Views:  # what a test split tells of its items (ViewDataset reads its records instead)
+        ...     items = [{"subject": s, "pose": p, "view": v} for s in "ab" for p in range(3) for v in range(2)]
+        ...     def __len__(self): return len(self.items)
+        ...     def metadata(self, i): return self.items[i]
+        >>> views = Views()
+        >>> limited_indices(views, 4), limited_indices(views, 4, whole_poses=True)
+        ([0, 4, 7, 11], [0, 1, 10, 11])
+        >>> limited_indices(views, 1, whole_poses=True)  # not one pose fits: a view of the first
+        [0]
+        >>> limited_indices(views, None) == limited_indices(views, 20) == list(range(12))
+        True
+    """
+    count = len(dataset)
+    if limit is None or limit >= count:
+        return list(range(count))
+    if not whole_poses:
+        return spread_evenly(count, limit)
+    poses: dict[tuple[str, int], list[int]] = {}
+    for item in dataset_metadata(dataset):
+        poses.setdefault((item.subject, item.pose), []).append(item.index)
+    groups = list(poses.values())
+    fits = limit // max(len(g) for g in groups)
+    if fits == 0:
+        return [groups[0][k] for k in spread_evenly(len(groups[0]), limit)]
+    return [i for k in spread_evenly(len(groups), fits) for i in groups[k]]
+
+
 # ------------------------------------------------------------------ results
 @dataclass
 class EvaluationResult:
@@ -153,7 +218,10 @@ class EvaluationResult:
             ``allocation`` (dicts; see each module). ``result["hard"]`` reads one.
         records: one dict per image: index, subject, pose, view, iou, clipped, error, then each
             diagnostic's fields (visible_pixels, hard_iou, ..., deletion_loss, keypoints, unique_coverage).
-        seconds: wall time.
+        seconds: wall time of :func:`evaluate_dataset`, in seconds: the model's pass over the images and every
+            metric's summary (depth's renders included); not what a caller does after it (``cerberus eval``'s
+            figures, pictures and viewer: its ``results.json`` records the whole command's time as
+            ``total_seconds``).
 
     Example: a result made by hand (:func:`evaluate_dataset` makes them), the Hard Human test skipped:
 
@@ -209,7 +277,16 @@ class EvaluationResult:
 # ------------------------------------------------------------------ the pass
 def extract_canonical(dataset: Any, reconstruct: Reconstructor, indices: dict[str, int], device: torch.device | str,
                       batch_size: int = 16) -> CanonicalParts:
-    """Reconstruct each subject's canonical image once and keep its part shapes."""
+    """Reconstruct each subject's canonical image once and keep its part shapes.
+
+    Args:
+        dataset: see the module docstring; reconstruct: the model (``(images, camera) -> PartSet``).
+        indices: ``{subject: dataset index}`` of the canonical images (:func:`~cerberus_core.eval.hard.select_canonical`).
+        device: the model's device; batch_size: images per forward pass.
+    Returns:
+        :class:`~cerberus_core.eval.hard.CanonicalParts`: per subject its canonical image's reconstruction (a
+        :class:`PartSet` of batch 1, ``P`` parts, on the CPU, world frame) and the dataset index it came from.
+    """
     subject_of = {idx: s for s, idx in indices.items()}
     shapes: dict[str, PartSet] = {}
     for batch_idx, batch, camera in iterate_batches(dataset, list(subject_of), batch_size):

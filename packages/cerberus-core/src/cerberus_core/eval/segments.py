@@ -22,7 +22,9 @@ kept apart), so it adds no voxelization. Per test image (:func:`image_segments`)
   problem; one missed in the image already is a silhouette problem.
 
 Over the test set (:class:`BodySegments`) voxel and vertex counts are summed before dividing
-(pooled), and deletion losses are averaged over images.
+(pooled over all voxels: a large body weighs more than a small one), and deletion losses are averaged over
+images; the voxel precision and recall are given per image too (their means over the images, the statistic
+``cerberus compare`` pairs).
 
 **No segment labels.** A mesh folder without ``parts.npy`` has one ground-truth part, ``body``; then
 no per-segment figure is scored (``segment_labels`` is ``False`` and ``note`` says so in one line),
@@ -166,6 +168,12 @@ def image_segments(voxels: Voxels, gt_vertices: np.ndarray, vertex_parts: np.nda
         gt_covered=zeros if coverage is None else np.bincount(labels[coverage[1]], minlength=k))
 
 
+def _mean_of(records: Sequence[Mapping[str, Any]], key: str) -> float | None:
+    """The mean of ``key`` over the records that have it (``None``: none has)."""
+    values = [r[key] for r in records if r.get(key) is not None]
+    return float(np.mean(values)) if values else None
+
+
 def _ratio(num: np.ndarray, den: np.ndarray) -> list[float | None]:
     return [float(n / d) if d else None for n, d in zip(num, den, strict=True)]
 
@@ -241,7 +249,9 @@ class BodySegments:
     def summary(self) -> dict[str, Any] | None:
         """``None`` when no image was added, else a dict: ``images``, ``segments`` (K names), ``segment_labels`` (bool: at least two
         segments hold voxels), ``note`` (one line without segment labels, else ``None``),
-        ``voxel_precision`` and ``voxel_recall`` (pooled over every voxel), ``spare_threshold``,
+        ``voxel_precision`` and ``voxel_recall`` (pooled over every voxel of every image),
+        ``image_mean_voxel_precision`` and ``image_mean_voxel_recall`` (the mean over images of each image's own,
+        leaving out an image without a predicted, or ground-truth, voxel), ``spare_threshold``,
         ``deletion_loss`` (per learned part, mean over images), ``spare_parts`` (their indices) and
         ``spare_count``; and per segment, ``{name: value}`` (``None`` where undefined; empty without
         segment labels): ``body_share`` (its share of the ground-truth voxels), ``recall``,
@@ -255,6 +265,7 @@ class BodySegments:
             return np.sum([getattr(im, name) for im in self.images], axis=0)
 
         gt, hit, off = total("gt_voxels"), total("hit_voxels"), total("off_voxels")
+        per_image = [im.record() for im in self.images]
         verts, covered, gt_covered = total("vertices"), total("covered"), total("gt_covered")
         loss = np.mean([im.deletion_loss for im in self.images], axis=0)
         spare = [p for p in range(self.num_parts) if loss[p] <= SPARE_LOSS]
@@ -268,6 +279,8 @@ class BodySegments:
                 "segment; give the meshes per-vertex part labels (parts.npy) to score it"),
             "voxel_precision": float(hit.sum() / (hit.sum() + off.sum())) if hit.sum() + off.sum() else None,
             "voxel_recall": float(hit.sum() / gt.sum()) if gt.sum() else None,
+            "image_mean_voxel_precision": _mean_of(per_image, "voxel_precision"),
+            "image_mean_voxel_recall": _mean_of(per_image, "voxel_recall"),
             "spare_threshold": SPARE_LOSS,
             "deletion_loss": [float(v) for v in loss],
             "spare_parts": spare, "spare_count": len(spare),
@@ -343,12 +356,22 @@ def group_by_body(bodies: Sequence[Any]) -> list[list[int]]:
     return list(groups.values())
 
 
+def _image_means(seg: Mapping[str, Any]) -> str:
+    """``"; per image, mean precision 0.7722 and recall 0.8774"``, or ``""`` for a result written before they were."""
+    if "image_mean_voxel_precision" not in seg:
+        return ""
+    return (f"; per image, mean precision {fmt(seg['image_mean_voxel_precision'])} and recall "
+            f"{fmt(seg['image_mean_voxel_recall'])} (as the voxel IoU is averaged)")
+
+
 def segments_section(result: Mapping[str, Any]) -> list[str]:
     """The report's body-segment section from a result's JSON form: per segment, then per learned part."""
     seg = result["segments"]
     out = ["## Body segments", "",
            f"Voxels as the standard IoU scores them, {seg['images']} images: precision {fmt(seg['voxel_precision'])}, "
-           f"recall {fmt(seg['voxel_recall'])}. {sentence(segments_line(seg))}.", ""]
+           f"recall {fmt(seg['voxel_recall'])}, pooled over all voxels (every image's voxels counted together, as "
+           f"every figure of this section but the deletion losses){_image_means(seg)}. "
+           f"{sentence(segments_line(seg))}.", ""]
     if seg["segment_labels"]:
         out += ["Each voxel belongs to the segment of the nearest ground-truth vertex. *Recall*: the share of the "
                 "segment's voxels the prediction covers; *missed* and *off-body*: its share of the voxels only "

@@ -13,7 +13,9 @@ package by name.
 
 :class:`GroundTruthMemo` keeps the last few ground-truth meshes so the views of a pose do not rebuild
 them. A prediction the metric still rejects (e.g. every triangle degenerate) scores 0 and is counted
-as ``failed`` with the message.
+as ``failed`` with the message: the scorer names the exception types it raises for such input in its
+``rejects`` attribute (a tuple; cerberus-metrics' ``MeshInputError``), and anything else it raises (a bug, a
+ground truth it refuses) stops the evaluation instead of scoring 0.
 """
 from __future__ import annotations
 
@@ -116,7 +118,7 @@ class VoxelScorer:
         metric rejects scores 0 with the reason (module docstring); a ground truth it rejects raises."""
         try:
             grids = self.scorer.grids(parts, gt)
-        except Exception as exc:  # noqa: BLE001 - a rejected prediction scores 0
+        except getattr(self.scorer, "rejects", ()) as exc:  # the metric's input error: a rejected prediction scores 0
             truth = self.scorer.grids([gt], gt)  # a ground truth the metric refuses raises here
             return Voxels(np.zeros_like(truth.parts[:1]).repeat(len(parts), 0), truth.gt,
                           Score(0.0, 0, f"{type(exc).__name__}: {exc}"), truth.centers)

@@ -8,6 +8,9 @@ Files in the run folder::
                                with every part's and segment's allocation number under ``allocation/``
     RUN/images/step_XXXXXXX.png  inputs / reconstructions / parts in colour, at ``train.image_every``
     RUN/loss_curves.png        every loss term against the step (log scale), written at the end
+
+``metrics.csv`` is read back, without torch, by :mod:`cerberus_core.plumbing.metrics_csv` (its rows, and the
+training time summed over the sittings of a resumed run: ``training_time``).
 """
 from __future__ import annotations
 
@@ -16,7 +19,6 @@ import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NamedTuple
 
 import torch
 
@@ -26,6 +28,7 @@ from cerberus_core.eval.allocation import Allocation
 from cerberus_core.eval.runner import batch_result, collate
 from cerberus_core.eval.standard import GroundTruthMemo
 from cerberus_core.plumbing.atomic import atomic_write_text
+from cerberus_core.plumbing.metrics_csv import METRICS_CSV, read_rows
 from cerberus_core.render.api import render_parts
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.interface import Renderer
@@ -43,45 +46,6 @@ keypoint (px), and how many parts alone cover at most 2 % of the foreground."""
 CSV_FIELDS = ("step", "elapsed_s", "lr", "steps_per_s", "grad_norm", "skipped", *LOSS_FIELDS, *ALLOCATION_FIELDS)
 
 
-def _read_rows(path: Path) -> list[dict[str, str]]:
-    if not path.is_file():
-        return []
-    with path.open(newline="") as f:
-        return list(csv.DictReader(f))
-
-
-class TrainingTime(NamedTuple):
-    """A run's training length from its ``metrics.csv`` (:func:`training_time`)."""
-
-    steps: int
-    """The ``step`` of the last row with an ``elapsed_s``."""
-    seconds: float
-    """Wall-clock training time in seconds, summed over the sittings."""
-
-
-def training_time(csv_path: str | Path) -> TrainingTime | None:
-    """The steps and the wall-clock training seconds of a run's ``metrics.csv``; ``None`` when the file is
-    missing or no row has an ``elapsed_s``.
-
-    ``elapsed_s`` (seconds) restarts at every sitting: the clock starts when ``cerberus train`` starts, and again
-    at each ``--resume``. A sitting ends where ``elapsed_s`` drops, and ``seconds`` is the sum over the sittings
-    of each sitting's last ``elapsed_s``, so the last row's ``elapsed_s`` alone undercounts a resumed run. Not
-    counted: the seconds of the rows that a resume dropped (an interrupted sitting's steps after its last
-    checkpoint, which the next sitting trains and times again), and a sitting's time after its last logged row.
-    Steps per second is ``steps / seconds``.
-    """
-    rows = [r for r in _read_rows(Path(csv_path)) if r.get("elapsed_s") not in (None, "")]
-    if not rows:
-        return None
-    seconds, previous = 0.0, 0.0
-    for r in rows:
-        elapsed = float(r["elapsed_s"])
-        if elapsed < previous:  # a new sitting: the previous one ended at its last row
-            seconds += previous
-        previous = elapsed
-    return TrainingTime(int(rows[-1]["step"]), seconds + previous)
-
-
 class MetricsLog:
     """Scalar logs of rank 0.
 
@@ -93,8 +57,8 @@ class MetricsLog:
     """
 
     def __init__(self, run_dir: str | Path, start_step: int = 0, tensorboard: bool = True) -> None:
-        self.path = Path(run_dir) / "metrics.csv"
-        rows = [r for r in _read_rows(self.path) if start_step > 0 and int(r["step"]) <= start_step]
+        self.path = Path(run_dir) / METRICS_CSV
+        rows = [r for r in read_rows(self.path) if start_step > 0 and int(r["step"]) <= start_step]
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS)
         writer.writeheader()
@@ -208,7 +172,7 @@ def plot_loss_curves(csv_path: str | Path, png_path: str | Path,
                      terms: Sequence[str] = LOSS_FIELDS,
                      size: tuple[int, int] = (720, 420)) -> Path:
     """Draw every loss term of ``metrics.csv`` against the step, log-scaled, with PIL."""
-    rows = _read_rows(Path(csv_path))
+    rows = read_rows(csv_path)
     series = {}
     for t in terms:
         pts = [(int(r["step"]), float(r[t])) for r in rows if r.get(t) not in (None, "")]
