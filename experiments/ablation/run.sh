@@ -13,6 +13,8 @@
 # experiments/ablation/limbs.txt holds issue 30's changes toward parts on the limbs (docs/training.md, "Beyond the
 # paper: sending parts to the limbs"):
 #   VARIANTS=experiments/ablation/limbs.txt STEPS=3000 RUNS=runs/limbs bash experiments/ablation/run.sh
+# A variant that fails to train or evaluate (its log: RUNS/NAME.log) does not stop the others: the table holds every
+# variant with an evaluation, the failed ones are listed after it, and the script then exits 1.
 # A DATA column "@PATH" uses an existing dataset instead of generating one. Rows are read without a shell
 # (variants.py): a NAME is [A-Za-z0-9_.-]+ (no '..'), arguments are split as words and nothing in them is run.
 set -euo pipefail
@@ -41,20 +43,42 @@ while IFS='|' read -r name data train; do
   echo "$name|${folder[$key]}|$train"
 done < "$RUNS/rows.txt" > "$RUNS/plan.txt"
 
-one() {  # train then evaluate one variant: NAME|DATA|TRAIN ARGS; logs in RUNS/NAME.log
+one() {  # train then evaluate one variant: NAME|DATA|TRAIN ARGS; logs in RUNS/NAME.log, RUNS/NAME.failed if it fails
   IFS='|' read -r name data train <<< "$1"
-  {
+  rm -f "$RUNS/$name.failed"
+  train_variant() {
     if [ -f "$RUNS/$name/model.safetensors" ]; then echo "$name: trained already";
     elif [ -f "$RUNS/$name/checkpoints/last.pt" ]; then cerberus train --out "$RUNS/$name" --resume;
     else mapfile -d '' -t targs < <(python experiments/ablation/variants.py argv "$train")
          cerberus train "${targs[@]}" --set renderer=warp --set data.root="$data" --set train.steps="$STEPS" \
            --set train.progress=false --out "$RUNS/$name"; fi
-    cerberus eval "$RUNS/$name"
-  } > "$RUNS/$name.log" 2>&1 && echo "$name: done" || { echo "$name: FAILED (see $RUNS/$name.log)"; return 1; }
+  }
+  # a training that fails is not evaluated (its last checkpoint would be scored as if it had finished)
+  { train_variant && cerberus eval "$RUNS/$name"; } > "$RUNS/$name.log" 2>&1 && echo "$name: done" \
+    || { echo "$name: FAILED (see $RUNS/$name.log)"; touch "$RUNS/$name.failed"; return 1; }
 }
 export -f one; export RUNS STEPS
-xargs -d '\n' -P "$JOBS" -I{} bash -c 'one "$@"' _ {} < "$RUNS/plan.txt"  # -d: each line as it is, no quoting
-# The table: one row per variant in plan.txt's order, each paired with the first (docs/evaluation.md, cerberus compare).
-evaluations=()
-while IFS='|' read -r name _; do evaluations+=("$name=$RUNS/$name"); done < "$RUNS/plan.txt"
-cerberus compare "${evaluations[@]}" --columns parts,depth,training | tee "$RUNS/ablation.md"
+# A variant that fails does not stop the others, nor the table of those that finished; the script fails at the end.
+status=0
+xargs -d '\n' -P "$JOBS" -I{} bash -c 'one "$@"' _ {} < "$RUNS/plan.txt" || status=1  # -d: each line as it is
+# The table: one row per variant that has an evaluation, in plan.txt's order, each paired with the first
+# (docs/evaluation.md, cerberus compare); a variant that failed this time is left out even with an older one.
+evaluations=(); failed=()
+while IFS='|' read -r name _; do
+  if [ -f "$RUNS/$name.failed" ]; then failed+=("$name");
+  elif [ -f "$RUNS/$name/eval/results.json" ]; then evaluations+=("$name=$RUNS/$name");
+  else failed+=("$name"); fi  # neither failed nor evaluated: its job did not run to the end
+done < "$RUNS/plan.txt"
+first=$(head -n 1 "$RUNS/plan.txt" | cut -d'|' -f1)
+if [ ${#evaluations[@]} -gt 0 ]; then
+  [ "${evaluations[0]%%=*}" = "$first" ] \
+    || echo "note: the first variant, $first, has no evaluation: the rows are paired with ${evaluations[0]%%=*}" >&2
+  cerberus compare "${evaluations[@]}" --columns parts,depth,training | tee "$RUNS/ablation.md" || status=1
+else
+  echo "no variant has an evaluation: no table" >&2
+fi
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "failed, not in the table: ${failed[*]} (each one's log: $RUNS/NAME.log)" >&2
+  status=1
+fi
+exit "$status"

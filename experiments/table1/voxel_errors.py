@@ -107,7 +107,9 @@ def main(argv: list[str]) -> int:
             rot = camera.rotation[b].double().numpy()
             centre = -rot.T @ camera.translation[b].double().numpy()
             # each part voxelized once, in the ground truth's frame: the union scores it, the parts place its errors
-            grids, gt_grid = prediction_grids(parts, (body.vertices, body.faces), "kato", 32, None, "clamp", False)
+            # (the options of cerberus eval's scorer, VoxelIoUScorer: the ground truth strict, the parts clamped)
+            grids, gt_grid = prediction_grids(parts, (body.vertices, body.faces), "kato", 32, None, "clamp", False,
+                                              gt_open_mesh="error", quiet_pred=True)
             rows.append((*_scores(grids.union().occupancy, gt_grid.occupancy),
                          *_oracles(parts, gt_grid, centre, rot.T @ np.array([0.0, 0.0, 1.0]))))
             f = off_body_counts(grids.occupancy, gt_grid.occupancy)

@@ -186,6 +186,17 @@ def test_a_limited_evaluation_spreads_and_says_which_images_of_how_many(tiny_run
     standard = replace(whole.result.standard, clipped=2, failed=1)
     flagged = replace(whole, result=replace(whole.result, standard=standard))
     assert flagged.lines()[1] == "voxel IoU: 1 rejected (scored 0), 2 clamped to the grid"
+    # the depth line says what its figures are over: here 3 views of one pose, every image scored
+    assert any(line.startswith("depth: over 1 test pose seen from several views (all 3 images scored), ")
+               for line in whole.lines())
+    assert "Over 1 test pose seen from several views (all 3 images scored), " in \
+        (whole.out / "results.md").read_text()
+    # and with one image (`limit=1`), why it measured nothing, where the line was missing
+    lone = {"poses": 0, "images": 0, "images_evaluated": 1, "note": "no pose has two of its views among the 1 image "
+            "scored (depth compares the views of each pose): score more images (a larger limit), or ..."}
+    alone = replace(whole, result=replace(whole.result, diagnostics=whole.result.diagnostics | {"depth": lone}))
+    assert "depth: not measured: no pose has two of its views among the 1 image scored (depth compares the views of " \
+           "each pose): score more images (a larger limit), or ..." in alone.lines()
 
 
 @pytest.mark.parametrize("limit", [0, -1, 2.5, True])

@@ -94,11 +94,35 @@ def test_an_open_ground_truth_is_refused_not_scored_as_a_hollow_shell():
                   "gt_open_mesh='close'", "pymeshlab"):
         assert words in text, words
     assert isinstance(exc.value, MeshInputError) and exc.value.report.boundary_edges > 0
-    with pytest.warns(MeshQualityWarning, match="gt: closed holes with pymeshlab"):
+    with pytest.warns(MeshQualityWarning, match=r"gt: closed holes with pymeshlab \(gt_open_mesh='close'\)"):
         iou, clamped = VoxelIoUScorer(gt_open_mesh="close")([closed], capless)
     assert iou > 0.9 and clamped == 0
     with pytest.raises(MeshInputError, match="gt_open_mesh must be one of"):
         VoxelIoUScorer(gt_open_mesh="ignore")
+
+
+def test_the_ground_truth_warnings_name_the_scorer_option_gt_open_mesh():
+    """Before: the warnings on a ground truth said open_mesh='close' / open_mesh='error', an option the scorer has
+    not; now they name the one it has, gt_open_mesh, whether its holes were closed or it is scored open."""
+    import re
+
+    from cerberus_metrics import MeshQualityWarning
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    cube, lidless = (np.asarray(box.vertices), np.asarray(box.faces)), (np.asarray(box.vertices), box.faces[2:])
+    with pytest.warns(MeshQualityWarning) as closed:
+        VoxelIoUScorer(gt_open_mesh="close")([cube], lidless)
+    with pytest.warns(MeshQualityWarning) as scored_open:
+        iou, _ = VoxelIoUScorer(gt_open_mesh="warn")([cube], lidless)
+    assert iou < 1.0  # the open ground truth is the hollow shell the fill leaves, as gt_open_mesh='warn' says
+    texts = [str(w.message) for w in [*closed, *scored_open]]
+    assert texts == ["gt: closed holes with pymeshlab (gt_open_mesh='close'), adding 2 faces",
+                     "gt: mesh is not watertight (4 boundary (open) edges). Treatment: surface rule: voxels touched by "
+                     "the surface are exact, but the exterior flood fill enters through holes wider than about one "
+                     "voxel, so an open region counts only its surface voxels. Use gt_open_mesh='close' to fill holes "
+                     "with pymeshlab, or gt_open_mesh='error' to reject such meshes."]
+    assert not any(re.search(r"(?<!gt_)open_mesh=", t) for t in texts)
 
 
 def test_predictions_keep_their_tolerance_and_ground_truth_warnings_are_raised(recwarn):

@@ -270,3 +270,25 @@ def test_grid_iou_refuses_a_float_grid():
     assert grid_iou(occupied, occupied.astype(np.uint8)) == 1.0  # 0/1 integers are occupancy
     with pytest.raises(MeshInputError, match="float64 grid, not occupancy"):
         grid_iou(np.full((4, 4, 4), 0.5), occupied)
+
+
+@pytest.mark.parametrize("option", [None, "gt_open_mesh"])
+def test_quality_warnings_name_the_open_mesh_option_the_caller_set(option):
+    """voxelize_parts names the option that set the parts' open-mesh policy (open_mesh_option, default
+    "open_mesh"): a ground truth under the scorer's gt_open_mesh is not told to set open_mesh, which it has not."""
+    from cerberus_metrics.io import MeshQualityWarning, load_parts
+    from cerberus_metrics.protocols import get_protocol, make_frame
+    from cerberus_metrics.voxelize import voxelize_parts
+
+    box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    lidless = (np.asarray(box.vertices), np.asarray(box.faces)[2:])  # a cube without one side: open
+    kato = get_protocol("kato")
+    frame = make_frame(kato, 32, np.asarray(box.vertices))
+    name = option or "open_mesh"
+    kwargs = {} if option is None else {"open_mesh_option": option}
+    for policy, words in (("close", f"closed holes with pymeshlab ({name}='close'), adding 2 faces"),
+                          ("warn", f"Use {name}='close' to fill holes with pymeshlab, or {name}='error' to reject")):
+        parts = load_parts(lidless, "gt", check_self_intersections=False, open_mesh=policy)
+        with pytest.warns(MeshQualityWarning) as caught:
+            voxelize_parts(parts, kato, frame, **kwargs)
+        assert [words in str(w.message) for w in caught] == [True], [str(w.message) for w in caught]

@@ -60,3 +60,41 @@ def test_the_summary_means_leave_out_an_empty_pair(monkeypatch):
     s = acc.summary()
     assert s["input_view_silhouette_iou"] == pytest.approx(0.9)
     assert s["turned_view_silhouette_iou"] == pytest.approx((0.5 + 0.7 + 0.6 + 0.4) / 4)
+
+
+def test_the_summary_says_how_many_images_it_measured_of_how_many_and_why_none():
+    """Review of the `--limit` work: depth is over the images whose pose has another view among those scored, which
+    can be fewer than those scored, and with one image a pose none at all; the depth section was then absent
+    without a word. The summary now counts the images fed (``images_evaluated``) beside those measured, and says
+    why (``note``) when no pose has two views; results.md and the printed line say both."""
+    from cerberus_core.eval.report import markdown_report
+
+    parts, cams, body = _scene(0.0)
+    acc = DepthAccumulator(make_renderer("torch"))
+    acc.poses[("subject", 0)] = _PoseViews([parts.index([k]) for k in range(3)], [cams.index([k]) for k in range(3)],
+                                           body)
+    acc.poses[("subject", 1)] = _PoseViews([parts.index([0])], [cams.index([0])], body)  # one view: not measured
+    s = acc.summary()
+    assert (s["poses"], s["images"], s["images_evaluated"], s["note"]) == (1, 3, 4, None)
+    assert depth.depth_line(s).startswith("over 1 test pose seen from several views (3 of the 4 images scored), ")
+    del acc.poses[("subject", 1)]
+    assert "(all 3 images scored)" in depth.depth_line(acc.summary())
+
+    lone = DepthAccumulator(make_renderer("torch"))
+    assert lone.summary() is None  # nothing fed: nothing to say
+    lone.poses[("subject", 1)] = _PoseViews([parts.index([0])], [cams.index([0])], body)
+    s = lone.summary()
+    assert (s["poses"], s["images"], s["images_evaluated"]) == (0, 0, 1) and s["translation_disagreement"] == []
+    figures = ("mean_translation_disagreement", "input_view_silhouette_iou", "turned_view_silhouette_iou")
+    assert all(s[key] is None for key in figures)
+    assert s["note"] == ("no pose has two of its views among the 1 image scored (depth compares the views of each "
+                         "pose): score more images (a larger limit), or a split that shows each pose from several "
+                         "views")
+    assert depth.depth_line(s) == f"not measured: {s['note']}"
+    result = {"protocol": "kato", "resolution": 32, "seconds": 1.0, "records": [], "hard": None, "depth": s,
+              "standard": {"mean": 0.5, "count": 1, "per_group": {"a": 0.5}, "clipped": 0, "failed": 0}}
+    md = markdown_report(result)
+    assert f"## Depth across views\n\nNot measured: {s['note']}.\n" in md and "Translation disagreement" not in md
+    old = {"poses": 2, "images": 16, "translation_disagreement": [0.1], "mean_translation_disagreement": 0.1,
+           "input_view_silhouette_iou": 0.8, "turned_view_silhouette_iou": 0.6}  # a results.json of before
+    assert depth.depth_line(old).startswith("over 2 test poses seen from several views (16 images), ")

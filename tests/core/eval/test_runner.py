@@ -185,18 +185,31 @@ def test_a_limit_spreads_over_the_split_and_keeps_a_pose_whole_for_depth(tiny_da
                            scorer=VoxelScorer(factory=iou_scorer), progress=True)
     assert [r["index"] for r in res.records] == indices
     assert {r["subject"] for r in res.records} == {it["subject"] for it in tiny_dataset.items}
-    assert res["depth"]["poses"] == 2 and res["depth"]["images"] == 4
+    assert res["depth"]["poses"] == 2 and res["depth"]["images"] == res["depth"]["images_evaluated"] == 4
+    assert res["depth"]["note"] is None and "Over 2 test poses seen from several views (all 4 images scored)" in \
+        markdown_report(res)
     assert "depth: 100%" in capsys.readouterr().err  # the bar over the poses' renders
     # A pose seen from one view among the images scored has no other view: its image is in no depth figure.
     res = evaluate_dataset(tiny_dataset, OracleModel(tiny_dataset), indices=[0, 1, 2], renderer=renderer,
                            skip=("hard", "part_quality", "visibility", "segments", "allocation"),
                            scorer=VoxelScorer(factory=iou_scorer), progress=False)
     depth = res["depth"]
-    assert depth["poses"] == 1 and depth["images"] == 2 and res.standard.count == 3
+    assert depth["poses"] == 1 and depth["images"] == 2 and depth["images_evaluated"] == 3 == res.standard.count
     md = markdown_report(res)
-    assert "Over 1 test pose seen from several views (2 images)" in md
+    assert "Over 1 test pose seen from several views (2 of the 3 images scored)" in md
     assert "the reconstruction of each of those images covers" in md
     assert "depth" not in capsys.readouterr().err  # progress=False: no bar
+    # Review: `--limit 1` scored one view, so no pose had two; the depth section was absent, silently. Now the
+    # summary says why (results.json's depth.note), and so do results.md and the printed line.
+    res = evaluate_dataset(tiny_dataset, OracleModel(tiny_dataset), indices=[0],  # limited_indices(..., 1, ...)
+                           skip=("hard", "part_quality", "visibility", "segments", "allocation"), renderer=renderer,
+                           scorer=VoxelScorer(factory=iou_scorer), progress=False)
+    depth = res["depth"]
+    assert (depth["poses"], depth["images"], depth["images_evaluated"]) == (0, 0, 1)
+    assert depth["mean_translation_disagreement"] is None and depth["translation_disagreement"] == []
+    assert depth["note"].startswith("no pose has two of its views among the 1 image scored (depth compares the views")
+    assert "## Depth across views\n\nNot measured: no pose has two of its views among the 1 image scored" in \
+        markdown_report(res)
 
 
 def test_a_one_part_model_is_consistent_but_its_label_covers_one_part(tiny_dataset, iou_scorer, renderer):
@@ -230,3 +243,53 @@ def _one_mesh_faces(recon):
 
     v = recon.local_vertices.shape[2]
     return torch.cat([recon.faces + p * v for p in range(recon.num_parts)])
+
+
+class _OpenTruths:
+    """``dataset`` (a :class:`TinyViewDataset`) whose ground truths each lack their first 6 triangles: open meshes."""
+
+    def __init__(self, dataset) -> None:
+        self.dataset = dataset
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, i: int) -> dict:
+        return self.dataset[i]
+
+    def __getattr__(self, name: str):
+        return getattr(self.dataset, name)
+
+    def gt_mesh(self, i: int):
+        from dataclasses import replace
+
+        body = self.dataset.gt_mesh(i)
+        return replace(body, faces=body.faces[6:])
+
+
+def test_the_ground_truth_open_mesh_policy_reaches_the_metric_and_the_result(tiny_dataset, iou_scorer):
+    """``EvalConfig.gt_open_mesh`` (``cerberus eval --gt-open-mesh``): ``evaluate_dataset`` makes its scorer with it,
+    the result and results.json record it, results.md says it. Under the default, ``"error"``, an open ground truth
+    stops the evaluation with a DatasetError naming the image and the setting that scores it anyway."""
+    open_truths, model = _OpenTruths(tiny_dataset), OracleModel(tiny_dataset)
+    skip = tuple(diagnostic_names())
+    with pytest.raises(DatasetError) as err:
+        evaluate_dataset(open_truths, model, indices=[2, 3], skip=skip, progress=False)
+    subject = tiny_dataset.items[2]["subject"]
+    assert str(err.value).startswith(f"the ground truth of image 2 (subject {subject}, pose 1) is not watertight (")
+    assert "`gt_open_mesh=close`" in str(err.value)
+    with pytest.warns(UserWarning, match="closed holes with pymeshlab"):  # the metric's, one per mesh closed
+        closed = evaluate_dataset(open_truths, model, indices=[2, 3], skip=skip, gt_open_mesh="close", progress=False)
+    assert closed.gt_open_mesh == "close" and closed.to_dict()["gt_open_mesh"] == "close"
+    assert list(closed.to_dict())[:4] == ["protocol", "resolution", "gt_open_mesh", "standard"]
+    assert closed.standard.count == 2 and closed.standard.mean > 0.9 and closed.standard.failed == 0
+    assert "union of parts, open ground truths closed with pymeshlab; 2 images" in markdown_report(closed)
+    whole = evaluate_dataset(tiny_dataset, model, indices=[2, 3], skip=skip, progress=False)
+    assert whole.gt_open_mesh == "error" and "open ground truths" not in markdown_report(whole)
+    # a prepared scorer brings its own policy, and the result records the one that scored
+    with pytest.warns(UserWarning, match="not watertight"):
+        shell = evaluate_dataset(open_truths, model, indices=[2], skip=skip, progress=False,
+                                 scorer=VoxelScorer(factory=iou_scorer, gt_open_mesh="warn"))
+    assert shell.gt_open_mesh == "warn" and "open ground truths scored as they are" in markdown_report(shell)
+    with pytest.raises(ConfigError, match="gt_open_mesh = 'ignore': must be one of 'error', 'close', 'warn'"):
+        evaluate_dataset(tiny_dataset, model, gt_open_mesh="ignore", progress=False)

@@ -73,13 +73,28 @@ def test_only_the_metrics_input_error_is_a_rejected_prediction(primitive_bodies,
 def test_an_open_ground_truth_raises_instead_of_scoring_a_hollow_shell(iou_scorer):
     """Before: a ground truth without its top cap was voxelized as the shell the flood fill leaves and scored
     0.2786 against the closed sphere, silently. Now the metric refuses it, and the evaluation raises (a ground
-    truth the metric refuses is a data error, not a score)."""
+    truth the metric refuses is a data error, not a score): a DatasetError naming the image and the fix in this
+    package's terms, ``gt_open_mesh`` (the CLI says it as ``--gt-open-mesh``), never the metric's keyword.
+    ``gt_open_mesh`` passes the metric the other policies: close its holes, or score it as it is."""
     import trimesh
+
+    from cerberus_core.errors import DatasetError
 
     s = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
     v, f = np.asarray(s.vertices), np.asarray(s.faces)
     capless = (v, f[s.triangles_center[:, 2] < 0.3])
     scorer = VoxelScorer(factory=iou_scorer)
-    with pytest.raises(Exception, match=r"gt: the ground truth is not watertight .* gt_open_mesh='close'"):
-        scorer([(v, f)], capless)
+    assert scorer.gt_open_mesh == "error"
+    with pytest.raises(DatasetError) as err:
+        scorer([(v, f)], capless, "the ground truth of image 7 (subject s, pose 2)")
+    message = str(err.value)
+    assert message.startswith("the ground truth of image 7 (subject s, pose 2) is not watertight (40 boundary (open) "
+                              "edges): ")
+    assert "hollow shell" in message and "`gt_open_mesh=close`" in message and "`gt_open_mesh=warn`" in message
+    assert "gt_open_mesh='close'" not in message
     assert scorer([(v, f)], (v, f)).iou == 1.0
+    with pytest.warns(UserWarning, match="closed holes with pymeshlab"):
+        closed = VoxelScorer(factory=iou_scorer, gt_open_mesh="close")([(v, f)], capless)
+    with pytest.warns(UserWarning, match="not watertight"):
+        shell = VoxelScorer(factory=iou_scorer, gt_open_mesh="warn")([(v, f)], capless)
+    assert closed.iou > 0.9 and shell.iou < 0.3 and closed.error is None and shell.error is None

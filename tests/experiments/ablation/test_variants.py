@@ -88,3 +88,52 @@ def test_every_shipped_variants_file_reads(variants: Path):
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     assert proc.stdout.count("\n") >= 2
+
+
+@pytest.fixture
+def failing_bin(fake_bin: Path) -> Path:
+    """``fake_bin`` whose ``cerberus`` also acts: ``train --out .../broken*`` fails, ``eval RUN`` writes
+    ``RUN/eval/results.json`` (and fails for a run named ``noeval*``), ``compare`` prints its arguments as the table."""
+    (fake_bin / "cerberus").write_text(r'''#!/usr/bin/env bash
+printf "%s\0" "$@" >> "$CALLS"; echo >> "$CALLS"
+last="${!#}"
+case "$1" in
+  train) case "$last" in */broken*) echo "training diverged" >&2; exit 3;; esac ;;
+  eval) case "$2" in */noeval*) echo "evaluation failed" >&2; exit 2;; esac
+        mkdir -p "$2/eval" && echo '{}' > "$2/eval/results.json" ;;
+  compare) echo "TABLE: $*" ;;
+esac
+''')
+    return fake_bin
+
+
+def test_the_variants_that_finished_are_tabled_when_others_fail(failing_bin: Path, tmp_path: Path):
+    """Before: one variant that failed to train or evaluate stopped run.sh (set -e) before the table, so the ones
+    that finished were not tabled. Now every variant runs, the table holds those with an evaluation (in the file's
+    order), the failed ones are named after it, and the script still exits 1. A training that fails is not
+    evaluated: its last checkpoint would be scored as if it had finished."""
+    proc, calls = _run(failing_bin, tmp_path, "broken | --size tiny | --preset cpu\nbase | --size tiny | --preset cpu\n"
+                       "noeval | --size tiny | --preset cpu\ngood | --size tiny | --preset cpu\n")
+    runs = tmp_path / "runs"
+    assert proc.returncode == 1, proc.stderr
+    assert [c[0] for c in calls if c[0] == "train"] == ["train"] * 4  # every variant was trained
+    assert ["eval", f"{runs}/broken"] not in calls and ["eval", f"{runs}/noeval"] in calls
+    table = ["compare", f"base={runs}/base", f"good={runs}/good", "--columns", "parts,depth,training"]
+    assert calls[-1] == table
+    assert proc.stdout.endswith(f"TABLE: {' '.join(table)}\n")
+    assert (runs / "ablation.md").read_text() == f"TABLE: {' '.join(table)}\n"
+    for name, verdict in (("broken", "FAILED"), ("base", "done"), ("noeval", "FAILED"), ("good", "done")):
+        assert f"{name}: {verdict}" in proc.stdout
+    assert "training diverged" in (runs / "broken.log").read_text()
+    assert "note: the first variant, broken, has no evaluation: the rows are paired with base" in proc.stderr
+    assert proc.stderr.rstrip().endswith(f"failed, not in the table: broken noeval (each one's log: {runs}/NAME.log)")
+
+    # run again once broken is mended (its model written): it is evaluated, not trained, and tabled; its mark is gone
+    (runs / "broken").mkdir()
+    (runs / "broken" / "model.safetensors").write_text("")
+    proc, calls = _run(failing_bin, tmp_path,
+                       "broken | --size tiny | --preset cpu\nbase | --size tiny | --preset cpu\n")
+    assert proc.returncode == 0, proc.stderr
+    assert not any(c[0] == "train" and c[-1] == f"{runs}/broken" for c in calls) and ["eval", f"{runs}/broken"] in calls
+    assert calls[-1] == ["compare", f"broken={runs}/broken", f"base={runs}/base", "--columns", "parts,depth,training"]
+    assert not (runs / "broken.failed").exists() and "failed" not in proc.stderr

@@ -19,6 +19,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import torch
 
@@ -33,7 +34,7 @@ from cerberus_core.eval.figures import FigureModels, evaluation_figures
 from cerberus_core.eval.markdown import md_text
 from cerberus_core.eval.report import images_scored, markdown_report, to_jsonable, write_json, write_text
 from cerberus_core.eval.runner import EvalConfig, EvaluationResult, evaluate_dataset, limited_indices
-from cerberus_core.eval.standard import VoxelScorer, check_scorer
+from cerberus_core.eval.standard import VoxelScorer, check_scorer, open_ground_truths
 from cerberus_core.eval.viewer import ViewerPage
 from cerberus_core.fields import Range, check_kind, check_path, check_paths, check_value, ranged
 from cerberus_core.model.cerberus import Cerberus
@@ -144,6 +145,8 @@ class Evaluation:
         viewer: whether ``pictures/index.html`` was written.
         split_images: the images of the split scored from (more than those scored when ``limit`` chose some;
             ``None``: not known).
+        data: which images were scored, as ``results.json`` records them under ``data`` (the split, its size, the
+            limit, the rule, the images scored; ``None``: not known, then ``split_images`` alone).
     """
 
     result: EvaluationResult
@@ -153,13 +156,15 @@ class Evaluation:
     canonical_hint: str = ""
     viewer: bool = True
     split_images: int | None = None
+    data: Mapping[str, Any] | None = None
 
     def lines(self) -> list[str]:
         """The summary ``cerberus eval`` prints: the scores ("24 of 984 images" when a limit chose some), the
         predictions the metric rejected or clamped when there are any, then where the results are."""
         result, weights, out = self.result, self.weights, self.out
-        line = (f"voxel IoU ({result.protocol}, {result.resolution}^3) over "
-                f"{images_scored(result.standard.count, {'split_images': self.split_images})}: "
+        policy = open_ground_truths(result.gt_open_mesh)
+        line = (f"voxel IoU ({result.protocol}, {result.resolution}^3{', ' if policy else ''}{policy}) over "
+                f"{images_scored(result.standard.count, self.data or {'split_images': self.split_images})}: "
                 f"{result.standard.mean:.4f}")
         if result["hard"] is not None:
             line += f"; Hard Human: {result['hard'].mean:.4f}"
@@ -366,7 +371,8 @@ class Run:
         with writing_results(out, "eval") as tmp:  # out is replaced only once all is written
             whole_poses = needed(s.skip, "poses")  # depth compares the views of each pose: keep a pose's together
             indices = limited_indices(dataset, s.limit, whole_poses=whole_poses)
-            scorer = VoxelScorer(s.protocol, s.resolution)  # one ground-truth grid cache for scores and figure
+            # one ground-truth grid cache for scores and figure
+            scorer = VoxelScorer(s.protocol, s.resolution, gt_open_mesh=s.gt_open_mesh)
             result = evaluate_dataset(dataset, self.model.reconstruct, s, indices=indices, renderer=backend,
                                       device=self.device, scorer=scorer)
             look = "" if s.input_look == "shaded" else f", {s.input_look} input look"
@@ -381,7 +387,7 @@ class Run:
                       "selection": selection, "images": len(indices)}
             self._write_report(result, tmp, at_step, backend, s.input_look, scored, time.perf_counter() - start)
         evaluation = Evaluation(result, out, weights, hard_requested="hard" not in s.skip, viewer=s.viewer_images > 0,
-                                canonical_hint=_canonical_hint(source), split_images=len(dataset))
+                                canonical_hint=_canonical_hint(source), split_images=len(dataset), data=scored)
         if verbose:
             print("\n".join(evaluation.lines()))
         return evaluation

@@ -14,6 +14,7 @@ same cube moved by half its side.
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from collections.abc import Iterable
 from typing import Any
@@ -22,7 +23,15 @@ import numpy as np
 
 from .cache import CachedGrid, GridCache
 from .distances import PointDistances, check_samples, point_distances
-from .io import MeshInputError, MeshQualityWarning, MeshReport, content_digest, load_parts
+from .io import (
+    OPEN_MESH_POLICIES,
+    MeshInputError,
+    MeshQualityWarning,
+    MeshReport,
+    OpenMeshError,
+    content_digest,
+    load_parts,
+)
 from .protocols import Frame, get_protocol, make_frame
 from .voxelize import PartGrids, VoxelGrid, grid_iou, voxelize_parts
 
@@ -83,9 +92,11 @@ def voxelize(
 
 def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = None, fill: bool = True,
           cache: GridCache | None = None, check_self_intersections: bool | str = True, open_mesh: str = "warn",
-          name: str = "mesh", outside: str = "error", ground_truth: bool = False) -> VoxelGrid:
+          name: str = "mesh", outside: str = "error", ground_truth: bool = False,
+          open_mesh_option: str = "open_mesh") -> VoxelGrid:
     """:func:`voxelize`; ``ground_truth``: the mesh is a ground truth (which is never clamped: only the fix its
-    outside-the-grid error names changes, so it is not part of the cache key)."""
+    outside-the-grid error names changes, so it is not part of the cache key). ``open_mesh_option``: the name of
+    the option that set ``open_mesh``, which the quality warnings name (see :func:`prediction_grids`)."""
     proto = get_protocol(protocol)
     key = None
     if cache is not None:
@@ -98,6 +109,10 @@ def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = No
             self_intersections=check_self_intersections,
             open_mesh=open_mesh,
             **({"outside": outside} if outside != "error" else {}),  # keys of existing caches stay valid
+            # The cached warnings name the option; under "error" none does (an open mesh raises), so those keys,
+            # and every key of the option "open_mesh", stay those of existing caches.
+            **({"open_mesh_option": open_mesh_option} if open_mesh_option != "open_mesh" and open_mesh != "error"
+               else {}),
         )
         hit = cache.get(key)
         if hit is not None:
@@ -107,7 +122,7 @@ def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = No
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshQualityWarning)
         grid = _part_grids(mesh, proto.name, resolution, frame, fill, check_self_intersections, open_mesh, name,
-                           outside, ground_truth).union()
+                           outside, ground_truth, open_mesh_option).union()
     messages = tuple(str(w.message) for w in caught if issubclass(w.category, MeshQualityWarning))
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -118,28 +133,84 @@ def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = No
 
 def _part_grids(mesh: Any, protocol: str, resolution: int, frame: Frame | None, fill: bool,
                 check_self_intersections: bool | str, open_mesh: str, name: str, outside: str,
-                ground_truth: bool = False) -> PartGrids:
+                ground_truth: bool = False, open_mesh_option: str = "open_mesh") -> PartGrids:
     """Load ``mesh``'s parts and voxelize each alone (the one voxelization path of this module)."""
     proto = get_protocol(protocol)
     parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh)
     if frame is None:
         frame = make_frame(proto, resolution, np.concatenate([p.vertices for p in parts]))
-    return voxelize_parts(parts, proto, frame, fill=fill, outside=outside, ground_truth=ground_truth)
+    return voxelize_parts(parts, proto, frame, fill=fill, outside=outside, ground_truth=ground_truth,
+                          open_mesh_option=open_mesh_option)
+
+
+def _check_gt_open_mesh(gt_open_mesh: str) -> str:
+    """``gt_open_mesh``, or a :class:`MeshInputError` when it is not an open-mesh policy."""
+    if gt_open_mesh not in OPEN_MESH_POLICIES:
+        raise MeshInputError(f"gt_open_mesh must be one of {OPEN_MESH_POLICIES}, got {gt_open_mesh!r}")
+    return gt_open_mesh
+
+
+def _gt_grid(gt: Any, protocol: str, resolution: int, cache: GridCache | None, check_self_intersections: bool | str,
+             open_mesh: str, gt_open_mesh: str | None) -> VoxelGrid:
+    """The ground truth's grid for :func:`prediction_grids`: under ``open_mesh`` (the prediction's option), or
+    under its own ``gt_open_mesh`` when given, which its warnings and its :class:`OpenMeshError` then name."""
+    own = gt_open_mesh is not None
+    policy = open_mesh if gt_open_mesh is None else _check_gt_open_mesh(gt_open_mesh)
+    try:
+        return _grid(gt, protocol, resolution, cache=cache, name="gt", ground_truth=True,
+                     check_self_intersections=check_self_intersections, open_mesh=policy,
+                     open_mesh_option="gt_open_mesh" if own else "open_mesh")
+    except OpenMeshError as exc:
+        if not own:
+            raise
+        raise OpenMeshError(
+            f"{exc.report.name}: the ground truth is not watertight ({', '.join(exc.report.problems())}), so "
+            "the flood fill would enter through its holes and score it as a hollow shell (its surface voxels "
+            "alone) against every prediction; close the mesh, or pass gt_open_mesh='close' to close its holes "
+            "with pymeshlab",
+            exc.report,
+        ) from None
 
 
 def prediction_grids(pred: Any, gt: Any, protocol: str, resolution: int, cache: GridCache | None, outside: str,
-                     check_self_intersections: bool | str = True,
-                     open_mesh: str = "warn") -> tuple[PartGrids, VoxelGrid]:
-    """The grids :func:`voxel_iou_clamped` scores, with the prediction kept part by part: the ground
-    truth voxelized (and cached) as by :func:`voxelize`, each part of ``pred`` (one per mesh of the
-    list) alone in its frame. ``grid_iou(parts.union(), gt)`` is the voxel IoU and ``parts.clamped``
-    the number of parts clamped into the grid. Options as :func:`voxel_iou_clamped`'s.
-    Returns ``(prediction's PartGrids, ground-truth VoxelGrid)``.
+                     check_self_intersections: bool | str = True, open_mesh: str = "warn", *,
+                     gt_open_mesh: str | None = None, gt_check_self_intersections: bool | str | None = None,
+                     quiet_pred: bool = False) -> tuple[PartGrids, VoxelGrid]:
+    """Voxelize a prediction against a ground truth: the grids :func:`voxel_iou_clamped` and
+    :class:`~cerberus_metrics.scoring.VoxelIoUScorer` score, with the prediction kept part by part. The ground
+    truth is voxelized (and cached in ``cache``) as by :func:`voxelize`, each part of ``pred`` (one per mesh of
+    the list, mesh units) alone in the ground truth's frame. ``grid_iou(parts.union(), gt)`` is the voxel IoU and
+    ``parts.clamped`` the number of parts clamped into the grid.
+
+    protocol, resolution, cache: as :func:`voxel_iou_clamped`'s. outside, check_self_intersections, open_mesh:
+    the prediction's options (see :func:`voxelize`), and the ground truth's unless given apart:
+    gt_open_mesh: the ground truth's ``"warn"`` | ``"close"`` | ``"error"`` (default None: ``open_mesh``); its
+    quality warnings then name ``gt_open_mesh``, and an open ground truth it refuses raises
+    :class:`~cerberus_metrics.io.OpenMeshError` saying that the flood fill would score a hollow shell.
+    gt_check_self_intersections: the ground truth's (default None: ``check_self_intersections``).
+    quiet_pred: silence the prediction's :class:`MeshQualityWarning` (the ground truth's are still issued).
+    A ground truth outside the ``kato`` grid is always an error, whatever ``outside`` says.
+    Returns ``(parts, gt)``: the prediction's :class:`PartGrids` (occupancy (P, nx, ny, nz) bool) and the ground
+    truth's :class:`VoxelGrid` (occupancy (nx', ny', nz') bool), on one frame; their boxes may differ (a
+    ``gt_bbox`` lattice grows to hold the prediction), and :func:`grid_iou` aligns them by their origins.
+
+    >>> import trimesh
+    >>> box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    >>> cube, moved = (box.vertices, box.faces), (box.vertices + [0.25, 0, 0], box.faces)
+    >>> parts, gt = prediction_grids([cube, moved], cube, "kato", 32, None, "clamp", gt_open_mesh="error")
+    >>> parts.occupancy.shape, gt.occupancy.shape, parts.clamped
+    ((2, 32, 32, 32), (32, 32, 32), 0)
+    >>> round(grid_iou(parts.union(), gt), 4)  # 4096 of the union's 6144 voxels
+    0.6667
     """
-    g = _grid(gt, protocol, resolution, cache=cache, name="gt", check_self_intersections=check_self_intersections,
-              open_mesh=open_mesh, ground_truth=True)
-    return _part_grids(pred, protocol, resolution, g.frame, True, check_self_intersections, open_mesh, "pred",
-                       outside), g
+    g_check = check_self_intersections if gt_check_self_intersections is None else gt_check_self_intersections
+    g = _gt_grid(gt, protocol, resolution, cache, g_check, open_mesh, gt_open_mesh)
+    with warnings.catch_warnings() if quiet_pred else contextlib.nullcontext():
+        if quiet_pred:
+            warnings.simplefilter("ignore", MeshQualityWarning)
+        parts = _part_grids(pred, protocol, resolution, g.frame, True, check_self_intersections, open_mesh, "pred",
+                            outside)
+    return parts, g
 
 
 def voxel_iou_clamped(

@@ -24,17 +24,16 @@ holds what such a loop needs and what only this package knows:
 from __future__ import annotations
 
 import os
-import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .api import _grid, _part_grids
+from .api import _check_gt_open_mesh, prediction_grids
 from .cache import GridCache
-from .io import OPEN_MESH_POLICIES, MeshInputError, MeshQualityWarning, OpenMeshError
+from .io import MeshInputError
 from .protocols import Frame, check_resolution, get_protocol
-from .voxelize import _paste, grid_iou
+from .voxelize import PartGrids, VoxelGrid, _paste, grid_iou
 
 __all__ = ["ScoredGrids", "VoxelIoUScorer"]
 
@@ -114,9 +113,7 @@ class VoxelIoUScorer:
                  cache: GridCache | str | os.PathLike | None = None, gt_open_mesh: str = "error") -> None:
         self.protocol = get_protocol(protocol).name  # unknown names fail here, before any work
         self.resolution = int(check_resolution(resolution))
-        if gt_open_mesh not in OPEN_MESH_POLICIES:
-            raise MeshInputError(f"gt_open_mesh must be one of {OPEN_MESH_POLICIES}, got {gt_open_mesh!r}")
-        self.gt_open_mesh = gt_open_mesh
+        self.gt_open_mesh = _check_gt_open_mesh(gt_open_mesh)  # an unknown policy fails here too
         self.cache = cache if isinstance(cache, GridCache) else GridCache(cache)
 
     def __call__(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> tuple[float, int]:
@@ -161,22 +158,10 @@ class VoxelIoUScorer:
         return ScoredGrids(occ, gt_occ, tuple(int(x) for x in lo), truth.frame, int(parts.clamped),
                            float(grid_iou(parts.union(), truth)))
 
-    def _voxelize(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any):
-        """``(the prediction's PartGrids, the ground truth's VoxelGrid)``: the ground truth strict, the prediction
-        quiet and clamped (module docstring)."""
-        try:
-            truth = _grid(gt, self.protocol, self.resolution, cache=self.cache, name="gt",
-                          check_self_intersections=False, open_mesh=self.gt_open_mesh, ground_truth=True)
-        except OpenMeshError as exc:
-            raise OpenMeshError(
-                f"{exc.report.name}: the ground truth is not watertight ({', '.join(exc.report.problems())}), so "
-                "the flood fill would enter through its holes and score it as a hollow shell (its surface voxels "
-                "alone) against every prediction; close the mesh, or pass gt_open_mesh='close' to close its holes "
-                "with pymeshlab",
-                exc.report,
-            ) from None
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", MeshQualityWarning)
-            parts = _part_grids(pred_parts, self.protocol, self.resolution, truth.frame, True, False, "warn", "pred",
-                                "clamp")
-        return parts, truth
+    def _voxelize(self, pred_parts: list[tuple[np.ndarray, np.ndarray]], gt: Any) -> tuple[PartGrids, VoxelGrid]:
+        """``(the prediction's PartGrids, the ground truth's VoxelGrid)`` from
+        :func:`~cerberus_metrics.api.prediction_grids` under this scorer's options: the ground truth strict, the
+        prediction quiet and clamped (module docstring)."""
+        return prediction_grids(pred_parts, gt, self.protocol, self.resolution, self.cache, "clamp",
+                                check_self_intersections=False, open_mesh="warn", gt_open_mesh=self.gt_open_mesh,
+                                gt_check_self_intersections=False, quiet_pred=True)

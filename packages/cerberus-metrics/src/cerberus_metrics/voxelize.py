@@ -391,13 +391,17 @@ def center_occupancy(tri: np.ndarray, lo: np.ndarray, shape: Sequence[int]) -> n
 # --------------------------------------------------------------------------- meshes -> grid
 
 
-def _warn_quality(mesh: Mesh, rule: str) -> None:
+def _warn_quality(mesh: Mesh, rule: str, open_mesh_option: str = "open_mesh") -> None:
+    """Warn about ``mesh``'s quality defects (its report) and how ``rule`` (``"surface"`` | ``"center"``) treats
+    them. open_mesh_option: the name of the option that set the mesh's open-mesh policy, so that the messages name
+    the option the caller set (``"open_mesh"``; ``"gt_open_mesh"`` for a ground truth with its own policy)."""
     rep = mesh.report
     if rep is None:
         return
+    opt = open_mesh_option
     if rep.holes_closed:
         warnings.warn(
-            f"{mesh.name}: closed holes with pymeshlab (open_mesh='close'), adding {rep.holes_closed} faces",
+            f"{mesh.name}: closed holes with pymeshlab ({opt}='close'), adding {rep.holes_closed} faces",
             MeshQualityWarning,
             stacklevel=4,
         )
@@ -411,7 +415,7 @@ def _warn_quality(mesh: Mesh, rule: str) -> None:
         )
         warnings.warn(
             f"{mesh.name}: mesh is not watertight ({', '.join(rep.problems())}). Treatment: {treat}. "
-            "Use open_mesh='close' to fill holes with pymeshlab, or open_mesh='error' to reject such meshes.",
+            f"Use {opt}='close' to fill holes with pymeshlab, or {opt}='error' to reject such meshes.",
             MeshQualityWarning,
             stacklevel=4,
         )
@@ -475,7 +479,8 @@ def _clamp_boxes(bounds: np.ndarray, frame: Frame, names: Sequence[str]) -> tupl
 
 
 def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill: bool = True,
-                   outside: str = "error", ground_truth: bool = False) -> PartGrids:
+                   outside: str = "error", ground_truth: bool = False, *,
+                   open_mesh_option: str = "open_mesh") -> PartGrids:
     """Voxelize each of several cleaned parts alone, on one lattice box.
 
     parts: cleaned meshes in mesh coordinates. frame: from :func:`make_frame`.
@@ -484,6 +489,8 @@ def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill
     outside its grid ``[0, R)^3`` (see :data:`OUTSIDE`; other frames grow the grid instead).
     ground_truth: the parts are a ground truth (only the fix the outside-the-grid error names changes,
     see :func:`~cerberus_metrics.protocols.lattice_box`).
+    open_mesh_option: the name of the option that set the parts' open-mesh policy (``open_mesh`` of
+    :func:`~cerberus_metrics.io.load_parts`), which the warnings name as the fix.
     Issues :class:`MeshQualityWarning` for open/self-intersecting parts (see docs).
     """
     if not fill and protocol.rule != "surface":
@@ -507,7 +514,7 @@ def voxelize_parts(parts: Sequence[Mesh], protocol: Protocol, frame: Frame, fill
         s_lo = np.maximum(np.floor(bounds[:, 0]).astype(np.int64) - 1, lo)
         s_hi = np.minimum(np.floor(bounds[:, 1]).astype(np.int64) + 2, hi)
     for mesh, b in zip(parts, bounds, strict=True):
-        _warn_quality(mesh, protocol.rule)
+        _warn_quality(mesh, protocol.rule, open_mesh_option)
         span = float((b[1] - b[0]).max())
         if span < 1.0:
             warnings.warn(

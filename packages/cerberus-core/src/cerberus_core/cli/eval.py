@@ -10,7 +10,14 @@ from cerberus_core.cli.flags import FlagNames
 from cerberus_core.datasets.looks import INPUT_LOOKS
 from cerberus_core.errors import ConfigError
 from cerberus_core.eval.diagnostics import DIAGNOSTICS
-from cerberus_core.eval.standard import SCORER_ENTRY_POINT
+from cerberus_core.eval.standard import GT_OPEN_MESH, SCORER_ENTRY_POINT
+
+GT_OPEN_MESH_HELP = (
+    "what to do with a ground-truth mesh that is not watertight (a scan with holes): error (the default) stops the "
+    "evaluation and names the mesh, since the voxel IoU fills a ground truth's inside and through its holes the fill "
+    "would leave a hollow shell, a wrong reference every prediction would be scored against without a word; close "
+    "closes its holes with pymeshlab and warns; warn scores it as it is, a hollow shell where the fill leaks in, and "
+    "warns. results.json records the choice under 'gt_open_mesh'")
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -41,6 +48,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resolution", type=int, default=32,
                    help="voxel grid resolution (default: 32); cerberus-metrics bounds it (2..1024), checked "
                    "before anything runs")
+    p.add_argument("--gt-open-mesh", choices=GT_OPEN_MESH, default="error", help=GT_OPEN_MESH_HELP)
     for row in DIAGNOSTICS:  # --no-hard, --no-part-quality, ...: one per diagnostic, from its row
         p.add_argument(skip_flag(row.name), action="store_true", dest=f"no_{row.name}", help=f"skip {row.about}")
     p.add_argument("--limit", type=positive_int, metavar="N",
@@ -63,8 +71,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     # The flag of each setting of Run.load and Run.evaluate (its EvalSettings fields included).
     p.set_defaults(func=run, flag_names=FlagNames({
         "data": "--data", "split": "--split", "protocol": "--protocol", "resolution": "--resolution",
-        "limit": "--limit", "figure_images": "--figure-images", "viewer_images": "--viewer-images",
-        "renderer": "--renderer", "out": "--out", "device": "--device", "input_look": "--input-look"}))
+        "gt_open_mesh": "--gt-open-mesh", "limit": "--limit", "figure_images": "--figure-images",
+        "viewer_images": "--viewer-images", "renderer": "--renderer", "out": "--out", "device": "--device",
+        "input_look": "--input-look"}))
 
 
 def skip_flag(name: str) -> str:
@@ -96,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
 
     # Every argument is checked, and every model and the dataset opened, before anything is written.
     settings = EvalSettings(split=args.split, protocol=args.protocol, resolution=args.resolution,
+                            gt_open_mesh=args.gt_open_mesh,
                             skip=tuple(row.name for row in DIAGNOSTICS if getattr(args, f"no_{row.name}")),
                             limit=args.limit,
                             figure_images=args.figure_images, viewer_images=args.viewer_images,

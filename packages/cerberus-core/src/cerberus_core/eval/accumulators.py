@@ -62,11 +62,13 @@ class BatchResult:
         self.singles = [self.recon.index(b) for b in range(len(self.items))]
 
     def voxels(self, b: int, scorer: VoxelScorer) -> Voxels:
-        """Image ``b``'s voxels, scored by ``scorer`` (:meth:`VoxelScorer.voxels`), once per batch and scorer."""
+        """Image ``b``'s voxels, scored by ``scorer`` (:meth:`VoxelScorer.voxels`), once per batch and scorer; a
+        ground truth the metric refuses is named by its image, subject and pose."""
         key = (id(scorer), b)
         if key not in self._voxels:
-            body = self.bodies[b]
-            self._voxels[key] = scorer.voxels(self.singles[b].part_meshes(0), (body.vertices, body.faces))
+            body, item = self.bodies[b], self.items[b]
+            name = f"the ground truth of image {item.index} (subject {item.subject}, pose {item.pose})"
+            self._voxels[key] = scorer.voxels(self.singles[b].part_meshes(0), (body.vertices, body.faces), name)
         return self._voxels[key]
 
     def part_id(self, renderer: Renderer) -> torch.Tensor:

@@ -122,13 +122,35 @@ def turned_view_ious(renderer: Renderer, parts: PartSet, cameras: Camera, body: 
 class DepthAccumulator:
     """Collects each test image's reconstruction by pose and measures depth across its views.
 
-    Feed it :class:`~cerberus_core.eval.accumulators.BatchResult` s (``update``); ``summary()``:
-    ``None`` when no pose has two views, else a dict with ``poses`` (the poses measured: those with two views or
-    more among the images fed), ``images`` (their images: the only ones every figure here is over; an image whose
-    pose has no other view is left out), ``translation_disagreement`` (per part, world units, mean over poses),
-    ``mean_translation_disagreement``, ``input_view_silhouette_iou`` and ``turned_view_silhouette_iou`` (means over
-    those images and, for the second, over every other view of the image's pose; a pair where the body and the
-    reconstruction are both out of the camera has no IoU and is left out: NaN-aware means).
+    Feed it :class:`~cerberus_core.eval.accumulators.BatchResult` s (``update``); ``summary()``: ``None`` when no
+    image was fed, else a dict with ``poses`` (the poses measured: those with two views or more among the images
+    fed), ``images`` (their images: the only ones every figure here is over; an image whose pose has no other view
+    is left out), ``images_evaluated`` (every image fed: the evaluation's, of which ``images`` were measured),
+    ``note`` (``None``, or when no pose has two views among them, why depth was not measured: then ``poses`` and
+    ``images`` are 0, the figures ``None`` and ``translation_disagreement`` empty), ``translation_disagreement``
+    (per part, world units, mean over poses), ``mean_translation_disagreement``, ``input_view_silhouette_iou`` and
+    ``turned_view_silhouette_iou`` (means over those images and, for the second, over every other view of the
+    image's pose; a pair where the body and the reconstruction are both out of the camera has no IoU and is left
+    out: NaN-aware means).
+
+    Example: one image of a pose, none of another view of it: nothing to compare, and the summary says why:
+
+        >>> from types import SimpleNamespace
+        >>> from cerberus_core.eval.hard import ItemMeta
+        >>> from cerberus_core.render.templates import icosphere
+        >>> ball = icosphere(1, radius=0.35)
+        >>> one = PartSet.from_posed(ball.vertices.expand(1, 1, -1, 3).clone(), ball.faces)  # 1 image, 1 part
+        >>> camera = Camera.look_at(torch.tensor([0.0]), 0.0, 2.5, image_size=16)
+        >>> batch = SimpleNamespace(camera=camera, scored=lambda: [(0, ItemMeta(0, "s1", 0, 0, False), one,
+        ...                                                         (ball.vertices, ball.faces), {})])
+        >>> depth = DepthAccumulator(renderer=None)
+        >>> depth.update(batch)
+        >>> summary = depth.summary()
+        >>> summary["poses"], summary["images"], summary["images_evaluated"], summary["turned_view_silhouette_iou"]
+        (0, 0, 1, None)
+        >>> print(summary["note"])
+        no pose has two of its views among the 1 image scored (depth compares the views of each pose): score more
+        images (a larger limit), or a split that shows each pose from several views
 
     Args:
         renderer: the backend of the silhouette renders.
@@ -165,19 +187,57 @@ class DepthAccumulator:
             off = ~torch.eye(len(views.parts), dtype=torch.bool)
             own.append(ious.diagonal())
             turned.append(ious[off])
-        if not disagreement:
+        fed = sum(len(views.parts) for views in self.poses.values())  # every image fed is one of a pose's views
+        if not fed:
             return None
+        if not disagreement:
+            return {"poses": 0, "images": 0, "images_evaluated": fed, "note": not_measured(fed),
+                    "translation_disagreement": [], "mean_translation_disagreement": None,
+                    "input_view_silhouette_iou": None, "turned_view_silhouette_iou": None}
         per_part = torch.stack(disagreement).mean(0)
         return {"poses": len(disagreement), "images": sum(len(views.parts) for views in measured),
+                "images_evaluated": fed, "note": None,
                 "translation_disagreement": [round(float(v), 5) for v in per_part],
                 "mean_translation_disagreement": float(per_part.mean()),
                 "input_view_silhouette_iou": float(torch.cat(own).nanmean()),
                 "turned_view_silhouette_iou": float(torch.cat(turned).nanmean())}
 
 
+def not_measured(count: int) -> str:
+    """Why depth was not measured over ``count`` images no two of which show one pose (the ``note`` of a
+    :meth:`DepthAccumulator.summary`): the evaluation's images, and what would give it poses to compare."""
+    return (f"no pose has two of its views among the {count} image{'' if count == 1 else 's'} scored (depth compares "
+            "the views of each pose): score more images (a larger limit), or a split that shows each pose from several "
+            "views")
+
+
+def depth_images(depth: Mapping[str, Any]) -> str:
+    """``"16 of the 20 images scored"`` (``"all 16 images scored"`` when depth measured every one; ``"16 images"`` for
+    a summary from before ``images_evaluated`` was recorded): the images the depth figures are over.
+
+    Example:
+        >>> depth_images({"images": 16, "images_evaluated": 20}), depth_images({"images": 16, "images_evaluated": 16})
+        ('16 of the 20 images scored', 'all 16 images scored')
+        >>> depth_images({"images": 16})
+        '16 images'
+    """
+    images, evaluated = depth["images"], depth.get("images_evaluated")
+    if evaluated is None:
+        return f"{images} images"
+    return f"all {images} images scored" if images == evaluated else f"{images} of the {evaluated} images scored"
+
+
 def depth_line(depth: dict[str, Any]) -> str:
-    """One sentence of a :meth:`DepthAccumulator.summary` for reports."""
-    images = f" ({depth['images']} images)" if depth.get("images") is not None else ""
+    """One sentence of a :meth:`DepthAccumulator.summary` (or its JSON form) for reports: what the figures are over
+    (how many of the images scored) and the figures, or why depth was not measured (its ``note``).
+
+    Example:
+        >>> depth_line({"poses": 0, "images": 0, "images_evaluated": 1, "note": "no pose has two of its views ..."})
+        'not measured: no pose has two of its views ...'
+    """
+    if depth.get("note"):
+        return f"not measured: {depth['note']}"
+    images = f" ({depth_images(depth)})" if depth.get("images") is not None else ""
     poses = f"{depth['poses']} test pose{'' if depth['poses'] == 1 else 's'}"
     return (f"over {poses} seen from several views{images}, each part's world translation "
             f"differs between two views of one pose by {depth['mean_translation_disagreement']:.3f} on average (world "
@@ -188,8 +248,10 @@ def depth_line(depth: dict[str, Any]) -> str:
 
 def depth_section(result: Mapping[str, Any]) -> list[str]:
     """The report's depth section from a result's JSON form: the sentence, then each part's translation
-    disagreement beside its majority ground-truth part."""
+    disagreement beside its majority ground-truth part; one line saying why when depth was not measured."""
     depth, labels = result["depth"], part_labels(result)
+    if depth.get("note"):
+        return ["## Depth across views", "", sentence(depth_line(depth)) + ".", ""]
     drow = [[p, labels.get(p) or "-", d] for p, d in enumerate(depth["translation_disagreement"])]
     return ["## Depth across views", "", sentence(depth_line(depth)) + ".", "",
             markdown_table(["Learned part", "Majority GT part", "Translation disagreement"], drow, 3), ""]

@@ -44,7 +44,7 @@ NEEDS: dict[str, str] = {
     "renderer": "renders in the input views (one backend, made once for every diagnostic that needs one)",
     "scipy": "scipy's k-d trees (checked before anything runs: pip install 'cerberus-core[eval]')",
     "segments": "ground-truth per-vertex segment labels (reported as missing when the data has none)",
-    "poses": "several views of each test pose (not reported when no pose has two)",
+    "poses": "several views of each test pose (reported as not measured, and why, when no pose has two)",
     "canonical": "a canonical-pose image of each subject (not reported without one)",
 }
 

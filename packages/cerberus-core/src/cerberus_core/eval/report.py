@@ -15,6 +15,7 @@ from typing import Any
 from cerberus_core.eval.diagnostics import DIAGNOSTICS
 from cerberus_core.eval.markdown import markdown_table, md_text
 from cerberus_core.eval.runner import EvaluationResult
+from cerberus_core.eval.standard import open_ground_truths
 from cerberus_core.plumbing.atomic import atomic_write_text
 
 
@@ -86,14 +87,22 @@ def comparison_table(results: Mapping[str, Mapping[str, float | None]], columns:
 
 def images_scored(count: int, data: Mapping[str, Any] | None = None) -> str:
     """``"24 of 984 images"`` when ``data`` (``results.json``'s ``data``: the split's ``split_images``) says the
-    split holds more than the ``count`` scored, else ``"984 images"``.
+    split holds more than the ``count`` scored, else ``"984 images"``; with why fewer than the limit were scored when
+    a limit of whole poses held fewer images (``selection`` ``"whole poses, spread evenly"``: 2 poses of 8 views
+    within a limit of 20).
 
     Example:
         >>> images_scored(24, {"split_images": 984}), images_scored(984, {"split_images": 984}), images_scored(3)
         ('24 of 984 images', '984 images', '3 images')
+        >>> images_scored(16, {"split_images": 984, "limit": 20, "selection": "whole poses, spread evenly"})
+        '16 of 984 images (whole poses within a limit of 20)'
     """
-    total = (data or {}).get("split_images")
-    return f"{count} of {total} images" if total is not None and total > count else f"{count} images"
+    data = data or {}
+    total, limit = data.get("split_images"), data.get("limit")
+    said = f"{count} of {total} images" if total is not None and total > count else f"{count} images"
+    if limit is not None and count < limit and data.get("selection") == "whole poses, spread evenly":
+        said += f" (whole poses within a limit of {limit})"
+    return said
 
 
 def _duration(r: Mapping[str, Any]) -> str:
@@ -131,9 +140,10 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
     """
     r = to_jsonable(result)
     std, hard = r["standard"], r.get("hard")
+    policy = open_ground_truths(r.get("gt_open_mesh"))
     out = [f"# {md_text(title)}", "",
-           f"Voxel IoU, protocol `{r['protocol']}` at {r['resolution']}^3, union of parts; "
-           f"{images_scored(std['count'], r.get('data'))} ({_duration(r)}).", ""]
+           f"Voxel IoU, protocol `{r['protocol']}` at {r['resolution']}^3, union of parts{', ' if policy else ''}"
+           f"{policy}; {images_scored(std['count'], r.get('data'))} ({_duration(r)}).", ""]
     groups = sorted(set(std["per_group"]) | set((hard or {}).get("per_group", {})))
     rows = [["all", std["mean"], hard["mean"] if hard else None]]
     rows += [[g, std["per_group"].get(g), (hard or {}).get("per_group", {}).get(g)] for g in groups]

@@ -32,7 +32,7 @@ from cerberus_core.errors import DatasetError, InputTypeError, ShapeError, Unkno
 from cerberus_core.eval.accumulators import BatchResult, EvalContext, StandardIoU
 from cerberus_core.eval.diagnostics import DIAGNOSTICS, check_eval_packages, check_skip, needed, running
 from cerberus_core.eval.hard import CanonicalParts, ItemMeta, select_canonical
-from cerberus_core.eval.standard import GroundTruthMemo, IoUSummary, VoxelScorer
+from cerberus_core.eval.standard import GroundTruthMemo, GtOpenMesh, IoUSummary, VoxelScorer
 from cerberus_core.fields import Checked, ranged
 from cerberus_core.parts import PartSet
 from cerberus_core.plumbing.machine import MAX_WORKERS, capped_to_cores
@@ -210,6 +210,9 @@ class EvaluationResult:
     Attributes:
         protocol, resolution: the voxel-IoU protocol and grid size.
         standard: per-image voxel IoU, averaged overall and per subject/species.
+        gt_open_mesh: what the metric did with a ground truth that is not watertight
+            (:data:`~cerberus_core.eval.standard.GT_OPEN_MESH`; ``"error"``: refused it, so every ground truth scored
+            was watertight).
         diagnostics: each diagnostic's entries (:meth:`Diagnostic.results
             <cerberus_core.eval.diagnostics.Diagnostic.results>`), in
             :data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS` order, ``None`` for one skipped: ``hard``
@@ -232,7 +235,8 @@ class EvaluationResult:
         ({0: 0.4, 7: 0.6}, True, None)
         >>> d = result.to_dict()  # the JSON form (results.json); seconds rounded to ms
         >>> list(d), d["standard"]["per_group"], d["seconds"]
-        (['protocol', 'resolution', 'standard', 'hard', 'canonical', 'seconds', 'records'], {'s1': 0.5}, 1.235)
+        (['protocol', 'resolution', 'gt_open_mesh', 'standard', 'hard', 'canonical', 'seconds', 'records'],
+         {'s1': 0.5}, 1.235)
         >>> result["hrad"]
         Traceback (most recent call last):
         ...
@@ -245,6 +249,7 @@ class EvaluationResult:
     diagnostics: dict[str, Any] = field(default_factory=dict)
     records: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0
+    gt_open_mesh: str = "error"
 
     def __getitem__(self, key: str) -> Any:
         """A diagnostic's entry (``result["hard"]``, ``result["segments"]``), ``None`` when it was skipped; an
@@ -270,8 +275,9 @@ class EvaluationResult:
 
     def to_dict(self) -> dict[str, Any]:
         entries = {k: v.to_dict() if isinstance(v, IoUSummary) else v for k, v in self.diagnostics.items()}
-        return {"protocol": self.protocol, "resolution": self.resolution, "standard": self.standard.to_dict(),
-                **entries, "seconds": round(self.seconds, 3), "records": self.records}
+        return {"protocol": self.protocol, "resolution": self.resolution, "gt_open_mesh": self.gt_open_mesh,
+                "standard": self.standard.to_dict(), **entries, "seconds": round(self.seconds, 3),
+                "records": self.records}
 
 
 # ------------------------------------------------------------------ the pass
@@ -303,6 +309,11 @@ class EvalConfig(Checked):
     Attributes:
         protocol, resolution: voxel-IoU protocol (``kato``, 32: the paper's); the metric bounds both
             (:class:`cerberus_core.run.EvalSettings` checks them through its entry point before anything runs).
+        gt_open_mesh: what the metric does with a ground truth that is not watertight
+            (:data:`~cerberus_core.eval.standard.GT_OPEN_MESH`): ``"error"`` (default: the evaluation stops with a
+            :class:`~cerberus_core.errors.DatasetError` naming the image, since the flood fill would score it as a
+            hollow shell), ``"close"`` (its holes closed with pymeshlab, a warning each) or ``"warn"`` (scored as
+            it is, a warning each). Recorded in the result (``gt_open_mesh``).
         skip: the diagnostics not to run, by name (:data:`~cerberus_core.eval.diagnostics.DIAGNOSTICS`:
             ``hard``, ``part_quality``, ``visibility``, ``depth``, ``segments``, ``allocation``, in its order; default: none
             skipped, every diagnostic runs). The standard IoU always runs.
@@ -333,6 +344,7 @@ class EvalConfig(Checked):
 
     protocol: str = "kato"
     resolution: int = ranged(32, integer=True)
+    gt_open_mesh: GtOpenMesh = "error"
     skip: tuple[str, ...] = ()
     canonical_view: int | None = ranged(None, ge=0, integer=True)
     batch_size: int = ranged(16, ge=1)
@@ -392,18 +404,21 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
         indices: evaluate these dataset indices only (default all). Canonical images are looked
             up in the whole dataset.
         device: the model's device.
-        scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache).
+        scorer: a prepared :class:`VoxelScorer` (e.g. with a disk-backed grid cache); its protocol, resolution and
+            ``gt_open_mesh`` are the ones used and recorded, not ``config``'s.
         options: :class:`EvalConfig` fields that replace ``config``'s (``skip=("hard",)``, ``batch_size=6``...);
             another name is a :class:`~cerberus_core.errors.ConfigError` (:func:`~cerberus_core.config.check_known`).
     Raises:
         MissingPackageError: before anything runs, when a diagnostic that runs needs a package that is not
             installed (:func:`~cerberus_core.eval.diagnostics.check_eval_packages`).
+        DatasetError: a ground truth the metric refuses (one not watertight while ``gt_open_mesh`` is ``"error"``),
+            naming its image.
     """
     t0 = time.perf_counter()
     check_known(options, (f.name for f in fields(EvalConfig)))
     config = replace(config or EvalConfig(), **options)
     check_eval_packages(config.skip, metric=scorer is None)  # before any image is reconstructed
-    scorer = scorer or VoxelScorer(config.protocol, config.resolution)
+    scorer = scorer or VoxelScorer(config.protocol, config.resolution, gt_open_mesh=config.gt_open_mesh)
     indices = list(range(len(dataset))) if indices is None else [int(i) for i in indices]
     if not indices:
         raise DatasetError("evaluate_dataset: no images to evaluate (empty dataset or index list); pass a split that "
@@ -415,17 +430,17 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
     accumulators = metric_accumulators(dataset, reconstruct, config, scorer, renderer, device)
     gt_memo = GroundTruthMemo(dataset.gt_mesh)
     records: list[dict[str, Any]] = []
-    bar = tqdm(total=len(indices), desc="evaluate", unit="img", disable=not config.progress)
-    for batch_idx, batch, camera in iterate_batches(dataset, indices, config.batch_size,
-                                                               capped_to_cores("num_workers", config.num_workers)):
-        recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
-        result = batch_result(dataset, batch, batch_idx, recon, camera.to(device), gt_memo)
-        for accumulator in (standard, *accumulators.values()):
-            accumulator.update(result)
-        records.extend(result.records)
-        bar.update(len(batch_idx))
-        bar.set_postfix(iou=f"{standard.running_mean():.4f}")
-    bar.close()
+    # closed on the way out, an error's too, so that the error's line starts a line of its own
+    with tqdm(total=len(indices), desc="evaluate", unit="img", disable=not config.progress) as bar:
+        for batch_idx, batch, camera in iterate_batches(dataset, indices, config.batch_size,
+                                                        capped_to_cores("num_workers", config.num_workers)):
+            recon = reconstruct_batch(reconstruct, batch["images"], camera, device)
+            result = batch_result(dataset, batch, batch_idx, recon, camera.to(device), gt_memo)
+            for accumulator in (standard, *accumulators.values()):
+                accumulator.update(result)
+            records.extend(result.records)
+            bar.update(len(batch_idx))
+            bar.set_postfix(iou=f"{standard.running_mean():.4f}")
     entries: dict[str, Any] = {}
     for row in DIAGNOSTICS:
         entries |= row.results(accumulators.get(row.name))
@@ -436,4 +451,5 @@ def evaluate_dataset(dataset: Any, reconstruct: Reconstructor, config: EvalConfi
         diagnostics=entries,
         records=records,
         seconds=time.perf_counter() - t0,
+        gt_open_mesh=getattr(scorer, "gt_open_mesh", config.gt_open_mesh),
     )

@@ -3,7 +3,7 @@
 The paper (§5.2) voxelizes prediction and ground truth at 32^3 and takes the union of the part
 voxels as the output. The metric lives in the ``cerberus-metrics`` package and is reached only
 through its ``cerberus.metrics`` entry point ``voxel_iou_scorer`` (:func:`cerberus_core.plugins.get_metric`):
-a factory ``(protocol=, resolution=, cache=) -> scorer`` whose ``scorer(pred_parts, gt)`` returns
+a factory ``(protocol=, resolution=, cache=, gt_open_mesh=) -> scorer`` whose ``scorer(pred_parts, gt)`` returns
 ``(iou, clipped)`` and whose ``scorer.grids(pred_parts, gt)`` keeps the voxels behind that score, each
 predicted part's apart (:class:`Voxels`: per-part and per-region figures scored exactly like the IoU). The scorer owns what only the metric knows: the ground-truth grid cache (the views
 of a pose voxelize their mesh once), the protocol's grid (a predicted part leaving the ``kato`` grid is
@@ -14,25 +14,46 @@ package by name.
 :class:`GroundTruthMemo` keeps the last few ground-truth meshes so the views of a pose do not rebuild
 them. A prediction the metric still rejects (e.g. every triangle degenerate) scores 0 and is counted
 as ``failed`` with the message: the scorer names the exception types it raises for such input in its
-``rejects`` attribute (a tuple; cerberus-metrics' ``MeshInputError``), and anything else it raises (a bug, a
-ground truth it refuses) stops the evaluation instead of scoring 0.
+``rejects`` attribute (a tuple; cerberus-metrics' ``MeshInputError``), and anything else it raises (a bug)
+stops the evaluation instead of scoring 0. A ground truth the metric refuses stops it too, as a
+:class:`~cerberus_core.errors.DatasetError` naming the image (:func:`ground_truth_error`): by default
+(``gt_open_mesh="error"``) one that is not watertight, which the flood fill would score as a hollow shell;
+``gt_open_mesh`` (:data:`GT_OPEN_MESH`) passes the metric another policy for them.
 """
 from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from cerberus_core.errors import ConfigError, ShapeError
+from cerberus_core.errors import ConfigError, DatasetError, ShapeError
 from cerberus_core.plugins import get_metric
 
 MeshPair = tuple[np.ndarray, np.ndarray]
 
 SCORER_ENTRY_POINT = "voxel_iou_scorer"
 """The ``cerberus.metrics`` entry point evaluation scores with."""
+
+GtOpenMesh = Literal["error", "close", "warn"]
+GT_OPEN_MESH: tuple[str, ...] = ("error", "close", "warn")
+"""What the metric does with a ground truth that is not watertight (its ``gt_open_mesh``): ``error`` (the
+default) refuses it, and the evaluation stops naming the image; ``close`` closes its holes with pymeshlab and
+warns; ``warn`` scores it as it is (a hollow shell where the flood fill leaks in) and warns."""
+
+
+def open_ground_truths(policy: str | None) -> str:
+    """How reports say a ``gt_open_mesh`` policy that scored open ground truths (``""`` for ``"error"``, the default,
+    and for ``None``, a result from before the policy was recorded: every ground truth scored was watertight).
+
+    Example:
+        >>> open_ground_truths("close"), open_ground_truths("warn"), open_ground_truths("error")
+        ('open ground truths closed with pymeshlab', 'open ground truths scored as they are', '')
+    """
+    return {"close": "open ground truths closed with pymeshlab", "warn": "open ground truths scored as they are"}.get(
+        policy or "error", "")
 
 
 @dataclass
@@ -78,8 +99,12 @@ class VoxelScorer:
         factory: the scorer factory (default: the ``voxel_iou_scorer`` entry point).
         grid_cache: passed to the factory as ``cache`` (e.g. a directory for a disk-backed cache of
             ground-truth grids); default the scorer's memory cache.
+        gt_open_mesh: passed to the factory: what to do with a ground truth that is not watertight
+            (:data:`GT_OPEN_MESH`; default ``"error"``: :meth:`voxels` raises a
+            :class:`~cerberus_core.errors.DatasetError` naming it).
     Attributes:
         cache: the scorer's ground-truth grid cache (``hits`` / ``misses``).
+        gt_open_mesh: the policy passed (an evaluation records it).
 
     Example (needs cerberus-metrics): a cube of side 0.5 (mesh units, ``(V, 3)`` vertices and ``(F, 3)``
     faces), the same cube moved by half its side, and a cube of side 1.1 that leaves the ``kato`` grid:
@@ -102,27 +127,64 @@ class VoxelScorer:
     """
 
     def __init__(self, protocol: str = "kato", resolution: int = 32, factory: Callable[..., Any] | None = None,
-                 grid_cache: Any = None) -> None:
+                 grid_cache: Any = None, gt_open_mesh: GtOpenMesh = "error") -> None:
         factory = factory if factory is not None else get_metric(SCORER_ENTRY_POINT)
         self.protocol = protocol
         self.resolution = resolution
-        self.scorer = factory(protocol=protocol, resolution=resolution, cache=grid_cache)
+        self.gt_open_mesh = gt_open_mesh
+        self.scorer = factory(protocol=protocol, resolution=resolution, cache=grid_cache, gt_open_mesh=gt_open_mesh)
         self.cache = self.scorer.cache
 
-    def __call__(self, parts: list[MeshPair], gt: MeshPair) -> Score:
+    def __call__(self, parts: list[MeshPair], gt: MeshPair, name: str = "the ground truth") -> Score:
         """Score one prediction (list of part meshes) against one ground truth: :meth:`voxels`'s score."""
-        return self.voxels(parts, gt).score
+        return self.voxels(parts, gt, name).score
 
-    def voxels(self, parts: list[MeshPair], gt: MeshPair) -> Voxels:
+    def voxels(self, parts: list[MeshPair], gt: MeshPair, name: str = "the ground truth") -> Voxels:
         """Score one prediction and keep its voxels, part by part (the metric's ``scorer.grids``). A prediction the
-        metric rejects scores 0 with the reason (module docstring); a ground truth it rejects raises."""
+        metric rejects scores 0 with the reason (module docstring); a ground truth it rejects raises a
+        :class:`~cerberus_core.errors.DatasetError` that calls it ``name`` (:func:`ground_truth_error`)."""
+        rejects = getattr(self.scorer, "rejects", ())
         try:
             grids = self.scorer.grids(parts, gt)
-        except getattr(self.scorer, "rejects", ()) as exc:  # the metric's input error: a rejected prediction scores 0
-            truth = self.scorer.grids([gt], gt)  # a ground truth the metric refuses raises here
+        except rejects as exc:  # the metric's input error: a rejected prediction scores 0
+            try:
+                truth = self.scorer.grids([gt], gt)  # unless the metric refuses the ground truth itself
+            except rejects as refused:
+                raise ground_truth_error(refused, name, self.gt_open_mesh) from None
             return Voxels(np.zeros_like(truth.parts[:1]).repeat(len(parts), 0), truth.gt,
                           Score(0.0, 0, f"{type(exc).__name__}: {exc}"), truth.centers)
         return Voxels(grids.parts, grids.gt, Score(grids.iou, int(grids.clamped)), grids.centers)
+
+
+def ground_truth_error(exc: Exception, name: str, policy: str = "error") -> DatasetError:
+    """The error of a ground truth the metric refuses (``exc``, its input error), calling it ``name``.
+
+    One that is not watertight (the metric's error carries a ``report`` whose ``watertight`` is false: its
+    ``OpenMeshError``) is said with its defects and the fix in this package's terms, the ``gt_open_mesh`` setting
+    (:data:`GT_OPEN_MESH`), never the metric's own keyword; any other, with the metric's message.
+
+    Example: a report of a mesh with 4 open edges, as the metric's error carries one:
+
+        >>> from types import SimpleNamespace
+        >>> report = SimpleNamespace(watertight=False, problems=lambda: ["4 boundary (open) edges"])
+        >>> open_mesh = ValueError("gt: the ground truth is not watertight ...")
+        >>> open_mesh.report = report
+        >>> print(ground_truth_error(open_mesh, "the ground truth of image 3"))
+        the ground truth of image 3 is not watertight (4 boundary (open) edges): the voxel IoU fills a ground
+        truth's inside, and through its holes the fill would leave a hollow shell to score every prediction against;
+        repair the mesh, or pass `gt_open_mesh=close` (its holes closed with pymeshlab) or `gt_open_mesh=warn`
+        (scored as it is, a warning each)
+        >>> print(ground_truth_error(ValueError("gt: degenerate mesh"), "the ground truth of image 3"))
+        the ground truth of image 3: the metric refuses it (ValueError: gt: degenerate mesh); repair the mesh
+    """
+    report = getattr(exc, "report", None)
+    if report is not None and getattr(report, "watertight", True) is False and policy == "error":
+        problems = ", ".join(report.problems()) if callable(getattr(report, "problems", None)) else "open edges"
+        return DatasetError(f"{name} is not watertight ({problems}): the voxel IoU fills a ground truth's inside, "
+                            "and through its holes the fill would leave a hollow shell to score every prediction "
+                            "against; repair the mesh, or pass `gt_open_mesh=close` (its holes closed with pymeshlab) "
+                            "or `gt_open_mesh=warn` (scored as it is, a warning each)")
+    return DatasetError(f"{name}: the metric refuses it ({type(exc).__name__}: {exc}); repair the mesh")
 
 
 def check_scorer(protocol: str, resolution: int) -> None:
