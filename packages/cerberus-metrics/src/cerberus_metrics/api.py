@@ -14,7 +14,6 @@ same cube moved by half its side.
 
 from __future__ import annotations
 
-import contextlib
 import warnings
 from collections.abc import Iterable
 from typing import Any
@@ -205,7 +204,7 @@ def prediction_grids(pred: Any, gt: Any, protocol: str, resolution: int, cache: 
     """
     g_check = check_self_intersections if gt_check_self_intersections is None else gt_check_self_intersections
     g = _gt_grid(gt, protocol, resolution, cache, g_check, open_mesh, gt_open_mesh)
-    with warnings.catch_warnings() if quiet_pred else contextlib.nullcontext():
+    with warnings.catch_warnings():  # the caller's filters come back on the way out
         if quiet_pred:
             warnings.simplefilter("ignore", MeshQualityWarning)
         parts = _part_grids(pred, protocol, resolution, g.frame, True, check_self_intersections, open_mesh, "pred",

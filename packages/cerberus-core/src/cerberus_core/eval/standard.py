@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -38,7 +38,7 @@ SCORER_ENTRY_POINT = "voxel_iou_scorer"
 """The ``cerberus.metrics`` entry point evaluation scores with."""
 
 GtOpenMesh = Literal["error", "close", "warn"]
-GT_OPEN_MESH: tuple[str, ...] = ("error", "close", "warn")
+GT_OPEN_MESH: tuple[str, ...] = get_args(GtOpenMesh)
 """What the metric does with a ground truth that is not watertight (its ``gt_open_mesh``): ``error`` (the
 default) refuses it, and the evaluation stops naming the image; ``close`` closes its holes with pymeshlab and
 warns; ``warn`` scores it as it is (a hollow shell where the flood fill leaks in) and warns."""
