@@ -97,3 +97,79 @@ def test_cache_keys_of_existing_caches_stay_and_a_shared_cache_replays_the_right
         with pytest.warns(MeshQualityWarning, match=r"\(open_mesh='close'\)"):
             voxel_iou(cube, lidless, cache=cache, open_mesh="close", check_self_intersections=False)
     assert (cache.misses, cache.hits) == (4, 2)
+
+
+def _open_with_a_fin():
+    """The lidless cube of :func:`_cube_lidless_big` with a fin: a triangle on one of its edges to the cube's centre,
+    so the mesh is open (boundary edges) and non-manifold (an edge of three faces), which pymeshlab cannot close."""
+    box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    return np.vstack([v, [[0.0, 0.0, 0.0]]]), np.vstack([f[2:], [[2, 3, 8]]])  # vertices 2, 3: an edge of f[2:]
+
+
+def test_every_open_mesh_message_names_the_option_that_set_the_policy():
+    """Before: under gt_open_mesh the loader's own messages still said open_mesh (``gt: open_mesh='close' cannot
+    close holes of a non-manifold mesh ...; repair it, or use open_mesh='warn'``), an option the scorer has not and
+    the caller did not set. Now the option's name is passed down to the loader (load_parts' open_mesh_option), so
+    its errors name gt_open_mesh for a ground truth under its own policy, and open_mesh, as before, otherwise."""
+    import re
+
+    from cerberus_metrics import MeshInputError, OpenMeshError
+    from cerberus_metrics.api import prediction_grids
+    from cerberus_metrics.io import load_parts
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    cube, lidless, _ = _cube_lidless_big()
+    fin = _open_with_a_fin()
+    said = []
+    for run in (lambda: prediction_grids([cube], fin, "kato", 32, None, "clamp", gt_open_mesh="close"),
+                lambda: VoxelIoUScorer(gt_open_mesh="close")([cube], fin)):
+        with pytest.raises(MeshInputError, match=r"^gt: gt_open_mesh='close' cannot close holes of a non-manifold "
+                                                 r"mesh \(\d+ non-manifold edges\); repair it, or use "
+                                                 r"gt_open_mesh='warn'$") as exc:
+            run()
+        said.append(str(exc.value))
+    with pytest.raises(OpenMeshError, match=r"^gt: mesh is not watertight \(4 boundary \(open\) edges\) and "
+                                            r"gt_open_mesh='error'; repair the mesh, or use gt_open_mesh='warn'") as exc:
+        load_parts(lidless, "gt", open_mesh="error", open_mesh_option="gt_open_mesh")
+    said.append(str(exc.value))
+    with pytest.raises(MeshInputError, match="^gt_open_mesh must be one of") as exc:
+        load_parts(lidless, "gt", open_mesh="ignore", open_mesh_option="gt_open_mesh")
+    said.append(str(exc.value))
+    assert not [s for s in said if re.search(r"(?<!gt_)open_mesh=", s)], said
+    # the prediction's own option, and the ground truth's when it follows the prediction's: open_mesh, as before
+    with pytest.raises(MeshInputError, match=r"^gt: open_mesh='close' cannot close holes .* use open_mesh='warn'$"):
+        prediction_grids([cube], fin, "kato", 32, None, "clamp", open_mesh="close")
+    with pytest.raises(MeshInputError, match=r"^pred: open_mesh='close' cannot close holes"):
+        prediction_grids([fin], cube, "kato", 32, None, "clamp", open_mesh="close", gt_open_mesh="error")
+
+
+def test_quality_warnings_name_the_ground_truth_file(tmp_path):
+    """A set of open scans under gt_open_mesh='warn': each warning names its scan by its file's path, one line per
+    mesh, also when the scorer's cache holds a grid of the same bytes voxelized from another file (before: the hit
+    replayed the warning recorded for the first file, naming a scan that was not the one scored)."""
+    from cerberus_metrics import MeshQualityWarning
+    from cerberus_metrics.scoring import VoxelIoUScorer
+
+    cube, lidless, _ = _cube_lidless_big()
+    scans = tmp_path / "scans"
+    scans.mkdir()
+    paths = [scans / "a.ply", scans / "b.ply"]
+    for p in paths:
+        trimesh.Trimesh(*lidless, process=False).export(p)
+    assert paths[0].read_bytes() == paths[1].read_bytes()  # the same content: one cache key
+    scorer = VoxelIoUScorer(gt_open_mesh="warn")
+
+    def said(gt):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            scorer([cube], gt)
+        return [str(w.message) for w in caught if issubclass(w.category, MeshQualityWarning)]
+
+    for path in (*paths, paths[1]):  # a, b (the same bytes), b again (replayed from the cache)
+        texts = said(str(path))
+        assert len(texts) == 1 and "\n" not in texts[0], texts
+        assert texts[0].startswith(f"gt ('{path}'): mesh is not watertight (4 boundary (open) edges)."), texts
+    assert (scorer.cache.misses, scorer.cache.hits) == (2, 1)
+    # in memory, without a path: the role, and the index among several ground-truth parts
+    assert [t.split(":")[0] for t in said([lidless, lidless])] == ["gt[0]", "gt[1]"]

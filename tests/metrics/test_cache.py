@@ -65,3 +65,27 @@ def test_a_failed_write_leaves_no_temporary_file(tmp_path, box):
     assert sorted(p.name for p in folder.iterdir()) == ["j.npz", "k.npz"]
     again = GridCache(folder).get("j")
     assert again is not None and again.messages == ("a note",) and again.grid.count == grid.count
+
+
+def test_a_hit_replays_warnings_only_for_the_file_they_name(tmp_path, box):
+    """The key is the content, the warnings name the file: a scan moved (or copied) after its grid was cached is
+    voxelized again, so its warning names where it is now rather than where it was; a grid cached before its
+    warnings' names were recorded (``labels`` None) still replays them."""
+    from cerberus_metrics.cache import CachedGrid
+
+    open_box = trimesh.Trimesh(box.vertices, box.faces[1:], process=False)
+    old, new = tmp_path / "old.ply", tmp_path / "new.ply"
+    open_box.export(old)
+    with pytest.warns(MeshQualityWarning, match=r"^gt \('.*old\.ply'\): mesh is not watertight"):
+        voxel_iou(box, str(old), cache=GridCache(tmp_path / "grids"))
+    old.rename(new)
+    fresh = GridCache(tmp_path / "grids")  # another process, reading the grid of the same bytes from disk
+    with pytest.warns(MeshQualityWarning, match=r"^gt \('.*new\.ply'\): mesh is not watertight") as caught:
+        voxel_iou(box, str(new), cache=fresh)
+    assert not [w for w in caught if "old.ply" in str(w.message)] and (fresh.misses, fresh.hits) == (1, 0)
+    with pytest.warns(MeshQualityWarning, match=r"new\.ply"):
+        voxel_iou(box, str(new), cache=GridCache(tmp_path / "grids"))  # rewritten under its new name: a hit
+    cache = GridCache(tmp_path / "unlabelled")
+    cache.put("k", CachedGrid(fresh.get(next(iter(fresh._mem))).grid, ("an old note",)))
+    hit = GridCache(tmp_path / "unlabelled").get("k", ("gt ('elsewhere.ply')",))
+    assert hit is not None and hit.labels is None and hit.messages == ("an old note",)

@@ -81,3 +81,23 @@ def test_the_help_says_each_column_group_in_one_line():
     lines = parser.format_help().splitlines()
     for group in COLUMN_GROUPS:
         assert sum(line.split() == [group.name, *group.summary.split()] for line in lines) == 1, group.name
+
+
+def test_evaluations_measured_differently_are_refused_in_one_line_naming_the_eval_flags(tmp_path, capsys):
+    from cerberus_core.cli import build_parser
+    from cerberus_core.eval.compare import MEASUREMENT
+
+    old = _evaluation(tmp_path / "old" / "eval", [0.5, 0.6])  # no gt_open_mesh recorded: made under error
+    closed = _evaluation(tmp_path / "closed" / "eval", [0.55, 0.62])
+    results = json.loads((closed / "results.json").read_text()) | {"gt_open_mesh": "close"}
+    (closed / "results.json").write_text(json.dumps(results))
+    plot = tmp_path / "pairs.png"
+    assert main(["compare", str(old), str(closed), "--plot", str(plot)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1 and not plot.exists()
+    assert captured.err == ("cerberus compare: evaluations measured under different settings cannot be paired image "
+                            "by image: gt_open_mesh is 'error' in old, 'close' in closed; evaluate them again with the "
+                            "same cerberus eval --gt-open-mesh, or compare only those that agree\n")
+    evaluate = build_parser("eval")._subparsers._group_actions[0].choices["eval"]
+    flags = {flag for action in evaluate._actions for flag in action.option_strings}
+    assert {f"--{key.replace('_', '-')}" for key, _ in MEASUREMENT} <= flags  # each fix names a flag eval has

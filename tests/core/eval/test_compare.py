@@ -260,3 +260,57 @@ def test_image_pairs_is_the_pairing_of_the_difference():
     d = paired_difference(a, b)
     assert d.n == 2 and d.mean == pytest.approx(sum(x - y for x, y in image_pairs(a, b)) / 2)
     assert image_pairs(a, {"standard": {}}) == []
+
+
+# ----------------------------------------------------------------------------- evaluations measured alike
+def _measured(folder, values: dict[int, float], **settings):
+    """A results.json written to ``folder`` as ``cerberus eval`` writes one (``settings`` over the defaults: protocol
+    kato, resolution 32, gt_open_mesh error; a setting given as None is left out, as older files lack it), read
+    back as ``cerberus compare`` reads it."""
+    from cerberus_core.eval.compare import load_evaluation
+
+    recorded = {"protocol": "kato", "resolution": 32, "gt_open_mesh": "error"} | settings
+    _write(folder, {k: v for k, v in recorded.items() if v is not None} | _results(values))
+    return load_evaluation(folder)
+
+
+def test_an_older_evaluation_without_gt_open_mesh_pairs_with_one_that_records_error(tmp_path):
+    from cerberus_core.eval.compare import check_comparable, comparison_rows, measurement
+
+    old = _measured(tmp_path / "old", {0: 0.5, 1: 0.6, 2: 0.7}, gt_open_mesh=None)
+    new = _measured(tmp_path / "new", {0: 0.55, 1: 0.62, 2: 0.78})
+    assert "gt_open_mesh" not in old and measurement(old) == measurement(new) == {
+        "protocol": "kato", "resolution": 32, "gt_open_mesh": "error"}
+    check_comparable({"old": old, "new": new})
+    header, rows = comparison_rows({"old": old, "new": new})
+    assert rows[1][3] == paired_difference(new, old) and rows[1][3].n == 3
+    records = new["records"]  # bare records know no setting: they pair with any evaluation
+    assert paired_difference(records, _measured(tmp_path / "close", {0: 0.4, 1: 0.5}, gt_open_mesh="close")).n == 2
+
+
+def test_evaluations_measured_differently_are_refused_naming_each_setting_and_value(tmp_path):
+    from cerberus_core.errors import IncomparableEvaluationsError
+    from cerberus_core.eval.compare import comparison_rows
+    from cerberus_core.eval.figures import paired_plot
+
+    values = {0: 0.5, 1: 0.6, 2: 0.7}
+    base = _measured(tmp_path / "base", values, gt_open_mesh=None)  # older: made under gt_open_mesh error
+    same = _measured(tmp_path / "same", values)
+    closed = _measured(tmp_path / "closed", values, gt_open_mesh="close", resolution=64)
+    evaluations = {"base": base, "same": same, "closed": closed}
+    for draw in (lambda: comparison_rows(evaluations), lambda: paired_plot(evaluations, tmp_path / "p.png")):
+        with pytest.raises(IncomparableEvaluationsError) as caught:
+            draw()
+        message = str(caught.value)
+        assert message == ("evaluations measured under different settings cannot be paired image by image: "
+                           "resolution is 32 in base and same, 64 in closed; gt_open_mesh is 'error' in base and "
+                           "same, 'close' in closed; evaluate them again with the same `resolution` and "
+                           "`gt_open_mesh`, or compare only those that agree")
+        assert caught.value.differences == {"resolution": {"base": 32, "same": 32, "closed": 64},
+                                            "gt_open_mesh": {"base": "error", "same": "error", "closed": "close"}}
+        assert isinstance(caught.value, DatasetError) and "--" not in message  # Python terms, no flag
+    assert not (tmp_path / "p.png").exists()  # refused before anything is drawn
+    with pytest.raises(IncomparableEvaluationsError, match="protocol is 'kato' in a, 'other' in b; evaluate them "
+                                                           "again with the same `protocol`"):
+        paired_difference(base, base | {"protocol": "other"})  # the one pairing checks too, its arguments named
+    assert comparison_rows({"base": base, "same": same})[1][1][3].n == 3  # those that agree still pair

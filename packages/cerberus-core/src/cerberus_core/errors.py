@@ -25,8 +25,9 @@ of them the same way, and one module, so that no layer imports another just for 
 and the errors of one concept each: :class:`PluginError` (:class:`UnknownPluginError`,
 :class:`DuplicatePluginError`, :class:`PluginLoadError`), :class:`ZooError`, :class:`IncompleteDatasetError`,
 :class:`ManifestFormatError`, :class:`TrainingDatasetError`, :class:`NonFiniteError`, :class:`RunExistsError`,
-:class:`NoCheckpointError`, :class:`CheckpointError`, :class:`LockedError`, :class:`ImageInputError`,
-:class:`BodyError`, :class:`ReleaseMismatchError` and :class:`UnknownSubjectError`.
+:class:`NoCheckpointError`, :class:`NoEvaluationError`, :class:`IncomparableEvaluationsError`,
+:class:`CheckpointError`, :class:`LockedError`, :class:`ImageInputError`, :class:`BodyError`,
+:class:`ReleaseMismatchError` and :class:`UnknownSubjectError`.
 
 Every error class of ``cerberus_core`` is defined here, and nowhere else (``tests/repo/test_raises.py``), so
 that no module imports another just for an exception. The one exception class that is not an error is
@@ -218,6 +219,17 @@ class NoEvaluationError(CerberusError, FileNotFoundError):
     run's ``eval/``); the message names the path and how to make one (:mod:`cerberus_core.eval.compare`)."""
 
 
+class IncomparableEvaluationsError(DatasetError):
+    """Evaluations measured under different settings (:data:`cerberus_core.eval.compare.MEASUREMENT`: protocol,
+    resolution, ground-truth open-mesh policy), whose per-image values cannot be paired: the message names each
+    setting that differs with each evaluation's value, and the fix. ``differences`` is ``{setting: {evaluation
+    name: value}}`` of those settings."""
+
+    def __init__(self, message: str, *, differences: dict[str, dict[str, object]]) -> None:
+        super().__init__(message)
+        self.differences = differences
+
+
 class CheckpointError(CerberusError, ValueError):
     """A model file or run folder cannot be loaded; the message names the file and what to pass instead."""
 
@@ -262,9 +274,10 @@ class UnknownSubjectError(CerberusError, KeyError):
         return str(self.args[0])
 
 
-__all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "ConfigError", "DatasetError", "DeviceError",
-           "DuplicatePluginError", "ImageInputError", "IncompleteDatasetError", "InputTypeError",
-           "LockedError", "ManifestFormatError", "MeshError", "MissingPackageError", "NoCheckpointError", "NoEvaluationError",
-           "NonFiniteError", "OutputError", "PluginError", "PluginLoadError", "ReleaseMismatchError",
-           "RenderInputError", "RunExistsError", "ShapeError", "TextFormatError", "TrainingDatasetError",
-           "UnknownEntryError", "UnknownPluginError", "UnknownSubjectError", "ZooError", "shown"]
+__all__ = ["BackendError", "BodyError", "CerberusError", "CheckpointError", "ConfigError", "DatasetError",
+           "DeviceError", "DuplicatePluginError", "ImageInputError", "IncomparableEvaluationsError",
+           "IncompleteDatasetError", "InputTypeError", "LockedError", "ManifestFormatError", "MeshError",
+           "MissingPackageError", "NoCheckpointError", "NoEvaluationError", "NonFiniteError", "OutputError",
+           "PluginError", "PluginLoadError", "ReleaseMismatchError", "RenderInputError", "RunExistsError", "ShapeError",
+           "TextFormatError", "TrainingDatasetError", "UnknownEntryError", "UnknownPluginError", "UnknownSubjectError",
+           "ZooError", "shown"]

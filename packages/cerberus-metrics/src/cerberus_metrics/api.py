@@ -30,6 +30,7 @@ from .io import (
     OpenMeshError,
     content_digest,
     load_parts,
+    mesh_labels,
 )
 from .protocols import Frame, get_protocol, make_frame
 from .voxelize import PartGrids, VoxelGrid, grid_iou, voxelize_parts
@@ -95,10 +96,11 @@ def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = No
           open_mesh_option: str = "open_mesh") -> VoxelGrid:
     """:func:`voxelize`; ``ground_truth``: the mesh is a ground truth (which is never clamped: only the fix its
     outside-the-grid error names changes, so it is not part of the cache key). ``open_mesh_option``: the name of
-    the option that set ``open_mesh``, which the quality warnings name (see :func:`prediction_grids`)."""
+    the option that set ``open_mesh``, which the messages name (see :func:`prediction_grids`)."""
     proto = get_protocol(protocol)
-    key = None
+    key = labels = None
     if cache is not None:
+        labels = mesh_labels(mesh, name, open_mesh)  # a hit replays its warnings only if they name these parts
         key = GridCache.make_key(
             content_digest(mesh),
             protocol=proto.name,
@@ -113,7 +115,7 @@ def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = No
             **({"open_mesh_option": open_mesh_option} if open_mesh_option != "open_mesh" and open_mesh != "error"
                else {}),
         )
-        hit = cache.get(key)
+        hit = cache.get(key, labels)
         if hit is not None:
             for msg in hit.messages:
                 warnings.warn(msg, MeshQualityWarning, stacklevel=3)
@@ -126,7 +128,7 @@ def _grid(mesh: Any, protocol: str, resolution: int, *, frame: Frame | None = No
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if cache is not None and key is not None:
-        cache.put(key, CachedGrid(grid, messages))
+        cache.put(key, CachedGrid(grid, messages, labels))
     return grid
 
 
@@ -135,7 +137,8 @@ def _part_grids(mesh: Any, protocol: str, resolution: int, frame: Frame | None, 
                 ground_truth: bool = False, open_mesh_option: str = "open_mesh") -> PartGrids:
     """Load ``mesh``'s parts and voxelize each alone (the one voxelization path of this module)."""
     proto = get_protocol(protocol)
-    parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh)
+    parts = load_parts(mesh, name, check_self_intersections=check_self_intersections, open_mesh=open_mesh,
+                       open_mesh_option=open_mesh_option)
     if frame is None:
         frame = make_frame(proto, resolution, np.concatenate([p.vertices for p in parts]))
     return voxelize_parts(parts, proto, frame, fill=fill, outside=outside, ground_truth=ground_truth,
@@ -184,7 +187,7 @@ def prediction_grids(pred: Any, gt: Any, protocol: str, resolution: int, cache: 
     protocol, resolution, cache: as :func:`voxel_iou_clamped`'s. outside, check_self_intersections, open_mesh:
     the prediction's options (see :func:`voxelize`), and the ground truth's unless given apart:
     gt_open_mesh: the ground truth's ``"warn"`` | ``"close"`` | ``"error"`` (default None: ``open_mesh``); its
-    quality warnings then name ``gt_open_mesh``, and an open ground truth it refuses raises
+    warnings and errors then name ``gt_open_mesh``, and an open ground truth it refuses raises
     :class:`~cerberus_metrics.io.OpenMeshError` saying that the flood fill would score a hollow shell.
     gt_check_self_intersections: the ground truth's (default None: ``check_self_intersections``).
     quiet_pred: silence the prediction's :class:`MeshQualityWarning` (the ground truth's are still issued).

@@ -3,7 +3,10 @@
 Keys hash the mesh content (file bytes or vertex/face arrays, see
 :func:`cerberus_metrics.io.content_digest`) together with everything that changes the
 grid: protocol, resolution, frame, fill flag and the mesh options. A test set's ground
-truths are therefore voxelized once, and a hit skips reading the file.
+truths are therefore voxelized once, and a hit skips reading the file. A grid keeps the quality
+warnings its mesh raised, and a hit replays them; they name the mesh (its file's path), so a hit
+for an input named otherwise (another file of the same bytes, a moved file) voxelizes it again
+rather than replay warnings that name another file.
 """
 
 from __future__ import annotations
@@ -27,10 +30,12 @@ __all__ = ["GridCache", "CachedGrid"]
 
 @dataclass(frozen=True)
 class CachedGrid:
-    """A grid plus the quality warnings its mesh raised when it was voxelized."""
+    """A grid plus the quality warnings its mesh raised when it was voxelized, and ``labels``: how those warnings
+    name its parts (:func:`~cerberus_metrics.io.mesh_labels`; None: not recorded, e.g. a file written before)."""
 
     grid: VoxelGrid
     messages: tuple[str, ...]
+    labels: tuple[str, ...] | None = None
 
 
 class GridCache:
@@ -55,7 +60,9 @@ class GridCache:
         blob = json.dumps(params, sort_keys=True, default=str).encode()
         return hashlib.sha256(digest.encode() + b"|" + blob).hexdigest()
 
-    def get(self, key: str) -> CachedGrid | None:
+    def get(self, key: str, labels: tuple[str, ...] | None = None) -> CachedGrid | None:
+        """The grid under ``key``, or None (a miss). labels: how the input looked up names its parts
+        (:func:`~cerberus_metrics.io.mesh_labels`); a grid whose warnings name other parts is a miss."""
         item = self._mem.get(key)
         if item is None and self.directory is not None:
             try:
@@ -64,7 +71,7 @@ class GridCache:
                 item = None  # a damaged entry (a killed writer, a disk error) is a miss: recomputed and rewritten
             if item is not None:
                 self._remember(key, item)
-        if item is None:
+        if item is None or (item.messages and None not in (labels, item.labels) and item.labels != labels):
             self.misses += 1
             return None
         self._mem.move_to_end(key)
@@ -97,6 +104,7 @@ class GridCache:
             "frame": np.asarray([g.frame.scale, *g.frame.shift, g.frame.resolution, g.frame.fixed], np.float64),
             "protocol": np.asarray(g.protocol),
             "messages": np.asarray(json.dumps(list(item.messages))),
+            "labels": np.asarray(json.dumps(None if item.labels is None else list(item.labels))),
             "clamped": np.asarray(g.clamped),
         }
         write_atomically([(path, lambda fh: np.savez_compressed(fh, **arrays))])
@@ -112,4 +120,5 @@ class GridCache:
             frame = Frame(float(f[0]), (float(f[1]), float(f[2]), float(f[3])), int(f[4]), bool(f[5]))
             clamped = int(z["clamped"]) if "clamped" in z.files else 0  # files written before the field: 0
             grid = VoxelGrid(occ, tuple(int(o) for o in z["origin"]), frame, str(z["protocol"]), clamped)
-            return CachedGrid(grid, tuple(json.loads(str(z["messages"]))))
+            labels = json.loads(str(z["labels"])) if "labels" in z.files else None  # files written before: None
+            return CachedGrid(grid, tuple(json.loads(str(z["messages"]))), None if labels is None else tuple(labels))

@@ -57,7 +57,8 @@ class MeshInputError(MetricsError, ValueError):
 
 
 class OpenMeshError(MeshInputError):
-    """A mesh that must be closed is not watertight (``open_mesh="error"``, or a ground truth of
+    """A mesh that must be closed is not watertight (``open_mesh="error"``, or a ground truth under
+    ``gt_open_mesh="error"``: :func:`~cerberus_metrics.api.prediction_grids`,
     :class:`~cerberus_metrics.scoring.VoxelIoUScorer`). ``report``: its :class:`MeshReport` (the defect counts)."""
 
     def __init__(self, message: str, report: MeshReport) -> None:
@@ -276,8 +277,10 @@ def star_shaped(vertices: np.ndarray, faces: np.ndarray, dets: tuple[np.ndarray,
     return bool(abs(total - 1) < 1e-6)
 
 
-def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: bool | str, open_mesh: str) -> Mesh:
-    """Clean ms.current_mesh() in place and return it as a Mesh with its report."""
+def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: bool | str, open_mesh: str,
+                   open_mesh_option: str = "open_mesh") -> Mesh:
+    """Clean ms.current_mesh() in place and return it as a Mesh with its report. open_mesh_option: the name of the
+    option that set ``open_mesh``, which the messages name (see :func:`load_parts`)."""
     m = ms.current_mesh()
     nv0, nf0 = m.vertex_number(), m.face_number()
     box0 = m.bounding_box()  # before cleaning, for the message about a degenerate mesh
@@ -306,8 +309,8 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
     if topo["boundary_edges"] and open_mesh == "close":
         if topo["non_two_manifold_edges"]:
             raise MeshInputError(
-                f"{name}: open_mesh='close' cannot close holes of a non-manifold mesh "
-                f"({topo['non_two_manifold_edges']} non-manifold edges); repair it, or use open_mesh='warn'"
+                f"{name}: {open_mesh_option}='close' cannot close holes of a non-manifold mesh "
+                f"({topo['non_two_manifold_edges']} non-manifold edges); repair it, or use {open_mesh_option}='warn'"
             )
         nf_before = ms.current_mesh().face_number()
         ms.meshing_close_holes(maxholesize=max(3, int(topo["boundary_edges"]) + 1), selfintersection=False)
@@ -343,8 +346,8 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
     )
     if open_mesh == "error" and not report.watertight:
         raise OpenMeshError(
-            f"{name}: mesh is not watertight ({', '.join(report.problems())}) and open_mesh='error'; "
-            "repair the mesh, or use open_mesh='warn' (evaluate as is) or 'close' (fill holes)",
+            f"{name}: mesh is not watertight ({', '.join(report.problems())}) and {open_mesh_option}='error'; "
+            f"repair the mesh, or use {open_mesh_option}='warn' (evaluate as is) or 'close' (fill holes)",
             report,
         )
     return Mesh(v, f, name, report)
@@ -380,7 +383,8 @@ def not_a_file(path: Path) -> str | None:
     return None if stat.S_ISREG(mode) else "is not a regular file (a FIFO, device or socket)"
 
 
-def _load_file(path: Path, name: str, check_self_intersections: bool | str, open_mesh: str) -> list[Mesh]:
+def _load_file(path: Path, name: str, check_self_intersections: bool | str, open_mesh: str,
+               open_mesh_option: str = "open_mesh") -> list[Mesh]:
     if what := not_a_file(path):
         raise MeshInputError(f"{name}: mesh file '{path}' {what}; pass the path of a mesh file")
     if path.stat().st_size == 0:
@@ -418,15 +422,42 @@ def _load_file(path: Path, name: str, check_self_intersections: bool | str, open
                 "a metric needs a triangle surface (point clouds are not supported)"
             )
         validate_arrays(m.vertex_matrix(), m.face_matrix(), label)  # NaN/inf coordinates in the file
-        meshes.append(_clean_current(ms, label, check_self_intersections, open_mesh))
+        meshes.append(_clean_current(ms, label, check_self_intersections, open_mesh, open_mesh_option))
     return meshes
 
 
-def _load_arrays(v: np.ndarray, f: np.ndarray, name: str, check_self_intersections: bool | str, open_mesh: str) -> Mesh:
+def _load_arrays(v: np.ndarray, f: np.ndarray, name: str, check_self_intersections: bool | str, open_mesh: str,
+                 open_mesh_option: str = "open_mesh") -> Mesh:
     v, f = validate_arrays(v, f, name)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f.astype(np.int32)))
-    return _clean_current(ms, name, check_self_intersections, open_mesh)
+    return _clean_current(ms, name, check_self_intersections, open_mesh, open_mesh_option)
+
+
+def _labels(items: Sequence[Any], name: str) -> list[str]:
+    """How messages name each of ``items`` (:func:`_split_parts`) of an input called ``name``: the role, its index
+    among several parts (``gt[2]``), and a file's path as given (``gt ('scans/a.obj')``; a file of several meshes
+    adds `` layer k`` when it is read)."""
+    out = []
+    for i, item in enumerate(items):
+        label = name if len(items) == 1 else f"{name}[{i}]"
+        out.append(f"{label} ('{item}')" if isinstance(item, (str, os.PathLike)) else label)
+    return out
+
+
+def _taken_as_is(item: Any, open_mesh: str) -> bool:
+    """Whether :func:`load_parts` takes ``item`` as it is: a :class:`Mesh` already validated and cleaned (one with a
+    report), unless its holes are to be closed."""
+    return isinstance(item, Mesh) and item.report is not None and open_mesh != "close"
+
+
+def mesh_labels(source: Any, name: str = "mesh", open_mesh: str = "warn") -> tuple[str, ...]:
+    """How :func:`load_parts` (under ``open_mesh``) names the parts of ``source`` in its messages, without reading
+    them (:func:`_labels`; a :class:`Mesh` it takes as it is keeps its own name): so that a cached grid's warnings can
+    be told apart from those another input of the same content would raise."""
+    items = _split_parts(source)
+    labels = _labels(items, name)
+    return tuple(item.name if _taken_as_is(item, open_mesh) else label for item, label in zip(items, labels, strict=True))
 
 
 def load_parts(
@@ -435,35 +466,39 @@ def load_parts(
     *,
     check_self_intersections: bool | str = True,
     open_mesh: str = "warn",
+    open_mesh_option: str = "open_mesh",
 ) -> list[Mesh]:
     """Load, validate and clean a mesh or a list of part meshes.
 
     source: file path, ``trimesh.Trimesh``/``Scene``, ``(vertices (V,3), faces (F,3))`` pair,
     :class:`Mesh`, or a list/tuple of those (a multi-part shape). A file holding several
     meshes (e.g. a GLB scene) yields one part per mesh.
-    name: how errors and warnings name this input (e.g. ``"pred"``, ``"gt"``).
+    name: how errors and warnings name this input (e.g. ``"pred"``, ``"gt"``); each part is named by it, its index
+    among several parts and its file's path (``gt[1] ('scans/a.obj')``; a file of several meshes adds
+    `` layer k``).
     open_mesh: ``"warn"`` keep holes (default), ``"close"`` close them with pymeshlab,
-    ``"error"`` raise :class:`MeshInputError` for a non-watertight mesh.
+    ``"error"`` raise :class:`OpenMeshError` for a non-watertight mesh.
+    open_mesh_option: the name of the option that set ``open_mesh``, which the messages name (``"open_mesh"``;
+    ``"gt_open_mesh"`` for a ground truth under its own policy, see :func:`~cerberus_metrics.api.prediction_grids`).
     check_self_intersections: True counts self-intersecting faces with pymeshlab unless the
     :func:`star_shaped` certificate already proves there are none; ``"pymeshlab"`` always runs
     pymeshlab's test; False skips the check.
     Returns a non-empty list of cleaned :class:`Mesh` (units unchanged).
     """
     if open_mesh not in OPEN_MESH_POLICIES:
-        raise MeshInputError(f"open_mesh must be one of {OPEN_MESH_POLICIES}, got {open_mesh!r}")
+        raise MeshInputError(f"{open_mesh_option} must be one of {OPEN_MESH_POLICIES}, got {open_mesh!r}")
     items = _split_parts(source)
     if not items:
         raise MeshInputError(f"{name}: empty list of parts; pass at least one mesh")
     out: list[Mesh] = []
-    for i, item in enumerate(items):
-        label = name if len(items) == 1 else f"{name}[{i}]"
+    for item, label in zip(items, _labels(items, name), strict=True):
         if isinstance(item, (str, os.PathLike)):
-            out.extend(_load_file(Path(item), f"{label} ('{item}')", check_self_intersections, open_mesh))
-        elif isinstance(item, Mesh) and item.report is not None and open_mesh != "close":
+            out.extend(_load_file(Path(item), label, check_self_intersections, open_mesh, open_mesh_option))
+        elif _taken_as_is(item, open_mesh):
             out.append(item)  # already validated and cleaned
         else:
             v, f = _arrays_of(item, label)
-            out.append(_load_arrays(v, f, label, check_self_intersections, open_mesh))
+            out.append(_load_arrays(v, f, label, check_self_intersections, open_mesh, open_mesh_option))
     return out
 
 

@@ -23,6 +23,14 @@ def _column_help() -> str:
         f"  {group.name:<{width}}  {group.summary}" for group in COLUMN_GROUPS)
 
 
+def _eval_flags() -> dict[str, str]:
+    """``{setting: cerberus eval's flag}`` of each setting two evaluations must share
+    (:data:`~cerberus_core.eval.compare.MEASUREMENT`): ``{"gt_open_mesh": "--gt-open-mesh", ...}``."""
+    from cerberus_core.eval.compare import MEASUREMENT
+
+    return {key: f"--{key.replace('_', '-')}" for key, _ in MEASUREMENT}
+
+
 def configure(p: argparse.ArgumentParser) -> None:
     """The arguments, description and examples of ``cerberus compare`` (:data:`cerberus_core.cli.COMMANDS`)."""
     p.description = ("Is one model better than another on the same test images? Reads the results.json of each "
@@ -32,7 +40,8 @@ def configure(p: argparse.ArgumentParser) -> None:
         "the mean over the images both scored of the per-image difference, its standard error, and how many images "
         "it is better on (`mean ± s.e. (better / images)`). "
         "Pairing removes what the images share (a hard pose is hard for both models), so two models a few "
-        "thousandths apart can be told apart. Evaluations of different test sets are refused. --columns adds "
+        "thousandths apart can be told apart. Evaluations of different test sets, or measured under different "
+        f"settings (cerberus eval's {', '.join(_eval_flags().values())}), are refused. --columns adds "
         "groups of columns that compare runs beyond the IoU (their parts, depth, training, own training images, "
         "held-out pose families), one row per run as before.")
     p.epilog = f"{_column_help()}\n\n{EXAMPLES}"
@@ -50,7 +59,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="also draw each evaluation's mean voxel IoU against its Hard Human IoU, one labelled point "
                         "each (the trade between fitting each image and parts that hold across poses)")
     p.set_defaults(func=run, flag_names=FlagNames({"path": "EVAL", "evaluations": "EVAL", "plot": "--plot",
-                                                   "columns": "--columns", "trade_plot": "--trade-plot"}))
+                                                   "columns": "--columns", "trade_plot": "--trade-plot",
+                                                   **{key: f"cerberus eval {flag}" for key, flag in
+                                                      _eval_flags().items()}}))
 
 
 def _named(items: list[str]) -> dict[str, Path]:

@@ -3,7 +3,8 @@
 Two ``cerberus eval`` results of the same test set (``results.json``, or
 :attr:`~cerberus_core.eval.runner.EvaluationResult.records`) score the same images, so their difference is
 best read per image: the images are matched by their record's ``index`` (and must agree on ``subject``, ``pose``
-and ``view`` where both records have them: :func:`image_pairs`), and :func:`paired_difference`
+and ``view`` where both records have them: :func:`image_pairs`), the evaluations must have measured alike (the
+settings of :data:`MEASUREMENT`: :func:`check_comparable`), and :func:`paired_difference`
 gives the mean of ``a - b`` over the images both scored, its standard error and how many images favour
 ``a`` (:class:`PairedDifference`). Pairing removes what the images share (a hard pose is hard for both
 models), so its standard error is usually much smaller than either mean's own. Any per-image value of the
@@ -33,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from cerberus_core.bodies.human_heldout import FAMILIES, family_of, is_heldout_id
-from cerberus_core.errors import ConfigError, DatasetError, NoEvaluationError
+from cerberus_core.errors import ConfigError, DatasetError, IncomparableEvaluationsError, NoEvaluationError, shown
 from cerberus_core.plumbing import jsontext
 from cerberus_core.plumbing.metrics_csv import METRICS_CSV, TrainingTime, training_time
 from cerberus_core.plumbing.names import did_you_mean, printable
@@ -86,6 +87,81 @@ def _records(evaluation: Evaluation) -> Sequence[Mapping[str, Any]]:
     return evaluation.get("records", []) if isinstance(evaluation, Mapping) else evaluation
 
 
+#: The settings of an evaluation under which its per-image values are one measurement, so that two evaluations
+#: pair only where they agree on each (:func:`check_comparable`): the voxel-IoU protocol, the grid's resolution
+#: (voxels per side) and what the metric did with a ground truth that is not watertight (``gt_open_mesh``: refused,
+#: closed or scored as it is). Each with the value an evaluation that does not record it was made under:
+#: ``"error"`` for ``gt_open_mesh``, the default before ``results.json`` recorded it; ``None``: not known, then not
+#: compared. What the model was shown (``input_look``) and where it ran (``computed_with``) change the model's
+#: answer, not the measurement, and the images are matched one by one (:func:`image_pairs`).
+MEASUREMENT: tuple[tuple[str, Any], ...] = (("protocol", None), ("resolution", None), ("gt_open_mesh", "error"))
+
+
+def measurement(evaluation: Evaluation) -> dict[str, Any]:
+    """The settings of :data:`MEASUREMENT` an evaluation was made under, ``{setting: value}`` in its order: as its
+    ``results.json`` records them, else the value of one made before it was recorded (``None``: not known, as is
+    every setting of bare records).
+
+    >>> measurement({"protocol": "kato", "resolution": 32, "records": []})  # before gt_open_mesh was recorded
+    {'protocol': 'kato', 'resolution': 32, 'gt_open_mesh': 'error'}
+    >>> measurement([{"index": 0, "iou": 0.5}])
+    {'protocol': None, 'resolution': None, 'gt_open_mesh': None}
+    """
+    if not isinstance(evaluation, Mapping):
+        return dict.fromkeys(key for key, _ in MEASUREMENT)
+    return {key: default if evaluation.get(key) is None else evaluation[key] for key, default in MEASUREMENT}
+
+
+def _by_value(values: Mapping[str, Any]) -> list[tuple[Any, list[str]]]:
+    """``{name: value}`` grouped by value, ``[(value, names)]`` in the order each value first appears; a ``None``
+    value (not known) left out."""
+    groups: list[tuple[Any, list[str]]] = []
+    for name, value in values.items():
+        if value is None:
+            continue
+        same = next((names for v, names in groups if v == value), None)
+        if same is None:
+            groups.append((value, [name]))
+        else:
+            same.append(name)
+    return groups
+
+
+def check_comparable(evaluations: Mapping[str, Evaluation]) -> None:
+    """Refuse to pair evaluations measured differently: each setting of :data:`MEASUREMENT` must be the same in
+    every evaluation that knows it (:func:`measurement`).
+
+    Args:
+        evaluations: ``{name: results.json dict or its records}``; the names label them in the message.
+    Raises:
+        IncomparableEvaluationsError: a setting differs; the message names each such setting with each
+            evaluation's value, and the fix (``differences``: ``{setting: {name: value}}``).
+
+    Example: a ``results.json`` from before ``gt_open_mesh`` was recorded pairs with one that records ``"error"``:
+
+        >>> old = {"protocol": "kato", "resolution": 32, "records": []}
+        >>> check_comparable({"old": old, "new": old | {"gt_open_mesh": "error"}})
+        >>> check_comparable({"old": old, "new": old | {"gt_open_mesh": "close", "resolution": 64}})
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.IncomparableEvaluationsError: evaluations measured under different settings cannot be
+        paired image by image: resolution is 32 in old, 64 in new; gt_open_mesh is 'error' in old, 'close' in new;
+        evaluate them again with the same `resolution` and `gt_open_mesh`, or compare only those that agree
+    """
+    settings = {name: measurement(evaluation) for name, evaluation in evaluations.items()}
+    differences = {key: _by_value({name: s[key] for name, s in settings.items()}) for key, _ in MEASUREMENT}
+    differences = {key: groups for key, groups in differences.items() if len(groups) > 1}
+    if not differences:
+        return
+    said = "; ".join(f"{key} is " + ", ".join(f"{shown(value)} in {' and '.join(names)}" for value, names in groups)
+                     for key, groups in differences.items())
+    raise IncomparableEvaluationsError(
+        f"evaluations measured under different settings cannot be paired image by image: {said}; evaluate them "
+        f"again with the same {' and '.join(f'`{key}`' for key in differences)}, or compare only those that agree",
+        differences={key: {name: value for value, names in groups for name in names}
+                     for key, groups in differences.items()})
+
+
 def image_pairs(a: Evaluation, b: Evaluation, key_a: str = "iou",
                 key_b: str | None = None) -> list[tuple[float, float]]:
     """The images two evaluations both scored, as ``(a[key_a], b[key_b])`` per image: the one pairing of this
@@ -104,6 +180,8 @@ def image_pairs(a: Evaluation, b: Evaluation, key_a: str = "iou",
     Raises:
         DatasetError: two records paired by ``index`` name different images (they differ in a field of
             :data:`IDENTITY` both have): the evaluations scored different test sets.
+        IncomparableEvaluationsError: ``a`` and ``b`` were measured under different settings
+            (:func:`check_comparable`; named ``a`` and ``b`` in the message).
 
     Example:
         >>> a = [{"index": 0, "iou": 0.5, "subject": "s1"}, {"index": 1, "iou": 0.6}, {"index": 2, "iou": None}]
@@ -115,6 +193,7 @@ def image_pairs(a: Evaluation, b: Evaluation, key_a: str = "iou",
         cerberus_core.errors.DatasetError: image 0 is subject 's1' in one evaluation and 's2' in the other: ...
     """
     key_b = key_a if key_b is None else key_b
+    check_comparable({"a": a, "b": b})
     rb = {r["index"]: r for r in _records(b)}
     pairs = []
     for r in _records(a):
@@ -134,7 +213,9 @@ def paired_difference(a: Evaluation | None, b: Evaluation | None, key_a: str = "
         a, b: two evaluations of the same test set: a ``results.json`` dict (its ``records``) or the records,
             one dict per image with its ``index``; in any order, and either may lack images. Records paired by
             ``index`` that both name their image (``subject``, ``pose``, ``view``) must name the same one, else a
-            :class:`~cerberus_core.errors.DatasetError` (evaluations of different test sets).
+            :class:`~cerberus_core.errors.DatasetError` (evaluations of different test sets), and both must have
+            been measured alike, else an :class:`~cerberus_core.errors.IncomparableEvaluationsError`
+            (:func:`check_comparable`).
         key_a: the per-image value of ``a`` (``"iou"``, ``"hard_iou"``...).
         key_b: that of ``b``; ``key_a`` if None.
     Returns:
@@ -534,6 +615,8 @@ def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]], columns: str |
         where the evaluation lacks it).
 
     Raises:
+        IncomparableEvaluationsError: the evaluations were measured under different settings (:data:`MEASUREMENT`;
+            :func:`check_comparable`, the message names each by its name here).
         DatasetError: two evaluations scored different images under one index (different test sets).
         ConfigError: a name of ``columns`` that is no group of :data:`COLUMN_GROUPS` (the message lists them).
 
@@ -547,6 +630,7 @@ def comparison_rows(evaluations: Mapping[str, Mapping[str, Any]], columns: str |
         (['new', 3], 0.58, '+0.030 ± 0.006 (3 / 3)')
     """
     extra = [column for group in column_groups(columns) for column in group.columns]
+    check_comparable(evaluations)
     runs = runs or {}
     names = list(evaluations)
     first = evaluations[names[0]] if names else None

@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from cerberus_core.errors import ConfigError, DatasetError, ShapeError
 from cerberus_core.eval.allocation import keypoints
-from cerberus_core.eval.compare import image_mean, image_pairs, paired_difference
+from cerberus_core.eval.compare import check_comparable, image_mean, image_pairs, paired_difference
 from cerberus_core.eval.runner import collate, spread_evenly
 from cerberus_core.eval.standard import Voxels, VoxelScorer
 from cerberus_core.eval.viewer import CardDetails, ViewerPage, write_reconstruction_viewer
@@ -465,12 +465,15 @@ def paired_plot(evaluations: Mapping[str, Mapping[str, Any]], path: str | Path, 
         ``path``.
 
     Raises:
-        DatasetError: fewer than two evaluations, or two that scored different images under one index (different
-            test sets); nothing is written then.
+        DatasetError: fewer than two evaluations, two that scored different images under one index (different
+            test sets), or evaluations measured under different settings (an
+            :class:`~cerberus_core.errors.IncomparableEvaluationsError`:
+            :func:`~cerberus_core.eval.compare.check_comparable`); nothing is written then.
     """
     names = list(evaluations)
     if len(names) < 2:
         raise DatasetError(f"a paired plot needs two evaluations or more, got {len(names)}; pass the baseline first")
+    check_comparable(evaluations)
     base = evaluations[names[0]]
     pairs = {name: image_pairs(evaluations[name], base, key) for name in names[1:]}  # (its, base's): as the table
     values = [v for points in pairs.values() for xy in points for v in xy]
