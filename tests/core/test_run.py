@@ -163,6 +163,7 @@ def test_a_limited_evaluation_spreads_and_says_which_images_of_how_many(tiny_run
     ``data``, and results.md's title and the console say "N of M images". The console also says how many
     predictions the metric rejected or clamped, which only results.md said."""
     from cerberus_core.datasets.dataset import Dataset
+    from cerberus_core.eval.compare import comparison_rows
 
     run = Run.load(tiny_run)
     settings = EvalSettings(limit=3, skip=("hard", "part_quality", "visibility", "segments", "allocation"),
@@ -170,17 +171,24 @@ def test_a_limited_evaluation_spreads_and_says_which_images_of_how_many(tiny_run
     whole = run.evaluate(tiny_root, settings, tmp_path / "whole", verbose=False)
     spread = run.evaluate(tiny_root, replace(settings, skip=(*settings.skip, "depth")), tmp_path / "spread",
                           verbose=False)
-    root = str(Dataset.open(tiny_root).root)
+    manifest = Dataset.open(tiny_root).manifest
+    root, data_id = str(manifest.root), manifest.split("test").content_id
+    assert len(data_id) == 16 and data_id != manifest.split("train").content_id
     for evaluation, indices, selection in ((whole, [0, 2, 3], "whole poses, spread evenly"),
                                            (spread, [0, 6, 11], "spread evenly")):  # 1 subject x 3 poses x 4 views
         record = json.loads((evaluation.out / "results.json").read_text())
         assert [r["index"] for r in record["records"]] == indices
-        assert record["data"] == {"root": root, "split": "test", "split_images": 12, "limit": 3,
-                                  "selection": selection, "images": 3}
+        assert record["data_id"] == data_id and list(record).index("data_id") == list(record).index("data") - 1
+        assert record["data"] == {"root": root, "dataset": "primitives", "preset": "tiny", "split": "test",
+                                  "split_images": 12, "limit": 3, "selection": selection, "images": 3}
         md = (evaluation.out / "results.md").read_text().splitlines()
         assert md[0] == f"# Evaluation of {tiny_run} at step 2, 3 of 12 images"
-        assert "; 3 of 12 images (" in md[2] and " s to score, " in md[2]
+        assert f"; 3 of 12 images of the test split of primitives/tiny, data_id {data_id} (" in md[2]
+        assert " s to score, " in md[2]
         assert evaluation.lines()[0].startswith("voxel IoU (kato, 32^3) over 3 of 12 images: ")
+    # the same data, other images of it: they pair (by index, on the images both scored)
+    assert comparison_rows({"whole": json.loads((whole.out / "results.json").read_text()),
+                            "spread": json.loads((spread.out / "results.json").read_text())})[1][1][1] == 3
     assert whole.result["depth"]["poses"] == 1 and spread.result["depth"] is None
     assert not any("rejected" in line for line in whole.lines())
     standard = replace(whole.result.standard, clipped=2, failed=1)

@@ -124,6 +124,39 @@ def test_open_mesh_policies(box):
         assert voxel_iou(box, open_box, open_mesh="close") == 1.0
 
 
+def test_a_cleaned_mesh_passed_again_answers_to_open_mesh_error(box):
+    """A Mesh load_parts cleaned (one with a report) is taken as it is, but open_mesh="error" still holds for it:
+    before, one cleaned under "warn" and open was accepted under "error", where the same mesh from arrays raised.
+    Now it raises the same OpenMeshError, naming the option that set the policy; a watertight one passes as it is."""
+    from cerberus_metrics import OpenMeshError
+    from cerberus_metrics.io import mesh_labels
+
+    lidless = (np.asarray(box.vertices), np.asarray(box.faces)[2:])  # a cube without one side: 4 boundary edges
+    (cleaned,) = load_parts(lidless, "gt", check_self_intersections=False, open_mesh="warn")
+    assert not cleaned.report.watertight
+    words = r"^gt: mesh is not watertight \(4 boundary \(open\) edges\) and {0}='error'; repair the mesh, or use {0}='warn'"
+    for kwargs, option in (({}, "open_mesh"), ({"open_mesh_option": "gt_open_mesh"}, "gt_open_mesh")):
+        with pytest.raises(OpenMeshError, match=words.format(option)) as fresh:
+            load_parts(lidless, "gt", check_self_intersections=False, open_mesh="error", **kwargs)
+        with pytest.raises(OpenMeshError, match=words.format(option)) as again:
+            load_parts(cleaned, "gt", open_mesh="error", **kwargs)
+        assert str(again.value) == str(fresh.value) and again.value.report is cleaned.report
+        with pytest.raises(OpenMeshError, match=r"^gt: mesh is not watertight"):
+            load_parts([cleaned], "pred", open_mesh="error", **kwargs)  # a taken-as-is part keeps its own name
+    with pytest.raises(OpenMeshError, match="open_mesh='error'"):
+        voxelize(cleaned, open_mesh="error")
+    assert load_parts(cleaned, "gt", open_mesh="warn")[0] is cleaned  # "warn" still takes it as it is
+    (closed,) = load_parts(cleaned, "gt", open_mesh="close")  # "close" still cleans it again, closing its holes
+    assert closed.report.watertight and closed.report.holes_closed == 2
+    assert mesh_labels(cleaned, "x", "error") == mesh_labels(cleaned, "x", "warn") == ("gt",)
+
+    (whole,) = load_parts(box, "gt", open_mesh="error")  # cleaned once under "error": watertight
+    for kwargs in ({}, {"open_mesh_option": "gt_open_mesh"}):
+        (same,) = load_parts(whole, "pred", open_mesh="error", **kwargs)
+        assert same is whole
+    assert load_parts(closed, "gt", open_mesh="error")[0] is closed  # closed under "close": watertight too
+
+
 def test_large_hole_leaks_and_is_reported(helpers):
     # A sphere with a cap removed: the kato fill enters through the hole, only surface voxels stay.
     s = trimesh.creation.icosphere(subdivisions=3, radius=0.4)

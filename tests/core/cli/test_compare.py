@@ -100,4 +100,20 @@ def test_evaluations_measured_differently_are_refused_in_one_line_naming_the_eva
                             "same cerberus eval --gt-open-mesh, or compare only those that agree\n")
     evaluate = build_parser("eval")._subparsers._group_actions[0].choices["eval"]
     flags = {flag for action in evaluate._actions for flag in action.option_strings}
-    assert {f"--{key.replace('_', '-')}" for key, _ in MEASUREMENT} <= flags  # each fix names a flag eval has
+    chosen = {f"--{key.replace('_', '-')}" for setting in MEASUREMENT for key in setting.choices}
+    assert chosen == {"--protocol", "--resolution", "--gt-open-mesh", "--data", "--split"} <= flags  # eval has each
+
+
+def test_evaluations_of_different_data_are_refused_naming_eval_s_data_and_split(tmp_path, capsys):
+    """``data_id`` (the split's content) is chosen by ``cerberus eval --data`` and ``--split``: the fix names those,
+    not a flag made of the key."""
+    folders = {}
+    for name, data_id in (("large", "49bc547ce46b9202"), ("other", "0f1e2d3c4b5a6978")):
+        folders[name] = _evaluation(tmp_path / name / "eval", [0.5, 0.6])
+        results = json.loads((folders[name] / "results.json").read_text()) | {"data_id": data_id}
+        (folders[name] / "results.json").write_text(json.dumps(results))
+    assert main(["compare", str(folders["large"]), str(folders["other"])]) == 2
+    assert capsys.readouterr().err == (
+        "cerberus compare: evaluations measured under different settings cannot be paired image by image: the data "
+        "scored (data_id) is '49bc547ce46b9202' in large, '0f1e2d3c4b5a6978' in other; evaluate them again with the "
+        "same cerberus eval --data and cerberus eval --split, or compare only those that agree\n")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from dataclasses import FrozenInstanceError
+from dataclasses import FrozenInstanceError, replace
 from pathlib import Path
 
 import pytest
@@ -53,6 +53,21 @@ def test_to_json_is_what_the_generator_wrote_and_reads_back_equal(pairs_dataset)
     m = Manifest.read(pairs_dataset)
     assert m.to_json() == json.loads((pairs_dataset / MANIFEST).read_text())
     assert Manifest.from_json(m.to_json(), pairs_dataset) == m
+
+
+def test_a_split_s_content_id_follows_its_files_not_its_folder_name_or_preset(pairs_dataset):
+    """``SplitRecord.content_id`` (an evaluation's ``data_id``) is read from the manifest's file sha256s: a dataset
+    named or preset otherwise, or in another folder, holds the same split while its files are the same; a file of
+    other content is another split."""
+    m = Manifest.read(pairs_dataset)
+    test = m.split("test")
+    assert len(test.content_id) == 16 and int(test.content_id, 16) >= 0 and test.content_id != m.split("train").content_id
+    renamed = Manifest.from_json(m.to_json() | {"dataset": "other", "preset": "large"}, pairs_dataset.parent / "copy")
+    assert renamed.split("test").content_id == test.content_id
+    shard = test.shards[0]
+    images = replace(shard.files["images"], sha256="0" * 64)
+    changed = replace(test, shards=(replace(shard, files={**shard.files, "images": images}), *test.shards[1:]))
+    assert changed.content_id != test.content_id
 
 
 def test_write_is_atomic_and_round_trips(pairs_dataset, tmp_path):

@@ -280,7 +280,7 @@ def test_an_older_evaluation_without_gt_open_mesh_pairs_with_one_that_records_er
     old = _measured(tmp_path / "old", {0: 0.5, 1: 0.6, 2: 0.7}, gt_open_mesh=None)
     new = _measured(tmp_path / "new", {0: 0.55, 1: 0.62, 2: 0.78})
     assert "gt_open_mesh" not in old and measurement(old) == measurement(new) == {
-        "protocol": "kato", "resolution": 32, "gt_open_mesh": "error"}
+        "protocol": "kato", "resolution": 32, "gt_open_mesh": "error", "data_id": None}
     check_comparable({"old": old, "new": new})
     header, rows = comparison_rows({"old": old, "new": new})
     assert rows[1][3] == paired_difference(new, old) and rows[1][3].n == 3
@@ -314,3 +314,31 @@ def test_evaluations_measured_differently_are_refused_naming_each_setting_and_va
                                                            "again with the same `protocol`"):
         paired_difference(base, base | {"protocol": "other"})  # the one pairing checks too, its arguments named
     assert comparison_rows({"base": base, "same": same})[1][1][3].n == 3  # those that agree still pair
+
+
+def test_evaluations_of_different_data_are_refused_while_one_without_data_id_pairs_with_any(tmp_path):
+    """Two datasets whose images share subject, pose and view names (another generation, another preset's split)
+    pair by index without a complaint from the records: ``data_id`` (the split's content, results.json) tells them
+    apart. A results.json from before it was recorded knows no data, and pairs as before."""
+    from cerberus_core.errors import IncomparableEvaluationsError
+    from cerberus_core.eval.compare import MEASUREMENT, check_comparable, comparison_rows, measurement
+
+    values = {0: 0.5, 1: 0.6, 2: 0.7}
+    old = _measured(tmp_path / "old", values)  # no data_id: not known, not compared
+    large = _measured(tmp_path / "large", {0: 0.55, 1: 0.62, 2: 0.78}, data_id="49bc547ce46b9202")
+    again = _measured(tmp_path / "again", {0: 0.52, 1: 0.6, 2: 0.71}, data_id="49bc547ce46b9202")
+    other = _measured(tmp_path / "other", values, data_id="0f1e2d3c4b5a6978")
+    assert [s.default for s in MEASUREMENT if s.key == "data_id"] == [None] and measurement(old)["data_id"] is None
+    check_comparable({"old": old, "large": large, "other": other["records"]})  # bare records know no data either
+    assert paired_difference(large, old).n == paired_difference(again, large).n == 3
+    with pytest.raises(IncomparableEvaluationsError) as caught:
+        comparison_rows({"old": old, "large": large, "again": again, "other": other})
+    assert str(caught.value) == ("evaluations measured under different settings cannot be paired image by image: the "
+                                 "data scored (data_id) is '49bc547ce46b9202' in large and again, '0f1e2d3c4b5a6978' "
+                                 "in other; evaluate them again with the same `data` and `split`, or compare only "
+                                 "those that agree")
+    assert caught.value.differences == {"data_id": {"large": "49bc547ce46b9202", "again": "49bc547ce46b9202",
+                                                    "other": "0f1e2d3c4b5a6978"}}
+    with pytest.raises(IncomparableEvaluationsError, match=r"data_id\) is .* evaluate them again with the same "
+                                                           "`resolution` and `data` and `split`"):
+        paired_difference(large, other | {"resolution": 64})

@@ -221,9 +221,9 @@ class NoEvaluationError(CerberusError, FileNotFoundError):
 
 class IncomparableEvaluationsError(DatasetError):
     """Evaluations measured under different settings (:data:`cerberus_core.eval.compare.MEASUREMENT`: protocol,
-    resolution, ground-truth open-mesh policy), whose per-image values cannot be paired: the message names each
-    setting that differs with each evaluation's value, and the fix. ``differences`` is ``{setting: {evaluation
-    name: value}}`` of those settings."""
+    resolution, ground-truth open-mesh policy, the data scored), whose per-image values cannot be paired: the
+    message names each setting that differs with each evaluation's value, and the fix. ``differences`` is
+    ``{setting: {evaluation name: value}}`` of those settings."""
 
     def __init__(self, message: str, *, differences: dict[str, dict[str, object]]) -> None:
         super().__init__(message)

@@ -145,8 +145,9 @@ class Evaluation:
         viewer: whether ``pictures/index.html`` was written.
         split_images: the images of the split scored from (more than those scored when ``limit`` chose some;
             ``None``: not known).
-        data: which images were scored, as ``results.json`` records them under ``data`` (the split, its size, the
-            limit, the rule, the images scored; ``None``: not known, then ``split_images`` alone).
+        data: which images were scored, as ``results.json`` records them under ``data`` (the dataset folder, its
+            name and preset, the split, its size, the limit, the rule, the images scored; ``None``: not known, then
+            ``split_images`` alone).
     """
 
     result: EvaluationResult
@@ -383,9 +384,11 @@ class Run:
                                tmp, n_images=s.figure_images, scorer=scorer, page=page, ious=result.image_ious())
             selection = ("all" if len(indices) == len(dataset) else
                          "whole poses, spread evenly" if whole_poses else "spread evenly")
-            scored = {"root": str(source.root), "split": s.split, "split_images": len(dataset), "limit": s.limit,
-                      "selection": selection, "images": len(indices)}
-            self._write_report(result, tmp, at_step, backend, s.input_look, scored, time.perf_counter() - start)
+            scored = {"root": str(source.root), "dataset": source.name, "preset": source.manifest.preset,
+                      "split": s.split, "split_images": len(dataset), "limit": s.limit, "selection": selection,
+                      "images": len(indices)}
+            self._write_report(result, tmp, at_step, backend, s.input_look, scored, time.perf_counter() - start,
+                               data_id=source.manifest.split(s.split).content_id)
         evaluation = Evaluation(result, out, weights, hard_requested="hard" not in s.skip, viewer=s.viewer_images > 0,
                                 canonical_hint=_canonical_hint(source), split_images=len(dataset), data=scored)
         if verbose:
@@ -437,18 +440,21 @@ class Run:
         return write_reconstructions(trained, ImageInputs(images, mask_list, azimuth), out, page, fit=fit)
 
     def _write_report(self, result: EvaluationResult, folder: Path, at_step: str, backend: Renderer,
-                      input_look: str = "shaded", data: dict | None = None, total_seconds: float | None = None) -> None:
+                      input_look: str = "shaded", data: dict | None = None, total_seconds: float | None = None,
+                      data_id: str | None = None) -> None:
         """``results.json`` (the scores, which weights, the input look, where they were computed: renderer,
-        device, dtype; which images: ``data``, the dataset folder, split, limit and the images scored; and the
-        whole command's wall time, ``total_seconds``, beside the pass's ``seconds``) and ``results.md`` (with the
-        stale warning; its title says "N of M images" when a limit chose some)."""
+        device, dtype; the identity of the split's content, ``data_id``
+        (:attr:`~cerberus_core.datasets.manifest.SplitRecord.content_id`: ``cerberus compare`` pairs only
+        evaluations of the same); which images: ``data``, the dataset folder, its name and preset, split, limit and
+        the images scored; and the whole command's wall time, ``total_seconds``, beside the pass's ``seconds``) and
+        ``results.md`` (with the stale warning; its title says "N of M images" when a limit chose some)."""
         weights = self.weights_info
         record = to_jsonable(result) | {"model": {"path": str(weights.path), "step": weights.step,
                                                   "newer_checkpoint": None if weights.newer is None else
                                                   {"path": str(weights.newer), "step": weights.newer_step}},
                                         "computed_with": {"renderer": backend.name, "device": str(self.device),
                                                           "dtype": str(next(self.model.parameters()).dtype)},
-                                        "input_look": input_look, "data": data,
+                                        "input_look": input_look, "data_id": data_id, "data": data,
                                         "total_seconds": None if total_seconds is None else round(total_seconds, 3)}
         write_json(record, folder / RESULTS)
         look = "" if input_look == "shaded" else f" ({input_look} input look)"

@@ -344,13 +344,20 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
         holes_closed=holes_closed,
         volume=volume,
     )
+    _refuse_open(name, report, open_mesh, open_mesh_option)
+    return Mesh(v, f, name, report)
+
+
+def _refuse_open(name: str, report: MeshReport, open_mesh: str, open_mesh_option: str) -> None:
+    """Raise :class:`OpenMeshError` for the mesh ``name`` when ``open_mesh`` is ``"error"`` and its ``report`` says it
+    is not watertight: the one message for a mesh cleaned here and for a :class:`Mesh` taken as it is
+    (:func:`_taken_as_is`). open_mesh_option: the name of the option that set ``open_mesh``, which it names."""
     if open_mesh == "error" and not report.watertight:
         raise OpenMeshError(
             f"{name}: mesh is not watertight ({', '.join(report.problems())}) and {open_mesh_option}='error'; "
             f"repair the mesh, or use {open_mesh_option}='warn' (evaluate as is) or 'close' (fill holes)",
             report,
         )
-    return Mesh(v, f, name, report)
 
 
 def _read_with_pymeshlab(ms: pymeshlab.MeshSet, path: Path) -> None:
@@ -447,7 +454,8 @@ def _labels(items: Sequence[Any], name: str) -> list[str]:
 
 def _taken_as_is(item: Any, open_mesh: str) -> bool:
     """Whether :func:`load_parts` takes ``item`` as it is: a :class:`Mesh` already validated and cleaned (one with a
-    report), unless its holes are to be closed."""
+    report), unless its holes are to be closed. Its report still answers to ``open_mesh="error"``: an open one is
+    refused (:func:`_refuse_open`) as the same mesh read from a file or arrays would be."""
     return isinstance(item, Mesh) and item.report is not None and open_mesh != "close"
 
 
@@ -495,6 +503,7 @@ def load_parts(
         if isinstance(item, (str, os.PathLike)):
             out.extend(_load_file(Path(item), label, check_self_intersections, open_mesh, open_mesh_option))
         elif _taken_as_is(item, open_mesh):
+            _refuse_open(item.name, item.report, open_mesh, open_mesh_option)  # cleaned, perhaps under "warn"
             out.append(item)  # already validated and cleaned
         else:
             v, f = _arrays_of(item, label)

@@ -24,11 +24,12 @@ def _column_help() -> str:
 
 
 def _eval_flags() -> dict[str, str]:
-    """``{setting: cerberus eval's flag}`` of each setting two evaluations must share
-    (:data:`~cerberus_core.eval.compare.MEASUREMENT`): ``{"gt_open_mesh": "--gt-open-mesh", ...}``."""
+    """``{setting: cerberus eval's flag}`` of each setting that chooses what two evaluations must share
+    (:data:`~cerberus_core.eval.compare.MEASUREMENT`, each :attr:`~cerberus_core.eval.compare.Setting.choices`):
+    ``{"gt_open_mesh": "--gt-open-mesh", ..., "data": "--data", "split": "--split"}``."""
     from cerberus_core.eval.compare import MEASUREMENT
 
-    return {key: f"--{key.replace('_', '-')}" for key, _ in MEASUREMENT}
+    return {key: f"--{key.replace('_', '-')}" for setting in MEASUREMENT for key in setting.choices}
 
 
 def configure(p: argparse.ArgumentParser) -> None:

@@ -19,6 +19,7 @@ still read: keys they lack take the defaults below (``tests/core/datasets/old_ma
 """
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
@@ -200,6 +201,16 @@ class SplitRecord:
     def complete(self) -> bool:
         """Every planned shard is written."""
         return len(self.shards) == self.planned_shards
+
+    @property
+    def content_id(self) -> str:
+        """The identity of what the split holds, read from the manifest alone (no file is hashed): the first 16
+        hex digits of the sha256 of its shards' files' sha256s (by shard index and role). The same images, views
+        and meshes give the same id whatever the dataset's folder, name or preset (the ``small`` and ``large``
+        human sets share their test split); another generation of them, another. An evaluation records it
+        (``results.json``'s ``data_id``) and ``cerberus compare`` pairs only evaluations of the same one."""
+        files = [[shard.index, role, rec.sha256] for shard in self.shards for role, rec in sorted(shard.files.items())]
+        return hashlib.sha256(canonical_json(files).encode()).hexdigest()[:16]
 
     def totals(self) -> dict[str, int]:
         """Images, quadruplets and meshes in the shards written so far."""

@@ -3,8 +3,8 @@
 Two ``cerberus eval`` results of the same test set (``results.json``, or
 :attr:`~cerberus_core.eval.runner.EvaluationResult.records`) score the same images, so their difference is
 best read per image: the images are matched by their record's ``index`` (and must agree on ``subject``, ``pose``
-and ``view`` where both records have them: :func:`image_pairs`), the evaluations must have measured alike (the
-settings of :data:`MEASUREMENT`: :func:`check_comparable`), and :func:`paired_difference`
+and ``view`` where both records have them: :func:`image_pairs`), the evaluations must have measured alike, the
+same data included (the settings of :data:`MEASUREMENT`: :func:`check_comparable`), and :func:`paired_difference`
 gives the mean of ``a - b`` over the images both scored, its standard error and how many images favour
 ``a`` (:class:`PairedDifference`). Pairing removes what the images share (a hard pose is hard for both
 models), so its standard error is usually much smaller than either mean's own. Any per-image value of the
@@ -87,14 +87,46 @@ def _records(evaluation: Evaluation) -> Sequence[Mapping[str, Any]]:
     return evaluation.get("records", []) if isinstance(evaluation, Mapping) else evaluation
 
 
-#: The settings of an evaluation under which its per-image values are one measurement, so that two evaluations
+@dataclass(frozen=True)
+class Setting:
+    """One setting of :data:`MEASUREMENT`.
+
+    Attributes:
+        key: its key in ``results.json``.
+        default: the value an evaluation that does not record it was made under; ``None``: not known, then not
+            compared.
+        name: how a message says it (``key`` when empty).
+        chosen_by: the settings of an evaluation that choose it, which a message asks to make the same
+            (:meth:`cerberus_core.run.Run.evaluate`'s ``data``, :class:`~cerberus_core.run.EvalSettings` fields;
+            ``(key,)`` when empty).
+    """
+
+    key: str
+    default: Any = None
+    name: str = ""
+    chosen_by: tuple[str, ...] = ()
+
+    @property
+    def said(self) -> str:
+        return self.name or self.key
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        return self.chosen_by or (self.key,)
+
+
+#: What an evaluation measured, under which its per-image values are one measurement, so that two evaluations
 #: pair only where they agree on each (:func:`check_comparable`): the voxel-IoU protocol, the grid's resolution
-#: (voxels per side) and what the metric did with a ground truth that is not watertight (``gt_open_mesh``: refused,
-#: closed or scored as it is). Each with the value an evaluation that does not record it was made under:
-#: ``"error"`` for ``gt_open_mesh``, the default before ``results.json`` recorded it; ``None``: not known, then not
-#: compared. What the model was shown (``input_look``) and where it ran (``computed_with``) change the model's
-#: answer, not the measurement, and the images are matched one by one (:func:`image_pairs`).
-MEASUREMENT: tuple[tuple[str, Any], ...] = (("protocol", None), ("resolution", None), ("gt_open_mesh", "error"))
+#: (voxels per side), what the metric did with a ground truth that is not watertight (``gt_open_mesh``: refused,
+#: closed or scored as it is) and the data scored (``data_id``: the content of the dataset's split,
+#: :attr:`cerberus_core.datasets.manifest.SplitRecord.content_id`, chosen by the dataset and the split; two
+#: datasets whose images share subject, pose and view names are told apart). Each with the value an evaluation that
+#: does not record it was made under: ``"error"`` for ``gt_open_mesh``, the default before ``results.json``
+#: recorded it; ``None``: not known, then not compared (``data_id`` of an evaluation from before it was recorded).
+#: What the model was shown (``input_look``) and where it ran (``computed_with``) change the model's answer, not the
+#: measurement, and the images are matched one by one (:func:`image_pairs`).
+MEASUREMENT: tuple[Setting, ...] = (Setting("protocol"), Setting("resolution"), Setting("gt_open_mesh", "error"),
+                                    Setting("data_id", name="the data scored (data_id)", chosen_by=("data", "split")))
 
 
 def measurement(evaluation: Evaluation) -> dict[str, Any]:
@@ -103,13 +135,13 @@ def measurement(evaluation: Evaluation) -> dict[str, Any]:
     every setting of bare records).
 
     >>> measurement({"protocol": "kato", "resolution": 32, "records": []})  # before gt_open_mesh was recorded
-    {'protocol': 'kato', 'resolution': 32, 'gt_open_mesh': 'error'}
+    {'protocol': 'kato', 'resolution': 32, 'gt_open_mesh': 'error', 'data_id': None}
     >>> measurement([{"index": 0, "iou": 0.5}])
-    {'protocol': None, 'resolution': None, 'gt_open_mesh': None}
+    {'protocol': None, 'resolution': None, 'gt_open_mesh': None, 'data_id': None}
     """
     if not isinstance(evaluation, Mapping):
-        return dict.fromkeys(key for key, _ in MEASUREMENT)
-    return {key: default if evaluation.get(key) is None else evaluation[key] for key, default in MEASUREMENT}
+        return dict.fromkeys(s.key for s in MEASUREMENT)
+    return {s.key: s.default if evaluation.get(s.key) is None else evaluation[s.key] for s in MEASUREMENT}
 
 
 def _by_value(values: Mapping[str, Any]) -> list[tuple[Any, list[str]]]:
@@ -147,19 +179,31 @@ def check_comparable(evaluations: Mapping[str, Evaluation]) -> None:
         cerberus_core.errors.IncomparableEvaluationsError: evaluations measured under different settings cannot be
         paired image by image: resolution is 32 in old, 64 in new; gt_open_mesh is 'error' in old, 'close' in new;
         evaluate them again with the same `resolution` and `gt_open_mesh`, or compare only those that agree
+
+    Evaluations of different data (two splits or datasets whose images share subject, pose and view names) are
+    refused too, while one from before ``data_id`` was recorded pairs with any:
+
+        >>> check_comparable({"old": old, "large": old | {"data_id": "49bc547ce46b9202"}})
+        >>> check_comparable({"large": old | {"data_id": "49bc547ce46b9202"}, "other": old | {"data_id": "0f1e2d3c"}})
+        Traceback (most recent call last):
+        ...
+        cerberus_core.errors.IncomparableEvaluationsError: evaluations measured under different settings cannot be
+        paired image by image: the data scored (data_id) is '49bc547ce46b9202' in large, '0f1e2d3c' in other;
+        evaluate them again with the same `data` and `split`, or compare only those that agree
     """
     settings = {name: measurement(evaluation) for name, evaluation in evaluations.items()}
-    differences = {key: _by_value({name: s[key] for name, s in settings.items()}) for key, _ in MEASUREMENT}
-    differences = {key: groups for key, groups in differences.items() if len(groups) > 1}
+    differences = {s: _by_value({name: values[s.key] for name, values in settings.items()}) for s in MEASUREMENT}
+    differences = {s: groups for s, groups in differences.items() if len(groups) > 1}
     if not differences:
         return
-    said = "; ".join(f"{key} is " + ", ".join(f"{shown(value)} in {' and '.join(names)}" for value, names in groups)
-                     for key, groups in differences.items())
+    said = "; ".join(f"{s.said} is " + ", ".join(f"{shown(value)} in {' and '.join(names)}" for value, names in groups)
+                     for s, groups in differences.items())
+    chosen = " and ".join(f"`{key}`" for s in differences for key in s.choices)
     raise IncomparableEvaluationsError(
         f"evaluations measured under different settings cannot be paired image by image: {said}; evaluate them "
-        f"again with the same {' and '.join(f'`{key}`' for key in differences)}, or compare only those that agree",
-        differences={key: {name: value for value, names in groups for name in names}
-                     for key, groups in differences.items()})
+        f"again with the same {chosen}, or compare only those that agree",
+        differences={s.key: {name: value for value, names in groups for name in names}
+                     for s, groups in differences.items()})
 
 
 def image_pairs(a: Evaluation, b: Evaluation, key_a: str = "iou",

@@ -105,6 +105,25 @@ def images_scored(count: int, data: Mapping[str, Any] | None = None) -> str:
     return said
 
 
+def data_scored(r: Mapping[str, Any]) -> str:
+    """Which data a ``results.json`` scored, as ``results.md``'s header says it after the image count: ``" of the
+    test split of human/large, data_id 49bc547ce46b9202"`` (what its ``data`` and ``data_id`` record); ``""`` when
+    neither is recorded (a bare result, or one from before they were).
+
+    Example:
+        >>> data_scored({"data_id": "49bc547ce46b9202", "data": {"dataset": "human", "preset": "large",
+        ...                                                       "split": "test"}})
+        ' of the test split of human/large, data_id 49bc547ce46b9202'
+        >>> data_scored({"data": {"root": "data/animal_paper", "split": "test"}}), data_scored({})
+        (' of the test split', '')
+    """
+    data, data_id = r.get("data") or {}, r.get("data_id")
+    source = "/".join(str(data[k]) for k in ("dataset", "preset") if data.get(k) is not None)
+    parts = [f" of the {data['split']} split" if data.get("split") is not None else "",
+             f" of {source}" if source else "", f", data_id {data_id}" if data_id is not None else ""]
+    return md_text("".join(parts))
+
+
 def _duration(r: Mapping[str, Any]) -> str:
     """``"248 s"`` (the pass: ``seconds``), with the whole command's ``total_seconds`` when recorded."""
     seconds = f"{r.get('seconds') or 0:.0f} s"
@@ -143,7 +162,7 @@ def markdown_report(result: EvaluationResult | Mapping[str, Any], title: str = "
     policy = open_ground_truths(r.get("gt_open_mesh"))
     out = [f"# {md_text(title)}", "",
            f"Voxel IoU, protocol `{r['protocol']}` at {r['resolution']}^3, union of parts{', ' if policy else ''}"
-           f"{policy}; {images_scored(std['count'], r.get('data'))} ({_duration(r)}).", ""]
+           f"{policy}; {images_scored(std['count'], r.get('data'))}{data_scored(r)} ({_duration(r)}).", ""]
     groups = sorted(set(std["per_group"]) | set((hard or {}).get("per_group", {})))
     rows = [["all", std["mean"], hard["mean"] if hard else None]]
     rows += [[g, std["per_group"].get(g), (hard or {}).get("per_group", {}).get(g)] for g in groups]
