@@ -89,3 +89,22 @@ def test_a_hit_replays_warnings_only_for_the_file_they_name(tmp_path, box):
     cache.put("k", CachedGrid(fresh.get(next(iter(fresh._mem))).grid, ("an old note",)))
     hit = GridCache(tmp_path / "unlabelled").get("k", ("gt ('elsewhere.ply')",))
     assert hit is not None and hit.labels is None and hit.messages == ("an old note",)
+
+
+def test_a_cleaned_mesh_not_tested_for_self_intersections_caches_the_fresh_warning(helpers):
+    """Before: voxelize(mesh, cache=c) of a Mesh cleaned with check_self_intersections=False stored a grid without
+    the self-intersection warning under the key of the test asked for, and a later voxelize((v, f), cache=c) of the
+    same content hit it and skipped the warning a fresh load gives. Now the Mesh is tested, so both warn."""
+    from cerberus_metrics import load_parts, voxelize
+
+    merged = trimesh.util.concatenate([helpers.box((-0.3, -0.3, -0.3), (0.1, 0.1, 0.1)),
+                                       helpers.box((-0.1, -0.1, -0.1), (0.3, 0.3, 0.3))])
+    (cleaned,) = load_parts(merged, check_self_intersections=False)  # named "mesh", as voxelize names a pair
+    words = r"^mesh: mesh is self-intersecting \(\d+ faces\)"
+    for check in (True, "pymeshlab"):
+        cache = GridCache()
+        with pytest.warns(MeshQualityWarning, match=words):
+            first = voxelize(cleaned, cache=cache, check_self_intersections=check)
+        with pytest.warns(MeshQualityWarning, match=words):
+            second = voxelize((cleaned.vertices, cleaned.faces), cache=cache, check_self_intersections=check)
+        assert (cache.misses, cache.hits) == (1, 1) and second is first

@@ -139,13 +139,13 @@ def test_a_cleaned_mesh_passed_again_answers_to_open_mesh_error(box):
         with pytest.raises(OpenMeshError, match=words.format(option)) as fresh:
             load_parts(lidless, "gt", check_self_intersections=False, open_mesh="error", **kwargs)
         with pytest.raises(OpenMeshError, match=words.format(option)) as again:
-            load_parts(cleaned, "gt", open_mesh="error", **kwargs)
+            load_parts(cleaned, "gt", check_self_intersections=False, open_mesh="error", **kwargs)
         assert str(again.value) == str(fresh.value) and again.value.report is cleaned.report
         with pytest.raises(OpenMeshError, match=r"^gt: mesh is not watertight"):
             load_parts([cleaned], "pred", open_mesh="error", **kwargs)  # a taken-as-is part keeps its own name
     with pytest.raises(OpenMeshError, match="open_mesh='error'"):
         voxelize(cleaned, open_mesh="error")
-    assert load_parts(cleaned, "gt", open_mesh="warn")[0] is cleaned  # "warn" still takes it as it is
+    assert load_parts(cleaned, "gt", check_self_intersections=False, open_mesh="warn")[0] is cleaned  # as it is
     (closed,) = load_parts(cleaned, "gt", open_mesh="close")  # "close" still cleans it again, closing its holes
     assert closed.report.watertight and closed.report.holes_closed == 2
     assert mesh_labels(cleaned, "x", "error") == mesh_labels(cleaned, "x", "warn") == ("gt",)
@@ -178,6 +178,67 @@ def test_self_intersecting_mesh_warns_and_gives_union(helpers):
             warnings.simplefilter("error")
             two = voxelize([a, b], protocol=protocol, frame=one.frame)  # parts: no warning
         assert np.array_equal(one.occupancy, two.occupancy)
+
+
+def crossing_boxes(helpers, duplicate_face: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of one closed mesh made of two boxes whose surfaces cross (self-intersecting, not
+    star-shaped: pymeshlab's test answers it); duplicate_face: with its first face twice (one for cleaning)."""
+    merged = trimesh.util.concatenate([helpers.box((-0.3, -0.3, -0.3), (0.1, 0.1, 0.1)),
+                                       helpers.box((-0.1, -0.1, -0.1), (0.3, 0.3, 0.3))])
+    f = np.asarray(merged.faces)
+    return np.asarray(merged.vertices), np.concatenate([f, f[:1]]) if duplicate_face else f
+
+
+def test_a_cleaned_mesh_not_tested_for_self_intersections_is_tested_when_asked(helpers):
+    """Before: a Mesh cleaned with check_self_intersections=False was taken as it is when passed again with the test
+    asked for (True or "pymeshlab"): its report still said "skipped" and the self-intersection warning a fresh load
+    raises was missing. Now that test alone runs on it: the report says which answered, keeps what the first cleaning
+    removed, and the warning is the fresh load's, naming the Mesh by its own name."""
+    from dataclasses import replace
+
+    from cerberus_metrics.io import mesh_labels
+
+    v, f = crossing_boxes(helpers, duplicate_face=True)
+    (cleaned,) = load_parts((v, f), "gt", check_self_intersections=False)
+    assert cleaned.report.self_intersection_check == "skipped" and cleaned.report.removed_duplicate_faces == 1
+    (fresh,) = load_parts((v, f), "gt")
+    assert fresh.report.self_intersection_check == "pymeshlab" and fresh.report.self_intersecting_faces > 0
+    for check in (True, "pymeshlab"):
+        for policy in ("warn", "error"):  # closed: "error" takes it too
+            (again,) = load_parts(cleaned, "pred", check_self_intersections=check, open_mesh=policy)
+            assert again.report == fresh.report  # the count and the test of a fresh load, the first cleaning's counts
+            assert again.name == "gt" and again.vertices is cleaned.vertices and again.faces is cleaned.faces
+            assert replace(again.report, self_intersecting_faces=None, self_intersection_check="skipped") == \
+                cleaned.report
+        with pytest.warns(MeshQualityWarning) as caught:
+            voxelize(cleaned, check_self_intersections=check)
+        with pytest.warns(MeshQualityWarning) as expected:
+            voxelize((v, f), name="gt", check_self_intersections=check)
+        assert [str(w.message) for w in caught] == [str(w.message) for w in expected]
+        assert str(caught[0].message).startswith(f"gt: mesh is self-intersecting ({fresh.report.self_intersecting_faces} faces)")
+    assert cleaned.report.self_intersection_check == "skipped"  # the Mesh passed is not changed
+    assert mesh_labels(cleaned, "x") == ("gt",)
+    assert load_parts(cleaned, "gt", check_self_intersections=False)[0] is cleaned  # nothing asked: as it is
+
+
+def test_a_cleaned_mesh_already_tested_is_taken_as_it_is(helpers):
+    """A Mesh whose report answers the test asked for is returned as the same object (no second test): one tested by
+    pymeshlab for either request, one certified star-shaped for True; "pymeshlab" (always pymeshlab's test) runs
+    that test on a certified one, as a fresh load under "pymeshlab" does. A tested Mesh keeps its answer when the
+    test is not asked for."""
+    (tested,) = load_parts(crossing_boxes(helpers), "gt")
+    assert tested.report.self_intersection_check == "pymeshlab"
+    for check in (True, "pymeshlab", False):
+        assert load_parts(tested, "gt", check_self_intersections=check)[0] is tested
+    blob = helpers.blob(1)
+    (certified,) = load_parts(blob, "gt")
+    assert certified.report.self_intersection_check == "star-shaped certificate"
+    assert load_parts(certified, "gt")[0] is certified
+    assert load_parts(certified, "gt", check_self_intersections=False)[0] is certified
+    (again,) = load_parts(certified, "gt", check_self_intersections="pymeshlab")
+    (fresh,) = load_parts(blob, "gt", check_self_intersections="pymeshlab")
+    assert again is not certified and again.report == fresh.report
+    assert (again.report.self_intersection_check, again.report.self_intersecting_faces) == ("pymeshlab", 0)
 
 
 def test_star_shaped_certificate_agrees_with_pymeshlab(helpers):

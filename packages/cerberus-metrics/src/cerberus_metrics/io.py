@@ -24,7 +24,7 @@ import hashlib
 import os
 import stat
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -321,13 +321,6 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
     f = np.ascontiguousarray(mesh.face_matrix(), dtype=np.int64)
     dets = _cone_dets(v, f, v.mean(axis=0))
     volume = float(dets[0].sum() / 6.0)  # cones from the vertex centroid: the enclosed volume if closed
-    n_self, how = None, "skipped"
-    closed = not (topo["boundary_edges"] or topo["non_two_manifold_edges"] or topo["non_two_manifold_vertices"])
-    if check_self_intersections is True and closed and star_shaped(v, f, dets):
-        n_self, how = 0, "star-shaped certificate"
-    elif check_self_intersections:
-        ms.compute_selection_by_self_intersections_per_face()
-        n_self, how = int(ms.current_mesh().selected_face_number()), "pymeshlab"
     report = MeshReport(
         name=name,
         vertices=int(v.shape[0]),
@@ -339,13 +332,34 @@ def _clean_current(ms: pymeshlab.MeshSet, name: str, check_self_intersections: b
         boundary_edges=int(topo["boundary_edges"]),
         non_manifold_edges=int(topo["non_two_manifold_edges"]),
         non_manifold_vertices=int(topo["non_two_manifold_vertices"]),
-        self_intersecting_faces=n_self,
-        self_intersection_check=how,
         holes_closed=holes_closed,
         volume=volume,
     )
+    report = _test_self_intersections(v, f, report, check_self_intersections, dets=dets, ms=ms)
     _refuse_open(name, report, open_mesh, open_mesh_option)
     return Mesh(v, f, name, report)
+
+
+def _test_self_intersections(v: np.ndarray, f: np.ndarray, report: MeshReport, check: bool | str, *,
+                             dets: tuple[np.ndarray, ...] | None = None,
+                             ms: pymeshlab.MeshSet | None = None) -> MeshReport:
+    """``report`` (of the cleaned mesh v (V, 3), f (F, 3)) with the self-intersection test ``check`` asks for: the
+    one test of a mesh cleaned here (:func:`_clean_current`) and of a :class:`Mesh` taken as it is
+    (:func:`_tested_as_asked`). True: the :func:`star_shaped` certificate when the report says the mesh is closed
+    and 2-manifold, else pymeshlab's test; ``"pymeshlab"``: pymeshlab's test; False: ``report`` unchanged.
+    dets: :func:`_cone_dets` at the vertex centroid, if already computed; ms: a MeshSet whose current mesh is
+    (v, f), if there is one (else one is made)."""
+    if not check:
+        return report
+    closed = not (report.boundary_edges or report.non_manifold_edges or report.non_manifold_vertices)
+    if check is True and closed and star_shaped(v, f, dets):
+        return replace(report, self_intersecting_faces=0, self_intersection_check="star-shaped certificate")
+    if ms is None:
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f.astype(np.int32)))
+    ms.compute_selection_by_self_intersections_per_face()
+    n_self = int(ms.current_mesh().selected_face_number())
+    return replace(report, self_intersecting_faces=n_self, self_intersection_check="pymeshlab")
 
 
 def _refuse_open(name: str, report: MeshReport, open_mesh: str, open_mesh_option: str) -> None:
@@ -455,8 +469,24 @@ def _labels(items: Sequence[Any], name: str) -> list[str]:
 def _taken_as_is(item: Any, open_mesh: str) -> bool:
     """Whether :func:`load_parts` takes ``item`` as it is: a :class:`Mesh` already validated and cleaned (one with a
     report), unless its holes are to be closed. Its report still answers to ``open_mesh="error"``: an open one is
-    refused (:func:`_refuse_open`) as the same mesh read from a file or arrays would be."""
+    refused (:func:`_refuse_open`) as the same mesh read from a file or arrays would be; and to the self-intersection
+    test asked for (:func:`_tested_as_asked`)."""
     return isinstance(item, Mesh) and item.report is not None and open_mesh != "close"
+
+
+def _tested_as_asked(mesh: Mesh, check: bool | str) -> Mesh:
+    """A :class:`Mesh` taken as it is (:func:`_taken_as_is`), tested for self-intersections as ``check`` asks.
+
+    Its report's ``self_intersection_check`` says which test answered it. It answers True when any test ran
+    (``"star-shaped certificate"`` or ``"pymeshlab"``), ``"pymeshlab"`` only when pymeshlab's ran, and False always
+    (a known count is kept). Then ``mesh`` itself is returned (no second test); otherwise that test alone runs on
+    it (:func:`_test_self_intersections`, as in a fresh load) and a copy of ``mesh`` is returned, same arrays and
+    name, whose report has the new count and test and keeps what the first cleaning removed. So its warnings are
+    those of a fresh load, and a cached grid of it (keyed by ``check``) holds them."""
+    how = mesh.report.self_intersection_check
+    if not check or how == "pymeshlab" or (check is True and how != "skipped"):
+        return mesh
+    return replace(mesh, report=_test_self_intersections(mesh.vertices, mesh.faces, mesh.report, check))
 
 
 def mesh_labels(source: Any, name: str = "mesh", open_mesh: str = "warn") -> tuple[str, ...]:
@@ -490,7 +520,9 @@ def load_parts(
     ``"gt_open_mesh"`` for a ground truth under its own policy, see :func:`~cerberus_metrics.api.prediction_grids`).
     check_self_intersections: True counts self-intersecting faces with pymeshlab unless the
     :func:`star_shaped` certificate already proves there are none; ``"pymeshlab"`` always runs
-    pymeshlab's test; False skips the check.
+    pymeshlab's test; False skips the check. A :class:`Mesh` cleaned before (one with a report) is taken as it is
+    unless ``open_mesh="close"``; if its report did not run the test asked for, that test alone runs on it
+    (:func:`_tested_as_asked`).
     Returns a non-empty list of cleaned :class:`Mesh` (units unchanged).
     """
     if open_mesh not in OPEN_MESH_POLICIES:
@@ -502,9 +534,10 @@ def load_parts(
     for item, label in zip(items, _labels(items, name), strict=True):
         if isinstance(item, (str, os.PathLike)):
             out.extend(_load_file(Path(item), label, check_self_intersections, open_mesh, open_mesh_option))
-        elif _taken_as_is(item, open_mesh):
-            _refuse_open(item.name, item.report, open_mesh, open_mesh_option)  # cleaned, perhaps under "warn"
-            out.append(item)  # already validated and cleaned
+        elif _taken_as_is(item, open_mesh):  # already validated and cleaned, perhaps without the test or under "warn"
+            item = _tested_as_asked(item, check_self_intersections)
+            _refuse_open(item.name, item.report, open_mesh, open_mesh_option)
+            out.append(item)
         else:
             v, f = _arrays_of(item, label)
             out.append(_load_arrays(v, f, label, check_self_intersections, open_mesh, open_mesh_option))
