@@ -26,14 +26,18 @@ step's render call alone, forward and backward, over the step's wall time).
 one worker per variant (off, each switch alone, all together), with each variant's first-step loss
 (same weights, same batch: they differ by rounding only). ``--precision`` times the preset with
 ``speed.autocast`` at ``null`` (float32), ``bf16`` and ``auto`` (its other switches as the preset has
-them). ``--losses NAME=W [...]`` times loss terms the same way (the preset as it is, then each
-``losses.NAME`` at weight ``W`` alone on top): what a term beyond the preset adds to a step, e.g. issue
-30's limb terms:
+them). ``--settings KEY=VALUE [...]`` times config settings the same way (the preset as it is, then
+each setting alone on top; a KEY is a full config key as ``cerberus train --set`` takes it, its VALUE
+parsed and validated as there): what a loss term or a model option beyond the preset adds to a step,
+e.g. issue 30's limb terms:
 
-    python benchmarks/bench_train.py --losses coverage=1.0 keypoint_coverage=1.0 overlap=0.1 rotation=0.1 \
+    python benchmarks/bench_train.py \
+        --settings losses.coverage=1.0 losses.keypoint_coverage=1.0 losses.overlap=0.1 losses.rotation=0.1 \
         --presets cpu --renderers warp --threads 1 --steps 8 --warmup 2 --data DATA
- On a CPU without native bfloat16 both leave the ``bf16`` variants out and say so (PyTorch
-emulates bfloat16 convolutions there, over ten times slower); ``--emulated-bf16`` times them anyway.
+
+On a CPU without native bfloat16 ``--switches`` and ``--precision`` leave the ``bf16`` variants out
+and say so (PyTorch emulates bfloat16 convolutions there, over ten times slower); ``--emulated-bf16``
+times them anyway.
 
 Every run starts with the machine's instruction set (torch's CPU capability, the CPU's vector and
 bfloat16 flags) and what ``speed.autocast: auto`` resolves to here, and why. Timings on a shared
@@ -73,9 +77,9 @@ def make_data(root: Path, image_size: int) -> Path:
 
 def trainer_step(spec: dict):
     """The trainer of ``cerberus train`` for ``spec`` (preset, renderer, data, batch size, device,
-    optional ``speed`` overrides), built as :func:`cerberus_core.train.trainer.train` builds it, one
-    batch on its device, and a function running the trainer's step ``i`` on that batch (then the
-    scheduler's step) that returns the step's loss.
+    optional ``speed`` overrides, optional ``settings``: ``--set KEY=VALUE`` strings), built as
+    :func:`cerberus_core.train.trainer.train` builds it, one batch on its device, and a function running
+    the trainer's step ``i`` on that batch (then the scheduler's step) that returns the step's loss.
 
     Uses only what the trainer has had since before the speed work of issue 33 (``_Trainer(config,
     run_dir, info, device, dataset)``, ``_build``, ``_step``), so ``bench_revisions.py`` can time
@@ -89,15 +93,16 @@ def trainer_step(spec: dict):
     from cerberus_core.train.settings import load_config
     from cerberus_core.train.trainer import _Trainer
 
-    cfg = load_config(preset=spec["preset"])
+    if spec.get("settings"):  # as `cerberus train --set` applies them: parsed and validated by the loader
+        cfg = load_config(preset=spec["preset"], overrides=spec["settings"])
+    else:
+        cfg = load_config(preset=spec["preset"])
     cfg.renderer = spec["renderer"]
     cfg.device = spec["device"]
     if spec.get("batch_size"):
         cfg.train.batch_size = spec["batch_size"]
     if spec.get("speed") is not None:
         cfg.speed = dataclasses.replace(cfg.speed, **spec["speed"])
-    if spec.get("losses"):
-        cfg.losses = dataclasses.replace(cfg.losses, **spec["losses"])
     device = torch.device(spec["device"])
     data = Dataset.open(spec["data"]).quadruplets()
     trainer = _Trainer(cfg, Path(spec["run_dir"]), init_distributed(device), device, data)
@@ -352,11 +357,27 @@ def precision_variants(preset: str) -> list[tuple[str, dict]]:
     return [(label, {"autocast": value}) for label, value in (("fp32", None), ("bf16", "bf16"), ("auto", "auto"))]
 
 
-def loss_variants(settings: list[str]) -> list[tuple[str, dict | None, dict]]:
-    """For ``--losses``: the preset as it is, then each ``NAME=W`` setting alone on top
-    (``(label, speed settings, loss weights)``)."""
-    pairs = [s.split("=", 1) for s in settings]
-    return [("preset", None, {})] + [(f"+ {k}={w}", None, {k: float(w)}) for k, w in pairs]
+def setting_variants(settings: list[str]) -> list[tuple[str, dict | None, list[str]]]:
+    """For ``--settings``: the preset as it is, then each ``KEY=VALUE`` setting alone on top
+    (``(label, speed settings, config overrides)``)."""
+    return [("preset", None, [])] + [(f"+ {s}", None, [s]) for s in settings]
+
+
+def check_settings(p: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``--settings`` checked before any worker starts: each one loaded on each preset as ``cerberus train --set``
+    loads it, so a bad key or value stops here with the config loader's message."""
+    from cerberus_core.errors import ConfigError
+    from cerberus_core.train.settings import load_config
+
+    for s in args.settings:
+        key = s.partition("=")[0].strip()
+        if key in ("renderer", "device"):
+            p.error(f"--settings {s}: give the {key} with --{key}{'s' if key == 'renderer' else ''}")
+        for preset in args.presets:
+            try:
+                load_config(preset=preset, overrides=[s])
+            except ConfigError as exc:
+                p.error(f"--settings {s} (preset {preset}): {exc}")
 
 
 def bf16_left_out(emulated: bool, device: str) -> bool:
@@ -373,25 +394,26 @@ def bf16_left_out(emulated: bool, device: str) -> bool:
 
 
 def run_switches(args: argparse.Namespace) -> None:
-    """``--switches`` / ``--precision`` / ``--losses``: the variants side by side, one worker each,
+    """``--switches`` / ``--precision`` / ``--settings``: the variants side by side, one worker each,
     interleaved."""
-    names = None if args.precision or args.losses else (args.switches or list(SWITCHES))
+    names = None if args.precision or args.settings else (args.switches or list(SWITCHES))
     if names and "compile" in names:
         args.warmup = max(args.warmup, 3)  # compilation, then its recompilation-free steady state
     rows = []
-    drop = not args.losses and bf16_left_out(args.emulated_bf16, args.device)
+    drop = not args.settings and bf16_left_out(args.emulated_bf16, args.device)
     with tempfile.TemporaryDirectory() as tmp:
         for preset in args.presets:
             root = dataset_for(args, preset, Path(tmp))
             for name in args.renderers:
-                if args.losses:
-                    variants = loss_variants(args.losses)
+                if args.settings:
+                    variants = setting_variants(args.settings)
                 elif args.precision:
                     variants = [v for v in precision_variants(preset) if v[1]["autocast"] != "bf16" or not drop]
                 else:
                     variants = switch_variants([n for n in names if n != "autocast" or not drop])
-                specs = [(label, base_spec(args, preset, name, root) | {"speed": speed, "losses": rest[0] if rest else {}},
-                          None) for label, speed, *rest in variants]
+                specs = [(label, base_spec(args, preset, name, root)
+                          | {"speed": speed, "settings": rest[0] if rest else []}, None)
+                         for label, speed, *rest in variants]
                 workers = start(specs)
                 try:
                     interleave(workers, args.steps, args.warmup)
@@ -475,12 +497,15 @@ def main() -> None:
     p.add_argument("--switches", nargs="*", default=None, choices=sorted(SWITCHES), metavar="NAME",
                    help="instead: time the speed switches (speed.* of the config) side by side: off, each NAME alone "
                         f"and all NAMEs together (default with no NAME: {' '.join(SWITCHES)})")
-    p.add_argument("--losses", nargs="+", default=None, metavar="NAME=W",
-                   help="instead: time the preset, then each losses.NAME at weight W alone on top, interleaved")
+    p.add_argument("--settings", nargs="+", default=None, metavar="KEY=VALUE",
+                   help="instead: time the preset, then each config setting alone on top, interleaved (full keys as "
+                        "`cerberus train --set` takes them, e.g. losses.coverage=1.0 model.axis_scales=true)")
     p.add_argument("--emulated-bf16", action="store_true",
                    help="with --switches/--precision: time bf16 autocast even where the CPU only emulates bfloat16")
     args = p.parse_args()
-    if args.switches is not None or args.precision or args.losses:
+    if args.settings:
+        check_settings(p, args)
+    if args.switches is not None or args.precision or args.settings:
         run_switches(args)
     else:
         run_presets(args)

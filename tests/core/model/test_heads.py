@@ -77,6 +77,42 @@ def test_recentred_shape_head_keeps_each_part_on_its_translation():
     assert float(bounded.deform(s).mean(-2).abs().max()) < 1e-6
 
 
+def test_axis_scales_start_as_the_spheres_and_their_gradient_stretches_the_axis_a_loss_asks_for():
+    """model.axis_scales (issue 38): zero at the start (the head without them, bit for bit, every other weight drawn
+    as without the switch from one seed), a loss that wants the parts longer along their first local axis gives
+    the first axis' scale a descent direction that grows it and none to the other two; one step of gradient
+    descent stretches every vertex alike (an ellipsoid, not a spike), and the scales stay within a quarter and
+    four times however far the latent pushes them."""
+    t = icosphere(2)
+    torch.manual_seed(0)
+    plain = ShapeHead(16, 8, 3, t.vertices, init_scale=0.12, displacement_scale=0.05)
+    torch.manual_seed(0)
+    head = ShapeHead(16, 8, 3, t.vertices, init_scale=0.12, displacement_scale=0.05, axis_scales=True)
+    assert all(torch.equal(v, plain.state_dict()[k]) for k, v in head.state_dict().items() if k in plain.state_dict())
+    s = plain.latent(torch.randn(2, 16)).detach()
+    assert torch.equal(head.deform(s), plain.deform(s))
+    v = head.deform(s)
+    loss = -(v[..., 0] ** 2).mean()  # longer along x
+    loss.backward()
+    g = head.to_axes.bias.grad.view(3, 3)
+    assert bool((g[:, 0] < 0).all())  # descent grows the first axis of every part
+    assert float(g[:, 1:].abs().max()) == 0.0
+    with torch.no_grad():
+        head.to_axes.bias -= 2.0 * head.to_axes.bias.grad.sign()  # a sign step, as Adam takes
+    v1 = head.deform(s).detach()
+    ratio = v1[..., 0] / v.detach()[..., 0]
+    big = v.detach()[..., 0].abs() > 0.05  # away from x = 0, where the tiny displacements dominate the ratio
+    assert float(ratio[big].min()) > 1.05 and float(ratio[big].max() - ratio[big].min()) < 0.01  # every vertex alike
+    with torch.no_grad():
+        head.to_axes.bias.fill_(1e6)
+        bounded = ShapeHead(16, 8, 3, t.vertices, init_scale=0.12, vertex_bound=0.3, axis_scales=True)
+        bounded.to_axes.bias.fill_(1e6)
+    assert torch.allclose(head.axes(s), torch.full((2, 3, 3), 4.0))
+    w = bounded.deform(s)
+    assert torch.isfinite(w).all() and float(w.abs().max()) <= 0.3  # the bound holds the ellipsoid too
+    assert torch.allclose(head.axes(s, gain=0.0), torch.ones(2, 3, 3))  # a deformation hold holds the axes too
+
+
 def test_deformation_warmup_keeps_the_template_spheres_then_deforms():
     """model.deformation_warmup (issue 38): before step S the parts are the template spheres and the displacement map
     gets no gradient (a part can cover the body only by moving); from step S on, and for a trained model (step

@@ -54,6 +54,11 @@ class ModelConfig(Checked):
             the part is centred on its translation and a part can reach a limb only by moving its keypoint
             there, not by shifting its vertices (beyond the paper; see
             :class:`~cerberus_core.model.heads.ShapeHead`).
+        axis_scales: ``false`` (the paper: each part is its template sphere plus the displacement map) or ``true``:
+            each part's sphere is first scaled along its three local axes by factors read from the shape latent (1 at
+            the start, a quarter to four times), so a part can become a long thin ellipsoid along a limb as one
+            coherent change instead of stretching a few vertices into a spike (beyond the paper, issue 38; see
+            :class:`~cerberus_core.model.heads.ShapeHead`). The axes turn with the part's rotation.
         deformation_warmup: ``0`` (the paper) or ``S`` steps: for the first ``S`` training steps the parts are the
             template spheres (no displacement, and no gradient to the displacement map), then they deform freely
             (beyond the paper, issue 38): the parts can cover the body only by moving while the keypoints find their
@@ -96,6 +101,7 @@ class ModelConfig(Checked):
     displacement_scale: float = ranged(0.05, gt=0)
     vertex_bound: float | None = ranged(None, gt=0, integer=False)
     recentre: bool = False
+    axis_scales: bool = False
     deformation_warmup: int = ranged(0, ge=0)
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
     anchor_width: float | None = ranged(None, gt=0, integer=False)
@@ -189,7 +195,7 @@ class Cerberus(nn.Module):
         latent = self.encoder.out_channels
         self.shape = ShapeHead(latent, config.shape_latent_dim, config.num_parts, self.template.vertices,
                                config.init_scale, config.displacement_scale, config.vertex_bound,
-                               config.recentre)
+                               config.recentre, config.axis_scales)
         self.rotation = RotationHead(latent, config.num_parts)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
                                            config.anchor_spread, config.anchor_width,

@@ -34,6 +34,10 @@ from cerberus_core.render.camera import PIXEL_CENTRE, Camera, pixel_centres
 
 Tensor = torch.Tensor
 
+AXIS_LOG_LIMIT = math.log(4.0)
+"""``model.axis_scales``: the largest |log| of a part's scale along one axis (a quarter to four times)."""
+_BOUND_EDGE = 1.0 - 1e-6  # an ellipsoid past the vertex bound is squashed to just inside it
+
 
 class ShapeHead(nn.Module):
     """Object latent → shape latent → per-part vertex positions in the part's local frame.
@@ -48,6 +52,16 @@ class ShapeHead(nn.Module):
     deformation (and the bound), so the mean of its vertices stays at its local origin and the part sits where its translation (its
     keypoint and depth) puts it: a term that wants a part elsewhere must move the keypoint, since the
     vertices can no longer shift the part back toward where the keypoint was.
+
+    With ``axis_scales`` (beyond the paper, ``model.axis_scales``) each part's template sphere is first scaled
+    along its three local axes, into an ellipsoid, by factors ``exp(L tanh(a / L))`` with ``a =
+    (displacement_scale / init_scale) * (W_a S + b_a)`` (three numbers a part, zero at the start, so the parts
+    start as the spheres) and ``L = ln 4`` (each axis between a quarter and four times ``init_scale``); the
+    displacements are added to the ellipsoid. The output scale makes a step of Adam move a vertex as far through
+    its axis as through its own displacement (``init_scale * da = displacement_scale * dW S``). A part can then
+    grow long and thin along a limb as one coherent change of three numbers, where the displacement map must move
+    every vertex alike and under Adam moves a few into spikes instead (issue 38; superquadric parsing predicts
+    each primitive's size along its axes the same way).
 
     With ``vertex_bound = b`` the coordinates are squashed instead, as in Kato et al.'s NMR decoder
     (which bounds them with a sigmoid): ``v = b * tanh(atanh(t / b) + d / b)`` for template
@@ -65,10 +79,28 @@ class ShapeHead(nn.Module):
         displacement_scale: the output scale of the displacement map.
         vertex_bound: ``None`` or the bound ``b`` (world units, larger than ``init_scale``).
         recentre: keep each part's vertex mean at its local origin.
+        axis_scales: scale each part's template along its local axes first (an ellipsoid a part).
+
+    Example: with ``axis_scales`` an untrained head gives the template spheres; a latent that asks for a longer
+    first axis stretches every part along it, as one ellipsoid:
+
+        >>> from cerberus_core.render.templates import icosphere
+        >>> head = ShapeHead(16, 8, 2, icosphere(1).vertices, init_scale=0.1, displacement_scale=0.05,
+        ...                  axis_scales=True)
+        >>> s = head.latent(torch.randn(3, 16))
+        >>> sphere = head.deform(s)
+        >>> bool(torch.equal(head.axes(s), torch.ones(3, 2, 3)))
+        True
+        >>> with torch.no_grad():
+        ...     head.to_axes.bias.view(2, 3)[:, 0] = 2.0  # a = (0.05 / 0.1) 2 = 1: the first axis e^(ln4 tanh(1/ln4)) times
+        >>> stretch = head.deform(s).amax(dim=-2) / sphere.amax(dim=-2)
+        >>> [round(float(e), 2) for e in stretch[0, 0]]
+        [2.35, 1.0, 1.0]
     """
 
     def __init__(self, in_dim: int, latent_dim: int, num_parts: int, template: Tensor, init_scale: float,
-                 displacement_scale: float = 1.0, vertex_bound: float | None = None, recentre: bool = False) -> None:
+                 displacement_scale: float = 1.0, vertex_bound: float | None = None, recentre: bool = False,
+                 axis_scales: bool = False) -> None:
         super().__init__()
         self.recentre = bool(recentre)
         self.num_parts = num_parts
@@ -78,6 +110,12 @@ class ShapeHead(nn.Module):
         self.to_displacement = nn.Linear(latent_dim, num_parts * self.num_vertices * 3)
         nn.init.normal_(self.to_displacement.weight, std=1e-4)
         nn.init.zeros_(self.to_displacement.bias)
+        self.axis_rate = self.displacement_scale / float(init_scale)
+        self.to_axes: nn.Linear | None = None  # built only when asked, so the paper's models keep their tensors
+        if axis_scales:  # without drawing from the random stream: every other weight starts as without the switch
+            self.to_axes = nn.utils.skip_init(nn.Linear, latent_dim, num_parts * 3)
+            nn.init.zeros_(self.to_axes.weight)
+            nn.init.zeros_(self.to_axes.bias)
         self.register_buffer("template", template.float() * init_scale, persistent=False)
         self.vertex_bound = None if vertex_bound is None else float(vertex_bound)
         if self.vertex_bound is not None:
@@ -90,16 +128,29 @@ class ShapeHead(nn.Module):
         """``(B, in_dim)`` → ``(B, latent_dim)`` shape latent ``S``."""
         return self.to_latent(object_latent)
 
+    def axes(self, shape_latent: Tensor, gain: float = 1.0) -> Tensor:
+        """``(B, latent_dim)`` shape latent → ``(B, N, 3)`` each part's scale along its local axes (unitless,
+        between 1/4 and 4; all ones without ``axis_scales``, or at ``gain`` 0)."""
+        n = shape_latent.shape[0]
+        if self.to_axes is None:
+            return shape_latent.new_ones(n, self.num_parts, 3)
+        a = (self.axis_rate * gain) * self.to_axes(shape_latent).view(n, self.num_parts, 3)
+        return torch.exp(AXIS_LOG_LIMIT * torch.tanh(a / AXIS_LOG_LIMIT))
+
     def deform(self, shape_latent: Tensor, gain: float = 1.0) -> Tensor:
         """``(B, latent_dim)`` shape latent → ``(B, N, V, 3)`` deformed part vertices (local frame); ``gain``
-        scales the displacements (0: the template spheres, ``model.deformation_warmup``)."""
+        scales the displacements and the axis scales' logarithms (0: the template spheres,
+        ``model.deformation_warmup``)."""
         scale = self.displacement_scale * gain if gain != 1.0 else self.displacement_scale
         disp = scale * self.to_displacement(shape_latent).view(-1, self.num_parts, self.num_vertices, 3)
+        template = self.template if self.to_axes is None else self.template * self.axes(shape_latent, gain)[:, :, None]
         if self.vertex_bound is None:
-            local = self.template + disp
+            local = template + disp
         else:
             b = self.vertex_bound
-            local = b * torch.tanh(self.template_logit + disp / b)
+            logit = self.template_logit if self.to_axes is None else \
+                torch.atanh((template / b).clamp(-_BOUND_EDGE, _BOUND_EDGE))
+            local = b * torch.tanh(logit + disp / b)
         return local - local.mean(dim=-2, keepdim=True) if self.recentre else local
 
 
