@@ -148,6 +148,56 @@ def test_rotation_head_unit_quaternions_identity_init_and_valid_rotations():
     assert torch.allclose(torch.linalg.det(r), torch.ones(4, 5), atol=1e-5)
 
 
+def test_local_rotation_starts_as_the_paper_and_reads_only_what_lies_under_its_own_map():
+    """model.local_rotation (issue 38): the model starts as without it, bit for bit (the new map is zeros and draws
+    nothing from the random stream); a loss on one part's quaternion gives its own map a descent direction that
+    lowers the loss, none to the other parts' maps, and reaches only the feature cells under the part's keypoint
+    map; the keypoint maps are read, not moved (no gradient to the translation head from the rotation)."""
+    from cerberus_core.model.cerberus import Cerberus, ModelConfig
+    from cerberus_core.model.heads import cell_shares, features_under
+    torch.manual_seed(0)
+    paper = Cerberus(ModelConfig(num_parts=3, width=4, shape_latent_dim=8, depth_offset=2.0))
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(num_parts=3, width=4, shape_latent_dim=8, depth_offset=2.0, local_rotation=True))
+    assert set(model.state_dict()) - set(paper.state_dict()) == {"rotation.local"}
+    assert all(torch.equal(v, model.state_dict()[k]) for k, v in paper.state_dict().items())
+    images = torch.rand(2, 3, 32, 32)
+    assert torch.equal(model(images).rotations, paper(images).rotations)
+
+    head = RotationHead(6, 2, local_dim=4)
+    prob = torch.zeros(1, 2, 16, 16)
+    prob[0, 0, 2:4, 2:4] = 0.25  # part 0 in the top-left corner, part 1 in the bottom-right
+    prob[0, 1, 12:14, 12:14] = 0.25
+    features = torch.randn(1, 4, 8, 8, requires_grad=True)
+    target = torch.tensor([0.0, 1.0, 0.0, 0.0])  # half a turn about x
+    latent = torch.randn(1, 6)
+    q, _ = head(latent, features_under(prob, features))
+    loss = (q[0, 0] - target).square().sum()
+    loss.backward()
+    g = head.local.grad
+    assert float(g[0].abs().sum()) > 0 and float(g[1].abs().max()) == 0.0  # part 0's map only
+    with torch.no_grad():
+        head.local -= 0.01 * g
+        q1, _ = head(latent, features_under(prob, features))
+        assert float((q1[0, 0] - target).square().sum()) < float(loss)  # a descent direction
+        head.local.normal_()
+        head.local.normal_()
+    q, _ = head(torch.zeros(1, 6), features_under(prob, features))
+    features.grad = None
+    (q[0, 0] - target).square().sum().backward()
+    under = cell_shares(prob, (8, 8))[0, 0] > 0
+    reached = features.grad[0].abs().sum(0) > 0
+    assert bool(reached.any()) and torch.equal(reached, under)  # the cells under part 0's map, and no other
+    with pytest.raises(ShapeError, match="features_under"):
+        head(torch.randn(1, 6))
+
+    with torch.no_grad():
+        model.rotation.local.normal_()
+    model(images).quaternions[:, 0].sum().backward()
+    assert model.rotation.local.grad.abs().sum() > 0
+    assert model.translation.logits.weight.grad is None or float(model.translation.logits.weight.grad.abs().max()) == 0
+
+
 def test_quaternions_are_real_part_first():
     """(w, x, y, z) = (cos 45, 0, 0, sin 45) is +90 degrees about +z: x maps to y (kornia's convention)."""
     head = RotationHead(1, 1)

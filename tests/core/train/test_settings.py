@@ -173,8 +173,10 @@ def test_the_own_cross_view_must_start_before_the_end():
         c = load_config(preset=preset)
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
         assert (c.losses.consensus_coverage, c.losses.separation, c.losses.relocation, c.model.recentre,
-                c.model.deformation_warmup, c.model.rotation, c.model.axis_scales) == (0, 0, 0, False, 0, "camera",
-                                                                                       False)  # issue 38's
+                c.model.deformation_warmup, c.model.rotation, c.model.axis_scales,
+                c.model.local_rotation) == (0, 0, 0, False, 0, "camera", False, False)  # issue 38's
+    with pytest.raises(ConfigError, match="model.rotation: none does not run; set model.rotation=camera"):
+        load_config(preset="cpu", overrides=["model.rotation=none", "model.local_rotation=true"])
 
 
 def test_a_renamed_key_is_read_from_a_saved_config_and_named_in_a_new_one():

@@ -24,7 +24,14 @@ from torch import nn
 from cerberus_core.errors import ConfigError, ShapeError
 from cerberus_core.fields import Checked, Range, check_kind, ranged
 from cerberus_core.model.encoder import ResNet10, UpDecoder
-from cerberus_core.model.heads import KeypointMaps, RotationHead, ShapeHead, TranslationHead, unproject_expectation
+from cerberus_core.model.heads import (
+    KeypointMaps,
+    RotationHead,
+    ShapeHead,
+    TranslationHead,
+    features_under,
+    unproject_expectation,
+)
 from cerberus_core.parts import PartSet
 from cerberus_core.render.camera import Camera
 from cerberus_core.render.templates import MeshTemplate, icosphere
@@ -59,6 +66,12 @@ class ModelConfig(Checked):
             the start, a quarter to four times), so a part can become a long thin ellipsoid along a limb as one
             coherent change instead of stretching a few vertices into a spike (beyond the paper, issue 38; see
             :class:`~cerberus_core.model.heads.ShapeHead`). The axes turn with the part's rotation.
+        local_rotation: ``false`` (the paper: every part's quaternion is a linear map of the image's global latent) or
+            ``true``: each part's quaternion also reads the decoder features under its own keypoint map (their
+            expectation under it, as equation 1 takes the part's depth; the map detached, so the rotation reads
+            where the part is and does not move it), through a map of its own that is zero at the start (beyond
+            the paper, issue 38; see :class:`~cerberus_core.model.heads.RotationHead`). Needs a rotation head
+            (``rotation: camera`` or ``world``).
         deformation_warmup: ``0`` (the paper) or ``S`` steps: for the first ``S`` training steps the parts are the
             template spheres (no displacement, and no gradient to the displacement map), then they deform freely
             (beyond the paper, issue 38): the parts can cover the body only by moving while the keypoints find their
@@ -102,6 +115,7 @@ class ModelConfig(Checked):
     vertex_bound: float | None = ranged(None, gt=0, integer=False)
     recentre: bool = False
     axis_scales: bool = False
+    local_rotation: bool = False
     deformation_warmup: int = ranged(0, ge=0)
     anchor_spread: float = ranged(0.4, ge=0, lt=1)
     anchor_width: float | None = ranged(None, gt=0, integer=False)
@@ -111,6 +125,10 @@ class ModelConfig(Checked):
 
     def validate(self) -> None:
         """The checks between fields (the ranges are declared above)."""
+        if self.local_rotation and self.rotation == "none":
+            raise ConfigError("model.local_rotation reads features into the rotation head, which model.rotation: none "
+                              "does not run; set model.rotation=camera (or world), or model.local_rotation=false",
+                              key="model.local_rotation", value=self.local_rotation)
         if self.vertex_bound is not None and not self.vertex_bound > self.init_scale:
             raise ConfigError(f"model.vertex_bound must be null or larger than model.init_scale "
                               f"({self.init_scale}), got {self.vertex_bound!r}", key="model.vertex_bound", value=self.vertex_bound)
@@ -196,7 +214,8 @@ class Cerberus(nn.Module):
         self.shape = ShapeHead(latent, config.shape_latent_dim, config.num_parts, self.template.vertices,
                                config.init_scale, config.displacement_scale, config.vertex_bound,
                                config.recentre, config.axis_scales)
-        self.rotation = RotationHead(latent, config.num_parts)
+        self.rotation = RotationHead(latent, config.num_parts,
+                                     self.decoder.out_channels if config.local_rotation else None)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
                                            config.anchor_spread, config.anchor_width,
                                            latent if config.body_depth else None)
@@ -246,9 +265,12 @@ class Cerberus(nn.Module):
         shape_latent = self.shape.latent(object_latent)
         render_latent = shape_latent if mix is None else mix(shape_latent)
         local = self.shape.deform(render_latent, self.deformation_gain(step))
-        quats, rot_cam = self.rotation.identity(object_latent) if not self.trains_every_parameter \
-            else self.rotation(object_latent)
         maps = self.translation(features, tuple(images.shape[-2:]), object_latent)
+        if not self.trains_every_parameter:
+            quats, rot_cam = self.rotation.identity(object_latent)
+        else:  # with model.local_rotation each part reads the features under its map (detached: read, not moved)
+            read = features_under(maps.prob.detach(), features) if self.config.local_rotation else None
+            quats, rot_cam = self.rotation(object_latent, read)
         return Predictions(object_latent, shape_latent, render_latent, local, quats, rot_cam, maps)
 
     def _cnn(self, images: Tensor) -> tuple[Tensor, Tensor]:

@@ -2,7 +2,9 @@
 
 * :class:`ShapeHead` — object latent → shape latent (linear) → vertex displacements of all ``N``
   parts (linear), added to the template sphere scaled to ``init_scale``.
-* :class:`RotationHead` — object latent → ``N`` quaternions (linear) → rotation matrices.
+* :class:`RotationHead` — object latent → ``N`` quaternions (linear) → rotation matrices (with
+  ``model.local_rotation``, beyond the paper, each part's quaternion also reads the features under its own
+  keypoint map).
 * :class:`TranslationHead` — up-sampled features → per part a probability map (1x1 convolution,
   spatial softmax) and a depth map (1x1 convolution); equation 1 turns their expectations into a
   3D translation by unprojecting with the known camera (:func:`unproject_expectation`).
@@ -157,22 +159,38 @@ class ShapeHead(nn.Module):
 class RotationHead(nn.Module):
     """Object latent → ``N`` unit quaternions ``(w, x, y, z)`` → ``N`` rotation matrices.
 
+    With ``local_dim`` (beyond the paper, ``model.local_rotation``) each part's quaternion also reads the features
+    under its own keypoint map: ``q_k = W_k o + b_k + A_k f_k``, with ``o`` the object latent, ``f_k`` the part's
+    ``local_dim`` features (:func:`features_under`) and ``A_k`` a ``(local_dim, 4)`` map of its own, zero at the start
+    (a plain tensor of zeros, drawn from no random stream, so the head starts as without it, bit for bit). The
+    object latent is the average of a 2x2 map of the whole image, one vector for all ``N`` parts, so how each part
+    is turned must be read out of the same global summary; ``f_k`` is where the part is (issue 38: the parts sit
+    on the limbs in the image and point the wrong way in depth).
+
     Args:
         in_dim: object latent size.
         num_parts: ``N``.
+        local_dim: ``None`` (the paper) or the channels of the features each part reads under its map.
     """
 
-    def __init__(self, in_dim: int, num_parts: int) -> None:
+    def __init__(self, in_dim: int, num_parts: int, local_dim: int | None = None) -> None:
         super().__init__()
         self.num_parts = num_parts
         self.linear = nn.Linear(in_dim, num_parts * 4)
         nn.init.normal_(self.linear.weight, std=1e-3)
         with torch.no_grad():
             self.linear.bias.copy_(torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(num_parts))
+        self.local = None if local_dim is None else nn.Parameter(torch.zeros(num_parts, local_dim, 4))
 
-    def forward(self, object_latent: Tensor) -> tuple[Tensor, Tensor]:
-        """Returns ``quaternions`` ``(B, N, 4)`` (unit, real part first) and ``rotations`` ``(B, N, 3, 3)``."""
+    def forward(self, object_latent: Tensor, local: Tensor | None = None) -> tuple[Tensor, Tensor]:
+        """Returns ``quaternions`` ``(B, N, 4)`` (unit, real part first) and ``rotations`` ``(B, N, 3, 3)``;
+        ``local`` ``(B, N, local_dim)``, each part's features under its map, is read only with ``local_dim``."""
         q = self.linear(object_latent).view(-1, self.num_parts, 4)
+        if self.local is not None:
+            if local is None:
+                raise ShapeError("RotationHead: built with local_dim, so it needs each part's features under its "
+                                 "keypoint map (B, N, local_dim) as its second argument (features_under)")
+            q = q + torch.einsum("bnc,ncq->bnq", local, self.local)
         q = nn.functional.normalize(q, dim=-1, eps=1e-8)
         return q, quaternion_to_rotation_matrix(q)
 
@@ -337,14 +355,47 @@ def expectation(prob: Tensor, depth_cells: Tensor) -> KeypointMaps:
         prob: ``(B, N, H, W)`` maps summing to 1.
         depth_cells: ``(B, N, h, w)`` depth maps, ``(h, w)`` = ``(H, W)`` or coarser.
     """
-    h, w = depth_cells.shape[-2:]
-    height, width = prob.shape[-2:]
-    weight = prob
-    if (h, w) != (height, width):  # each cell's share of the probability
-        weight = bilinear_matrix(h, height, prob.dtype, prob.device).T @ (
-            prob @ bilinear_matrix(w, width, prob.dtype, prob.device))
     uv = spatial_expectation2d(prob, normalized_coordinates=False) + PIXEL_CENTRE  # cell j is centred at j + 0.5
+    weight = cell_shares(prob, tuple(depth_cells.shape[-2:]))
     return KeypointMaps(prob, depth_cells, uv, (weight * depth_cells).sum(dim=(-2, -1)))
+
+
+def cell_shares(prob: Tensor, cells: tuple[int, int]) -> Tensor:
+    """``(B, N, h, w)`` each cell's share of the probability maps ``prob`` ``(B, N, H, W)``: ``L_y^T p L_x``, the
+    adjoint of the bilinear up-sampling from the ``cells = (h, w)`` grid to the pixels (:func:`upsample_bilinear`),
+    so that ``sum_hw share * m = sum_HW p * upsample(m)`` for any map ``m`` on the cells; ``prob`` itself when the
+    grids are one. Each share map sums to 1 as ``p`` does (a linear up-sampling keeps constants).
+
+    Example:
+        >>> p = torch.zeros(1, 1, 8, 8)
+        >>> p[0, 0, 3, 4] = 1.0  # all the mass on one pixel
+        >>> share = cell_shares(p, (4, 4))
+        >>> share.shape, round(float(share.sum()), 6), bool((share >= 0).all())
+        (torch.Size([1, 1, 4, 4]), 1.0, True)
+    """
+    h, w = cells
+    height, width = prob.shape[-2:]
+    if (h, w) == (height, width):
+        return prob
+    return bilinear_matrix(h, height, prob.dtype, prob.device).T @ (prob @ bilinear_matrix(w, width, prob.dtype,
+                                                                                             prob.device))
+
+
+def features_under(prob: Tensor, features: Tensor) -> Tensor:
+    """``(B, N, C)`` what each part's probability map reads of the features: the expectation under ``p_k``
+    ``(B, N, H, W)`` of the features ``(B, C, h, w)`` up-sampled bilinearly to the pixels, taken on the cells
+    (:func:`cell_shares`), as equation 1 takes the part's depth (``model.local_rotation``; beyond the paper).
+
+    Example:
+        >>> features = torch.arange(2 * 4 * 4, dtype=torch.float32).view(1, 2, 4, 4)
+        >>> p = torch.full((1, 1, 8, 8), 1 / 64)  # uniform: the mean of the up-sampled features
+        >>> features_under(p, features).shape
+        torch.Size([1, 1, 2])
+        >>> bool(torch.allclose(features_under(p, features)[0, 0], upsample_bilinear(features, (8, 8)).mean((-2, -1))[0]))
+        True
+    """
+    shares = cell_shares(prob, tuple(features.shape[-2:]))
+    return torch.einsum("bnhw,bchw->bnc", shares, features)
 
 
 def unproject_expectation(maps: KeypointMaps, camera: Camera, *, to_world: bool) -> Tensor:
