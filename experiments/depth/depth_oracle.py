@@ -1,6 +1,7 @@
 """The per-part depth oracle: what the voxel IoU would be if every part sat at the right depth.
 
-    python experiments/depth/depth_oracle.py RUN DATA [--limit N] [--best-shift] [--readout POSES] [--json OUT]
+    python experiments/depth/depth_oracle.py RUN DATA [--limit N] [--best-shift] [--flip] [--readout POSES]
+        [--json OUT]
 
 Every test pose is seen from several views. For each pose and each learned part, the part's rays
 (from each view's camera centre through the keypoint that view predicts for it) are intersected in
@@ -22,6 +23,11 @@ and the moved reconstruction is scored like ``cerberus eval`` (32^3, ``kato``, u
 * with ``--readout POSES``, whether the network's global features hold the whole-body shift: a ridge read-out of
   it from the encoder's latents, fitted on the first ``POSES`` training poses (their triangulated shifts) and
   scored on the test images (R², correlation);
+* with ``--flip``, whether the parts point the wrong way in depth: each part *mirrored in depth* about its own
+  translation's depth, every vertex kept on its own camera ray (``d -> 2 d_T - d``, so the input view sees the
+  part exactly as before: the one ambiguity a single image leaves a part), kept where the ground truth scores the
+  image better, one part at a time in order (greedy); and the whole reconstruction mirrored about its mean depth
+  at once; 1 + N + 1 more scorings per image;
 * **the moves**: median distance a part moves, and the predicted against the triangulated depth
   (least-squares slope and correlation over every part of every image: slope 1 and correlation 1
   mean the depths are already consistent across views);
@@ -81,6 +87,38 @@ def along_rays(parts: PartSet, centre: torch.Tensor, depth: torch.Tensor, new_de
     each keypoint stays where the input view sees it: ``c + (new / old) (T - c)``, ``centre`` ``(3,)`` the camera's."""
     moved = centre + (new_depth / depth).view(-1, 1) * (parts.translations[0] - centre)
     return PartSet(parts.local_vertices, parts.faces, parts.rotations, moved.unsqueeze(0))
+
+
+def mirrored_in_depth(points: torch.Tensor, camera: Camera, about: torch.Tensor) -> torch.Tensor:
+    """``(1, M, 3)`` world points mirrored in depth about ``about`` ``(1, M)`` (world units along the view, one
+    value a point), each kept on its own camera ray: depth ``d -> 2 about - d`` at the same pixel. A part's
+    surface mirrored so is the same in the input view and reversed in depth (its faces' winding reverses)."""
+    uv, d = camera.project(points)
+    return camera.unproject(uv, 2 * about - d)
+
+
+def flip_search(scorer: VoxelScorer, one: PartSet, camera: Camera, gt: tuple) -> tuple[float, float, list[int]]:
+    """One image's parts, each mirrored in depth about its translation's depth (:func:`mirrored_in_depth`) where
+    that scores better against the ground truth, greedily in part order: the IoU of the greedy choice, the IoU of
+    the whole reconstruction mirrored about its mean depth, and the parts the greedy choice mirrored."""
+    posed = one.posed()  # (1, N, V, 3)
+    n, v = posed.shape[1:3]
+    _, t_depth = camera.project(one.translations)  # (1, N)
+    flat = posed.reshape(1, n * v, 3)
+    own = mirrored_in_depth(flat, camera, t_depth.repeat_interleave(v, 1)).view(n, v, 3)
+    _, d = camera.project(flat)
+    whole = mirrored_in_depth(flat, camera, d.mean().expand(1, n * v)).view(n, v, 3)
+    faces = one.faces.numpy().astype(np.int64)
+    meshes = [(p.double().numpy(), faces) for p in posed[0]]
+    flipped = [(p.double().numpy(), faces[:, ::-1].copy()) for p in own]  # mirrored: the winding reverses
+    best, chosen = scorer(meshes, gt).iou, []
+    for k in range(n):
+        trial = [flipped[j] if j == k or j in chosen else meshes[j] for j in range(n)]
+        iou = scorer(trial, gt).iou
+        if iou > best:
+            best, chosen = iou, [*chosen, k]
+    mirror = scorer([(p.double().numpy(), faces[:, ::-1].copy()) for p in whole], gt).iou
+    return best, mirror, chosen
 
 
 GRID = np.round(np.arange(-0.08, 0.0801, 0.01), 2)
@@ -205,6 +243,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("--limit", type=int, default=None, help="first N test poses only (default all)")
     p.add_argument("--best-shift", action="store_true",
                    help="also search the best single depth shift per image against the ground truth")
+    p.add_argument("--flip", action="store_true",
+                   help="also mirror each part in depth about its own depth (the input view unchanged) where the "
+                        "ground truth scores it better, and the whole reconstruction about its mean depth")
     p.add_argument("--readout", type=int, default=None, metavar="POSES",
                    help="also fit a linear read-out of the whole-body shift from the encoder's latents on this many "
                         "training poses and score it on the test images")
@@ -221,6 +262,7 @@ def main(argv: list[str]) -> int:
     before, after, moves, d_pred, d_tri, d_mass = [], [], [], [], [], []
     errors = defaultdict(list)
     whole, relative, shifts, best, best_shift = [], [], [], [], []
+    flip_best, flip_whole, flip_counts = [], [], defaultdict(int)
     shift_picks: list[dict[str, tuple[float, float]]] = []  # per image: (shift, IoU) each other signal picks
     renderer = make_renderer("torch")
 
@@ -262,6 +304,12 @@ def main(argv: list[str]) -> int:
                 best.append(max(ious))
                 best_shift.append(float(GRID[int(np.argmax(ious))]))
                 shift_picks.append(picks)
+            if args.flip:
+                greedy, mirror, chosen = flip_search(scorer, one, cams[i], gt)
+                flip_best.append(greedy)
+                flip_whole.append(mirror)
+                for k in chosen:
+                    flip_counts[k] += 1
             moves.extend((moved.translations[0] - one.translations[0]).norm(dim=-1).tolist())
             d_pred.extend(depth[i].tolist())
             d_tri.extend(target.tolist())
@@ -312,6 +360,15 @@ def main(argv: list[str]) -> int:
             print(f"  the shift {what}: {f['iou']:.4f} ({f['gain']:+.4f} ± {f['gain_se']:.4f}), "
                   f"mean |shift| {f['mean_abs_shift']:.4f}, correlation with the best shift "
                   f"{f['correlation_with_best']:.2f}")
+    if args.flip:
+        figures["flip"] = {"per_part": paired(flip_best), "whole": paired(flip_whole),
+                           "images_mirrored": [flip_counts[k] for k in range(recon[poses[0][0]].num_parts)]}
+        f, w = figures["flip"]["per_part"], figures["flip"]["whole"]
+        print(f"  each part mirrored in depth about its own depth where that is better (greedy): {f['iou']:.4f} "
+              f"({f['gain']:+.4f} ± {f['gain_se']:.4f}, better on {f['improved']}); images where each part was "
+              f"mirrored: {figures['flip']['images_mirrored']}")
+        print(f"  the whole reconstruction mirrored about its mean depth: {w['iou']:.4f} ({w['gain']:+.4f} ± "
+              f"{w['gain_se']:.4f}, better on {w['improved']})")
     print(f"median move {figures['median_move']:.3f} world units; predicted vs triangulated depth: "
           f"slope {slope:.2f}, correlation {corr:.2f}")
     print(f"mean |depth error| of the translations {figures['translation_depth_error']:.3f}, of the parts' vertex means "

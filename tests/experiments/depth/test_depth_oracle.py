@@ -80,3 +80,43 @@ def test_triangulated_depths_are_each_view_s_depth_of_the_point_its_rays_meet_at
         torch.testing.assert_close(depths[i], cam.project(points)[1][0], atol=1e-4, rtol=0)
     shifts = module.body_shifts([[3, 7]], uv, {i: d - 0.05 for i, d in depths.items()}, cams)
     assert shifts == {3: pytest.approx(0.05, abs=1e-4), 7: pytest.approx(0.05, abs=1e-4)}
+
+
+
+def test_flip_search_mirrors_back_the_part_that_points_the_wrong_way_in_depth():
+    """--flip: two rods tilted toward the camera; the prediction has the second tilted away (the same pixels,
+    mirrored in depth about its translation). The mirror keeps every vertex's pixel and is its own inverse; the
+    greedy search mirrors the second rod back, leaves the first alone, and scores the truth's IoU."""
+    import numpy as np
+    import trimesh
+
+    from cerberus_core.eval.standard import VoxelScorer
+    from cerberus_core.parts import PartSet
+    from cerberus_core.render.camera import Camera
+
+    module = load_script("experiments/depth/depth_oracle.py")
+    camera = Camera.look_at(0.0, 0.0, 2.0, fov_y_deg=30.0, image_size=64)
+    rod = trimesh.creation.capsule(height=0.4, radius=0.06, count=[8, 8])
+    tilt = trimesh.transformations.rotation_matrix(0.7, [1.0, 0.0, 0.0])[:3, :3]  # its ends at different depths
+    local = torch.as_tensor(rod.vertices @ tilt.T, dtype=torch.float32)
+    faces = torch.as_tensor(rod.faces, dtype=torch.long)
+    place = torch.tensor([[[-0.25, 0.0, 0.0], [0.25, 0.0, 0.0]]])
+    truth = PartSet(local.expand(1, 2, -1, -1), faces, torch.eye(3).expand(1, 2, 3, 3), place)
+    gt = trimesh.util.concatenate([trimesh.Trimesh(v, f) for v, f in truth.part_meshes(0)])
+    gt = (np.asarray(gt.vertices), np.asarray(gt.faces))
+    second = truth.posed()[:, 1]  # (1, V, 3) world
+    _, t_depth = camera.project(place[:, 1:])
+    about = t_depth.expand(1, second.shape[1])
+    wrong = module.mirrored_in_depth(second, camera, about)
+    torch.testing.assert_close(camera.project(wrong)[0], camera.project(second)[0], atol=1e-4, rtol=0)
+    assert float((camera.project(wrong)[1] - camera.project(second)[1]).abs().max()) > 0.1  # reversed in depth
+    torch.testing.assert_close(module.mirrored_in_depth(wrong, camera, about), second, atol=1e-5, rtol=0)
+    predicted = PartSet(torch.stack([local, wrong[0] - place[0, 1]])[None], faces, torch.eye(3).expand(1, 2, 3, 3),
+                        place)
+    scorer = VoxelScorer()
+    before = scorer(predicted.part_meshes(0), gt).iou
+    greedy, mirror, chosen = module.flip_search(scorer, predicted, camera, gt)
+    assert chosen == [1] and greedy > 0.9 and greedy > before + 0.2
+    assert mirror < greedy  # mirroring everything reverses the first rod as well
+    right, _, none = module.flip_search(scorer, truth, camera, gt)
+    assert none == [] and right > 0.9
