@@ -25,9 +25,9 @@ and the moved reconstruction is scored like ``cerberus eval`` (32^3, ``kato``, u
   scored on the test images (R², correlation);
 * with ``--flip``, whether the parts point the wrong way in depth: each part *mirrored in depth* about its own
   translation's depth, every vertex kept on its own camera ray (``d -> 2 d_T - d``, so the input view sees the
-  part exactly as before: the one ambiguity a single image leaves a part), kept where the ground truth scores the
-  image better, one part at a time in order (greedy); and the whole reconstruction mirrored about its mean depth
-  at once; 1 + N + 1 more scorings per image;
+  part's silhouette as before: the two-way ambiguity a single view leaves a part), kept where the ground truth
+  scores the image better, one part at a time in order (greedy); and the whole reconstruction mirrored about its
+  mean depth at once; 1 + N + 1 more scorings per image;
 * **the moves**: median distance a part moves, and the predicted against the triangulated depth
   (least-squares slope and correlation over every part of every image: slope 1 and correlation 1
   mean the depths are already consistent across views);
