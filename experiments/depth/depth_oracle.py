@@ -108,16 +108,16 @@ def flip_search(scorer: VoxelScorer, one: PartSet, camera: Camera, gt: tuple) ->
     own = mirrored_in_depth(flat, camera, t_depth.repeat_interleave(v, 1)).view(n, v, 3)
     _, d = camera.project(flat)
     whole = mirrored_in_depth(flat, camera, d.mean().expand(1, n * v)).view(n, v, 3)
-    faces = one.faces.numpy().astype(np.int64)
-    meshes = [(p.double().numpy(), faces) for p in posed[0]]
-    flipped = [(p.double().numpy(), faces[:, ::-1].copy()) for p in own]  # mirrored: the winding reverses
+    meshes = one.part_meshes(0)
+    reversed_faces = meshes[0][1][:, ::-1].copy()  # a mirrored surface's winding reverses
+    flipped = [(p.double().numpy(), reversed_faces) for p in own]
     best, chosen = scorer(meshes, gt).iou, []
     for k in range(n):
         trial = [flipped[j] if j == k or j in chosen else meshes[j] for j in range(n)]
         iou = scorer(trial, gt).iou
         if iou > best:
             best, chosen = iou, [*chosen, k]
-    mirror = scorer([(p.double().numpy(), faces[:, ::-1].copy()) for p in whole], gt).iou
+    mirror = scorer([(p.double().numpy(), reversed_faces) for p in whole], gt).iou
     return best, mirror, chosen
 
 
