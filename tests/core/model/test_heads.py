@@ -351,3 +351,58 @@ def test_a_narrow_anchor_width_starts_each_part_on_its_anchor_and_spreads_them()
     torch.testing.assert_close(narrow, anchor_grid(9, 0.7), atol=0.02, rtol=0)
     assert wide.abs().max() < 0.4 < 0.65 < narrow.abs().max()
     torch.testing.assert_close(start(0.4, None), start(0.4, 0.4))  # None: as wide as the grid, as before
+
+
+def test_root_part_is_the_single_mesh_in_the_world_frame_and_the_other_parts_are_unchanged():
+    """model.root_part (issue 38): part 0 starts as NMRr's sphere (radius 0.3, bounded by 0.5) and keeps the identity
+    world rotation in every view, while the other parts are the model's without the switch, bit for bit (same
+    tensors, no draw from the random stream); a loss on the root's world vertices gives the rotation head nothing
+    and the shape head a descent direction; one part alone is refused."""
+    from cerberus_core.errors import ConfigError
+    from cerberus_core.model.cerberus import Cerberus, ModelConfig
+    from cerberus_core.model.heads import ROOT_INIT_SCALE, ROOT_VERTEX_BOUND
+    torch.manual_seed(0)
+    paper = Cerberus(ModelConfig(num_parts=3, width=4, shape_latent_dim=8, depth_offset=2.83))
+    torch.manual_seed(0)
+    model = Cerberus(ModelConfig(num_parts=3, width=4, shape_latent_dim=8, depth_offset=2.83, root_part=True))
+    assert all(torch.equal(v, model.state_dict()[k]) for k, v in paper.state_dict().items())
+    assert set(model.state_dict()) == set(paper.state_dict())
+    images = torch.rand(2, 3, 32, 32)
+    camera = Camera.look_at(torch.tensor([30.0, 120.0]), torch.tensor([15.0, 5.0]), 2.83, image_size=32)
+    with torch.no_grad():
+        model.rotation.linear.weight.normal_()  # turned parts, so a world rotation shows
+        paper.rotation.linear.weight.copy_(model.rotation.linear.weight)
+    pred, ref = model(images), paper(images)
+    radius = pred.local_vertices.norm(dim=-1)
+    assert torch.allclose(radius[:, 0], torch.full_like(radius[:, 0], ROOT_INIT_SCALE), atol=0.01)
+    assert torch.equal(pred.local_vertices[:, 1:], ref.local_vertices[:, 1:])
+    r_world, t_world, r_cam, _ = model.world_pose(pred, camera)
+    p_world, p_t, p_cam, _ = paper.world_pose(ref, camera)
+    assert torch.equal(r_world[:, 0], torch.eye(3).expand(2, 3, 3)) and torch.equal(r_cam[:, 0], camera.rotation)
+    assert torch.equal(r_world[:, 1:], p_world[:, 1:]) and torch.equal(r_cam[:, 1:], p_cam[:, 1:])
+    assert not torch.allclose(p_world[:, 0], torch.eye(3).expand(2, 3, 3), atol=1e-3)  # the paper's part 0 turns
+    assert torch.equal(t_world, p_t)
+
+    with torch.no_grad():  # the root stays inside NMRr's bound, however far the map pushes it; the others do not
+        model.shape.to_displacement.bias.fill_(50.0)
+        far = model(images).local_vertices
+        model.shape.to_displacement.bias.zero_()
+    assert float(far[:, 0].abs().max()) < ROOT_VERTEX_BOUND and float(far[:, 1:].abs().max()) > 1.0
+
+    target = 1.3 * model(images).local_vertices[:, 0].detach()  # a larger root, in the world (its frame)
+    model.zero_grad()
+    pred = model(images)
+    parts = model.pose(pred, camera)
+    loss = (parts.posed()[:, 0] - (target + parts.translations[:, :1, None].detach())).square().mean()
+    loss.backward()
+    g = model.rotation.linear.weight.grad.view(3, 4, -1)
+    assert float(g[0].abs().max()) == 0.0  # the root's quaternion is not used
+    with torch.no_grad():
+        w = model.shape.to_displacement.weight
+        w -= 1e-2 * w.grad / w.grad.abs().max()
+        parts = model.pose(model(images), camera)
+        after = (parts.posed()[:, 0] - (target + parts.translations[:, :1, None])).square().mean()
+    assert float(after) < float(loss.detach())
+
+    with pytest.raises(ConfigError, match="model.root_part .* needs model.num_parts >= 2"):
+        ModelConfig(num_parts=1, root_part=True).check()

@@ -174,7 +174,8 @@ def test_the_own_cross_view_must_start_before_the_end():
         assert (c.losses.coverage, c.losses.keypoint_coverage, c.losses.overlap, c.losses.rotation) == (0, 0, 0, 0)
         assert (c.losses.consensus_coverage, c.losses.separation, c.losses.relocation, c.model.recentre,
                 c.model.deformation_warmup, c.model.rotation, c.model.axis_scales,
-                c.model.local_rotation) == (0, 0, 0, False, 0, "camera", False, False)  # issue 38's
+                c.model.local_rotation, c.model.root_part) == (0, 0, 0, False, 0, "camera", False, False,
+                                                               False)  # issue 38's
     with pytest.raises(ConfigError, match="model.rotation: none does not run; set model.rotation=camera"):
         load_config(preset="cpu", overrides=["model.rotation=none", "model.local_rotation=true"])
 

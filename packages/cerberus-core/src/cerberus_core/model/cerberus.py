@@ -101,6 +101,12 @@ class ModelConfig(Checked):
             added to every part's depth, so the whole body's distance is read from the whole image (beyond the
             paper, issue 38: one shift per image is most of what the depth oracle corrects; see
             :class:`~cerberus_core.model.heads.TranslationHead`).
+        root_part: ``false`` (the paper: every part alike) or ``true``: part 0, the one whose keypoint starts at the
+            image centre, is the NMRr baseline's one mesh inside Cerberus: it starts as NMRr's sphere (radius 0.3,
+            its coordinates bounded by 0.5) and deforms in the world frame (identity world rotation, as ``rotation:
+            none``), while the other parts keep ``init_scale``, ``vertex_bound`` and ``rotation`` (beyond the paper,
+            issue 38: the single mesh keeps learning after the parts stop; see
+            :class:`~cerberus_core.model.heads.ShapeHead`). Needs at least two parts.
     """
 
     SECTION = "model"
@@ -122,6 +128,7 @@ class ModelConfig(Checked):
     depth_offset: float | str = "auto"
     rotation: Literal["camera", "world", "none"] = "camera"
     body_depth: bool = False
+    root_part: bool = False
 
     def validate(self) -> None:
         """The checks between fields (the ranges are declared above)."""
@@ -129,6 +136,10 @@ class ModelConfig(Checked):
             raise ConfigError("model.local_rotation reads features into the rotation head, which model.rotation: none "
                               "does not run; set model.rotation=camera (or world), or model.local_rotation=false",
                               key="model.local_rotation", value=self.local_rotation)
+        if self.root_part and self.num_parts < 2:
+            raise ConfigError("model.root_part makes part 0 the single mesh beside the other parts and needs "
+                              "model.num_parts >= 2; for one mesh alone use the nmrr preset, or set "
+                              "model.root_part=false", key="model.root_part", value=self.root_part)
         if self.vertex_bound is not None and not self.vertex_bound > self.init_scale:
             raise ConfigError(f"model.vertex_bound must be null or larger than model.init_scale "
                               f"({self.init_scale}), got {self.vertex_bound!r}", key="model.vertex_bound", value=self.vertex_bound)
@@ -213,7 +224,7 @@ class Cerberus(nn.Module):
         latent = self.encoder.out_channels
         self.shape = ShapeHead(latent, config.shape_latent_dim, config.num_parts, self.template.vertices,
                                config.init_scale, config.displacement_scale, config.vertex_bound,
-                               config.recentre, config.axis_scales)
+                               config.recentre, config.axis_scales, config.root_part)
         self.rotation = RotationHead(latent, config.num_parts,
                                      self.decoder.out_channels if config.local_rotation else None)
         self.translation = TranslationHead(self.decoder.out_channels, config.num_parts, float(config.depth_offset),
@@ -294,12 +305,15 @@ class Cerberus(nn.Module):
         t_world = camera.camera_to_world(t_cam)
         if self.config.rotation == "camera":
             r_cam = pred.rotations
-            return camera.rotation_to_world(r_cam), t_world, r_cam, t_cam
-        if self.config.rotation == "world":
-            r_world = pred.rotations
+            r_world = camera.rotation_to_world(r_cam)
         else:
-            r_world = torch.eye(3, dtype=t_cam.dtype, device=t_cam.device).expand_as(pred.rotations)
-        r_cam = camera.rotation.unsqueeze(1) @ r_world
+            r_world = pred.rotations if self.config.rotation == "world" else \
+                torch.eye(3, dtype=t_cam.dtype, device=t_cam.device).expand_as(pred.rotations)
+            r_cam = camera.rotation.unsqueeze(1) @ r_world
+        if self.config.root_part:  # part 0 deforms in the world frame, as NMRr's one mesh (rotation: none)
+            eye = torch.eye(3, dtype=t_cam.dtype, device=t_cam.device).expand(r_world.shape[0], 1, 3, 3)
+            r_world = torch.cat([eye, r_world[:, 1:]], dim=1)
+            r_cam = torch.cat([camera.rotation.unsqueeze(1).to(t_cam.dtype), r_cam[:, 1:]], dim=1)
         return r_world, t_world, r_cam, t_cam
 
     def pose(self, pred: Predictions, camera: Camera, frame: str = "world") -> PartSet:

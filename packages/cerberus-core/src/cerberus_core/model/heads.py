@@ -39,6 +39,11 @@ Tensor = torch.Tensor
 AXIS_LOG_LIMIT = math.log(4.0)
 """``model.axis_scales``: the largest |log| of a part's scale along one axis (a quarter to four times)."""
 _BOUND_EDGE = 1.0 - 1e-6  # an ellipsoid past the vertex bound is squashed to just inside it
+ROOT_INIT_SCALE = 0.3
+"""``model.root_part``: the root part's initial radius (world units), the NMRr baseline's one sphere's."""
+ROOT_VERTEX_BOUND = 0.5
+"""``model.root_part``: the bound on the root part's local coordinates (world units), the NMRr baseline's: the
+half-size of the normalised object box."""
 
 
 class ShapeHead(nn.Module):
@@ -65,6 +70,10 @@ class ShapeHead(nn.Module):
     every vertex alike and under Adam moves a few into spikes instead (issue 38; superquadric parsing predicts
     each primitive's size along its axes the same way).
 
+    With ``root`` (beyond the paper, ``model.root_part``) part 0, the one whose keypoint starts at the image centre,
+    starts as the NMRr baseline's sphere (radius :data:`ROOT_INIT_SCALE`, its coordinates bounded by
+    :data:`ROOT_VERTEX_BOUND`); the other parts keep ``init_scale`` and ``vertex_bound``.
+
     With ``vertex_bound = b`` the coordinates are squashed instead, as in Kato et al.'s NMR decoder
     (which bounds them with a sigmoid): ``v = b * tanh(atanh(t / b) + d / b)`` for template
     coordinate ``t`` and displacement ``d``; ``v = t`` at ``d = 0``, ``v ≈ t + d`` while ``|v| << b``,
@@ -82,6 +91,7 @@ class ShapeHead(nn.Module):
         vertex_bound: ``None`` or the bound ``b`` (world units, larger than ``init_scale``).
         recentre: keep each part's vertex mean at its local origin.
         axis_scales: scale each part's template along its local axes first (an ellipsoid a part).
+        root: part 0 starts as the NMRr baseline's one sphere (bounded; the other parts as set).
 
     Example: with ``axis_scales`` an untrained head gives the template spheres; a latent that asks for a longer
     first axis stretches every part along it, as one ellipsoid:
@@ -102,7 +112,7 @@ class ShapeHead(nn.Module):
 
     def __init__(self, in_dim: int, latent_dim: int, num_parts: int, template: Tensor, init_scale: float,
                  displacement_scale: float = 1.0, vertex_bound: float | None = None, recentre: bool = False,
-                 axis_scales: bool = False) -> None:
+                 axis_scales: bool = False, root: bool = False) -> None:
         super().__init__()
         self.recentre = bool(recentre)
         self.num_parts = num_parts
@@ -120,11 +130,10 @@ class ShapeHead(nn.Module):
             nn.init.zeros_(self.to_axes.bias)
         self.register_buffer("template", template.float() * init_scale, persistent=False)
         self.vertex_bound = None if vertex_bound is None else float(vertex_bound)
-        if self.vertex_bound is not None:
-            if not self.vertex_bound > init_scale:
-                raise ConfigError.about("vertex_bound", vertex_bound, f"must exceed init_scale ({init_scale})",
-                                        "a bound larger than the template's scale, or `vertex_bound=None`")
-            self.register_buffer("template_logit", torch.atanh(self.template / self.vertex_bound), persistent=False)
+        if self.vertex_bound is not None and not self.vertex_bound > init_scale:
+            raise ConfigError.about("vertex_bound", vertex_bound, f"must exceed init_scale ({init_scale})",
+                                    "a bound larger than the template's scale, or `vertex_bound=None`")
+        self.register_buffer("root_template", template.float() * ROOT_INIT_SCALE if root else None, persistent=False)
 
     def latent(self, object_latent: Tensor) -> Tensor:
         """``(B, in_dim)`` → ``(B, latent_dim)`` shape latent ``S``."""
@@ -145,15 +154,30 @@ class ShapeHead(nn.Module):
         ``model.deformation_warmup``)."""
         scale = self.displacement_scale * gain if gain != 1.0 else self.displacement_scale
         disp = scale * self.to_displacement(shape_latent).view(-1, self.num_parts, self.num_vertices, 3)
-        template = self.template if self.to_axes is None else self.template * self.axes(shape_latent, gain)[:, :, None]
-        if self.vertex_bound is None:
-            local = template + disp
-        else:
-            b = self.vertex_bound
-            logit = self.template_logit if self.to_axes is None else \
-                torch.atanh((template / b).clamp(-_BOUND_EDGE, _BOUND_EDGE))
-            local = b * torch.tanh(logit + disp / b)
+        axes = None if self.to_axes is None else self.axes(shape_latent, gain)[:, :, None]  # (B, N, 1, 3)
+        if self.root_template is None:
+            local = bounded(self.template if axes is None else self.template * axes, disp, self.vertex_bound)
+        else:  # model.root_part: part 0 is NMRr's sphere under NMRr's bound, the other parts as set
+            root = self.root_template if axes is None else self.root_template * axes[:, :1]
+            rest = self.template if axes is None else self.template * axes[:, 1:]
+            local = torch.cat([bounded(root, disp[:, :1], ROOT_VERTEX_BOUND),
+                               bounded(rest, disp[:, 1:], self.vertex_bound)], dim=1)
         return local - local.mean(dim=-2, keepdim=True) if self.recentre else local
+
+
+def bounded(template: Tensor, displacement: Tensor, bound: float | None) -> Tensor:
+    """Template coordinates plus displacements (``(..., V, 3)``, world units, broadcast against each other), as they
+    are (``bound=None``) or squashed into ``(-bound, bound)`` as Kato et al.'s NMR decoder bounds them:
+    ``b tanh(atanh(t / b) + d / b)``, which is ``t`` at ``d = 0`` and about ``t + d`` while ``|t + d| << b``.
+
+    Example:
+        >>> t, d = torch.tensor([0.1, 0.1]), torch.tensor([0.0, 5.0])
+        >>> [round(float(v), 4) for v in bounded(t, d, 0.5)], [round(float(v), 4) for v in bounded(t, d, None)]
+        ([0.1, 0.5], [0.1, 5.1])
+    """
+    if bound is None:
+        return template + displacement
+    return bound * torch.tanh(torch.atanh((template / bound).clamp(-_BOUND_EDGE, _BOUND_EDGE)) + displacement / bound)
 
 
 class RotationHead(nn.Module):
