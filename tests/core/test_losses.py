@@ -538,3 +538,40 @@ def test_relocation_is_zero_without_a_spare_part_and_decides_spare_over_the_pose
     hidden_in_one[0, 0][hidden_in_one[0, 0] == 1] = 0  # view a0: part 0 in front of the arm too
     assert float(relocation_pull(points.detach(), hidden_in_one, fg, points.detach()).abs().sum()) == 0.0
     assert relocation_pull(points.detach(), part_id, fg, points.detach()).gt(0).all()  # part 1 holds nothing: spare
+
+
+def test_consensus_tips_swing_a_part_toward_the_limb_its_far_end_is_nearest_instead_of_stretching_it():
+    """``losses.consensus_tips``: a part on the trunk whose far end points up at the start of a raised arm. The
+    keypoint-only k-means has no use for the part's turn; with the tips the arm's pixels pull the pose's agreed tip,
+    and descending turns the part toward the arm in both views, while its vertices get no gradient (detached)."""
+    from cerberus_core.losses import part_tips, pose_consensus, silhouette_coverage
+
+    scene = SceneSetup(distance=2.5)
+    cam = scene.cameras(torch.tensor([0.0, 40.0]), 32)
+    body = [torch.tensor([0.0, y, 0.0]) for y in torch.linspace(-0.3, 0.3, 25)]  # the trunk, up to the shoulder
+    body += [torch.tensor([x, 0.3, 0.0]) for x in torch.linspace(0.0, 0.4, 17)]  # the raised arm, along +x
+    masks = []
+    for k in range(2):
+        uv, _ = cam.index([k]).project(torch.stack(body).view(1, -1, 3))
+        fg = torch.zeros(1, 32, 32)
+        fg[0, uv[0, :, 1].long(), uv[0, :, 0].long()] = 1
+        masks.append(fg)
+    vertices = torch.tensor([[0.0, 0.3, 0.0], [0.05, 0.0, 0.0], [0.0, -0.1, 0.0]]).expand(1, 4, 1, 3, 3).clone()
+    vertices.requires_grad_(True)
+    angle = torch.zeros((), requires_grad=True)  # the part's turn about the camera-facing axis z (+: toward +x)
+    c, s = torch.cos(angle), torch.sin(angle)
+    rot = torch.stack([torch.stack([c, s, 0 * c]), torch.stack([-s, c, 0 * c]),
+                       torch.stack([0 * c, 0 * c, 1 + 0 * c])]).expand(1, 4, 1, 3, 3)
+    t = torch.zeros(1, 4, 1, 3)
+
+    def pull(points):  # (1, 4, M, 3) world points -> the pose's k-means over both images
+        agreed = pose_consensus(points)
+        return sum(silhouette_coverage(cam.index([k % 2]).project(agreed[:, k])[0], masks[k % 2]).sum()
+                   for k in range(4))
+
+    tips = part_tips(vertices, rot, t)
+    torch.testing.assert_close(tips[0, :, 0], torch.tensor([0.0, 0.3, 0.0]).expand(4, 3))  # vertex 0, every view
+    loss = pull(torch.cat([t, tips], dim=2))
+    loss.backward()
+    assert float(angle.grad) < 0  # descending turns the far end toward the arm (+x)
+    assert vertices.grad is None  # the shape is left alone: the part swings, it does not stretch

@@ -476,3 +476,21 @@ def test_the_network_sees_the_inputs_and_the_losses_compare_against_the_images()
     assert not torch.allclose(seeing.renders, own.renders)
     assert seeing.terms["recon"] != stored.terms["recon"]  # ... compared against other targets
     assert seeing.terms["background"] != stored.terms["background"]  # ... and another background mask
+
+
+def test_consensus_tips_join_the_consensus_pull_and_need_it():
+    """``losses.consensus_tips`` changes only ``consensus_coverage`` (the k-means over keypoints and tips; the other
+    terms as without it) and refuses to run without that pull."""
+    from cerberus_core.errors import ConfigError
+
+    model, scene, batch, _ = _setup(pose_consistency=False)
+
+    def terms(**switches):
+        losses = LossConfig(pose_consistency=False, consensus_coverage=1.0, **switches)
+        return quadruplet_objective(model, make_renderer("torch"), batch, scene, losses).terms
+
+    plain, tips = terms(), terms(consensus_tips=True)
+    assert float(tips["consensus_coverage"]) != float(plain["consensus_coverage"])
+    assert all(torch.equal(tips[k], plain[k]) for k in plain if k not in ("consensus_coverage", "total"))
+    with pytest.raises(ConfigError, match=r"losses.consensus_tips = True: .*set losses.consensus_coverage=1.0"):
+        LossConfig(consensus_tips=True).check()

@@ -223,6 +223,38 @@ def pose_consensus(translations: Tensor) -> Tensor:
     return 0.5 * (translations + translations[:, list(VIEW_PARTNER)])
 
 
+def part_tips(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -> Tensor:
+    """Each part's tip, one world point a part and image (beyond the paper): the part's vertex farthest from its
+    local origin (the point its translation puts on its keypoint), the same template vertex in both views of a pose.
+
+    The vertex is chosen per pose and part by the sum of its two views' distances, without gradient, and its local
+    position is detached: the tip moves only as the part turns (``rotations``) and moves (``translations``), so a
+    pull on it (``losses.consensus_tips``) swings a part along a limb instead of stretching a vertex toward it.
+    Where the idea comes from: parts as bones between joints (LASSIE, Watch It Move), whose far end is placed as
+    well as their centre; read, not copied.
+
+    Args:
+        local_vertices: ``(B, 4, N, V, 3)`` the parts' local vertices of ``(a0, a1, b0, b1)`` (world units).
+        rotations: ``(B, 4, N, 3, 3)`` local→world rotations.
+        translations: ``(B, 4, N, 3)`` world translations.
+    Returns:
+        ``(B, 4, N, 3)`` world points.
+
+    Example: a part whose vertex 1 reaches farthest, turned a quarter about z, has its tip at R v_1 + T:
+        >>> v = torch.tensor([[0.1, 0.0, 0.0], [0.0, 0.3, 0.0]]).expand(1, 4, 1, 2, 3)
+        >>> r = torch.tensor([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).expand(1, 4, 1, 3, 3)
+        >>> [round(c, 4) for c in part_tips(v, r, torch.ones(1, 4, 1, 3))[0, 0, 0].tolist()]
+        [0.7, 1.0, 1.0]
+    """
+    check_shapes("part_tips", local_vertices=(local_vertices, "B 4 N V 3"), rotations=(rotations, "B 4 N 3 3"),
+                 translations=(translations, "B 4 N 3"))
+    local = local_vertices.detach()
+    reach = local.norm(dim=-1)  # (B, 4, N, V)
+    tip = (reach + reach[:, list(VIEW_PARTNER)]).argmax(-1)  # (B, 4, N): one vertex a pose and part
+    point = local.gather(-2, tip[..., None, None].expand(*tip.shape, 1, 3)).squeeze(-2)  # (B, 4, N, 3)
+    return (rotations @ point.unsqueeze(-1)).squeeze(-1) + translations
+
+
 def part_separation(translations: Tensor, min_distance: float = 0.1) -> Tensor:
     """KeypointNet's separation term in 3D (beyond the paper): parts closer than ``min_distance`` push apart.
 

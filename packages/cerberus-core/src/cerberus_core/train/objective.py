@@ -39,6 +39,7 @@ from cerberus_core.losses import (
     mix_shape_latents,
     part_overlap,
     part_separation,
+    part_tips,
     pose_consensus,
     reconstruction_loss,
     relocation_pull,
@@ -199,6 +200,7 @@ class ObjectiveInputs:
     smoothness_once: bool
     search: NearestSearch
     cross_pulls: bool = False
+    consensus_tips: bool = False
     _uv: Tensor | None = field(default=None, repr=False)
     _uv_cross: Tensor | None = field(default=None, repr=False)
 
@@ -271,7 +273,11 @@ def _consensus_uv(x: ObjectiveInputs) -> Tensor:  # (4B, N, 2): the pose's agree
 
 
 def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed translations over each image
-    return silhouette_coverage(_consensus_uv(x), x.foreground.flatten(0, 1), search=x.search)
+    uv = _consensus_uv(x)
+    if x.consensus_tips:  # and the pose's agreed part tips: (4B, 2N, 2)
+        tips = part_tips(_quad(x.parts.local_vertices, x), _quad(x.parts.rotations, x), _quad(x.parts.translations, x))
+        uv = torch.cat([uv, x.batch.camera.project(pose_consensus(tips).flatten(0, 1))[0]], dim=1)
+    return silhouette_coverage(uv, x.foreground.flatten(0, 1), search=x.search)
 
 
 def _relocation(x: ObjectiveInputs) -> Tensor:  # (4B,): spare parts' agreed translations to the body ends
@@ -398,6 +404,10 @@ class LossConfig(Checked):
             (:meth:`cross_view_at`).
         cross_pulls: apply the chamfer, coverage and hidden-part pulls to the cross view as well, against the
             partner's foreground, averaged with the input view's like equation 4; off: the input view only.
+        consensus_tips: ``consensus_coverage``'s k-means also moves each part's tip (:func:`part_tips
+            <cerberus_core.losses.part_tips>`, the vertex that reaches farthest, as the pose's two views agree on
+            it): ``2 N`` points share the foreground, so a limb beyond a part's keypoint pulls the part's far end and
+            swings the part along it; off: the keypoints only (beyond the paper, issue 38).
         render_background: the background colour of the reconstruction loss: ``black`` sets the input's background
             pixels (mask ``b``) to black in the target and composites the renderings over black (the barycentric
             renderer has no silhouette gradient, so a part over a white background would be pushed to face the
@@ -471,12 +481,17 @@ class LossConfig(Checked):
     cross_view: Literal["partner", "own"] = "partner"
     cross_view_warmup: int = ranged(0, ge=0)
     cross_pulls: bool = False
+    consensus_tips: bool = False
     allocation_steps: int = ranged(0, ge=0)
     render_background: Literal["black", "dataset"] = "black"
     background_tolerance: float = ranged(0.02, ge=0, lt=1)
 
     def validate(self) -> None:
-        """A partial mixing needs the mixing it makes partial."""
+        """A partial mixing needs the mixing it makes partial; the tips need the pull they join."""
+        if self.consensus_tips and self.consensus_coverage <= 0:
+            raise ConfigError.about("losses.consensus_tips", self.consensus_tips, "adds the parts' tips to the "
+                                    "consensus pull, which is off; set losses.consensus_coverage=1.0 (any weight "
+                                    "above 0), or losses.consensus_tips=false")
         if self.pose_mixing < 1 and not self.pose_consistency:
             raise ConfigError.about("losses.pose_mixing", self.pose_mixing, "makes pose consistency partial, which "
                                     "is off (losses.pose_consistency: false)", "`losses.pose_consistency=true`, or "
@@ -568,7 +583,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                 cross_view=losses.cross_view_at(step))
     shared_meshes = losses.pose_consistency and losses.pose_mixing == 1  # the four images decode one latent
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral, smoothness_once and shared_meshes,
-                             renderer.nearest_indices, losses.cross_pulls)
+                             renderer.nearest_indices, losses.cross_pulls, losses.consensus_tips)
     weights = losses.weights_at(step)
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}
