@@ -252,7 +252,7 @@ def part_tips(local_vertices: Tensor, rotations: Tensor, translations: Tensor) -
     reach = local.norm(dim=-1)  # (B, 4, N, V)
     tip = (reach + reach[:, list(VIEW_PARTNER)]).argmax(-1)  # (B, 4, N): one vertex a pose and part
     point = local.gather(-2, tip[..., None, None].expand(*tip.shape, 1, 3)).squeeze(-2)  # (B, 4, N, 3)
-    return (rotations @ point.unsqueeze(-1)).squeeze(-1) + translations
+    return pose_parts(point.unsqueeze(-2), rotations, translations).squeeze(-2)
 
 
 def part_separation(translations: Tensor, min_distance: float = 0.1) -> Tensor:

@@ -267,17 +267,16 @@ _chamfer = _vertex_pull(silhouette_chamfer)
 _coverage = _vertex_pull(silhouette_coverage)
 
 
-def _consensus_uv(x: ObjectiveInputs) -> Tensor:  # (4B, N, 2): the pose's agreed translations in each image
-    consensus = pose_consensus(_quad(x.parts.translations, x)).flatten(0, 1)  # (4B, N, 3)
-    return x.batch.camera.project(consensus)[0]
+def _consensus_uv(x: ObjectiveInputs, tips: bool = False) -> Tensor:
+    """(4B, N, 2) the pose's agreed translations in each image; with ``tips`` (4B, 2N, 2): then the agreed tips."""
+    points = _quad(x.parts.translations, x)  # (B, 4, N, 3)
+    if tips:
+        points = torch.cat([points, part_tips(_quad(x.parts.local_vertices, x), _quad(x.parts.rotations, x), points)], 2)
+    return x.batch.camera.project(pose_consensus(points).flatten(0, 1))[0]
 
 
-def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed translations over each image
-    uv = _consensus_uv(x)
-    if x.consensus_tips:  # and the pose's agreed part tips: (4B, 2N, 2)
-        tips = part_tips(_quad(x.parts.local_vertices, x), _quad(x.parts.rotations, x), _quad(x.parts.translations, x))
-        uv = torch.cat([uv, x.batch.camera.project(pose_consensus(tips).flatten(0, 1))[0]], dim=1)
-    return silhouette_coverage(uv, x.foreground.flatten(0, 1), search=x.search)
+def _consensus_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the pose's agreed points over each image
+    return silhouette_coverage(_consensus_uv(x, x.consensus_tips), x.foreground.flatten(0, 1), search=x.search)
 
 
 def _relocation(x: ObjectiveInputs) -> Tensor:  # (4B,): spare parts' agreed translations to the body ends
