@@ -442,8 +442,8 @@ def test_allocation_pulls_fade_over_allocation_steps_and_the_image_terms_do_not(
                         allocation_steps=1000)
     from cerberus_core.train.objective import TERM_TABLE
 
-    assert {t.name for t in TERM_TABLE if t.allocation} == {"keypoint_coverage", "consensus_coverage", "separation",
-                                                             "relocation"}
+    assert {t.name for t in TERM_TABLE if t.allocation} == {"rigid_coverage", "keypoint_coverage", "consensus_coverage",
+                                                             "separation", "relocation"}
     assert losses.weights_at(0) == losses.weights
     half = losses.weights_at(500)
     assert (half["consensus_coverage"], half["keypoint_coverage"], half["separation"]) == (1.5, 0.5, 1.0)
@@ -458,7 +458,7 @@ def test_allocation_pulls_fade_over_allocation_steps_and_the_image_terms_do_not(
                                  step=0)
     late = quadruplet_objective(model, make_renderer("torch"), batch, scene, cfg, torch.Generator().manual_seed(0),
                                 step=10)
-    assert early.terms["separation"] > 0 and float(early.total) > 0
+    assert early.terms["separation"] > 0 and float(early.total.detach()) > 0
     assert float(late.total) == 0.0
 
 
@@ -494,3 +494,59 @@ def test_consensus_tips_join_the_consensus_pull_and_need_it():
     assert all(torch.equal(tips[k], plain[k]) for k in plain if k not in ("consensus_coverage", "total"))
     with pytest.raises(ConfigError, match=r"losses.consensus_tips = True: .*set losses.consensus_coverage=1.0"):
         LossConfig(consensus_tips=True).check()
+
+
+def test_rigid_coverage_turns_and_moves_a_part_toward_a_missed_limb_and_leaves_its_shape_alone():
+    """``losses.rigid_coverage`` (issue 38): a long part on the trunk below a raised arm that it misses. The coverage
+    pull on its vertices with the shape held turns it toward the arm (about the camera-facing axis, +: toward +x) and
+    moves it toward +x, and gives its vertices no gradient: the part swings instead of stretching."""
+    import types
+
+    from cerberus_core.datasets.scene import SceneSetup
+    from cerberus_core.losses import nearest_indices
+    from cerberus_core.parts import PartSet
+    from cerberus_core.render.templates import icosphere
+    from cerberus_core.train.objective import _rigid_coverage
+
+    cam = SceneSetup(distance=2.5).cameras(torch.tensor([0.0, 40.0, 0.0, 40.0]), 32)
+    body = [torch.tensor([0.0, y, 0.0]) for y in torch.linspace(-0.3, 0.3, 25)]  # the trunk, up to the shoulder
+    body += [torch.tensor([x, 0.3, 0.0]) for x in torch.linspace(0.0, 0.4, 17)]  # the raised arm, along +x
+    uv, _ = cam.project(torch.stack(body).expand(4, -1, 3))
+    fg = torch.zeros(4, 32, 32)
+    fg[torch.arange(4)[:, None], uv[..., 1].long(), uv[..., 0].long()] = 1
+    template = icosphere(1)
+    local = (template.vertices * torch.tensor([0.05, 0.3, 0.05])).expand(4, 1, -1, 3).clone().requires_grad_(True)
+    angle = torch.zeros((), requires_grad=True)
+    c, s, o = torch.cos(angle), torch.sin(angle), torch.zeros(())
+    rot = torch.stack([torch.stack([c, s, o]), torch.stack([-s, c, o]), torch.stack([o, o, o + 1])]).expand(4, 1, 3, 3)
+    t = torch.tensor([0.0, 0.1, 0.0]).expand(4, 1, 3).clone().requires_grad_(True)
+    x = types.SimpleNamespace(parts=PartSet(local, template.faces, rot, t), batch=types.SimpleNamespace(camera=cam),
+                              foreground=fg.view(1, 4, 1, 32, 32), search=nearest_indices)
+    loss = _rigid_coverage(x)
+    assert loss.shape == (4,) and loss.gt(0).all()
+    loss.sum().backward()
+    assert float(angle.grad) < 0  # descending turns the part toward the arm
+    assert t.grad[:, 0, 0].lt(0).all()  # ... and moves it toward +x in every view
+    assert local.grad is None  # the shape is held: no stretching
+
+
+def test_rigid_coverage_is_the_coverage_pull_whose_gradient_skips_the_shape_head():
+    """The same value as ``losses.coverage`` (the same vertices, the same pull), but the shape head gets no gradient
+    from it, while the rotation and translation heads do; off (weight 0) it is not computed."""
+    model, scene, batch, _ = _setup(pose_consistency=False)
+    base = dict(pose_consistency=False, recon=0, translation=0, background=0, smoothness=0)
+
+    def run(**weights):
+        out = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(**base, **weights))
+        model.zero_grad(set_to_none=True)
+        out.total.backward()
+        return out.terms, {name: sum(float(p.grad.abs().sum()) for p in head.parameters() if p.grad is not None)
+                           for name, head in (("shape", model.shape), ("rotation", model.rotation),
+                                              ("translation", model.translation))}
+
+    rigid, rigid_grads = run(rigid_coverage=1.0)
+    plain, plain_grads = run(coverage=1.0)
+    assert float(rigid["rigid_coverage"]) == pytest.approx(float(plain["coverage"]), rel=1e-6)
+    assert rigid_grads["shape"] == 0 and plain_grads["shape"] > 0
+    assert rigid_grads["rotation"] > 0 and rigid_grads["translation"] > 0
+    assert float(plain["rigid_coverage"]) == 0.0

@@ -55,7 +55,7 @@ from cerberus_core.losses import (
     viewpoint_scenes,
 )
 from cerberus_core.model.cerberus import Cerberus, Predictions
-from cerberus_core.parts import PartSet
+from cerberus_core.parts import PartSet, pose_parts
 from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera, triangulate
 from cerberus_core.render.interface import Renderer, RenderOutput
@@ -267,6 +267,12 @@ _chamfer = _vertex_pull(silhouette_chamfer)
 _coverage = _vertex_pull(silhouette_coverage)
 
 
+def _rigid_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the coverage pull on the parts with their shapes held
+    held = pose_parts(x.parts.local_vertices.detach(), x.parts.rotations, x.parts.translations)  # (4B, N, V, 3)
+    return silhouette_coverage(x.batch.camera.project(held.flatten(1, 2))[0], x.foreground.flatten(0, 1),
+                               search=x.search)
+
+
 def _consensus_uv(x: ObjectiveInputs, tips: bool = False) -> Tensor:
     """(4B, N, 2) the pose's agreed translations in each image; with ``tips`` (4B, 2N, 2): then the agreed tips."""
     points = _quad(x.parts.translations, x)  # (B, 4, N, 3)
@@ -411,7 +417,7 @@ class LossConfig(Checked):
             pixels (mask ``b``) to black in the target and composites the renderings over black (the barycentric
             renderer has no silhouette gradient, so a part over a white background would be pushed to face the
             light, which flattens and inflates it; towards black it is not); ``dataset`` keeps the dataset's colour.
-        allocation_steps: the allocation pulls (:attr:`Term.allocation`: ``keypoint_coverage``,
+        allocation_steps: the allocation pulls (:attr:`Term.allocation`: ``rigid_coverage``, ``keypoint_coverage``,
             ``consensus_coverage``, ``separation``, ``relocation``) fade linearly from their weight at step 0 to nothing
             at this step, so they place the parts early and leave the rest of training to the image terms
             (:meth:`weights_at`);
@@ -447,6 +453,9 @@ class LossConfig(Checked):
                                "the partner camera against the partner's keypoint", reprojection_loss)
     coverage: float = term(0.0, _coverage, "lambda_cov L_cov", BEYOND, "every foreground pixel's distance to the "
                            "nearest projected part vertex, thin structures weighted up", silhouette_coverage)
+    rigid_coverage: float = term(0.0, _rigid_coverage, "lambda_rc L_rc", BEYOND, "the coverage pull on each part's "
+                                 "vertices with its shape held: a missed limb turns and moves the nearest part (R, T) "
+                                 "instead of stretching it", silhouette_coverage, allocation=True)
     keypoint_coverage: float = term(0.0, _keypoint_coverage, "lambda_kc L_kc", BEYOND, "every foreground pixel's "
                                     "distance to the nearest part keypoint, thin structures weighted up (k-means)",
                                     silhouette_coverage, allocation=True)
