@@ -520,10 +520,11 @@ def test_rigid_coverage_turns_and_moves_a_part_toward_a_missed_limb_and_leaves_i
     c, s, o = torch.cos(angle), torch.sin(angle), torch.zeros(())
     rot = torch.stack([torch.stack([c, s, o]), torch.stack([-s, c, o]), torch.stack([o, o, o + 1])]).expand(4, 1, 3, 3)
     t = torch.tensor([0.0, 0.1, 0.0]).expand(4, 1, 3).clone().requires_grad_(True)
-    x = types.SimpleNamespace(parts=PartSet(local, template.faces, rot, t), batch=types.SimpleNamespace(camera=cam),
+    x = types.SimpleNamespace(parts=PartSet(local, template.faces, rot, t), cross_view="partner", pulls_cross=False,
+                              batch=types.SimpleNamespace(camera=cam, num_quadruplets=1),
                               foreground=fg.view(1, 4, 1, 32, 32), search=nearest_indices)
     loss = _rigid_coverage(x)
-    assert loss.shape == (4,) and loss.gt(0).all()
+    assert loss.shape == (1,) and float(loss.detach()) > 0
     loss.sum().backward()
     assert float(angle.grad) < 0  # descending turns the part toward the arm
     assert t.grad[:, 0, 0].lt(0).all()  # ... and moves it toward +x in every view
@@ -531,10 +532,12 @@ def test_rigid_coverage_turns_and_moves_a_part_toward_a_missed_limb_and_leaves_i
 
 
 def test_rigid_coverage_is_the_coverage_pull_whose_gradient_skips_the_shape_head():
-    """The same value as ``losses.coverage`` (the same vertices, the same pull), but the shape head gets no gradient
-    from it, while the rotation and translation heads do; off (weight 0) it is not computed."""
+    """The same value as ``losses.coverage`` (the same vertices, the same pull, in the input view and with
+    ``losses.cross_pulls`` the cross view too), but the shape head gets no gradient from it, while the rotation and
+    translation heads do; off (weight 0) it is not computed."""
     model, scene, batch, _ = _setup(pose_consistency=False)
     base = dict(pose_consistency=False, recon=0, translation=0, background=0, smoothness=0)
+    values = []
 
     def run(**weights):
         out = quadruplet_objective(model, make_renderer("torch"), batch, scene, LossConfig(**base, **weights))
@@ -544,9 +547,13 @@ def test_rigid_coverage_is_the_coverage_pull_whose_gradient_skips_the_shape_head
                            for name, head in (("shape", model.shape), ("rotation", model.rotation),
                                               ("translation", model.translation))}
 
-    rigid, rigid_grads = run(rigid_coverage=1.0)
-    plain, plain_grads = run(coverage=1.0)
-    assert float(rigid["rigid_coverage"]) == pytest.approx(float(plain["coverage"]), rel=1e-6)
-    assert rigid_grads["shape"] == 0 and plain_grads["shape"] > 0
-    assert rigid_grads["rotation"] > 0 and rigid_grads["translation"] > 0
-    assert float(plain["rigid_coverage"]) == 0.0
+    for cross_pulls in (False, True):  # with cross_pulls both pulls also act on the cross view, averaged like eq. 4
+        base.update(cross_pulls=cross_pulls, cross_view="own")
+        rigid, rigid_grads = run(rigid_coverage=1.0)
+        plain, plain_grads = run(coverage=1.0)
+        assert float(rigid["rigid_coverage"]) == pytest.approx(float(plain["coverage"]), rel=1e-6)
+        assert rigid_grads["shape"] == 0 and plain_grads["shape"] > 0
+        assert rigid_grads["rotation"] > 0 and rigid_grads["translation"] > 0
+        assert float(plain["rigid_coverage"]) == 0.0
+        values.append(float(rigid["rigid_coverage"]))
+    assert values[0] != pytest.approx(values[1], rel=1e-3)  # the cross view's pull joins in

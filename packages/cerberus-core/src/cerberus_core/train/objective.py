@@ -55,7 +55,7 @@ from cerberus_core.losses import (
     viewpoint_scenes,
 )
 from cerberus_core.model.cerberus import Cerberus, Predictions
-from cerberus_core.parts import PartSet, pose_parts
+from cerberus_core.parts import PartSet
 from cerberus_core.render.api import part_pixel_counts, render_parts
 from cerberus_core.render.camera import Camera, triangulate
 from cerberus_core.render.interface import Renderer, RenderOutput
@@ -188,6 +188,8 @@ class ObjectiveInputs:
         dihedral: the template's dihedral quadruples; ``smoothness_once``: see :func:`smoothness_term`.
         search: the pulls' nearest-neighbour search (the renderer backend's kernel,
             :meth:`Renderer.nearest_indices`).
+        cross_pulls, consensus_tips: the switches of :class:`LossConfig`; cross_view: the cross view of this step
+            (:meth:`LossConfig.cross_view_at`), which the render used.
     """
 
     batch: QuadrupletBatch
@@ -201,6 +203,7 @@ class ObjectiveInputs:
     search: NearestSearch
     cross_pulls: bool = False
     consensus_tips: bool = False
+    cross_view: Literal["partner", "own"] = "partner"
     _uv: Tensor | None = field(default=None, repr=False)
     _uv_cross: Tensor | None = field(default=None, repr=False)
 
@@ -251,13 +254,26 @@ def _quad(t: Tensor, x: ObjectiveInputs) -> Tensor:  # (4B, ...) -> (B, 4, ...)
     return t.view(x.batch.num_quadruplets, 4, *t.shape[1:])
 
 
-def _vertex_pull(pull: Callable[..., Tensor]) -> Callable[[ObjectiveInputs], Tensor]:
+def _vertex_uv(x: ObjectiveInputs, cross: bool, held: bool) -> Tensor:
+    """``(4 B, N V, 2)`` the parts' vertices projected in the input view (:attr:`ObjectiveInputs.uv`) or the cross
+    view (``uv_cross``); with ``held``, of the same parts with their local shapes detached (``R sg(L) + T``), so a
+    gradient reaches their rotations and translations only."""
+    if not held:
+        return x.uv_cross if cross else x.uv
+    scenes = viewpoint_scenes(_quad(x.parts.local_vertices.detach(), x), _quad(x.parts.rotations, x),
+                              _quad(x.parts.translations, x), x.cross_view)  # the render's, each shape detached
+    cams = partner_cameras(x.batch.camera, x.batch.num_quadruplets) if cross else x.batch.camera
+    return cams.project(scenes[int(cross)].flatten(0, 1).flatten(1, 2))[0]
+
+
+def _vertex_pull(pull: Callable[..., Tensor], held: bool = False) -> Callable[[ObjectiveInputs], Tensor]:
     """A pull of the projected part vertices onto the input's foreground (``pull(points, foreground,
     search=...)`` ``-> (4 B,)``, with the renderer's nearest-neighbour search), in the input view and,
-    with ``cross_pulls``, the cross view, averaged like eq. 4."""
+    with ``cross_pulls``, the cross view, averaged like eq. 4; with ``held`` the parts' shapes are detached
+    (:func:`_vertex_uv`), so the pull turns and moves whole parts."""
     def value(x: ObjectiveInputs) -> Tensor:
-        own = _quad(pull(x.uv, x.foreground.flatten(0, 1), search=x.search), x)
-        cross = (_quad(pull(x.uv_cross, _partner(x.foreground).flatten(0, 1), search=x.search), x)
+        own = _quad(pull(_vertex_uv(x, False, held), x.foreground.flatten(0, 1), search=x.search), x)
+        cross = (_quad(pull(_vertex_uv(x, True, held), _partner(x.foreground).flatten(0, 1), search=x.search), x)
                  if x.pulls_cross else None)
         return viewpoint_reconstruction(own, cross)
     return value
@@ -265,12 +281,7 @@ def _vertex_pull(pull: Callable[..., Tensor]) -> Callable[[ObjectiveInputs], Ten
 
 _chamfer = _vertex_pull(silhouette_chamfer)
 _coverage = _vertex_pull(silhouette_coverage)
-
-
-def _rigid_coverage(x: ObjectiveInputs) -> Tensor:  # (4B,): the coverage pull on the parts with their shapes held
-    held = pose_parts(x.parts.local_vertices.detach(), x.parts.rotations, x.parts.translations)  # (4B, N, V, 3)
-    return silhouette_coverage(x.batch.camera.project(held.flatten(1, 2))[0], x.foreground.flatten(0, 1),
-                               search=x.search)
+_rigid_coverage = _vertex_pull(silhouette_coverage, held=True)
 
 
 def _consensus_uv(x: ObjectiveInputs, tips: bool = False) -> Tensor:
@@ -407,7 +418,7 @@ class LossConfig(Checked):
         cross_view_warmup: with ``cross_view: own``, the first this many steps still use ``partner``, so that early
             training, whose depths are still arbitrary, cannot lose the body off the partner's screen
             (:meth:`cross_view_at`).
-        cross_pulls: apply the chamfer, coverage and hidden-part pulls to the cross view as well, against the
+        cross_pulls: apply the chamfer, coverage, rigid coverage and hidden-part pulls to the cross view as well, against the
             partner's foreground, averaged with the input view's like equation 4; off: the input view only.
         consensus_tips: ``consensus_coverage``'s k-means also moves each part's tip (:func:`part_tips
             <cerberus_core.losses.part_tips>`, the vertex that reaches farthest, as the pose's two views agree on
@@ -591,7 +602,7 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
                                 cross_view=losses.cross_view_at(step))
     shared_meshes = losses.pose_consistency and losses.pose_mixing == 1  # the four images decode one latent
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral, smoothness_once and shared_meshes,
-                             renderer.nearest_indices, losses.cross_pulls, losses.consensus_tips)
+                             renderer.nearest_indices, losses.cross_pulls, losses.consensus_tips, losses.cross_view_at(step))
     weights = losses.weights_at(step)
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}
