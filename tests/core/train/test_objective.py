@@ -506,7 +506,7 @@ def test_rigid_coverage_turns_and_moves_a_part_toward_a_missed_limb_and_leaves_i
     from cerberus_core.losses import nearest_indices
     from cerberus_core.parts import PartSet
     from cerberus_core.render.templates import icosphere
-    from cerberus_core.train.objective import _rigid_coverage
+    from cerberus_core.train.objective import ObjectiveInputs, _rigid_coverage
 
     cam = SceneSetup(distance=2.5).cameras(torch.tensor([0.0, 40.0, 0.0, 40.0]), 32)
     body = [torch.tensor([0.0, y, 0.0]) for y in torch.linspace(-0.3, 0.3, 25)]  # the trunk, up to the shoulder
@@ -520,9 +520,8 @@ def test_rigid_coverage_turns_and_moves_a_part_toward_a_missed_limb_and_leaves_i
     c, s, o = torch.cos(angle), torch.sin(angle), torch.zeros(())
     rot = torch.stack([torch.stack([c, s, o]), torch.stack([-s, c, o]), torch.stack([o, o, o + 1])]).expand(4, 1, 3, 3)
     t = torch.tensor([0.0, 0.1, 0.0]).expand(4, 1, 3).clone().requires_grad_(True)
-    x = types.SimpleNamespace(parts=PartSet(local, template.faces, rot, t), cross_view="partner", pulls_cross=False,
-                              batch=types.SimpleNamespace(camera=cam, num_quadruplets=1),
-                              foreground=fg.view(1, 4, 1, 32, 32), search=nearest_indices)
+    x = ObjectiveInputs(types.SimpleNamespace(camera=cam, num_quadruplets=1), None, PartSet(local, template.faces, rot, t),
+                        1 - fg.view(4, 1, 32, 32), None, None, None, False, nearest_indices)  # no cross view
     loss = _rigid_coverage(x)
     assert loss.shape == (1,) and float(loss.detach()) > 0
     loss.sum().backward()

@@ -206,6 +206,7 @@ class ObjectiveInputs:
     cross_view: Literal["partner", "own"] = "partner"
     _uv: Tensor | None = field(default=None, repr=False)
     _uv_cross: Tensor | None = field(default=None, repr=False)
+    _held: tuple[Tensor, Tensor] | None = field(default=None, repr=False)
 
     @property
     def foreground(self) -> Tensor:
@@ -227,6 +228,17 @@ class ObjectiveInputs:
             cams = partner_cameras(self.batch.camera, self.batch.num_quadruplets)
             self._uv_cross, _ = cams.project(self.render.parts_cross.flatten(0, 1).flatten(1, 2))
         return self._uv_cross
+
+    @property
+    def held_scenes(self) -> tuple[Tensor, Tensor]:
+        """``(B, 4, N, V, 3)`` twice: the own and cross views' world-space parts posed as the render's
+        (:func:`cerberus_core.losses.viewpoint_scenes` with ``cross_view``) with each local shape detached
+        (``R sg(L) + T``), so a gradient through them reaches the rotations and translations only."""
+        if self._held is None:
+            shapes = _quad(self.parts.local_vertices.detach(), self)
+            self._held = viewpoint_scenes(shapes, _quad(self.parts.rotations, self), _quad(self.parts.translations, self),
+                                          self.cross_view)
+        return self._held
 
     @property
     def pulls_cross(self) -> bool:
@@ -260,10 +272,8 @@ def _vertex_uv(x: ObjectiveInputs, cross: bool, held: bool) -> Tensor:
     gradient reaches their rotations and translations only."""
     if not held:
         return x.uv_cross if cross else x.uv
-    scenes = viewpoint_scenes(_quad(x.parts.local_vertices.detach(), x), _quad(x.parts.rotations, x),
-                              _quad(x.parts.translations, x), x.cross_view)  # the render's, each shape detached
     cams = partner_cameras(x.batch.camera, x.batch.num_quadruplets) if cross else x.batch.camera
-    return cams.project(scenes[int(cross)].flatten(0, 1).flatten(1, 2))[0]
+    return cams.project(x.held_scenes[int(cross)].flatten(0, 1).flatten(1, 2))[0]
 
 
 def _vertex_pull(pull: Callable[..., Tensor], held: bool = False) -> Callable[[ObjectiveInputs], Tensor]:
@@ -597,12 +607,13 @@ def quadruplet_objective(model: nn.Module, renderer: Renderer, batch: Quadruplet
     mask = background_mask(images, scene.background, losses.background_tolerance)  # (4B, 1, H, W)
     black = losses.render_background == "black"
     targets = batch.images * (1 - mask.view_as(batch.images[:, :, :1])) if black else batch.images
+    cross_view = losses.cross_view_at(step)
     render = render_quadruplets(renderer, parts, batch, scene, (0.0, 0.0, 0.0) if black else scene.background,
                                 viewpoint_consistency=losses.viewpoint_consistency, antialias=antialias,
-                                cross_view=losses.cross_view_at(step))
+                                cross_view=cross_view)
     shared_meshes = losses.pose_consistency and losses.pose_mixing == 1  # the four images decode one latent
     inputs = ObjectiveInputs(batch, pred, parts, mask, targets, render, core.dihedral, smoothness_once and shared_meshes,
-                             renderer.nearest_indices, losses.cross_pulls, losses.consensus_tips, losses.cross_view_at(step))
+                             renderer.nearest_indices, losses.cross_pulls, losses.consensus_tips, cross_view)
     weights = losses.weights_at(step)
     values = {t.name: t.value(inputs).mean() if t.always_logged or weights[t.name] != 0 else images.new_zeros(())
               for t in TERM_TABLE}
